@@ -1,0 +1,39 @@
+"""The project's exception hierarchy: one base class, one subclass per kind of failure.
+
+Messages name the problem and, where there is a choice, the valid options.
+"""
+
+from __future__ import annotations
+
+__all__ = [
+    "AssetError",
+    "ConfigError",
+    "RecordingError",
+    "SceneError",
+    "SimulationError",
+    "TabletopError",
+]
+
+
+class TabletopError(Exception):
+    """Base class of every error this package raises on purpose."""
+
+
+class ConfigError(TabletopError, ValueError):
+    """A configuration value or argument is invalid."""
+
+
+class SceneError(TabletopError, ValueError):
+    """A scene spec is malformed or cannot be built."""
+
+
+class AssetError(TabletopError, FileNotFoundError):
+    """A shipped asset (URDF, mesh, sound clip) is missing or unreadable."""
+
+
+class RecordingError(TabletopError, ValueError):
+    """A recording on disk is missing a file, truncated, or inconsistent."""
+
+
+class SimulationError(TabletopError, RuntimeError):
+    """The simulator could not do what was asked (render, reach a pose, ...)."""
