@@ -1,0 +1,391 @@
+"""Recordings: what the wrist camera, the arm and the microphone produced, on disk and in memory.
+
+The format (``tabletop-recording`` version 1) is documented in ``docs/recording_format.md``.
+A real Panda with a wrist camera produces the same thing: RGB, metric depth, end-effector poses
+in the base frame, the calibrated hand-camera extrinsic, and a mono audio track on the frame
+clock. The simulator adds its segmentation (for the oracle encoders) and the ground truth.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import os
+import shutil
+import tempfile
+from collections.abc import Iterator
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from tabletop.errors import RecordingError
+
+__all__ = [
+    "FORMAT_NAME",
+    "FORMAT_VERSION",
+    "Frame",
+    "Recording",
+    "Segment",
+    "load_recording",
+    "save_recording",
+]
+
+log = logging.getLogger(__name__)
+
+FORMAT_NAME = "tabletop-recording"
+FORMAT_VERSION = 1
+_HEADER = "recording.json"
+_POSES = "poses.npz"
+_AUDIO = "audio.npy"
+
+
+@dataclass(frozen=True)
+class Segment:
+    """A named span of frames ``[start, stop)``: the mapping sweep, a transit, an episode."""
+
+    name: str
+    kind: str  # "mapping" | "transit" | "episode" | free text for real data
+    start: int
+    stop: int
+
+
+@dataclass(frozen=True)
+class Frame:
+    """One time step of a recording (views into the recording's arrays)."""
+
+    index: int
+    timestamp: float  # [s] on the frame clock
+    rgb: np.ndarray  # (H, W, 3) uint8
+    depth: np.ndarray  # (H, W) float32 [m], 0 = invalid
+    joint_positions: np.ndarray  # (7,) float64 [rad]
+    T_world_hand: np.ndarray  # (4, 4) end-effector (panda_hand) pose in the base frame
+    T_world_cam: np.ndarray  # (4, 4) camera optical frame (OpenCV) in the base frame
+    segmentation: np.ndarray | None  # (H, W) uint16 instance ids; simulator only
+
+
+@dataclass(frozen=True, eq=False)
+class Recording:
+    """A whole recording in memory. Arrays are validated and made read-only on creation."""
+
+    timestamps: np.ndarray  # (N,) float64 [s], strictly increasing
+    rgb: np.ndarray  # (N, H, W, 3) uint8
+    depth: np.ndarray  # (N, H, W) float32 [m], 0 = invalid
+    joint_positions: np.ndarray  # (N, 7) float64 [rad]
+    T_world_hand: np.ndarray  # (N, 4, 4) float64, end-effector pose, base frame [m]
+    K: np.ndarray  # (3, 3) float64 [px]
+    T_hand_cam: np.ndarray  # (4, 4) float64, calibrated camera extrinsic [m]
+    depth_resolution: float = 1e-4
+    """Depth quantum [m]; depth values are integer multiples of it (stored as uint16)."""
+    audio: np.ndarray | None = None  # (S,) float32 mono in [-1, 1], sample 0 at t = 0 s
+    audio_rate: int = 16000  # [Hz]
+    segments: tuple[Segment, ...] = ()
+    segmentation: np.ndarray | None = None  # (N, H, W) uint16, simulator oracle only
+    T_world_hand_true: np.ndarray | None = None  # (N, 4, 4) noise-free poses (simulator)
+    ground_truth: dict | None = None  # scene and sound-event ground truth (simulator)
+    meta: dict = field(default_factory=dict)  # free-form provenance (source, seed, renderer, …)
+
+    def __post_init__(self) -> None:
+        def arr(name, dtype, shape_tail, ndim):
+            value = getattr(self, name)
+            a = np.array(value, dtype=dtype, copy=True)
+            if a.ndim != ndim or (shape_tail and a.shape[1:] != shape_tail):
+                raise RecordingError(
+                    f"{name} must have shape (N, {', '.join(map(str, shape_tail))}) "
+                    f"and dtype {np.dtype(dtype).name}, got {getattr(value, 'shape', None)}"
+                )
+            a.setflags(write=False)
+            object.__setattr__(self, name, a)
+            return a
+
+        t = arr("timestamps", np.float64, (), 1)
+        n = len(t)
+        rgb = arr("rgb", np.uint8, (), 4)
+        if rgb.shape[-1] != 3:
+            raise RecordingError(f"rgb must be (N, H, W, 3) uint8, got {rgb.shape}")
+        h, w = rgb.shape[1:3]
+        arr("depth", np.float32, (h, w), 3)
+        arr("joint_positions", np.float64, (7,), 2)
+        arr("T_world_hand", np.float64, (4, 4), 3)
+        for name in ("rgb", "depth", "joint_positions", "T_world_hand"):
+            if len(getattr(self, name)) != n:
+                raise RecordingError(
+                    f"{name} has {len(getattr(self, name))} frames, timestamps has {n}"
+                )
+        if n and np.any(np.diff(t) <= 0):
+            raise RecordingError("timestamps must be strictly increasing")
+        K = np.array(self.K, dtype=np.float64)
+        if K.shape != (3, 3):
+            raise RecordingError(f"K must be (3, 3), got {K.shape}")
+        K.setflags(write=False)
+        object.__setattr__(self, "K", K)
+        T = np.array(self.T_hand_cam, dtype=np.float64)
+        if T.shape != (4, 4):
+            raise RecordingError(f"T_hand_cam must be (4, 4), got {T.shape}")
+        T.setflags(write=False)
+        object.__setattr__(self, "T_hand_cam", T)
+        if np.any(self.depth < 0) or not np.all(np.isfinite(self.depth)):
+            raise RecordingError("depth must be finite and >= 0 (0 = invalid)")
+        if self.segmentation is not None:
+            arr("segmentation", np.uint16, (h, w), 3)
+            if len(self.segmentation) != n:
+                raise RecordingError(f"segmentation has {len(self.segmentation)} frames, not {n}")
+        if self.T_world_hand_true is not None:
+            arr("T_world_hand_true", np.float64, (4, 4), 3)
+            if len(self.T_world_hand_true) != n:
+                raise RecordingError("T_world_hand_true must have one pose per frame")
+        if self.audio is not None:
+            arr("audio", np.float32, (), 1)
+            if self.audio_rate <= 0:
+                raise RecordingError(f"audio_rate must be positive [Hz], got {self.audio_rate}")
+        for s in self.segments:
+            if not 0 <= s.start < s.stop <= n:
+                raise RecordingError(f"segment {s.name!r} [{s.start}, {s.stop}) outside 0..{n}")
+
+    # ------------------------------------------------------------------ access
+    def __len__(self) -> int:
+        return len(self.timestamps)
+
+    @property
+    def image_size(self) -> tuple[int, int]:
+        """(width, height) [px]."""
+        return self.rgb.shape[2], self.rgb.shape[1]
+
+    @property
+    def T_world_cam(self) -> np.ndarray:
+        """(N, 4, 4) camera poses, ``T_world_hand @ T_hand_cam``."""
+        return self.T_world_hand @ self.T_hand_cam
+
+    def frame(self, i: int) -> Frame:
+        if not -len(self) <= i < len(self):
+            raise IndexError(f"frame {i} out of range for a recording of {len(self)} frames")
+        i = i % len(self)
+        return Frame(
+            index=i,
+            timestamp=float(self.timestamps[i]),
+            rgb=self.rgb[i],
+            depth=self.depth[i],
+            joint_positions=self.joint_positions[i],
+            T_world_hand=self.T_world_hand[i],
+            T_world_cam=self.T_world_hand[i] @ self.T_hand_cam,
+            segmentation=None if self.segmentation is None else self.segmentation[i],
+        )
+
+    def __iter__(self) -> Iterator[Frame]:
+        return (self.frame(i) for i in range(len(self)))
+
+    def segment(self, name: str) -> Segment:
+        for s in self.segments:
+            if s.name == name:
+                return s
+        raise RecordingError(f"no segment {name!r}; segments: {[s.name for s in self.segments]}")
+
+    @property
+    def duration(self) -> float:
+        """[s] from the first to the last frame."""
+        return float(self.timestamps[-1] - self.timestamps[0]) if len(self) else 0.0
+
+
+# ---------------------------------------------------------------------- writing
+def _image_name(kind: str, i: int) -> str:
+    return f"{kind}/{i:06d}.png"
+
+
+def _write_png(path: Path, image: np.ndarray) -> None:
+    if not cv2.imwrite(str(path), image):
+        raise RecordingError(f"could not write {path}")
+
+
+def save_recording(
+    rec: Recording, path: str | Path, *, overwrite: bool = False, workers: int = 2
+) -> Path:
+    """Write ``rec`` to directory ``path`` atomically (a temporary sibling, then a rename).
+
+    An existing ``path`` is an error unless ``overwrite``; then it is replaced only once the
+    new recording is complete, so a failure never leaves half a recording behind.
+    """
+    path = Path(path)
+    if path.exists() and not overwrite:
+        raise RecordingError(f"{path} exists; pass overwrite=True (--overwrite) to replace it")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{path.name}.", dir=path.parent))
+    try:
+        _write_into(rec, tmp, workers)
+        if path.exists():
+            old = path.with_name(f".{path.name}.old-{os.getpid()}")
+            path.rename(old)
+            tmp.rename(path)
+            shutil.rmtree(old)
+        else:
+            tmp.rename(path)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    return path
+
+
+def _write_into(rec: Recording, out: Path, workers: int) -> None:
+    n = len(rec)
+    kinds = ["rgb", "depth"] + (["segmentation"] if rec.segmentation is not None else [])
+    for k in kinds:
+        (out / k).mkdir()
+    scale = 1.0 / rec.depth_resolution
+    max_units = float(rec.depth.max(initial=0.0)) * scale
+    if max_units > 65535:
+        raise RecordingError(
+            f"depth up to {rec.depth.max():.3f} m does not fit 16 bits at "
+            f"depth_resolution={rec.depth_resolution} m"
+        )
+
+    def write_frame(i: int) -> None:
+        _write_png(out / _image_name("rgb", i), np.ascontiguousarray(rec.rgb[i][..., ::-1]))
+        units = np.round(rec.depth[i].astype(np.float64) * scale).astype(np.uint16)
+        _write_png(out / _image_name("depth", i), units)
+        if rec.segmentation is not None:
+            _write_png(out / _image_name("segmentation", i), rec.segmentation[i])
+
+    with ThreadPoolExecutor(max_workers=max(1, workers)) as pool:
+        list(pool.map(write_frame, range(n)))
+
+    poses = {
+        "timestamps": rec.timestamps,
+        "joint_positions": rec.joint_positions,
+        "T_world_hand": rec.T_world_hand,
+    }
+    if rec.T_world_hand_true is not None:
+        poses["T_world_hand_true"] = rec.T_world_hand_true
+    np.savez(out / _POSES, **poses)
+    if rec.audio is not None:
+        np.save(out / _AUDIO, rec.audio)
+
+    files = sorted(str(p.relative_to(out)) for p in out.rglob("*") if p.is_file())
+    header = {
+        "format": FORMAT_NAME,
+        "version": FORMAT_VERSION,
+        "n_frames": n,
+        "width": rec.image_size[0],
+        "height": rec.image_size[1],
+        "K": rec.K.tolist(),
+        "T_hand_cam": rec.T_hand_cam.tolist(),
+        "ee_frame": "panda_hand",
+        "depth_resolution": rec.depth_resolution,
+        "has_segmentation": rec.segmentation is not None,
+        "audio": None
+        if rec.audio is None
+        else {"file": _AUDIO, "sample_rate": rec.audio_rate, "n_samples": len(rec.audio)},
+        "segments": [vars(s) for s in rec.segments],
+        "meta": rec.meta,
+        "ground_truth": rec.ground_truth,
+        "files": {f: (out / f).stat().st_size for f in files},
+    }
+    (out / _HEADER).write_text(json.dumps(header, indent=1))
+
+
+# ---------------------------------------------------------------------- reading
+def _read_png(path: Path, flags: int) -> np.ndarray:
+    img = cv2.imread(str(path), flags)
+    if img is None:
+        raise RecordingError(f"{path} is missing or not a readable PNG")
+    return img
+
+
+def load_recording(path: str | Path, *, workers: int = 2) -> Recording:
+    """Load and validate a recording directory written by :func:`save_recording`.
+
+    Every file the header lists must exist with its recorded size: a missing or truncated
+    file raises :class:`RecordingError` naming it.
+    """
+    path = Path(path)
+    header_path = path / _HEADER
+    if not header_path.is_file():
+        raise RecordingError(f"{path} is not a recording: {header_path} is missing")
+    try:
+        h = json.loads(header_path.read_text())
+    except json.JSONDecodeError as e:
+        raise RecordingError(f"{header_path} is not valid JSON (truncated?): {e}") from None
+    if h.get("format") != FORMAT_NAME:
+        raise RecordingError(f"{header_path}: format is {h.get('format')!r}, not {FORMAT_NAME!r}")
+    if h.get("version") != FORMAT_VERSION:
+        raise RecordingError(
+            f"{header_path}: version {h.get('version')!r} is not supported; "
+            f"this tabletop reads version {FORMAT_VERSION}"
+        )
+    required = ["n_frames", "width", "height", "K", "T_hand_cam", "depth_resolution", "files"]
+    missing = [k for k in required if k not in h]
+    if missing:
+        raise RecordingError(f"{header_path}: missing fields {missing}")
+    for rel, size in h["files"].items():
+        f = path / rel
+        if not f.is_file():
+            raise RecordingError(f"{f} is missing (listed in {_HEADER})")
+        actual = f.stat().st_size
+        if actual != size:
+            raise RecordingError(f"{f} has {actual} bytes, expected {size}: truncated or changed")
+
+    n = int(h["n_frames"])
+    try:
+        with np.load(path / _POSES) as z:
+            poses = {k: z[k] for k in z.files}
+    except Exception as e:
+        raise RecordingError(f"{path / _POSES} is unreadable: {e}") from None
+    for k in ("timestamps", "joint_positions", "T_world_hand"):
+        if k not in poses:
+            raise RecordingError(f"{path / _POSES} lacks array {k!r}")
+
+    scale = float(h["depth_resolution"])
+
+    def read_frame(i: int):
+        bgr = _read_png(path / _image_name("rgb", i), cv2.IMREAD_COLOR)
+        units = _read_png(path / _image_name("depth", i), cv2.IMREAD_UNCHANGED)
+        if units.dtype != np.uint16:
+            raise RecordingError(f"{path / _image_name('depth', i)} must be a 16-bit PNG")
+        seg = None
+        if h.get("has_segmentation"):
+            seg = _read_png(path / _image_name("segmentation", i), cv2.IMREAD_UNCHANGED)
+        return bgr[..., ::-1], (units.astype(np.float64) * scale).astype(np.float32), seg
+
+    with ThreadPoolExecutor(max_workers=max(1, workers)) as pool:
+        frames = list(pool.map(read_frame, range(n)))
+    H, W = int(h["height"]), int(h["width"])
+    for i, (rgb, depth, _) in enumerate(frames):
+        if rgb.shape != (H, W, 3) or depth.shape != (H, W):
+            raise RecordingError(
+                f"{path / _image_name('rgb', i)}: image is {rgb.shape[1]}x{rgb.shape[0]}, "
+                f"header says {W}x{H}"
+            )
+    rgb = np.stack([f[0] for f in frames]) if n else np.zeros((0, H, W, 3), np.uint8)
+    depth = np.stack([f[1] for f in frames]) if n else np.zeros((0, H, W), np.float32)
+    seg = np.stack([f[2] for f in frames]) if h.get("has_segmentation") and n else None
+
+    audio = None
+    audio_rate = 16000
+    if h.get("audio"):
+        try:
+            audio = np.load(path / h["audio"]["file"])
+        except Exception as e:
+            raise RecordingError(f"{path / h['audio']['file']} is unreadable: {e}") from None
+        audio_rate = int(h["audio"]["sample_rate"])
+        if len(audio) != h["audio"]["n_samples"]:
+            raise RecordingError(f"{path / h['audio']['file']}: sample count differs from header")
+    try:
+        return Recording(
+            timestamps=poses["timestamps"],
+            rgb=rgb,
+            depth=depth,
+            joint_positions=poses["joint_positions"],
+            T_world_hand=poses["T_world_hand"],
+            K=np.array(h["K"]),
+            T_hand_cam=np.array(h["T_hand_cam"]),
+            depth_resolution=scale,
+            audio=audio,
+            audio_rate=audio_rate,
+            segments=tuple(Segment(**s) for s in h.get("segments", [])),
+            segmentation=seg,
+            T_world_hand_true=poses.get("T_world_hand_true"),
+            ground_truth=h.get("ground_truth"),
+            meta=h.get("meta", {}),
+        )
+    except RecordingError as e:
+        raise RecordingError(f"{path}: {e}") from None

@@ -1,0 +1,157 @@
+"""Recording format: exact round trip, validation, clear errors for missing/truncated files."""
+
+import json
+
+import numpy as np
+import pytest
+
+from tabletop.errors import RecordingError
+from tabletop.sim.recording import Recording, Segment, load_recording, save_recording
+
+
+def make_recording(n=5, h=240, w=320, seed=0, with_extras=True):
+    rng = np.random.default_rng(seed)
+    res = 1e-4
+    depth = np.round(rng.uniform(0.1, 2.0, (n, h, w)) / res) * res
+    depth[:, :10] = 0.0
+    T = np.tile(np.eye(4), (n, 1, 1))
+    T[:, :3, 3] = rng.normal(size=(n, 3))
+    return Recording(
+        timestamps=np.arange(n) / 30.0,
+        rgb=rng.integers(0, 256, (n, h, w, 3), dtype=np.uint8),
+        depth=depth.astype(np.float32),
+        joint_positions=rng.normal(size=(n, 7)),
+        T_world_hand=T,
+        K=np.array([[200.0, 0, 159.5], [0, 200.0, 119.5], [0, 0, 1]]),
+        T_hand_cam=np.eye(4),
+        depth_resolution=res,
+        audio=rng.normal(0, 0.1, 16000).astype(np.float32) if with_extras else None,
+        audio_rate=16000,
+        segments=(
+            Segment("mapping", "mapping", 0, n - 1),
+            Segment("episode_0", "episode", n - 1, n),
+        ),
+        segmentation=rng.integers(0, 20, (n, h, w), dtype=np.uint16) if with_extras else None,
+        T_world_hand_true=T.copy() if with_extras else None,
+        ground_truth={"objects": [{"name": "red_mug"}]} if with_extras else None,
+        meta={"source": "test"},
+    )
+
+
+def assert_same(a: Recording, b: Recording):
+    for name in (
+        "timestamps",
+        "rgb",
+        "depth",
+        "joint_positions",
+        "T_world_hand",
+        "K",
+        "T_hand_cam",
+    ):
+        x, y = getattr(a, name), getattr(b, name)
+        assert x.dtype == y.dtype, name
+        assert np.array_equal(x, y), name
+    for name in ("audio", "segmentation", "T_world_hand_true"):
+        x, y = getattr(a, name), getattr(b, name)
+        assert (x is None) == (y is None), name
+        if x is not None:
+            assert x.dtype == y.dtype and np.array_equal(x, y), name
+    assert a.segments == b.segments
+    assert a.ground_truth == b.ground_truth
+    assert a.meta == b.meta
+    assert a.audio_rate == b.audio_rate and a.depth_resolution == b.depth_resolution
+
+
+@pytest.mark.parametrize("extras", [True, False])
+def test_round_trip_is_exact(tmp_path, extras):
+    rec = make_recording(with_extras=extras)
+    save_recording(rec, tmp_path / "rec")
+    assert_same(rec, load_recording(tmp_path / "rec"))
+
+
+def test_missing_file_is_named(tmp_path):
+    save_recording(make_recording(), tmp_path / "rec")
+    (tmp_path / "rec" / "depth" / "000003.png").unlink()
+    with pytest.raises(RecordingError, match=r"depth/000003\.png is missing"):
+        load_recording(tmp_path / "rec")
+
+
+def test_truncated_file_is_named(tmp_path):
+    save_recording(make_recording(), tmp_path / "rec")
+    f = tmp_path / "rec" / "rgb" / "000001.png"
+    f.write_bytes(f.read_bytes()[:100])
+    with pytest.raises(RecordingError, match=r"rgb/000001\.png has 100 bytes.*truncated"):
+        load_recording(tmp_path / "rec")
+
+
+def test_truncated_poses_are_named(tmp_path):
+    save_recording(make_recording(), tmp_path / "rec")
+    f = tmp_path / "rec" / "poses.npz"
+    f.write_bytes(f.read_bytes()[:-50])
+    with pytest.raises(RecordingError, match=r"poses\.npz"):
+        load_recording(tmp_path / "rec")
+
+
+def test_header_problems_are_clear(tmp_path):
+    with pytest.raises(RecordingError, match="recording.json is missing"):
+        load_recording(tmp_path)
+    save_recording(make_recording(n=2), tmp_path / "rec")
+    header = tmp_path / "rec" / "recording.json"
+    h = json.loads(header.read_text())
+    h["version"] = 99
+    header.write_text(json.dumps(h))
+    with pytest.raises(RecordingError, match="version 99 is not supported"):
+        load_recording(tmp_path / "rec")
+    header.write_text("{not json")
+    with pytest.raises(RecordingError, match="not valid JSON"):
+        load_recording(tmp_path / "rec")
+
+
+def test_save_refuses_to_overwrite_and_replaces_atomically(tmp_path):
+    rec = make_recording(n=2)
+    save_recording(rec, tmp_path / "rec")
+    with pytest.raises(RecordingError, match="exists; pass overwrite=True"):
+        save_recording(rec, tmp_path / "rec")
+    other = make_recording(n=3, seed=1)
+    save_recording(other, tmp_path / "rec", overwrite=True)
+    assert len(load_recording(tmp_path / "rec")) == 3
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["rec"]  # no temporaries left
+
+
+def test_failed_save_leaves_nothing_behind(tmp_path):
+    rec = make_recording(n=2)
+    bad = Recording(**{**vars_of(rec), "depth": np.full((2, 240, 320), 9.0, np.float32)})
+    with pytest.raises(RecordingError, match="does not fit 16 bits"):
+        save_recording(bad, tmp_path / "rec")
+    assert list(tmp_path.iterdir()) == []
+
+
+def vars_of(rec):
+    return {k: getattr(rec, k) for k in rec.__dataclass_fields__}
+
+
+def test_validation_names_the_array():
+    rec = make_recording(n=2, with_extras=False)
+    with pytest.raises(RecordingError, match="joint_positions has 3 frames"):
+        Recording(**{**vars_of(rec), "joint_positions": np.zeros((3, 7))})
+    with pytest.raises(RecordingError, match="strictly increasing"):
+        Recording(**{**vars_of(rec), "timestamps": np.array([0.0, 0.0])})
+    with pytest.raises(RecordingError, match=r"T_world_hand must have shape \(N, 4, 4\)"):
+        Recording(**{**vars_of(rec), "T_world_hand": np.zeros((2, 3, 4))})
+    with pytest.raises(RecordingError, match="segment 'mapping'"):
+        Recording(**{**vars_of(rec), "segments": (Segment("mapping", "mapping", 0, 9),)})
+
+
+def test_arrays_are_read_only_copies():
+    rec = make_recording(n=2, with_extras=False)
+    rec = Recording(**{**vars_of(rec), "segments": ()})
+    rgb = np.zeros((2, 240, 320, 3), np.uint8)
+    rec2 = Recording(**{**vars_of(rec), "rgb": rgb})
+    rgb[0, 0, 0, 0] = 7
+    assert rec2.rgb[0, 0, 0, 0] == 0
+    with pytest.raises(ValueError):
+        rec2.rgb[0, 0, 0, 0] = 1
+    f = rec2.frame(0)
+    np.testing.assert_array_equal(f.T_world_cam, rec2.T_world_hand[0] @ rec2.T_hand_cam)
+    with pytest.raises(IndexError, match="out of range"):
+        rec2.frame(5)
