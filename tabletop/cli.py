@@ -1,16 +1,297 @@
-"""The `tabletop` command line."""
+"""The `tabletop` command line: scan scenes, inspect the sound bank, run the demo and benchmarks."""
 
 from __future__ import annotations
 
 import argparse
+import json
+import logging
+import platform
 import sys
+import time
+from pathlib import Path
+
+from tabletop.errors import TabletopError
+
+log = logging.getLogger("tabletop")
+
+
+def _progress(desc: str, total: int | None = None):
+    from tqdm import tqdm
+
+    return tqdm(total=total, desc=desc, unit="frame", dynamic_ncols=True, file=sys.stderr)
+
+
+# ---------------------------------------------------------------------- scan
+def _add_scan_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--scene",
+        default="default",
+        help="scene spec (.toml/.json) or the name of a shipped scene (default: default)",
+    )
+    p.add_argument("--seed", type=int, default=0, help="seed of the sweep and sound placement")
+    p.add_argument("--episodes", type=int, default=6, help="audio episodes after the sweep")
+    p.add_argument("--renderer", default="auto", choices=["auto", "egl", "tiny"])
+    p.add_argument("--width", type=int, default=320, help="image width [px] (>= 320)")
+    p.add_argument("--height", type=int, default=240, help="image height [px] (>= 240)")
+    p.add_argument(
+        "--pose-noise",
+        type=float,
+        default=0.0,
+        metavar="M",
+        help="std of end-effector position noise [m]",
+    )
+    p.add_argument(
+        "--rot-noise",
+        type=float,
+        default=0.0,
+        metavar="RAD",
+        help="std of end-effector orientation noise [rad]",
+    )
+    p.add_argument(
+        "--depth-noise",
+        type=float,
+        default=0.0,
+        metavar="R",
+        help="depth noise std relative to depth^2 [1/m]",
+    )
+    p.add_argument(
+        "--depth-dropout",
+        type=float,
+        default=0.0,
+        metavar="P",
+        help="fraction of depth pixels dropped",
+    )
+    p.add_argument(
+        "--drop-frames",
+        type=float,
+        default=0.0,
+        metavar="P",
+        help="probability that a frame is lost",
+    )
+    p.add_argument("--noise-seed", type=int, default=0)
+
+
+def _scan_config(args: argparse.Namespace):
+    from tabletop.sim.camera import WristCameraConfig
+    from tabletop.sim.scan import NoiseConfig, ScanConfig
+
+    noise = NoiseConfig(
+        seed=args.noise_seed,
+        pose_translation_m=args.pose_noise,
+        pose_rotation_rad=args.rot_noise,
+        depth_relative=args.depth_noise,
+        depth_dropout=args.depth_dropout,
+        drop_frames=args.drop_frames,
+    )
+    camera = WristCameraConfig(width=args.width, height=args.height)
+    return ScanConfig(
+        seed=args.seed,
+        episodes=args.episodes,
+        renderer=args.renderer,
+        camera=camera,
+        noise=noise,
+        repeat_sounds=min(1, args.episodes // 2),
+    )
+
+
+def _do_scan(args: argparse.Namespace):
+    from tabletop.sim.scan import run_scan
+    from tabletop.sim.scene import load_scene_spec
+
+    spec = load_scene_spec(args.scene)
+    config = _scan_config(args)
+    bar = _progress(f"scan {spec.name}")
+
+    def progress(done: int, total: int) -> None:
+        bar.total = total
+        bar.update(done - bar.n)
+
+    try:
+        rec, stats = run_scan(spec, config, progress=progress)
+    finally:
+        bar.close()
+    return spec, rec, stats
+
+
+def cmd_scan(args: argparse.Namespace) -> int:
+    from tabletop.sim.recording import save_recording
+
+    spec, rec, stats = _do_scan(args)
+    t0 = time.perf_counter()
+    save_recording(rec, args.out, overwrite=args.overwrite)
+    write_s = time.perf_counter() - t0
+    w, h = rec.image_size
+    print(f"scene:            {spec.name} ({len(spec.objects)} objects)")
+    print(
+        f"frames recorded:  {len(rec)} at {w}x{h}, {stats.simulated_s:.1f} s of simulated time "
+        f"(30 Hz)"
+    )
+    print(
+        f"frames/s:         {stats.fps:.1f} (scan: IK, collision checks and rendering; "
+        f"renderer {rec.meta['renderer']}); render alone {len(rec) / stats.render_s:.1f}"
+    )
+    print(f"written:          {args.out} in {write_s:.1f} s")
+    events = (rec.ground_truth or {}).get("sound_events", [])
+    if events:
+        print(
+            f"sounds inserted:  {len(events)}: "
+            + ", ".join(
+                f"{e['category']}@({e['table_point'][0]:.2f},{e['table_point'][1]:.2f})"
+                for e in events
+            )
+        )
+    return 0
+
+
+# ---------------------------------------------------------------------- sounds
+def cmd_sounds(args: argparse.Namespace) -> int:
+    from tabletop.sim.sound_bank import SoundBank, load_esc50
+
+    bank = load_esc50(args.esc50) if args.esc50 else SoundBank.default()
+    if args.json:
+        print(json.dumps(bank.summary(), indent=1))
+    else:
+        print(bank.format_table())
+    return 0
+
+
+# ---------------------------------------------------------------------- scenes
+def cmd_scenes(args: argparse.Namespace) -> int:
+    from tabletop.sim.scene import list_default_scenes, load_scene_spec
+
+    if args.scene is None:
+        for name in list_default_scenes():
+            spec = load_scene_spec(name)
+            print(
+                f"{name:12s} {len(spec.objects)} objects: "
+                + ", ".join(o.label for o in spec.objects)
+            )
+        return 0
+    spec = load_scene_spec(args.scene)
+    print(json.dumps(spec.to_dict(), indent=1))
+    return 0
+
+
+# ---------------------------------------------------------------------- demo
+def cmd_demo(args: argparse.Namespace) -> int:
+    from tabletop.sim.recording import load_recording, save_recording
+
+    out = Path(args.out)
+    print(
+        "tabletop demo — stages available in this version: scene, teleop scan with inserted "
+        "audio, recording on disk."
+    )
+    print(
+        "Not yet built (nothing below pretends otherwise): the AVLMap, encoders, queries, "
+        "the reach controller."
+    )
+    args.scene, args.seed, args.episodes = "default", 0, 6
+    args.renderer, args.width, args.height = "auto", 320, 240
+    args.pose_noise = args.rot_noise = args.depth_noise = args.depth_dropout = 0.0
+    args.drop_frames, args.noise_seed = 0.0, 0
+    spec, rec, stats = _do_scan(args)
+    save_recording(rec, out / "recording", overwrite=True)
+    back = load_recording(out / "recording")
+    gt = back.ground_truth
+    print(f"\nscene '{spec.name}': " + ", ".join(o["label"] for o in gt["objects"]))
+    print(
+        f"scan: {len(back)} frames, {back.duration:.1f} s simulated, {stats.fps:.1f} frames/s "
+        f"({back.meta['renderer']} renderer)"
+    )
+    print("sound events (ground truth):")
+    for e in gt["sound_events"]:
+        print(
+            f"  {e['episode']:10s} {e['category']:16s} heard {e['onset_s']:6.2f}-"
+            f"{e['offset_s']:6.2f} s over table point ({e['table_point'][0]:.2f}, "
+            f"{e['table_point'][1]:.2f})"
+        )
+    print(f"recording: {out / 'recording'} (reloaded and validated)")
+    return 0
+
+
+# ---------------------------------------------------------------------- bench
+def _machine() -> dict:
+    import os
+
+    return {
+        "python": platform.python_version(),
+        "platform": platform.platform(),
+        "cpus": os.cpu_count(),
+        "processor": platform.processor() or platform.machine(),
+    }
+
+
+def cmd_bench(args: argparse.Namespace) -> int:
+    from tabletop.sim.scan import ScanConfig, run_scan
+    from tabletop.sim.scene import load_scene_spec
+
+    results: dict = {"machine": _machine()}
+    spec = load_scene_spec("default")
+    rec, stats = run_scan(spec, ScanConfig(seed=0, episodes=2, repeat_sounds=0))
+    results.update(
+        {
+            "scan_frames": len(rec),
+            "scan_fps": round(stats.fps, 2),
+            "scan_render_fps": round(len(rec) / stats.render_s, 2),
+            "scan_image_size": list(rec.image_size),
+            "renderer": rec.meta["renderer"],
+        }
+    )
+    if args.json:
+        print(json.dumps(results, indent=1))
+    else:
+        m = results["machine"]
+        print(f"machine: {m['cpus']} cpus, {m['platform']}, python {m['python']}")
+        print(
+            f"scan: {results['scan_frames']} frames at {rec.image_size[0]}x{rec.image_size[1]}: "
+            f"{results['scan_fps']} frames/s end to end, {results['scan_render_fps']} frames/s "
+            f"rendering alone ({results['renderer']})"
+        )
+    return 0
+
+
+# ---------------------------------------------------------------------- main
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="tabletop", description=__doc__)
+    parser.add_argument("-v", "--verbose", action="store_true", help="log more")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    p = sub.add_parser("scan", help="record a teleop-style scan of a scene")
+    _add_scan_args(p)
+    p.add_argument("--out", required=True, help="output recording directory")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing recording")
+    p.set_defaults(func=cmd_scan)
+
+    p = sub.add_parser("sounds", help="list the sound bank's categories, clips and licences")
+    p.add_argument("--esc50", metavar="DIR", help="describe an ESC-50 directory instead")
+    p.add_argument("--json", action="store_true")
+    p.set_defaults(func=cmd_sounds)
+
+    p = sub.add_parser("scenes", help="list shipped scenes, or print one spec")
+    p.add_argument("scene", nargs="?", help="a spec path or shipped scene name")
+    p.set_defaults(func=cmd_scenes)
+
+    p = sub.add_parser("demo", help="the end-to-end demo on the embedded defaults")
+    p.add_argument("--out", default="out/demo", help="output directory (default: out/demo)")
+    p.set_defaults(func=cmd_demo)
+
+    p = sub.add_parser("bench", help="performance figures of every part, in one run")
+    p.add_argument("--json", action="store_true", help="machine-readable output")
+    p.set_defaults(func=cmd_bench)
+    return parser
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="tabletop", description=__doc__)
-    parser.add_subparsers(dest="command", required=True)
-    args = parser.parse_args(argv)
-    return 0 if args else 1
+    args = build_parser().parse_args(argv)
+    logging.basicConfig(
+        level=logging.INFO if args.verbose else logging.WARNING,
+        format="%(levelname)s %(name)s: %(message)s",
+    )
+    try:
+        return args.func(args)
+    except TabletopError as e:
+        print(f"tabletop {args.command}: error: {e}", file=sys.stderr)
+        return 2
 
 
 if __name__ == "__main__":

@@ -93,7 +93,7 @@ def test_truncated_poses_are_named(tmp_path):
 
 
 def test_header_problems_are_clear(tmp_path):
-    with pytest.raises(RecordingError, match="recording.json is missing"):
+    with pytest.raises(RecordingError, match=r"recording\.json is missing"):
         load_recording(tmp_path)
     save_recording(make_recording(n=2), tmp_path / "rec")
     header = tmp_path / "rec" / "recording.json"

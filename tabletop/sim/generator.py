@@ -14,8 +14,9 @@ from tabletop.sim.catalog import OBJECT_KINDS, load_mesh_geometry, object_kind
 
 __all__ = ["PLACEMENT_REGION", "footprint_radius", "generate_objects"]
 
-#: Where objects may stand [m]: x range, |y| bound, and the min/max distance from the base.
-PLACEMENT_REGION = {"x": (0.28, 0.74), "y_abs": 0.42, "r": (0.30, 0.76)}
+#: Where objects may stand [m]: x range, |y| bound, and min/max distance of the footprint's
+#: corners from the robot base (the arm reaches everything inside).
+PLACEMENT_REGION = {"x": (0.22, 0.78), "y_abs": 0.46, "r": (0.25, 0.78)}
 
 _MARGIN = 0.02  # [m] free space kept between object footprints
 
@@ -26,14 +27,28 @@ def footprint_radius(kind: str) -> float:
     return 0.5 * float(np.hypot(size[0], size[1]))
 
 
-def _placeable(x: float, y: float, radius: float) -> bool:
+def _footprint(kind: str, x: float, y: float, yaw_deg: float) -> tuple[np.ndarray, np.ndarray]:
+    """World-frame (min, max) xy box of the kind's mesh at a pose."""
+    a = np.deg2rad(yaw_deg)
+    R = np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
+    v = load_mesh_geometry(kind).vertices[:, :2] @ R.T + (x, y)
+    return v.min(axis=0), v.max(axis=0)
+
+
+def _placeable(lo: np.ndarray, hi: np.ndarray) -> bool:
     reg = PLACEMENT_REGION
-    r = np.hypot(x, y)
-    return (
-        reg["x"][0] + radius <= x <= reg["x"][1] - radius
-        and abs(y) <= reg["y_abs"] - radius
-        and reg["r"][0] <= r - radius
-        and r + radius <= reg["r"][1]
+    if lo[0] < reg["x"][0] or hi[0] > reg["x"][1] or max(-lo[1], hi[1]) > reg["y_abs"]:
+        return False
+    corners = np.array([[lo[0], lo[1]], [lo[0], hi[1]], [hi[0], lo[1]], [hi[0], hi[1]]])
+    r = np.hypot(corners[:, 0], corners[:, 1])
+    return r.min() >= reg["r"][0] and r.max() <= reg["r"][1]
+
+
+def _apart(box, others) -> bool:
+    lo, hi = box
+    return all(
+        np.any(lo[:2] - _MARGIN >= ohi[:2]) or np.any(olo[:2] >= hi[:2] + _MARGIN)
+        for olo, ohi in others
     )
 
 
@@ -68,17 +83,16 @@ def generate_objects(rnd, table, existing=()) -> tuple:
     # Place big objects first: they are the hardest to fit.
     picks.sort(key=lambda kc: -footprint_radius(kc[0]))
 
-    placed = [(np.array(o.position), footprint_radius(o.kind)) for o in existing]
+    placed = [_footprint(o.kind, *o.position, o.yaw_deg) for o in existing]
     taken = {o.name for o in existing}
     out = []
     for kind, color in picks:
-        radius = footprint_radius(kind)
         for _ in range(2000):
-            x = rng.uniform(*PLACEMENT_REGION["x"])
-            y = rng.uniform(-PLACEMENT_REGION["y_abs"], PLACEMENT_REGION["y_abs"])
-            if not _placeable(x, y, radius):
-                continue
-            if all(np.hypot(*(p - (x, y))) >= r + radius + _MARGIN for p, r in placed):
+            x = round(float(rng.uniform(*PLACEMENT_REGION["x"])), 4)
+            y = round(float(rng.uniform(-PLACEMENT_REGION["y_abs"], PLACEMENT_REGION["y_abs"])), 4)
+            yaw = round(float(rng.uniform(-180, 180)), 2)
+            box = _footprint(kind, x, y, yaw)
+            if _placeable(*box) and _apart(box, placed):
                 break
         else:
             raise SceneError(
@@ -90,14 +104,6 @@ def generate_objects(rnd, table, existing=()) -> tuple:
         while name in taken:
             name, i = f"{color}_{kind}_{i}", i + 1
         taken.add(name)
-        placed.append((np.array([x, y]), radius))
-        out.append(
-            ObjectSpec(
-                name=name,
-                kind=kind,
-                color=color,
-                position=(round(x, 4), round(y, 4)),
-                yaw_deg=round(float(rng.uniform(-180, 180)), 2),
-            )
-        )
+        placed.append(box)
+        out.append(ObjectSpec(name=name, kind=kind, color=color, position=(x, y), yaw_deg=yaw))
     return tuple(out)

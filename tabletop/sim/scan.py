@@ -1,0 +1,360 @@
+"""Teleop-style scans: drive the Panda's joints along smooth camera sweeps, record the wrist
+camera at 30 Hz of simulated time, then visit table regions in short audio episodes into whose
+audio track a sound-bank clip is inserted.
+
+The camera path comes from :mod:`tabletop.sim.teleop`; each pose is reached by inverse
+kinematics warm-started from the previous frame, so the recorded motion is a continuous joint
+trajectory. Every frame's joints are set in the simulator, its clearance to the table and
+objects is checked, and the recorded end-effector pose is the simulator's forward kinematics
+of those joints, never the commanded pose.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from tabletop.errors import ConfigError, SimulationError
+from tabletop.sim.camera import WristCameraConfig
+from tabletop.sim.recording import Recording, Segment
+from tabletop.sim.scene import SceneSpec
+from tabletop.sim.teleop import (
+    dwell_keyframes,
+    mapping_keyframes,
+    sample_path,
+    transit_keyframes,
+)
+from tabletop.sim.world import HOME_Q, SimWorld
+from tabletop.transforms import invert, make_transform
+
+__all__ = ["NoiseConfig", "ScanConfig", "ScanStats", "plan_scan", "run_scan"]
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class NoiseConfig:
+    """Sensor imperfections for robustness tests; all off by default. Seeded."""
+
+    seed: int = 0
+    pose_translation_m: float = 0.0
+    """Std [m] of per-frame Gaussian noise on the recorded end-effector position."""
+    pose_rotation_rad: float = 0.0
+    """Std [rad] of per-frame Gaussian noise on the recorded end-effector orientation."""
+    depth_relative: float = 0.0
+    """Std of depth noise relative to depth² [1/m] (stereo-like: 0.002 gives 2 mm at 1 m)."""
+    depth_dropout: float = 0.0
+    """Fraction of valid depth pixels set to 0 (invalid)."""
+    drop_frames: float = 0.0
+    """Probability that a frame is lost (it is left out; the timestamps show the gap)."""
+
+    def __post_init__(self) -> None:
+        for name in ("pose_translation_m", "pose_rotation_rad", "depth_relative"):
+            if getattr(self, name) < 0:
+                raise ConfigError(f"noise {name} must be >= 0, got {getattr(self, name)}")
+        for name in ("depth_dropout", "drop_frames"):
+            if not 0 <= getattr(self, name) < 1:
+                raise ConfigError(f"noise {name} must be in [0, 1), got {getattr(self, name)}")
+
+    @property
+    def any(self) -> bool:
+        return any(
+            getattr(self, n) > 0
+            for n in (
+                "pose_translation_m",
+                "pose_rotation_rad",
+                "depth_relative",
+                "depth_dropout",
+                "drop_frames",
+            )
+        )
+
+
+@dataclass(frozen=True)
+class ScanConfig:
+    """How a scan is recorded."""
+
+    seed: int = 0
+    """Seed of the path variations, the hand tremor and the sound placement."""
+    rate_hz: float = 30.0
+    """Frame rate [Hz] of simulated time."""
+    speed: float = 0.15
+    """Nominal camera speed [m/s] along the sweeps."""
+    tremor_m: float = 0.004
+    """Amplitude [m] of the operator's hand tremor (0 = none)."""
+    episodes: int = 6
+    """Audio episodes after the mapping sweep (0 = no audio)."""
+    episode_s: float = 4.0
+    """Length [s] of each audio episode."""
+    repeat_sounds: int = 1
+    """How many sound categories are inserted in two regions (ambiguous sound goals)."""
+    clip_split: str = "heldout"
+    """Which sound-bank clips to insert: "heldout" (never seen in training), "train", "any"."""
+    snr_db: float = 15.0
+    """Clip-to-background ratio [dB] of the inserted sounds."""
+    min_clearance: float = 0.02
+    """Smallest allowed distance [m] between the arm and the table or objects."""
+    camera: WristCameraConfig = field(default_factory=WristCameraConfig)
+    noise: NoiseConfig = field(default_factory=NoiseConfig)
+    renderer: str = "auto"
+    """"auto" (EGL if it works), "egl" or "tiny"."""
+
+    def __post_init__(self) -> None:
+        if self.rate_hz <= 0 or self.speed <= 0:
+            raise ConfigError("rate_hz and speed must be positive")
+        if self.episodes < 0 or self.episode_s < 1.0:
+            raise ConfigError("episodes must be >= 0 and episode_s >= 1 s")
+        if not 0 <= self.repeat_sounds <= self.episodes // 2:
+            raise ConfigError(
+                f"repeat_sounds must be in [0, episodes // 2 = {self.episodes // 2}], "
+                f"got {self.repeat_sounds}"
+            )
+        if self.clip_split not in ("heldout", "train", "any"):
+            raise ConfigError(
+                f"clip_split must be 'heldout', 'train' or 'any', not {self.clip_split!r}"
+            )
+
+
+@dataclass(frozen=True)
+class ScanStats:
+    """What a scan took: frames and simulated/wall-clock time."""
+
+    frames: int
+    simulated_s: float
+    wall_s: float
+    render_s: float
+    ik_s: float
+
+    @property
+    def fps(self) -> float:
+        """Frames recorded per wall-clock second (planning, IK, checks and rendering)."""
+        return self.frames / self.wall_s if self.wall_s > 0 else float("inf")
+
+
+@dataclass(frozen=True)
+class _Plan:
+    T_world_cam: np.ndarray  # (N, 4, 4) commanded camera poses
+    segments: tuple[Segment, ...]
+    episode_centers: tuple[tuple[float, float], ...]
+
+
+def _episode_centers(rng: np.random.Generator, n: int) -> list[tuple[float, float]]:
+    """Distinct table regions for the audio episodes, spread over a 3 x 3 grid."""
+    xs, ys = (0.36, 0.52, 0.66), (-0.30, 0.0, 0.30)
+    cells = [(x, y) for x in xs for y in ys]
+    if n > len(cells):
+        raise ConfigError(f"at most {len(cells)} audio episodes (one per table region), got {n}")
+    order = rng.permutation(len(cells))[:n]
+    return [
+        (cells[i][0] + rng.uniform(-0.03, 0.03), cells[i][1] + rng.uniform(-0.04, 0.04))
+        for i in order
+    ]
+
+
+def plan_scan(config: ScanConfig) -> _Plan:
+    """Commanded camera poses of a whole scan: mapping sweep, then transits and episodes."""
+    rng = np.random.default_rng(config.seed)
+    rate, speed, tremor = config.rate_hz, config.speed, config.tremor_m
+    poses = [sample_path(mapping_keyframes(rng), rate, speed, rng, tremor)]
+    segments = [Segment("mapping", "mapping", 0, len(poses[0]))]
+    last = mapping_keyframes(np.random.default_rng(config.seed))[-1]
+    centers = _episode_centers(rng, config.episodes)
+    n = len(poses[0])
+    for i, c in enumerate(centers):
+        dwell = dwell_keyframes(c, rng)
+        transit = sample_path(transit_keyframes(last, dwell[0]), rate, speed, rng, tremor)[1:]
+        poses.append(transit)
+        segments.append(Segment(f"transit_{i}", "transit", n, n + len(transit)))
+        n += len(transit)
+        # Loop the hover until the episode is long enough.
+        loop = [*dwell, dwell[0]]
+        ep = sample_path(loop, rate, 0.03, rng, tremor)[1:]
+        while len(ep) < config.episode_s * rate:
+            ep = np.concatenate([ep, ep])
+        ep = ep[: round(config.episode_s * rate)]
+        poses.append(ep)
+        segments.append(Segment(f"episode_{i}", "episode", n, n + len(ep)))
+        n += len(ep)
+        last = dwell[0]
+    return _Plan(np.concatenate(poses), tuple(segments), tuple(centers))
+
+
+def _solve_path(world: SimWorld, T_world_hand: np.ndarray, q0: np.ndarray):
+    """Joint positions (N, 7) tracking hand poses, each IK warm-started from the last."""
+    from tabletop.arm import PandaModel, solve_ik
+
+    model = PandaModel()
+    qs = np.empty((len(T_world_hand), 7))
+    q = np.asarray(q0, dtype=np.float64)
+    for i, T in enumerate(T_world_hand):
+        res = solve_ik(model, T, q, frame="panda_hand")
+        if not res.success:
+            raise SimulationError(
+                f"scan pose {i} is not reachable (IK error {res.pos_error_m * 1000:.1f} mm, "
+                f"{np.rad2deg(res.rot_error_rad):.1f} deg); shorten or lower the sweep"
+            )
+        q = res.q
+        qs[i] = q
+    return qs
+
+
+def _approach(start_q: np.ndarray, q: np.ndarray, rate_hz: float, max_vel: float = 0.6):
+    """A rest-to-rest joint move (smoothstep) from ``start_q`` to ``q`` at ``rate_hz``."""
+    n = max(2, int(np.ceil(np.abs(q - start_q).max() / max_vel * rate_hz * 1.5)))
+    s = np.linspace(0.0, 1.0, n)
+    s = s * s * (3 - 2 * s)
+    return start_q + s[:, None] * (q - start_q)
+
+
+def run_scan(
+    spec: SceneSpec,
+    config: ScanConfig | None = None,
+    progress: Callable[[int, int], None] | None = None,
+) -> tuple[Recording, ScanStats]:
+    """Scan a scene and return the recording (with ground truth) and timing figures.
+
+    ``progress(done, total)`` is called after each rendered frame.
+    """
+    from tabletop.sim.sound_insertion import insert_sounds
+
+    config = config or ScanConfig()
+    t_start = time.perf_counter()
+    plan = plan_scan(config)
+    with SimWorld(spec, config.camera, renderer=config.renderer) as world:
+        T_hand_cam = world.camera.T_hand_cam
+        t0 = time.perf_counter()
+        q_path = _solve_path(world, plan.T_world_cam @ invert(T_hand_cam), HOME_Q)
+        ik_s = time.perf_counter() - t0
+        # Start from the home pose: the operator first moves the arm into the sweep.
+        lead = _approach(HOME_Q, q_path[0], config.rate_hz)[:-1]
+        q_all = np.concatenate([lead, q_path])
+        offset = len(lead)
+        segments = [Segment("approach", "transit", 0, offset)] + [
+            Segment(s.name, s.kind, s.start + offset, s.stop + offset) for s in plan.segments
+        ]
+        n = len(q_all)
+        H, W = config.camera.height, config.camera.width
+        rgb = np.empty((n, H, W, 3), np.uint8)
+        depth = np.empty((n, H, W), np.float32)
+        seg = np.empty((n, H, W), np.uint16)
+        T_world_hand = np.empty((n, 4, 4))
+        render_s = 0.0
+        for i, q in enumerate(q_all):
+            world.set_arm(q)
+            clearance = world.min_clearance(max_distance=config.min_clearance + 0.01)
+            if clearance < config.min_clearance:
+                raise SimulationError(
+                    f"scan frame {i}: the arm comes {clearance * 1000:.1f} mm from the scene "
+                    f"(minimum {config.min_clearance * 1000:.0f} mm)"
+                )
+            T_world_hand[i] = world.T_world_hand()
+            t1 = time.perf_counter()
+            img = world.render(T_world_hand[i] @ T_hand_cam)
+            render_s += time.perf_counter() - t1
+            rgb[i], depth[i], seg[i] = img.rgb, img.depth, img.segmentation
+            if progress is not None:
+                progress(i + 1, n)
+        ground_truth = world.ground_truth()
+        renderer = world.renderer
+        K = world.intrinsics.K
+
+    timestamps = np.arange(n) / config.rate_hz
+    audio, audio_rate, events = None, 16000, []
+    if config.episodes:
+        audio, audio_rate, events = insert_sounds(
+            timestamps, T_world_hand, segments, plan.episode_centers, config
+        )
+    ground_truth["sound_events"] = events
+
+    rec_kwargs = dict(
+        timestamps=timestamps,
+        rgb=rgb,
+        depth=depth,
+        joint_positions=q_all,
+        T_world_hand=T_world_hand,
+        K=K,
+        T_hand_cam=T_hand_cam,
+        depth_resolution=config.camera.depth_resolution,
+        audio=audio,
+        audio_rate=audio_rate,
+        segments=tuple(segments),
+        segmentation=seg,
+        ground_truth=ground_truth,
+        meta={
+            "source": "tabletop.sim",
+            "scene": spec.name,
+            "seed": config.seed,
+            "renderer": renderer,
+            "rate_hz": config.rate_hz,
+            "noise": vars(config.noise) if config.noise.any else None,
+        },
+    )
+    if config.noise.any:
+        rec_kwargs = _apply_noise(rec_kwargs, config.noise, config.camera.depth_resolution)
+    rec = Recording(**rec_kwargs)
+    stats = ScanStats(
+        frames=len(rec),
+        simulated_s=float(n / config.rate_hz),
+        wall_s=time.perf_counter() - t_start,
+        render_s=render_s,
+        ik_s=ik_s,
+    )
+    log.info("scan: %d frames in %.1f s (%.1f frames/s)", stats.frames, stats.wall_s, stats.fps)
+    return rec, stats
+
+
+def _apply_noise(kw: dict, noise: NoiseConfig, depth_resolution: float) -> dict:
+    """Noisy poses (true ones kept), noisy depth, dropped frames — seeded."""
+    rng = np.random.default_rng(noise.seed)
+    n = len(kw["timestamps"])
+    kw = dict(kw)
+    true = kw["T_world_hand"]
+    noisy = true.copy()
+    if noise.pose_translation_m > 0 or noise.pose_rotation_rad > 0:
+        for i in range(n):
+            axis = rng.normal(size=3)
+            axis /= np.linalg.norm(axis)
+            angle = rng.normal(0.0, noise.pose_rotation_rad) if noise.pose_rotation_rad else 0.0
+            K_ = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+            R = np.eye(3) + np.sin(angle) * K_ + (1 - np.cos(angle)) * K_ @ K_
+            dT = make_transform(R, rng.normal(0.0, noise.pose_translation_m, 3))
+            noisy[i] = true[i] @ dT
+    kw["T_world_hand"], kw["T_world_hand_true"] = noisy, true
+    depth = kw["depth"].astype(np.float64)
+    valid = depth > 0
+    if noise.depth_relative > 0:
+        depth = depth + valid * rng.normal(size=depth.shape) * noise.depth_relative * depth**2
+    if noise.depth_dropout > 0:
+        depth[valid & (rng.random(depth.shape) < noise.depth_dropout)] = 0.0
+    depth = np.maximum(depth, 0.0)
+    kw["depth"] = (np.round(depth / depth_resolution) * depth_resolution).astype(np.float32)
+    if noise.drop_frames > 0:
+        keep = rng.random(n) >= noise.drop_frames
+        keep[0] = True
+        index = np.cumsum(keep) - 1  # new index of each kept original frame
+        for k in (
+            "timestamps",
+            "rgb",
+            "depth",
+            "joint_positions",
+            "T_world_hand",
+            "T_world_hand_true",
+            "segmentation",
+        ):
+            kw[k] = kw[k][keep]
+        segs = []
+        for s in kw["segments"]:
+            a, b = index[s.start] + (not keep[s.start]), index[s.stop - 1] + 1
+            if b > a:
+                segs.append(Segment(s.name, s.kind, int(a), int(b)))
+        kw["segments"] = tuple(segs)
+        kw["meta"] = {**kw["meta"], "dropped_frames": int((~keep).sum())}
+        for ev in (kw["ground_truth"] or {}).get("sound_events", []):
+            f0, f1 = ev["frames"]
+            kept = np.nonzero(keep[f0 : f1 + 1])[0] + f0
+            ev["frames"] = [int(index[kept[0]]), int(index[kept[-1]])] if len(kept) else []
+    return kw
