@@ -27,9 +27,7 @@ def test_ik_converges_to_nearby_poses_with_decreasing_error(model):
             np.testing.assert_allclose(model.fk(res.q)[:3, 3], model.fk(q_goal)[:3, 3], atol=1e-4)
             h = np.array(res.error_history)
             assert h[-1] < 1e-3 * h[0] or h[0] < 1e-3
-            # Monotone up to the last few (already tiny) iterations.
-            big = h[h > 1e-3]
-            assert np.all(np.diff(big) < 0)
+            assert np.all(np.diff(h) < 0)  # strictly decreasing, every iteration
             iters.append(res.iterations)
     assert n_ok >= 38
     assert np.median(iters) <= 10
@@ -55,7 +53,7 @@ def test_position_only_ik_reaches_table_points_from_home(model):
 def test_unreachable_target_fails_without_raising(model):
     res = solve_ik(model, make_transform(t=[2.0, 0.0, 0.5]), HOME_Q, max_iters=60)
     assert not res.success
-    assert res.iterations == 60
+    assert res.iterations <= 60  # stops early at the local minimum
     assert res.pos_error_m > 0.9
     assert model.within_limits(res.q)
 

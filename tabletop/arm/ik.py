@@ -8,7 +8,9 @@ This is the plain reference loop (fast per iteration, no constraints beyond join
 where ``e`` stacks the position error [m] and the rotation error [rad] (world-aligned axes at
 the frame), ``W`` is the error-scaled Levenberg-Marquardt damping (quadratic convergence near a
 solution, bounded steps near singularities), ``N = I - J^+ J`` projects the posture term into
-the task's null space, and the step is clipped so that every joint stays inside its limits.
+the task's null space, and joints that would cross a limit are stopped there (an active set).
+A step that would increase the task error is retried without the posture term, then halved, so
+the error decreases monotonically; the loop stops early at a local minimum.
 """
 
 from __future__ import annotations
@@ -152,13 +154,24 @@ def solve_ik(
         done = pos_err <= tol_pos and (position_only or rot_err <= tol_rot)
         if done or it >= max_iters:
             break
-        dq = _dls_step(J[rows], e_task, q, q_post, lo, hi, damping, min_damping, posture_gain)
-        step = float(np.max(np.abs(dq)))
-        if step > max_step:
-            dq *= max_step / step
-        q = np.clip(q + dq, lo, hi)
+        err0 = history[-1]
+        # Backtracking: the full step with the posture term first; if the task error grew,
+        # the step without posture, then halved steps. The error never increases.
+        for attempt in range(5):
+            gain = posture_gain if attempt == 0 else 0.0
+            dq = _dls_step(J[rows], e_task, q, q_post, lo, hi, damping, min_damping, gain)
+            step = float(np.max(np.abs(dq)))
+            scale = min(1.0, max_step / step) if step > 0 else 1.0
+            scale *= 0.5 ** max(0, attempt - 1)
+            q_new = np.clip(q + scale * dq, lo, hi)
+            cand = evaluate(q_new)
+            if float(np.linalg.norm(cand[1][rows])) < err0:
+                break
+        else:
+            break  # no descent direction inside the limits: a local minimum
+        q = q_new
+        J, e, pos_err, rot_err = cand
         it += 1
-        J, e, pos_err, rot_err = evaluate(q)
 
     success = pos_err <= tol_pos and (position_only or rot_err <= tol_rot)
     return IKResult(
