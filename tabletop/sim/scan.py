@@ -155,10 +155,17 @@ def _episode_centers(rng: np.random.Generator, n: int) -> list[tuple[float, floa
     ]
 
 
+#: The planner samples camera poses this many times per frame; retiming then picks frames.
+_OVERSAMPLE = 4
+#: Retiming keeps every joint below this fraction of its velocity limit.
+_VELOCITY_FRACTION = 0.6
+
+
 def plan_scan(config: ScanConfig) -> _Plan:
-    """Commanded camera poses of a whole scan: mapping sweep, then transits and episodes."""
+    """Commanded camera poses of a whole scan, sampled ``_OVERSAMPLE`` times per frame:
+    the mapping sweep, then a transit and an episode per audio region."""
     rng = np.random.default_rng(config.seed)
-    rate, speed, tremor = config.rate_hz, config.speed, config.tremor_m
+    rate, speed, tremor = config.rate_hz * _OVERSAMPLE, config.speed, config.tremor_m
     poses = [sample_path(mapping_keyframes(rng), rate, speed, rng, tremor)]
     segments = [Segment("mapping", "mapping", 0, len(poses[0]))]
     last = mapping_keyframes(np.random.default_rng(config.seed))[-1]
@@ -183,7 +190,7 @@ def plan_scan(config: ScanConfig) -> _Plan:
     return _Plan(np.concatenate(poses), tuple(segments), tuple(centers))
 
 
-def _solve_path(world: SimWorld, T_world_hand: np.ndarray, q0: np.ndarray):
+def _solve_path(T_world_hand: np.ndarray, q0: np.ndarray):
     """Joint positions (N, 7) tracking hand poses, each IK warm-started from the last."""
     from tabletop.arm import PandaModel, solve_ik
 
@@ -199,7 +206,28 @@ def _solve_path(world: SimWorld, T_world_hand: np.ndarray, q0: np.ndarray):
             )
         q = res.q
         qs[i] = q
-    return qs
+    return qs, model.v_max
+
+
+def _retime(
+    q_dense: np.ndarray, dense_rate: float, rate: float, v_max: np.ndarray, fraction: float
+) -> np.ndarray:
+    """Resample a dense joint path at ``rate``, slowing where a joint would exceed
+    ``fraction * v_max``: each dense step takes at least as long as its fastest joint needs.
+    """
+    step = np.abs(np.diff(q_dense, axis=0))
+    dt = np.maximum(1.0 / dense_rate, (step / (fraction * v_max)).max(axis=1))
+    t_dense = np.concatenate([[0.0], np.cumsum(dt)])
+    t = np.arange(0.0, t_dense[-1] + 1e-9, 1.0 / rate)
+    q = np.stack([np.interp(t, t_dense, q_dense[:, j]) for j in range(7)], axis=1)
+
+    def frame_of(dense_index: int) -> int:
+        """First frame at or after a dense sample's time."""
+        if dense_index >= len(t_dense):
+            return len(t)
+        return int(np.searchsorted(t, t_dense[dense_index] - 1e-9))
+
+    return q, frame_of
 
 
 def _approach(start_q: np.ndarray, q: np.ndarray, rate_hz: float, max_vel: float = 0.6):
@@ -227,14 +255,20 @@ def run_scan(
     with SimWorld(spec, config.camera, renderer=config.renderer) as world:
         T_hand_cam = world.camera.T_hand_cam
         t0 = time.perf_counter()
-        q_path = _solve_path(world, plan.T_world_cam @ invert(T_hand_cam), HOME_Q)
+        q_dense, v_max = _solve_path(plan.T_world_cam @ invert(T_hand_cam), HOME_Q)
         ik_s = time.perf_counter() - t0
         # Start from the home pose: the operator first moves the arm into the sweep.
-        lead = _approach(HOME_Q, q_path[0], config.rate_hz)[:-1]
-        q_all = np.concatenate([lead, q_path])
-        offset = len(lead)
-        segments = [Segment("approach", "transit", 0, offset)] + [
-            Segment(s.name, s.kind, s.start + offset, s.stop + offset) for s in plan.segments
+        lead = _approach(HOME_Q, q_dense[0], config.rate_hz * _OVERSAMPLE)[:-1]
+        q_dense = np.concatenate([lead, q_dense])
+        q_all, frame_of = _retime(
+            q_dense, config.rate_hz * _OVERSAMPLE, config.rate_hz, v_max, _VELOCITY_FRACTION
+        )
+        bounds = [0] + [s.start + len(lead) for s in plan.segments] + [len(q_dense)]
+        frames = [int(frame_of(b)) for b in bounds]
+        kinds = [("approach", "transit")] + [(s.name, s.kind) for s in plan.segments]
+        segments = [
+            Segment(name, kind, a, b)
+            for (name, kind), a, b in zip(kinds, frames[:-1], frames[1:], strict=True)
         ]
         n = len(q_all)
         H, W = config.camera.height, config.camera.width

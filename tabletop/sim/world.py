@@ -292,15 +292,17 @@ class SimWorld:
         return self.T_world_hand() @ self.camera.T_hand_cam
 
     def min_clearance(self, max_distance: float = 0.05) -> float:
-        """Smallest distance [m] between the robot and the environment (or the robot itself).
+        """Smallest distance [m] between the robot and the table or any object.
 
-        Capped at ``max_distance``; negative values are penetrations. Self-collision ignores
-        adjacent links (and the hand and fingers, which touch by design).
+        Capped at ``max_distance``; negative values are penetrations. The base link, bolted
+        to the table, is not checked against the table.
         """
         pb, cid = self._pb, self._client
         best = max_distance
         for body in [self.table_id, *self.object_ids.values()]:
             for c in pb.getClosestPoints(self.robot_id, body, max_distance, physicsClientId=cid):
+                if body == self.table_id and c[3] == -1:
+                    continue
                 best = min(best, c[8])
         return best
 
