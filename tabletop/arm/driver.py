@@ -1,0 +1,215 @@
+"""Drivers: what the reach controller talks to, simulated or real, behind one protocol.
+
+A driver reads the arm's joint state and executes joint position or velocity commands for a
+given duration; ``stop`` brings the arm to rest. Implementations here: :class:`PyBulletDriver`
+(physics stepping with position control, on a client and body someone else built),
+:class:`KinematicDriver` (an ideal arm, for planning and tests), and in
+:mod:`tabletop.arm.panda_py_driver` an adapter for a real Panda through panda-py.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Protocol, runtime_checkable
+
+import numpy as np
+
+from tabletop.arm.errors import DriverError
+from tabletop.arm.model import ARM_JOINT_NAMES, FINGER_JOINT_NAMES, HOME_Q, as_arm_q
+from tabletop.errors import ConfigError
+
+__all__ = ["ArmDriver", "JointState", "KinematicDriver", "PyBulletDriver"]
+
+#: Joint torque limits of the Panda [N m] (used as PyBullet motor forces).
+TORQUE_LIMITS = (87.0, 87.0, 87.0, 87.0, 12.0, 12.0, 12.0)
+
+
+@dataclass(frozen=True)
+class JointState:
+    """The arm's measured state."""
+
+    q: np.ndarray  # (7,) float64 [rad]
+    dq: np.ndarray  # (7,) float64 [rad/s]
+    time_s: float  # driver clock [s] (simulated time for simulators)
+
+
+def _check_duration(duration: float) -> float:
+    if not (np.isfinite(duration) and duration > 0):
+        raise ConfigError(f"command duration must be positive [s], got {duration}")
+    return float(duration)
+
+
+@runtime_checkable
+class ArmDriver(Protocol):
+    """What the reach controller needs from an arm, simulated or real."""
+
+    def read_state(self) -> JointState:
+        """The current joint positions and velocities."""
+        ...
+
+    def command_positions(self, q: np.ndarray, duration: float) -> None:
+        """Track the (7,) joint positions ``q`` [rad] for ``duration`` [s], then return."""
+        ...
+
+    def command_velocities(self, dq: np.ndarray, duration: float) -> None:
+        """Hold the (7,) joint velocities ``dq`` [rad/s] for ``duration`` [s], then return."""
+        ...
+
+    def stop(self) -> None:
+        """Bring the arm to rest where it is."""
+        ...
+
+
+class KinematicDriver:
+    """An ideal arm: commanded positions are reached exactly, instantly (no physics)."""
+
+    def __init__(self, q0: object = HOME_Q) -> None:
+        self._q = as_arm_q(q0, "q0")
+        self._dq = np.zeros(7)
+        self._t = 0.0
+        self.commands: int = 0
+
+    def read_state(self) -> JointState:
+        return JointState(q=self._q.copy(), dq=self._dq.copy(), time_s=self._t)
+
+    def command_positions(self, q: np.ndarray, duration: float) -> None:
+        duration = _check_duration(duration)
+        q = as_arm_q(q)
+        self._dq = (q - self._q) / duration
+        self._q = q
+        self._t += duration
+        self.commands += 1
+
+    def command_velocities(self, dq: np.ndarray, duration: float) -> None:
+        duration = _check_duration(duration)
+        self._dq = as_arm_q(dq, "dq")
+        self._q = self._q + self._dq * duration
+        self._t += duration
+        self.commands += 1
+
+    def stop(self) -> None:
+        self._dq = np.zeros(7)
+
+
+class PyBulletDriver:
+    """Drive a Panda body in an existing PyBullet client with physics and position control.
+
+    The driver builds nothing: the caller owns the client (its gravity, time step and bodies).
+    Each command sets the motors and steps the simulation for the command's duration. The
+    fingers are held at their opening when the driver was created.
+
+    Args:
+        client_id: the PyBullet physics client id.
+        body_id: the Panda's body id in that client.
+        timestep: the client's physics time step [s] (PyBullet's default 1/240).
+        position_gain: PyBullet's position gain of the motors.
+    """
+
+    def __init__(
+        self,
+        client_id: int,
+        body_id: int,
+        *,
+        timestep: float = 1.0 / 240.0,
+        position_gain: float = 0.3,
+    ) -> None:
+        import pybullet as pb
+
+        self._pb = pb
+        self.client_id = int(client_id)
+        self.body_id = int(body_id)
+        self.timestep = _check_duration(timestep)
+        self.position_gain = float(position_gain)
+        try:
+            n = pb.getNumJoints(self.body_id, physicsClientId=self.client_id)
+        except pb.error as exc:
+            raise DriverError(f"PyBullet client {client_id} has no body {body_id}: {exc}") from None
+        index = {}
+        for j in range(n):
+            info = pb.getJointInfo(self.body_id, j, physicsClientId=self.client_id)
+            index[info[1].decode()] = j
+        missing = [nm for nm in ARM_JOINT_NAMES if nm not in index]
+        if missing:
+            raise DriverError(
+                f"body {body_id} is not a Panda: joints {missing} missing; has {sorted(index)}"
+            )
+        self._arm = [index[nm] for nm in ARM_JOINT_NAMES]
+        self._fingers = [index[nm] for nm in FINGER_JOINT_NAMES if nm in index]
+        self._finger_hold = [
+            pb.getJointState(self.body_id, j, physicsClientId=self.client_id)[0]
+            for j in self._fingers
+        ]
+        self._t = 0.0
+        self.steps = 0  # physics steps taken [count]
+
+    def read_state(self) -> JointState:
+        states = self._pb.getJointStates(self.body_id, self._arm, physicsClientId=self.client_id)
+        return JointState(
+            q=np.array([s[0] for s in states]),
+            dq=np.array([s[1] for s in states]),
+            time_s=self._t,
+        )
+
+    def _hold_fingers(self) -> None:
+        if self._fingers:
+            self._pb.setJointMotorControlArray(
+                self.body_id,
+                self._fingers,
+                self._pb.POSITION_CONTROL,
+                targetPositions=self._finger_hold,
+                forces=[20.0] * len(self._fingers),
+                physicsClientId=self.client_id,
+            )
+
+    def _run(self, duration: float) -> None:
+        n = max(1, round(duration / self.timestep))
+        for _ in range(n):
+            self._pb.stepSimulation(physicsClientId=self.client_id)
+        self.steps += n
+        self._t += n * self.timestep
+
+    def command_positions(self, q: np.ndarray, duration: float) -> None:
+        duration = _check_duration(duration)
+        q = as_arm_q(q)
+        q_now = self.read_state().q
+        self._pb.setJointMotorControlArray(
+            self.body_id,
+            self._arm,
+            self._pb.POSITION_CONTROL,
+            targetPositions=q.tolist(),
+            targetVelocities=((q - q_now) / duration).tolist(),
+            forces=list(TORQUE_LIMITS),
+            positionGains=[self.position_gain] * 7,
+            physicsClientId=self.client_id,
+        )
+        self._hold_fingers()
+        self._run(duration)
+
+    def command_velocities(self, dq: np.ndarray, duration: float) -> None:
+        duration = _check_duration(duration)
+        dq = as_arm_q(dq, "dq")
+        self._pb.setJointMotorControlArray(
+            self.body_id,
+            self._arm,
+            self._pb.VELOCITY_CONTROL,
+            targetVelocities=dq.tolist(),
+            forces=list(TORQUE_LIMITS),
+            physicsClientId=self.client_id,
+        )
+        self._hold_fingers()
+        self._run(duration)
+
+    def stop(self) -> None:
+        """Hold the current joint positions (one physics step)."""
+        q = self.read_state().q
+        self._pb.setJointMotorControlArray(
+            self.body_id,
+            self._arm,
+            self._pb.POSITION_CONTROL,
+            targetPositions=q.tolist(),
+            targetVelocities=[0.0] * 7,
+            forces=list(TORQUE_LIMITS),
+            physicsClientId=self.client_id,
+        )
+        self._hold_fingers()
+        self._run(self.timestep)

@@ -1,0 +1,343 @@
+"""The reach controller: turn a 3D target into safe motion, and say how it went.
+
+``move_to(target)``:
+
+1. refuses targets outside the workspace box (``outside_workspace``);
+2. lifts targets that lie inside an obstacle (or on/just above a surface) to a standoff above
+   its top, so the TCP approaches it rather than being driven into it;
+3. checks with the damped-least-squares IK (several seeds) that some configuration puts the
+   TCP on the goal (``unreachable`` if none) and that one of them keeps the clearance margin
+   (``blocked`` if none);
+4. moves through waypoints — a lift to the transit height, a pre-approach point above the goal,
+   then a vertical descent — with the mink controller tracking a point that slides along each
+   segment at a bounded speed;
+5. checks every commanded step before it is sent (swept clearance bound, see
+   :meth:`CollisionChecker.check_motion`): a step that would go below the margin is halved, then
+   refused; repeated refusals or a stall end the move as ``blocked`` (obstacle in the way) or
+   ``no_progress``.
+"""
+
+from __future__ import annotations
+
+import enum
+import logging
+import time
+from dataclasses import dataclass
+
+import numpy as np
+from pinocchio import log3 as pin_log3
+
+from tabletop.arm.collision import CollisionChecker
+from tabletop.arm.diffik import MinkDiffIK, top_down_rotation
+from tabletop.arm.driver import ArmDriver
+from tabletop.arm.ik import solve_ik
+from tabletop.arm.model import HOME_Q, PandaModel
+from tabletop.arm.obstacles import Box, Cylinder, obstacle_aabb
+from tabletop.arm.workspace import Workspace
+from tabletop.errors import ConfigError
+from tabletop.transforms import make_transform
+
+__all__ = ["ReachConfig", "ReachController", "ReachReason", "ReachResult"]
+
+log = logging.getLogger(__name__)
+
+
+class ReachReason(str, enum.Enum):
+    """Why a reach ended."""
+
+    REACHED = "reached"
+    OUTSIDE_WORKSPACE = "outside_workspace"  # the target is outside the workspace box
+    UNREACHABLE = "unreachable"  # no arm configuration puts the TCP there
+    BLOCKED = "blocked"  # obstacles keep the arm from getting there without contact
+    NO_PROGRESS = "no_progress"  # the controller stalled away from obstacles (limits)
+    TIMEOUT = "timeout"  # the step budget ran out while still moving
+
+
+@dataclass(frozen=True)
+class ReachConfig:
+    """Parameters of :class:`ReachController`."""
+
+    tolerance: float = 0.005
+    """Final TCP position tolerance [m]."""
+    waypoint_tolerance: float = 0.01
+    """Tolerance [m] at the lift and pre-approach waypoints."""
+    clearance_margin: float = 0.01
+    """No commanded motion may bring the robot closer than this to anything [m]."""
+    standoff: float = 0.03
+    """Height [m] of the goal above the top of an obstacle that contains the target."""
+    approach_height: float = 0.12
+    """Height [m] of the pre-approach waypoint above the goal."""
+    transit_clearance: float = 0.12
+    """The transit height is at least this far [m] above the tallest obstacle top."""
+    max_speed: float = 0.3
+    """Speed [m/s] of the tracked point along each segment."""
+    max_steps: int = 1500
+    """Control-step budget of one move_to."""
+    stall_steps: int = 60
+    """Steps without 1 mm of progress after which a segment is declared stalled."""
+    max_refusals: int = 20
+    """Consecutive refused steps after which the move is declared blocked."""
+    ik_seeds: int = 6
+    """Configurations tried by the reachability check (current, home, then seeded random)."""
+
+    def __post_init__(self) -> None:
+        for name in ("tolerance", "waypoint_tolerance", "standoff", "max_speed"):
+            if not getattr(self, name) > 0:
+                raise ConfigError(f"ReachConfig.{name} must be positive, got {getattr(self, name)}")
+        if self.clearance_margin < 0:
+            raise ConfigError(f"clearance_margin must be >= 0 [m], got {self.clearance_margin}")
+        if self.max_steps < 1 or self.stall_steps < 1 or self.ik_seeds < 1:
+            raise ConfigError("max_steps, stall_steps and ik_seeds must be >= 1")
+
+
+@dataclass(frozen=True)
+class ReachResult:
+    """The outcome of :meth:`ReachController.move_to`."""
+
+    reached: bool
+    reason: ReachReason
+    target: np.ndarray  # (3,) [m] world, as asked
+    goal: np.ndarray  # (3,) [m] world, the commanded point (target lifted to a standoff if inside)
+    final_tcp: np.ndarray  # (3,) [m] world, TCP position at the end (measured)
+    error_m: float  # |final_tcp - goal| [m]
+    target_error_m: float  # |final_tcp - target| [m]
+    min_clearance_m: float  # smallest clearance of the executed motion [m] (capped)
+    steps: int  # control steps executed
+    refused_steps: int  # steps refused by the collision check
+    time_s: float  # driver time spent [s]
+    wall_time_s: float  # wall-clock time of the call [s]
+    standoff_applied: bool = False  # the target was inside an obstacle / on a surface
+
+
+class ReachController:
+    """Moves the TCP to 3D targets with mink differential IK and collision checking.
+
+    Args:
+        model: the Panda model.
+        driver: the arm (simulated or real), see :class:`tabletop.arm.driver.ArmDriver`.
+        obstacles: the environment (table, objects, voxel boxes), world frame.
+        config: parameters.
+        workspace: the allowed TCP box.
+        diffik: a prepared :class:`MinkDiffIK` (built from ``obstacles`` when omitted).
+        checker: a prepared :class:`CollisionChecker` (built from ``obstacles`` when omitted).
+    """
+
+    def __init__(
+        self,
+        model: PandaModel,
+        driver: ArmDriver,
+        obstacles=(),
+        config: ReachConfig | None = None,
+        workspace: Workspace | None = None,
+        diffik: MinkDiffIK | None = None,
+        checker: CollisionChecker | None = None,
+    ) -> None:
+        self.model = model
+        self.driver = driver
+        self.config = config or ReachConfig()
+        self.workspace = workspace or Workspace()
+        self.obstacles = tuple(obstacles)
+        self.diffik = diffik or MinkDiffIK(model, self.obstacles)
+        self.checker = checker or CollisionChecker(model, self.obstacles)
+        self._rng = np.random.default_rng(0)
+
+    def set_obstacles(self, obstacles) -> None:
+        """Replace the environment in both the controller and the collision checker."""
+        self.obstacles = tuple(obstacles)
+        self.diffik.set_obstacles(self.obstacles)
+        self.checker.set_obstacles(self.obstacles)
+
+    # ------------------------------------------------------------------ goal
+    def _footprint_contains(self, ob, p: np.ndarray) -> bool:
+        if isinstance(ob, Cylinder):
+            return bool(np.hypot(*(p[:2] - ob.center[:2])) <= ob.radius)
+        if isinstance(ob, Box):
+            local = ob.rotation.T @ (np.array([p[0], p[1], ob.center[2]]) - ob.center)
+            ext = ob.half_extents
+            return bool(abs(local[0]) <= ext[0] and abs(local[1]) <= ext[1])
+        lo, hi = obstacle_aabb(ob)
+        return bool(np.all(p[:2] >= lo[:2]) and np.all(p[:2] <= hi[:2]))
+
+    def standoff_goal(self, target: np.ndarray) -> tuple[np.ndarray, bool]:
+        """The target lifted to ``standoff`` above any obstacle top it is in or just above."""
+        goal = np.array(target, dtype=np.float64)
+        moved = False
+        for _ in range(len(self.obstacles) + 1):
+            lifted = False
+            for ob in self.obstacles:
+                lo, hi = obstacle_aabb(ob)
+                if not (lo[2] <= goal[2] < hi[2] + self.config.standoff):
+                    continue
+                if self._footprint_contains(ob, goal):
+                    goal[2] = hi[2] + self.config.standoff
+                    lifted = moved = True
+            if not lifted:
+                break
+        return goal, moved
+
+    def _transit_height(self, goal: np.ndarray) -> float:
+        tops = [obstacle_aabb(ob)[1][2] for ob in self.obstacles]
+        z = max(
+            [goal[2] + self.config.approach_height]
+            + [t + self.config.transit_clearance for t in tops]
+        )
+        return float(min(z, self.workspace.upper[2] - 0.05))
+
+    def _goal_configuration(self, goal: np.ndarray, R: np.ndarray, q_now: np.ndarray):
+        """(status, q) of the reachability check: 'ok', 'unreachable' or 'blocked'."""
+        T = make_transform(R, goal)
+        seeds = [q_now, np.asarray(HOME_Q)]
+        rng = np.random.default_rng([int(v) for v in np.round((goal + 10.0) * 1e4)])
+        while len(seeds) < self.config.ik_seeds:
+            seeds.append(self.model.random_q(rng, margin=0.3))
+        reachable = None
+        for position_only in (False, True):
+            for seed in seeds:
+                res = solve_ik(
+                    self.model,
+                    T,
+                    seed,
+                    position_only=position_only,
+                    tol_pos=1e-3,
+                    tol_rot=0.05,
+                    max_iters=60,
+                )
+                if not res.success:
+                    continue
+                reachable = res.q
+                if self.checker.clearance(res.q).distance >= self.config.clearance_margin:
+                    return "ok", res.q
+        return ("blocked", reachable) if reachable is not None else ("unreachable", None)
+
+    # ------------------------------------------------------------------ motion
+    def move_to(self, target: object, orientation: object | None = None) -> ReachResult:
+        """Move the TCP to ``target`` (3,) [m], world frame; see the module docstring.
+
+        Args:
+            target: the point to reach.
+            orientation: (3, 3) R_world_tcp; default top-down, yawed towards the target.
+
+        Returns:
+            a :class:`ReachResult`; failures are reasons in it, never exceptions.
+        """
+        wall0 = time.perf_counter()
+        target = np.array(target, dtype=np.float64)
+        if target.shape != (3,) or not np.all(np.isfinite(target)):
+            raise ConfigError(f"target must be a finite (3,) point [m], got {target.tolist()}")
+        c = self.config
+        state = self.driver.read_state()
+        t_start = state.time_s
+        q = state.q
+
+        min_clear0 = self.checker.clearance(q).distance
+
+        def result(
+            reason: ReachReason, goal, steps=0, refused=0, min_clear=min_clear0, moved=False
+        ):
+            tcp = self.model.fk(self.driver.read_state().q)[:3, 3]
+            err = float(np.linalg.norm(tcp - goal))
+            reached = reason == ReachReason.REACHED
+            return ReachResult(
+                reached=reached,
+                reason=reason,
+                target=target,
+                goal=np.array(goal, dtype=np.float64),
+                final_tcp=tcp,
+                error_m=err,
+                target_error_m=float(np.linalg.norm(tcp - target)),
+                min_clearance_m=float(min_clear),
+                steps=steps,
+                refused_steps=refused,
+                time_s=self.driver.read_state().time_s - t_start,
+                wall_time_s=time.perf_counter() - wall0,
+                standoff_applied=moved,
+            )
+
+        if not self.workspace.contains(target):
+            return result(ReachReason.OUTSIDE_WORKSPACE, target)
+        goal, moved = self.standoff_goal(target)
+        if not self.workspace.contains(goal):
+            return result(ReachReason.OUTSIDE_WORKSPACE, goal, moved=moved)
+        if orientation is None:
+            R = top_down_rotation(float(np.arctan2(goal[1], goal[0])) if goal[0] > 0 else 0.0)
+        else:
+            R = np.asarray(orientation, dtype=np.float64)
+            if R.shape != (3, 3):
+                raise ConfigError(f"orientation must be a (3, 3) rotation, got {R.shape}")
+        status, q_goal = self._goal_configuration(goal, R, q)
+        if status == "unreachable":
+            return result(ReachReason.UNREACHABLE, goal, moved=moved)
+        if status == "blocked":
+            return result(ReachReason.BLOCKED, goal, moved=moved)
+        R_goal = self.model.fk(q_goal)[:3, :3]
+        if orientation is None and np.linalg.norm(pin_log3(R_goal @ R.T)) > 0.05:
+            R = R_goal  # top-down is out of reach here: keep the orientation IK found
+
+        tcp = self.model.fk(q)[:3, 3]
+        z_tr = max(self._transit_height(goal), goal[2])
+        waypoints = []
+        if tcp[2] < z_tr - 0.02 and np.linalg.norm(tcp[:2] - goal[:2]) > 0.02:
+            waypoints.append((np.array([tcp[0], tcp[1], z_tr]), c.waypoint_tolerance))
+        if z_tr - goal[2] > 0.02:
+            waypoints.append((np.array([goal[0], goal[1], z_tr]), c.waypoint_tolerance))
+        waypoints.append((goal, c.tolerance))
+
+        steps = refused = 0
+        min_clear = self.checker.clearance(q).distance
+        dt = self.diffik.config.dt
+        step_len = c.max_speed * dt
+        for wp, tol in waypoints:
+            start = self.model.fk(q)[:3, 3]
+            seg = wp - start
+            seg_len = float(np.linalg.norm(seg))
+            s = 0.0
+            best, since_best, consecutive_refusals = np.inf, 0, 0
+            while True:
+                tcp = self.model.fk(q)[:3, 3]
+                dist = float(np.linalg.norm(tcp - wp))
+                if dist <= tol and s >= seg_len:
+                    break
+                if steps >= c.max_steps:
+                    self.driver.stop()
+                    return result(ReachReason.TIMEOUT, goal, steps, refused, min_clear, moved)
+                if dist < best - 1e-3:
+                    best, since_best = dist, 0
+                else:
+                    since_best += 1
+                if since_best >= c.stall_steps and s >= seg_len:
+                    self.driver.stop()
+                    near = self.checker.clearance(q).distance
+                    reason = (
+                        ReachReason.BLOCKED
+                        if near < self.diffik.config.collision_min_distance + 0.01
+                        else ReachReason.NO_PROGRESS
+                    )
+                    return result(reason, goal, steps, refused, min_clear, moved)
+                s = min(seg_len, s + step_len)
+                carrot = start + (seg * (s / seg_len) if seg_len > 0 else 0.0)
+                ik = self.diffik.step(q, make_transform(R, carrot))
+                c0 = self.checker.clearance(q)
+                ok = False
+                if ik.solved:
+                    q_next = ik.q
+                    for _ in range(2):
+                        mc = self.checker.check_motion(q, q_next, c.clearance_margin, c0)
+                        if mc.ok:
+                            ok = True
+                            break
+                        q_next = q + 0.5 * (q_next - q)
+                if not ok:
+                    refused += 1
+                    consecutive_refusals += 1
+                    if consecutive_refusals >= c.max_refusals:
+                        self.driver.stop()
+                        return result(ReachReason.BLOCKED, goal, steps, refused, min_clear, moved)
+                    self.driver.command_positions(q, dt)  # hold position for one period
+                    q = self.driver.read_state().q
+                    continue
+                consecutive_refusals = 0
+                min_clear = min(min_clear, mc.swept_lower_bound)
+                self.driver.command_positions(q_next, dt)
+                steps += 1
+                q = self.driver.read_state().q
+        return result(ReachReason.REACHED, goal, steps, refused, min_clear, moved)
