@@ -55,7 +55,7 @@ def cluttered_scene(rng: np.random.Generator, n_objects: int = 6) -> list[Box | 
             shape = Box(
                 [xy[0], xy[1], h / 2],
                 he,
-                make_transform(np.eye(3))[:3, :3] @ _rz(yaw),
+                _rz(yaw),
                 name=f"box{len(placed)}",
             )
         else:
@@ -167,7 +167,8 @@ def run_arm_benchmark(n_targets: int = 200, seed: int = 0, n_objects: int = 6) -
             ([1.5, 0.0, 0.3], ReachReason.OUTSIDE_WORKSPACE),
             ([0.5, 0.0, -0.3], ReachReason.OUTSIDE_WORKSPACE),
             ([0.5, 0.0, 1.2], ReachReason.OUTSIDE_WORKSPACE),
-            ([-0.2, -0.6, 0.8], ReachReason.UNREACHABLE),
+            ([0.8, -0.6, 0.6], ReachReason.UNREACHABLE),
+            ([0.8, 0.5, 0.8], ReachReason.UNREACHABLE),
             ([0.8, 0.6, 0.7], ReachReason.UNREACHABLE),
         ]
         for p, want in probes:

@@ -70,7 +70,7 @@ class DiffIKConfig:
     """Levenberg-Marquardt damping of the frame task."""
     damping: float = 1e-3
     """Tikhonov damping of the QP (on joint velocities)."""
-    collision_min_distance: float = 0.015
+    collision_min_distance: float = 0.02
     """Distance [m] the collision-avoidance limit keeps between guarded geoms."""
     collision_detection_distance: float = 0.10
     """Distance [m] from which the collision-avoidance limit becomes active."""

@@ -139,7 +139,8 @@ class PyBulletDriver:
             pb.getJointState(self.body_id, j, physicsClientId=self.client_id)[0]
             for j in self._fingers
         ]
-        self._t = 0.0
+        self._t = 0.0  # simulated time [s]
+        self._t_cmd = 0.0  # commanded time [s]
         self.steps = 0  # physics steps taken [count]
 
     def read_state(self) -> JointState:
@@ -162,7 +163,10 @@ class PyBulletDriver:
             )
 
     def _run(self, duration: float) -> None:
-        n = max(1, round(duration / self.timestep))
+        # Whole physics steps; the rounding remainder carries over, so the simulated time
+        # follows the commanded durations on average (0.01 s at 1/240 s: 2, 3, 2, 3, ... steps).
+        self._t_cmd += duration
+        n = max(1, round((self._t_cmd - self._t) / self.timestep))
         for _ in range(n):
             self._pb.stepSimulation(physicsClientId=self.client_id)
         self.steps += n

@@ -105,7 +105,7 @@ class PandaPyDriver:
             raise SafetyError(
                 f"joint velocity {np.round(dq, 3).tolist()} rad/s exceeds the limit "
                 f"{np.round(self.v_limit, 3).tolist()} rad/s at joints "
-                f"{[i + 1 for i in np.nonzero(over)[0]]}"
+                f"{[int(i) + 1 for i in np.nonzero(over)[0]]}"
             )
 
     def _use(self, kind: str):

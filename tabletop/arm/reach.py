@@ -12,9 +12,9 @@
    then a vertical descent — with the mink controller tracking a point that slides along each
    segment at a bounded speed;
 5. checks every commanded step before it is sent (swept clearance bound, see
-   :meth:`CollisionChecker.check_motion`): a step that would go below the margin is halved, then
-   refused; repeated refusals or a stall end the move as ``blocked`` (obstacle in the way) or
-   ``no_progress``.
+   :meth:`CollisionChecker.check_motion`): a step that would go below the margin is halved,
+   quartered, then refused; repeated refusals or a stall end the move as ``blocked``
+   (obstacle in the way) or ``no_progress``.
 """
 
 from __future__ import annotations
@@ -63,7 +63,7 @@ class ReachConfig:
     """Tolerance [m] at the lift and pre-approach waypoints."""
     clearance_margin: float = 0.01
     """No commanded motion may bring the robot closer than this to anything [m]."""
-    standoff: float = 0.03
+    standoff: float = 0.04
     """Height [m] of the goal above the top of an obstacle that contains the target."""
     approach_height: float = 0.12
     """Height [m] of the pre-approach waypoint above the goal."""
@@ -320,7 +320,7 @@ class ReachController:
                 ok = False
                 if ik.solved:
                     q_next = ik.q
-                    for _ in range(2):
+                    for _ in range(3):  # the full step, then half, then a quarter
                         mc = self.checker.check_motion(q, q_next, c.clearance_margin, c0)
                         if mc.ok:
                             ok = True

@@ -1,0 +1,112 @@
+"""Convex-hull collision checking: clearances, filtered pairs, motions refused before contact."""
+
+import numpy as np
+import pybullet as pb
+import pytest
+
+from tabletop.arm.collision import CollisionChecker
+from tabletop.arm.ik import solve_ik
+from tabletop.arm.model import HOME_Q, PandaModel
+from tabletop.arm.obstacles import Box, table_box
+from tabletop.errors import ConfigError
+from tabletop.transforms import make_transform
+
+
+@pytest.fixture(scope="module")
+def model():
+    return PandaModel()
+
+
+@pytest.fixture(scope="module")
+def checker(model):
+    return CollisionChecker(model, [table_box()])
+
+
+def test_home_is_clear_of_table_and_itself(checker):
+    c = checker.clearance(HOME_Q)
+    assert c.environment == pytest.approx(checker.max_distance)  # table far below the hand
+    assert 0.03 < c.self_distance < checker.max_distance
+    assert c.distance == min(c.environment, c.self_distance)
+
+
+def test_adjacent_and_rigid_pairs_are_filtered(checker):
+    names = {
+        frozenset((checker.link_names[i], checker.link_names[j])) for i, j in checker.self_pairs
+    }
+    assert frozenset(("panda_link6", "panda_link7")) not in names
+    assert frozenset(("panda_hand", "panda_leftfinger")) not in names
+    assert frozenset(("panda_link1", "panda_hand")) in names
+
+
+def test_clearance_matches_a_box_just_below_the_fingers(model):
+    T = model.fk(HOME_Q)
+    # The fingertips end ~7 mm beyond the TCP; a box top 3 cm below the TCP.
+    box = Box(T[:3, 3] - [0, 0, 0.03 + 0.05], [0.05, 0.05, 0.05], name="below")
+    ch = CollisionChecker(model, [box], self_collision=False)
+    c = ch.clearance(HOME_Q)
+    assert c.closest_pair[1] == "below"
+    assert 0.015 < c.environment < 0.03
+
+
+def test_penetration_is_negative(model):
+    T = model.fk(HOME_Q)
+    # 12 cm wide: wider than the open fingers (8 cm apart), so both fingers sink into it.
+    ch = CollisionChecker(model, [Box(T[:3, 3], [0.06, 0.06, 0.03], name="inside")])
+    c = ch.clearance(HOME_Q)
+    assert c.environment < 0
+    assert c.closest_pair[1] == "inside"
+
+
+def test_hull_distance_agrees_with_pybullet_hulls(model):
+    # PyBullet also collides with the convex hull of each OBJ mesh.
+    from tabletop.paths import panda_urdf_path
+
+    cid = pb.connect(pb.DIRECT)
+    try:
+        robot = pb.loadURDF(str(panda_urdf_path()), useFixedBase=True, physicsClientId=cid)
+        box = Box([0.55, 0.05, 0.05], [0.05, 0.05, 0.05], name="b")
+        col = pb.createCollisionShape(pb.GEOM_BOX, halfExtents=[0.05] * 3, physicsClientId=cid)
+        body = pb.createMultiBody(0, col, -1, box.center.tolist(), physicsClientId=cid)
+        ch = CollisionChecker(model, [box], self_collision=False, max_distance=0.3)
+        rng = np.random.default_rng(5)
+        for _ in range(10):
+            p = rng.uniform([0.45, -0.05, 0.14], [0.65, 0.15, 0.25])
+            q = solve_ik(model, make_transform(np.diag([1.0, -1.0, -1.0]), p), HOME_Q).q
+            for j in range(7):
+                pb.resetJointState(robot, j, float(q[j]), physicsClientId=cid)
+            for j in (9, 10):
+                pb.resetJointState(robot, j, 0.04, physicsClientId=cid)
+            d_pb = min(c[8] for c in pb.getClosestPoints(robot, body, 0.3, physicsClientId=cid))
+            # PyBullet pads its hulls with a ~4 mm collision margin.
+            assert abs(ch.clearance(q).environment - d_pb) < 0.006
+    finally:
+        pb.disconnect(cid)
+
+
+def test_motion_into_a_box_is_refused_before_contact(model):
+    T = model.fk(HOME_Q)
+    box = Box(T[:3, 3] - [0, 0, 0.12], [0.05, 0.05, 0.05], name="obstacle")  # top 7 cm below
+    ch = CollisionChecker(model, [box])
+    q_down = solve_ik(model, make_transform(T[:3, :3], T[:3, 3] - [0, 0, 0.09]), HOME_Q).q
+    assert ch.clearance(q_down).environment < 0  # the end configuration penetrates
+    mc = ch.check_motion(HOME_Q, q_down, margin=0.01)
+    assert not mc.ok and mc.swept_lower_bound < 0.01
+    # A small step away from the box is fine.
+    q_up = solve_ik(model, make_transform(T[:3, :3], T[:3, 3] + [0, 0, 0.01]), HOME_Q).q
+    assert ch.check_motion(HOME_Q, q_up, margin=0.01).ok
+
+
+def test_displacement_bound_covers_the_real_motion(model, checker):
+    rng = np.random.default_rng(0)
+    for _ in range(20):
+        q0 = model.random_q(rng, margin=0.2)
+        q1 = q0 + rng.normal(0, 0.02, 7)
+        moved = np.linalg.norm(model.fk(q1)[:3, 3] - model.fk(q0)[:3, 3])
+        assert moved <= checker.max_displacement(q0, q1)
+
+
+def test_invalid_arguments(model):
+    with pytest.raises(ConfigError, match="max_distance must be positive"):
+        CollisionChecker(model, max_distance=0.0)
+    with pytest.raises(ConfigError, match="unsupported obstacle type str"):
+        CollisionChecker(model, ["table"])

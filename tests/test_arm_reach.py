@@ -1,0 +1,107 @@
+"""The reach controller: reached, standoff, blocked, unreachable, outside, and the step check."""
+
+import numpy as np
+import pytest
+
+from tabletop.arm.diffik import MinkDiffIK
+from tabletop.arm.driver import KinematicDriver
+from tabletop.arm.model import HOME_Q, PandaModel
+from tabletop.arm.obstacles import Box, Cylinder, table_box
+from tabletop.arm.reach import ReachConfig, ReachController, ReachReason
+from tabletop.arm.success import reach_success
+from tabletop.errors import ConfigError
+
+CUBE = Box([0.4, 0.3, 0.06], [0.04, 0.04, 0.06], name="cube")
+CAN = Cylinder([0.45, -0.2, 0.08], 0.04, 0.16, name="can")
+# Two tall walls 5 cm apart: the hand (20 cm wide) cannot get between them.
+WALL_A = Box([0.6, -0.035, 0.12], [0.06, 0.01, 0.12], name="wall_a")
+WALL_B = Box([0.6, 0.035, 0.12], [0.06, 0.01, 0.12], name="wall_b")
+SCENE = [table_box(), CUBE, CAN, WALL_A, WALL_B]
+
+
+@pytest.fixture(scope="module")
+def model():
+    return PandaModel()
+
+
+@pytest.fixture(scope="module")
+def ctrl(model):
+    return ReachController(model, KinematicDriver(), SCENE)
+
+
+@pytest.fixture(autouse=True)
+def _home(ctrl):
+    ctrl.driver = KinematicDriver(HOME_Q)
+
+
+def test_free_target_is_reached_within_tolerance(ctrl, model):
+    res = ctrl.move_to([0.35, -0.35, 0.12])
+    assert res.reached and res.reason == ReachReason.REACHED
+    assert res.error_m <= 0.005
+    np.testing.assert_allclose(res.final_tcp, model.fk(ctrl.driver.read_state().q)[:3, 3])
+    assert res.min_clearance_m >= ctrl.config.clearance_margin
+    assert res.steps > 0 and res.time_s == pytest.approx(res.steps * 0.01, rel=0.2)
+
+
+def test_target_inside_an_object_gets_a_standoff_above_it(ctrl):
+    res = ctrl.move_to(CUBE.center)
+    assert res.reached and res.standoff_applied
+    np.testing.assert_allclose(res.goal, [0.4, 0.3, 0.12 + ctrl.config.standoff])
+    assert res.error_m <= 0.005
+    assert reach_success(res.final_tcp, box=CUBE).success  # within 10 cm of the object
+
+
+def test_target_on_the_table_is_lifted_to_the_standoff(ctrl):
+    res = ctrl.move_to([0.65, -0.3, 0.0])
+    assert res.reached and res.goal[2] == pytest.approx(ctrl.config.standoff)
+
+
+def test_blocked_target_is_reported_as_blocked(ctrl):
+    res = ctrl.move_to([0.6, 0.0, 0.05])
+    assert not res.reached and res.reason == ReachReason.BLOCKED
+
+
+def test_unreachable_target_is_reported_as_unreachable(ctrl):
+    res = ctrl.move_to([0.8, 0.6, 0.7])
+    assert res.reason == ReachReason.UNREACHABLE and res.steps == 0
+    np.testing.assert_allclose(ctrl.driver.read_state().q, HOME_Q)  # nothing moved
+
+
+def test_outside_the_workspace_is_reported(ctrl):
+    for p in ([1.5, 0.0, 0.3], [0.5, 0.0, -0.2]):
+        assert ctrl.move_to(p).reason == ReachReason.OUTSIDE_WORKSPACE
+
+
+def test_every_step_is_checked_and_refused_before_contact(model):
+    """The QP does not know the box (built without obstacles), and the goal check is bypassed:
+    only the per-step check stands between the descent and the box."""
+    box = Box([0.5, 0.0, 0.05], [0.05, 0.05, 0.05], name="hidden")
+    blind = MinkDiffIK(model, [table_box()])
+    driver = KinematicDriver(HOME_Q)
+    ctrl = ReachController(model, driver, [table_box(), box], diffik=blind)
+    ctrl.obstacles = (table_box(),)  # the planner thinks the table is empty: no standoff
+    ctrl._goal_configuration = lambda goal, R, q: ("ok", np.asarray(HOME_Q))
+    sent = []
+    orig = driver.command_positions
+
+    def record(q, duration):
+        sent.append(np.array(q))
+        orig(q, duration)
+
+    driver.command_positions = record
+    res = ctrl.move_to([0.5, 0.0, 0.06])
+    assert res.reason == ReachReason.BLOCKED and res.refused_steps > 0
+    assert len(sent) > 10  # it did move, down to the box
+    worst = min(ctrl.checker.clearance(q).distance for q in sent)
+    assert worst >= ctrl.config.clearance_margin
+    assert res.min_clearance_m >= ctrl.config.clearance_margin
+
+
+def test_invalid_target_and_config():
+    with pytest.raises(ConfigError, match="standoff must be positive"):
+        ReachConfig(standoff=0.0)
+
+
+def test_non_finite_target_is_refused(ctrl):
+    with pytest.raises(ConfigError, match=r"target must be a finite \(3,\) point"):
+        ctrl.move_to([np.nan, 0.0, 0.1])
