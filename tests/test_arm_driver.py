@@ -93,7 +93,7 @@ def test_reach_with_physics_touches_nothing(world):
     cid, robot, bodies = world
     _reset(cid, robot, HOME_Q)
     model = PandaModel()
-    driver = PyBulletDriver(cid, robot)
+    driver = PyBulletDriver(cid, robot, finger_opening=model.finger_opening)
     ctrl = ReachController(model, driver, [table_box(), CUBE])
     contacts = 0
     orig = driver.command_positions

@@ -110,7 +110,7 @@ def run_arm_benchmark(n_targets: int = 200, seed: int = 0, n_objects: int = 6) -
     cid, robot, bodies = _build_world(obstacles)
     try:
         model = PandaModel()
-        driver = PyBulletDriver(cid, robot)
+        driver = PyBulletDriver(cid, robot, finger_opening=model.finger_opening)
         diffik = MinkDiffIK(model, obstacles)
         checker = CollisionChecker(model, obstacles)
         ctrl = ReachController(model, driver, obstacles, diffik=diffik, checker=checker)

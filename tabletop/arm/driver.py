@@ -103,6 +103,9 @@ class PyBulletDriver:
         body_id: the Panda's body id in that client.
         timestep: the client's physics time step [s] (PyBullet's default 1/240).
         position_gain: PyBullet's position gain of the motors.
+        finger_opening: set both fingers to this opening [m] first; give the model's
+            ``finger_opening`` so the collision checker's fingers are where the real ones are
+            (default: hold the fingers where they are).
     """
 
     def __init__(
@@ -112,6 +115,7 @@ class PyBulletDriver:
         *,
         timestep: float = 1.0 / 240.0,
         position_gain: float = 0.3,
+        finger_opening: float | None = None,
     ) -> None:
         import pybullet as pb
 
@@ -135,6 +139,13 @@ class PyBulletDriver:
             )
         self._arm = [index[nm] for nm in ARM_JOINT_NAMES]
         self._fingers = [index[nm] for nm in FINGER_JOINT_NAMES if nm in index]
+        if finger_opening is not None:
+            if not 0.0 <= finger_opening <= 0.04:
+                raise ConfigError(f"finger_opening must be in [0, 0.04] m, got {finger_opening}")
+            for j in self._fingers:
+                pb.resetJointState(
+                    self.body_id, j, float(finger_opening), physicsClientId=self.client_id
+                )
         self._finger_hold = [
             pb.getJointState(self.body_id, j, physicsClientId=self.client_id)[0]
             for j in self._fingers

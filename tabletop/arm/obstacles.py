@@ -22,6 +22,7 @@ __all__ = [
     "Cylinder",
     "Obstacle",
     "boxes_from_voxels",
+    "obstacle_aabb",
     "table_box",
 ]
 
