@@ -1,0 +1,340 @@
+"""Tests of tabletop.sim.sound_bank: the shipped bank, its records, and the ESC-50 loader."""
+
+from __future__ import annotations
+
+import csv
+import hashlib
+import json
+import shutil
+import wave
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from tabletop.errors import AssetError, ConfigError
+from tabletop.sim.audio import resample, write_wav
+from tabletop.sim.sound_bank import (
+    CAPTIONS,
+    DEFAULT_BANK_DIR,
+    ESC50_COLUMNS,
+    SoundBank,
+    SoundClip,
+    caption_for,
+    load_esc50,
+)
+
+MANIFEST = DEFAULT_BANK_DIR / "manifest.json"
+#: SPDX ids that may appear in the shipped bank (all openly licensed).
+OPEN_LICENCES = {"CC0-1.0", "CC-BY-3.0", "CC-BY-4.0", "CC-BY-SA-3.0", "GPL-2.0-or-later",
+                 "GPL-3.0-or-later"}  # fmt: skip
+
+
+@pytest.fixture(scope="module")
+def bank() -> SoundBank:
+    return SoundBank.default()
+
+
+@pytest.fixture(scope="module")
+def manifest() -> dict:
+    return json.loads(MANIFEST.read_text(encoding="utf-8"))
+
+
+@pytest.fixture(scope="module")
+def audio(bank) -> dict[str, np.ndarray]:
+    return {c.id: c.load() for c in bank}
+
+
+# --------------------------------------------------------------------------- the shipped bank
+def test_bank_size_and_coverage(bank):
+    cats = bank.categories
+    assert cats == sorted(cats)
+    assert len(cats) >= 25
+    counts = {c: len(bank.clips(category=c)) for c in cats}
+    assert sum(n >= 3 for n in counts.values()) >= 15
+    for must in ("dog", "rooster", "cat", "cow", "clock_alarm", "camera_shutter", "telephone"):
+        assert must in cats
+    assert bank.sample_rate == 16000
+    assert len(bank) == sum(counts.values())
+
+
+def test_every_category_with_three_clips_has_train_and_heldout(bank):
+    for cat in bank.categories:
+        clips = bank.clips(category=cat)
+        held = bank.clips(category=cat, split="heldout")
+        train = bank.clips(category=cat, split="train")
+        assert len(held) + len(train) == len(clips)
+        if len(clips) >= 3:
+            assert held and train, cat
+        if len(clips) == 1:
+            assert clips[0].split == "train", cat
+
+
+def test_split_follows_the_documented_rule(manifest):
+    """Per category: n >= 2 -> max(1, round(n / 4)) heldout, smallest sha256(id) first."""
+    by_cat: dict[str, list[dict]] = {}
+    for c in manifest["clips"]:
+        by_cat.setdefault(c["category"], []).append(c)
+    for cat, clips in by_cat.items():
+        order = sorted(clips, key=lambda c: hashlib.sha256(c["id"].encode()).hexdigest())
+        k = 0 if len(clips) == 1 else max(1, round(len(clips) / 4))
+        assert [c["split"] for c in order] == ["heldout"] * k + ["train"] * (len(clips) - k), cat
+
+
+def test_total_size_under_8_mb():
+    size = sum(p.stat().st_size for p in DEFAULT_BANK_DIR.rglob("*") if p.is_file())
+    assert size < 8_000_000
+
+
+def test_every_clip_records_source_author_and_licence(bank, manifest):
+    sources = manifest["sources"]
+    for entry in manifest["clips"]:
+        assert entry["licence"] in OPEN_LICENCES, entry["id"]
+        assert entry["author"].strip(), entry["id"]
+        src = sources[entry["source_package"]]
+        assert entry["source_version"] == src["version"]
+        assert entry["source_path"].endswith((".wav", ".mp3", ".ogg", ".oga")), entry["id"]
+        assert (DEFAULT_BANK_DIR / entry["licence_record"]).is_file(), entry["id"]
+        assert entry["licence_record"] in src["licence_records"]
+        assert entry["caption"] == manifest["categories"][entry["category"]]["caption"]
+    for src in sources.values():
+        for record in src["licence_records"]:
+            assert (DEFAULT_BANK_DIR / record).stat().st_size > 200
+    clip = bank.get(manifest["clips"][0]["id"])
+    assert clip.source == manifest["clips"][0]["source_package"]
+    assert clip.licence == manifest["clips"][0]["licence"]
+    attribution = (DEFAULT_BANK_DIR / "ATTRIBUTION.md").read_text(encoding="utf-8")
+    for entry in manifest["clips"]:
+        assert f"`{entry['id']}`" in attribution
+
+
+def test_clip_files_are_16k_mono_pcm16_as_recorded(manifest):
+    for entry in manifest["clips"]:
+        path = DEFAULT_BANK_DIR / entry["file"]
+        assert hashlib.sha256(path.read_bytes()).hexdigest() == entry["sha256"], entry["id"]
+        with wave.open(str(path)) as w:
+            assert (w.getnchannels(), w.getsampwidth(), w.getframerate()) == (1, 2, 16000)
+            assert w.getnframes() == entry["n_samples"]
+        assert entry["duration_s"] == pytest.approx(entry["n_samples"] / 16000, abs=1e-6)
+        assert 0.05 <= entry["duration_s"] <= 4.0
+
+
+def test_loaded_clips_are_float32_peak_normalised(bank, audio):
+    for clip in bank:
+        x = audio[clip.id]
+        assert x.dtype == np.float32 and x.ndim == 1
+        assert len(x) == round(clip.duration_s * clip.sample_rate)
+        peak = float(np.max(np.abs(x)))
+        assert 0.85 < peak <= 1.0, clip.id  # -1 dBFS = 0.891
+        assert float(np.sqrt(np.mean(x.astype(np.float64) ** 2))) > 0.01, clip.id
+
+
+def _max_ncc(a: np.ndarray, b: np.ndarray) -> float:
+    """Largest normalised cross-correlation over shifts where both overlap parts are loud."""
+    a = a.astype(np.float64)
+    b = b.astype(np.float64)
+    la, lb = len(a), len(b)
+    n = 1 << int(np.ceil(np.log2(la + lb)))
+    c = np.fft.irfft(np.fft.rfft(a, n) * np.conj(np.fft.rfft(b, n)), n)
+    lags = np.arange(-(lb - 1), la)
+    cc = np.concatenate([c[n - (lb - 1) :], c[:la]])
+    ea = np.concatenate([[0.0], np.cumsum(a**2)])
+    eb = np.concatenate([[0.0], np.cumsum(b**2)])
+    a0, a1 = np.maximum(lags, 0), np.minimum(la, lags + lb)
+    e_a, e_b = ea[a1] - ea[a0], eb[a1 - lags] - eb[a0 - lags]
+    ok = (a1 - a0 >= 2000) & (e_a >= 0.1 * ea[-1]) & (e_b >= 0.1 * eb[-1])
+    return float(np.max(np.abs(cc[ok]) / np.sqrt(e_a[ok] * e_b[ok]))) if ok.any() else 0.0
+
+
+def test_clips_in_a_category_are_distinct_recordings(bank, audio):
+    low = {i: resample(x, 16000, 8000) for i, x in audio.items()}
+    for cat in bank.categories:
+        ids = [c.id for c in bank.clips(category=cat)]
+        for i, a in enumerate(ids):
+            for b in ids[i + 1 :]:
+                assert _max_ncc(low[a], low[b]) < 0.8, (a, b)
+
+
+def test_a_copy_is_caught_by_the_distinctness_check(audio):
+    x = resample(max(audio.values(), key=len), 16000, 8000)
+    crop = 0.5 * x[len(x) // 4 :]
+    assert _max_ncc(x, crop) > 0.99
+
+
+# --------------------------------------------------------------------------- the API
+def test_queries_and_captions(bank):
+    dogs = bank.clips(category="dog")
+    assert dogs and all(c.category == "dog" for c in dogs)
+    assert bank.caption("dog") == "the sound of a dog barking" == dogs[0].caption
+    assert bank.get(dogs[0].id) is dogs[0]
+    assert set(bank.clips(split="train")) | set(bank.clips(split="heldout")) == set(bank)
+    assert bank.captions["clock_alarm"] == CAPTIONS["clock_alarm"]
+    for cat in bank.categories:
+        assert bank.caption(cat).startswith("the sound of ")
+
+
+def test_errors_name_the_valid_options(bank):
+    with pytest.raises(ConfigError, match=r"no sound category 'dgo'.*did you mean \['dog'"):
+        bank.clips(category="dgo")
+    with pytest.raises(ConfigError, match=r"available: \['airplane'"):
+        bank.caption("unicorn")
+    with pytest.raises(ConfigError, match=r"split must be one of \('train', 'heldout'\)"):
+        bank.clips(split="test")
+    with pytest.raises(ConfigError, match=r"no clip 'dog-scratch-dog9'.*closest: \["):
+        bank.get("dog-scratch-dog9")
+
+
+def test_format_table_and_summary(bank):
+    text = bank.format_table()
+    s = bank.summary()
+    assert s["n_clips"] == len(bank) == s["n_train"] + s["n_heldout"]
+    assert sum(s["licences"].values()) == len(bank)
+    assert json.loads(json.dumps(s)) == s
+    for cat in bank.categories:
+        row = s["categories"][cat]
+        assert any(
+            line.split()[:3] == [cat, str(row["train"]), str(row["heldout"])]
+            for line in text.splitlines()
+        ), cat
+    for lic in s["licences"]:
+        assert lic in text
+    assert f"{len(bank)} clips in {len(bank.categories)} categories" in text
+
+
+def test_sound_clip_validates():
+    kw = dict(
+        id="x", category="dog", caption="c", path="a.wav", sample_rate=16000, duration_s=1.0,
+        licence="CC0-1.0", source="test", author="me", split="train",
+    )  # fmt: skip
+    assert isinstance(SoundClip(**kw).path, Path)
+    with pytest.raises(ConfigError, match=r"split must be one of \('train', 'heldout'\)"):
+        SoundClip(**{**kw, "split": "test"})
+    with pytest.raises(ConfigError, match="snake_case"):
+        SoundClip(**{**kw, "category": "Dog Bark"})
+    with pytest.raises(ConfigError, match="duration_s must be > 0"):
+        SoundClip(**{**kw, "duration_s": 0.0})
+
+
+def test_bank_refuses_inconsistent_clips(bank):
+    clip = bank.clips()[0]
+    with pytest.raises(ConfigError, match="appears twice"):
+        SoundBank([clip, clip], sample_rate=16000)
+    with pytest.raises(ConfigError, match="the bank is at 8000 Hz"):
+        SoundBank([clip], sample_rate=8000)
+    with pytest.raises(ConfigError, match="has no clips"):
+        SoundBank([], sample_rate=16000)
+
+
+def test_manifest_errors(tmp_path, manifest):
+    with pytest.raises(AssetError, match="manifest not found"):
+        SoundBank.from_manifest(tmp_path / "manifest.json")
+    broken = json.loads(json.dumps(manifest))
+    del broken["clips"][3]["licence"]
+    (tmp_path / "manifest.json").write_text(json.dumps(broken))
+    with pytest.raises(AssetError, match=r"clip #3 lacks \['licence'\]"):
+        SoundBank.from_manifest(tmp_path / "manifest.json")
+    (tmp_path / "manifest.json").write_text(json.dumps(manifest))  # files are not beside it
+    with pytest.raises(AssetError, match="file not found"):
+        SoundBank.from_manifest(tmp_path / "manifest.json")
+    (tmp_path / "manifest.json").write_text("{not json")
+    with pytest.raises(AssetError, match="unreadable"):
+        SoundBank.from_manifest(tmp_path / "manifest.json")
+
+
+def test_a_copied_bank_loads_from_its_manifest(tmp_path, bank):
+    shutil.copytree(DEFAULT_BANK_DIR, tmp_path / "sounds")
+    copy = SoundBank.from_manifest(tmp_path / "sounds" / "manifest.json")
+    assert copy.categories == bank.categories
+    a, b = copy.clips()[5], bank.clips()[5]
+    np.testing.assert_array_equal(a.load(), b.load())
+
+
+# --------------------------------------------------------------------------- ESC-50 loader
+ESC_RATE = 44100
+
+
+def _make_esc50(root: Path, rows: list[tuple[str, int, str, float]]) -> Path:
+    """An ESC-50-format directory: one 1 s 44.1 kHz sine per row (filename, fold, cat, Hz)."""
+    (root / "audio").mkdir(parents=True)
+    (root / "meta").mkdir()
+    t = np.arange(ESC_RATE) / ESC_RATE
+    targets = {}
+    with (root / "meta" / "esc50.csv").open("w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(ESC50_COLUMNS)
+        for name, fold, cat, hz in rows:
+            target = targets.setdefault(cat, len(targets))
+            w.writerow([name, fold, target, cat, "False", name.split("-")[1], name.split("-")[2]])
+            write_wav(root / "audio" / name, 0.5 * np.sin(2 * np.pi * hz * t), ESC_RATE)
+    return root
+
+
+@pytest.fixture
+def esc50_dir(tmp_path) -> Path:
+    rows = []
+    for fold in range(1, 6):
+        rows.append((f"{fold}-1000{fold}-A-0.wav", fold, "dog", 500.0))
+        rows.append((f"{fold}-2000{fold}-A-1.wav", fold, "clock_alarm", 2000.0))
+    return _make_esc50(tmp_path / "ESC-50-master", rows)
+
+
+def test_load_esc50(esc50_dir):
+    esc = load_esc50(esc50_dir)
+    assert esc.categories == ["clock_alarm", "dog"]
+    assert esc.sample_rate == 16000 and len(esc) == 10
+    held = esc.clips(split="heldout")
+    assert sorted(c.source_path for c in held) == ["5-10005-A-0.wav", "5-20005-A-1.wav"]
+    assert esc.caption("clock_alarm") == CAPTIONS["clock_alarm"]
+    clip = esc.get("esc50-1-20001-A-1")
+    assert clip.licence == "NOASSERTION" and clip.source == "ESC-50"
+    x = clip.load()
+    assert x.dtype == np.float32 and len(x) == 16000 == round(clip.duration_s * 16000)
+    spectrum = np.abs(np.fft.rfft(x * np.hanning(len(x))))
+    assert np.argmax(spectrum) == pytest.approx(2000, abs=1)  # 1 Hz bins: the sine survives
+    assert np.max(np.abs(x[200:-200])) == pytest.approx(0.5, abs=0.01)
+
+
+def test_load_esc50_options(esc50_dir):
+    esc = load_esc50(
+        esc50_dir, heldout_folds=(1, 2), sample_rate=8000, max_duration_s=0.5, categories=["dog"]
+    )
+    assert esc.categories == ["dog"]
+    assert len(esc.clips(split="heldout")) == 2
+    clip = esc.clips()[0]
+    assert clip.sample_rate == 8000 and clip.duration_s == 0.5
+    assert len(clip.load()) == 4000
+    with pytest.raises(ConfigError, match=r"categories \['unicorn'\] are not in .*available"):
+        load_esc50(esc50_dir, categories=["unicorn"])
+    with pytest.raises(ConfigError, match="heldout_folds must be among ESC-50's folds 1..5"):
+        load_esc50(esc50_dir, heldout_folds=(6,))
+
+
+def test_load_esc50_errors_name_what_is_missing(tmp_path, esc50_dir):
+    with pytest.raises(AssetError, match="ESC-50 directory not found"):
+        load_esc50(tmp_path / "nowhere")
+    (esc50_dir / "audio" / "3-10003-A-0.wav").unlink()
+    with pytest.raises(AssetError, match=r"1 clip\(s\) listed .* missing .*: 3-10003-A-0\.wav"):
+        load_esc50(esc50_dir)
+
+    meta = esc50_dir / "meta" / "esc50.csv"
+    rows = list(csv.reader(meta.open()))
+    drop = rows[0].index("fold")
+    with meta.open("w", newline="") as f:
+        csv.writer(f).writerows([r[:drop] + r[drop + 1 :] for r in rows])
+    with pytest.raises(AssetError, match=r"lacks column\(s\) \['fold'\]; an ESC-50 CSV has"):
+        load_esc50(esc50_dir)
+
+    meta.unlink()
+    with pytest.raises(AssetError, match=r"meta/esc50\.csv"):
+        load_esc50(esc50_dir)
+
+
+def test_load_esc50_rejects_bad_rows(tmp_path):
+    root = _make_esc50(tmp_path / "e", [("1-1-A-0.wav", 7, "dog", 300.0)])
+    with pytest.raises(AssetError, match=r"esc50\.csv:2: fold must be 1\.\.5, got '7'"):
+        load_esc50(root)
+
+
+def test_caption_for_unknown_categories():
+    assert caption_for("dog") == "the sound of a dog barking"
+    assert caption_for("coffee_machine") == "the sound of coffee machine"
