@@ -206,6 +206,22 @@ def test_insert_clip_snr_on_a_float32_track(rooster, snr):
     assert snr_db(added[start:stop], before[start:stop]) == pytest.approx(snr, abs=0.05)
 
 
+def test_insert_clip_keeps_the_track_in_range_and_every_snr(bank, rooster):
+    """An impulsive clip at 15 dB would peak far above 1: the whole track is scaled instead."""
+    chalk = bank.get("writing-qabcs-chalkboard").load()
+    track = background_noise(8 * RATE, RATE, np.random.default_rng(4))
+    before = track.astype(np.float64)
+    r0, r1 = insert_clip(track, rooster, 0.5, RATE, 15.0)
+    after_first = track.astype(np.float64)
+    c0, c1 = insert_clip(track, chalk, 4.0, RATE, 15.0)
+    assert np.max(np.abs(track)) <= 1.0
+    scale = track[-1] / after_first[-1]  # the last sample holds noise only
+    assert 0.05 < scale < 0.9
+    added = track.astype(np.float64) / scale - before
+    assert snr_db(added[c0:c1], before[c0:c1]) == pytest.approx(15.0, abs=0.05)
+    assert snr_db(added[r0:r1], before[r0:r1]) == pytest.approx(15.0, abs=0.05)
+
+
 def test_insert_clip_errors(rooster):
     rate = RATE
     track = background_noise(2 * rate, rate, np.random.default_rng(0))
