@@ -1,13 +1,17 @@
 """Teleop-style scans: motion, coverage, timing, audio ground truth, noise, and the whole
 recording's geometry after a round trip through disk."""
 
+import copy
+
 import numpy as np
 import pytest
+from helpers import assert_on_table
 
 from tabletop.errors import ConfigError
 from tabletop.sim.camera import backproject
+from tabletop.sim.noise import NoiseConfig, apply_noise
 from tabletop.sim.recording import load_recording, save_recording
-from tabletop.sim.scan import NoiseConfig, ScanConfig, run_scan
+from tabletop.sim.scan import ScanConfig, plan_scan, run_scan
 from tabletop.sim.scene import load_scene_spec
 from tabletop.sim.world import INSTANCE_TABLE
 from tabletop.transforms import transform_points
@@ -103,7 +107,7 @@ def test_round_trip_keeps_everything_and_geometry_holds(scan, reloaded):
         table = transform_points(
             f.T_world_cam, backproject(f.depth, reloaded.K, f.segmentation == INSTANCE_TABLE)
         )
-        assert np.abs(table[:, 2]).max() <= 0.005
+        assert_on_table(table)
     assert checked > 20
 
 
@@ -133,19 +137,16 @@ def test_sound_ground_truth_matches_the_audio_and_poses(scan):
     assert np.hypot(*np.subtract(t1["table_point"][:2], t2["table_point"][:2])) > 0.15
 
 
-def test_same_seed_same_scan_different_seed_different_path():
-    spec = load_scene_spec("default")
-    cfg = dict(speed=0.9, episodes=0, repeat_sounds=0)
-    a, _ = run_scan(spec, ScanConfig(seed=5, **cfg))
-    b, _ = run_scan(spec, ScanConfig(seed=5, **cfg))
-    c, _ = run_scan(spec, ScanConfig(seed=6, **cfg))
-    assert np.array_equal(a.joint_positions, b.joint_positions)
-    assert np.array_equal(a.rgb, b.rgb)
-    assert len(a) != len(c) or not np.allclose(a.joint_positions, c.joint_positions)
+def test_same_seed_same_plan_different_seed_different_path():
+    a = plan_scan(ScanConfig(seed=5, **FAST))
+    b = plan_scan(ScanConfig(seed=5, **FAST))
+    c = plan_scan(ScanConfig(seed=6, **FAST))
+    assert np.array_equal(a.T_world_cam, b.T_world_cam) and a.segments == b.segments
+    assert len(a.T_world_cam) != len(c.T_world_cam) or not np.allclose(a.T_world_cam, c.T_world_cam)
 
 
-def test_noise_is_seeded_and_keeps_the_truth():
-    spec = load_scene_spec("default")
+def test_noise_is_seeded_and_keeps_the_truth(scan):
+    clean, _ = scan
     noise = NoiseConfig(
         seed=2,
         pose_translation_m=0.003,
@@ -154,27 +155,43 @@ def test_noise_is_seeded_and_keeps_the_truth():
         depth_dropout=0.05,
         drop_frames=0.1,
     )
-    cfg = dict(speed=0.9, episodes=2, episode_s=2.0, repeat_sounds=0)
-    clean, _ = run_scan(spec, ScanConfig(seed=5, **cfg))
-    noisy, _ = run_scan(spec, ScanConfig(seed=5, noise=noise, **cfg))
-    again, _ = run_scan(spec, ScanConfig(seed=5, noise=noise, **cfg))
+    before = copy.deepcopy(clean.ground_truth)
+    noisy = apply_noise(clean, noise)
+    assert clean.ground_truth == before  # the input is not modified
+    again = apply_noise(clean, noise)
+    other = apply_noise(clean, NoiseConfig(seed=3, depth_relative=0.003))
     assert np.array_equal(noisy.depth, again.depth)
+    assert np.array_equal(noisy.T_world_hand, again.T_world_hand)
+    assert not np.array_equal(
+        other.depth, apply_noise(clean, NoiseConfig(seed=4, depth_relative=0.003)).depth
+    )
     assert 0.8 * len(clean) < len(noisy) < len(clean)
     assert noisy.meta["dropped_frames"] == len(clean) - len(noisy)
-    gaps = np.diff(noisy.timestamps)
-    assert gaps.max() > 1.5 / 30  # the gaps show where frames were lost
+    assert np.diff(noisy.timestamps).max() > 1.5 / 30  # the gaps show where frames were lost
     err = np.linalg.norm(noisy.T_world_hand[:, :3, 3] - noisy.T_world_hand_true[:, :3, 3], axis=1)
     assert 0.002 < err.mean() < 0.008
     # the true poses are the clean scan's poses at the kept timestamps
     kept = np.round(noisy.timestamps * 30).astype(int)
     np.testing.assert_allclose(noisy.T_world_hand_true, clean.T_world_hand[kept], atol=1e-12)
+    np.testing.assert_array_equal(noisy.rgb, clean.rgb[kept])
     invalid = lambda r: (r.depth == 0).mean()  # noqa: E731
     assert invalid(noisy) > invalid(clean) + 0.03
+    # depth noise grows with depth squared: about 0.003 * z^2
+    both = (noisy.depth > 0) & (clean.depth[kept] > 0)
+    z = clean.depth[kept][both].astype(np.float64)
+    d = noisy.depth[both] - z
+    far = z > 0.5
+    assert np.std(d[far]) == pytest.approx(0.003 * np.sqrt(np.mean(z[far] ** 4)), rel=0.1)
     for e in noisy.ground_truth["sound_events"]:
         f0, f1 = e["frames"]
         assert (
             e["onset_s"] - 1 / 30 <= noisy.timestamps[f0] <= noisy.timestamps[f1] <= e["offset_s"]
         )
+    assert clean.meta.get("dropped_frames") is None and clean.T_world_hand_true is None
+    for s in noisy.segments:
+        s0 = clean.segment(s.name)
+        assert clean.timestamps[s0.start] <= noisy.timestamps[s.start]
+        assert noisy.timestamps[s.stop - 1] <= clean.timestamps[s0.stop - 1]
 
 
 def test_config_errors_name_the_options():

@@ -1,0 +1,59 @@
+"""Simulation: tabletop scenes, the Panda with its wrist RGB-D camera, teleop-style scans with
+inserted audio, the sound bank, and recordings on disk."""
+
+from tabletop.sim.camera import CameraIntrinsics, WristCameraConfig, backproject
+from tabletop.sim.catalog import COLORS, OBJECT_KINDS, ObjectKind
+from tabletop.sim.recording import (
+    FORMAT_VERSION,
+    Frame,
+    Recording,
+    Segment,
+    load_recording,
+    save_recording,
+)
+from tabletop.sim.noise import NoiseConfig, apply_noise
+from tabletop.sim.scan import ScanConfig, ScanStats, plan_scan, run_scan
+from tabletop.sim.scene import (
+    AreaSpec,
+    ObjectSpec,
+    RandomSpec,
+    SceneSpec,
+    TableSpec,
+    list_default_scenes,
+    load_scene_spec,
+)
+from tabletop.sim.sound_bank import SoundBank, SoundClip, load_esc50
+from tabletop.sim.world import CameraImage, SimWorld
+
+__all__ = [
+    "COLORS",
+    "FORMAT_VERSION",
+    "OBJECT_KINDS",
+    "AreaSpec",
+    "CameraImage",
+    "CameraIntrinsics",
+    "Frame",
+    "NoiseConfig",
+    "ObjectKind",
+    "ObjectSpec",
+    "RandomSpec",
+    "Recording",
+    "ScanConfig",
+    "ScanStats",
+    "SceneSpec",
+    "Segment",
+    "SimWorld",
+    "SoundBank",
+    "SoundClip",
+    "TableSpec",
+    "WristCameraConfig",
+    "apply_noise",
+    "backproject",
+    "list_default_scenes",
+    "load_esc50",
+    "load_recording",
+    "load_scene_spec",
+    "plan_scan",
+    "run_scan",
+    "save_recording",
+]

@@ -14,10 +14,7 @@ import numpy as np
 from tabletop.errors import ConfigError
 from tabletop.sim.recording import Segment
 
-__all__ = ["TCP_OFFSET_HAND", "insert_sounds"]
-
-#: Tool centre point in the hand frame [m] (the URDF's panda_grasptarget).
-TCP_OFFSET_HAND = np.array([0.0, 0.0, 0.105])
+__all__ = ["insert_sounds"]
 
 
 def _choose_categories(bank, rng: np.random.Generator, n: int, repeats: int, split: str):
@@ -37,7 +34,7 @@ def _choose_categories(bank, rng: np.random.Generator, n: int, repeats: int, spl
 
 def insert_sounds(
     timestamps: np.ndarray,
-    T_world_hand: np.ndarray,
+    tcp_world: np.ndarray,
     segments: list[Segment],
     episode_centers,
     config,
@@ -45,7 +42,7 @@ def insert_sounds(
 ) -> tuple[np.ndarray, int, list[dict]]:
     """Audio track (S,) float32, its sample rate [Hz], and one ground-truth dict per sound.
 
-    ``timestamps`` (N,) [s] and ``T_world_hand`` (N, 4, 4) are the scan's true poses; the
+    ``timestamps`` (N,) [s] and ``tcp_world`` (N, 3) [m] are the scan's true TCP path; the
     ``episode`` segments say where sounds may go; ``config`` is the scan's ``ScanConfig``.
     """
     from tabletop.sim.audio import background_noise, insert_clip
@@ -61,7 +58,6 @@ def insert_sounds(
     dt = 1.0 / config.rate_hz
     n_samples = int(np.ceil((timestamps[-1] + dt) * rate))
     track = background_noise(n_samples, rate, rng)
-    tcp = T_world_hand[:, :3, :3] @ TCP_OFFSET_HAND + T_world_hand[:, :3, 3]
     events = []
     used: dict[str, list[str]] = {}
     for seg, center, cat in zip(episodes, episode_centers, cats, strict=True):
@@ -81,7 +77,7 @@ def insert_sounds(
         )
         onset, offset = start / rate, stop / rate
         heard = np.nonzero((timestamps >= onset) & (timestamps <= offset))[0]
-        p = tcp[heard].mean(axis=0)
+        p = tcp_world[heard].mean(axis=0)
         events.append(
             {
                 "episode": seg.name,

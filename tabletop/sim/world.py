@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from tabletop.arm.model import ARM_JOINT_NAMES, FINGER_JOINT_NAMES, HOME_Q
 from tabletop.errors import ConfigError, SimulationError
 from tabletop.paths import panda_urdf_path
 from tabletop.sim.camera import (
@@ -44,10 +45,6 @@ __all__ = [
 
 log = logging.getLogger(__name__)
 
-ARM_JOINT_NAMES = tuple(f"panda_joint{i}" for i in range(1, 8))
-#: A comfortable configuration above the table, gripper pointing down [rad].
-HOME_Q = np.array([0.0, -0.6, 0.0, -2.3, 0.0, 1.75, 0.785])
-HOME_Q.setflags(write=False)
 FINGER_OPENING = 0.04  # [m] per finger
 
 INSTANCE_NONE, INSTANCE_FLOOR, INSTANCE_TABLE, INSTANCE_ROBOT = 0, 1, 2, 3
@@ -198,10 +195,7 @@ class SimWorld:
             self._joint_index[info[1].decode()] = j
             self._link_index[info[12].decode()] = j
         self._arm_joints = [self._joint_index[n] for n in ARM_JOINT_NAMES]
-        self._finger_joints = [
-            self._joint_index["panda_finger_joint1"],
-            self._joint_index["panda_finger_joint2"],
-        ]
+        self._finger_joints = [self._joint_index[n] for n in FINGER_JOINT_NAMES]
 
         self.object_ids: dict[str, int] = {}
         self.object_instance: dict[str, int] = {}

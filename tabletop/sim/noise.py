@@ -1,0 +1,125 @@
+"""Sensor imperfections for robustness tests: noisy poses, noisy and missing depth, lost frames.
+
+:func:`apply_noise` works on any :class:`Recording` — a simulated scan or a real one — and
+keeps the clean poses beside the noisy ones, so a test can measure what the noise cost.
+"""
+
+from __future__ import annotations
+
+import copy
+from dataclasses import dataclass, fields
+
+import numpy as np
+
+from tabletop.errors import ConfigError
+from tabletop.sim.recording import Recording, Segment
+from tabletop.transforms import make_transform
+
+__all__ = ["NoiseConfig", "apply_noise"]
+
+
+@dataclass(frozen=True)
+class NoiseConfig:
+    """Sensor imperfections for robustness tests; all off by default. Seeded."""
+
+    seed: int = 0
+    pose_translation_m: float = 0.0
+    """Std [m] of per-frame Gaussian noise on the recorded end-effector position."""
+    pose_rotation_rad: float = 0.0
+    """Std [rad] of per-frame Gaussian noise on the recorded end-effector orientation."""
+    depth_relative: float = 0.0
+    """Std of depth noise relative to depth² [1/m] (stereo-like: 0.002 gives 2 mm at 1 m)."""
+    depth_dropout: float = 0.0
+    """Fraction of valid depth pixels set to 0 (invalid)."""
+    drop_frames: float = 0.0
+    """Probability that a frame is lost (it is left out; the timestamps show the gap)."""
+
+    def __post_init__(self) -> None:
+        for name in ("pose_translation_m", "pose_rotation_rad", "depth_relative"):
+            if getattr(self, name) < 0:
+                raise ConfigError(f"noise {name} must be >= 0, got {getattr(self, name)}")
+        for name in ("depth_dropout", "drop_frames"):
+            if not 0 <= getattr(self, name) < 1:
+                raise ConfigError(f"noise {name} must be in [0, 1), got {getattr(self, name)}")
+
+    @property
+    def any(self) -> bool:
+        return any(
+            getattr(self, n) > 0
+            for n in (
+                "pose_translation_m",
+                "pose_rotation_rad",
+                "depth_relative",
+                "depth_dropout",
+                "drop_frames",
+            )
+        )
+
+
+def _axis_angle(axis: np.ndarray, angle: float) -> np.ndarray:
+    k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+    return np.eye(3) + np.sin(angle) * k + (1 - np.cos(angle)) * k @ k
+
+
+def apply_noise(rec: Recording, noise: NoiseConfig) -> Recording:
+    """A copy of ``rec`` with seeded noise; ``T_world_hand_true`` keeps the clean poses.
+
+    Pose noise perturbs each recorded end-effector pose independently (in the hand frame);
+    depth noise is Gaussian with std ``depth_relative * z**2`` and is re-quantised to the
+    recording's depth resolution; dropped frames are removed and their segments, sound-event
+    frame ranges and ``meta["dropped_frames"]`` updated.
+    """
+    rng = np.random.default_rng(noise.seed)
+    n = len(rec)
+    kw = {f.name: getattr(rec, f.name) for f in fields(Recording)}
+    kw["ground_truth"] = copy.deepcopy(rec.ground_truth)
+    kw["meta"] = {**rec.meta, "noise": {f.name: getattr(noise, f.name) for f in fields(noise)}}
+    true = rec.T_world_hand if rec.T_world_hand_true is None else rec.T_world_hand_true
+    noisy = np.array(rec.T_world_hand)
+    if noise.pose_translation_m > 0 or noise.pose_rotation_rad > 0:
+        for i in range(n):
+            axis = rng.normal(size=3)
+            axis /= np.linalg.norm(axis)
+            angle = rng.normal(0.0, noise.pose_rotation_rad) if noise.pose_rotation_rad else 0.0
+            dT = make_transform(
+                _axis_angle(axis, angle), rng.normal(0.0, noise.pose_translation_m, 3)
+            )
+            noisy[i] = noisy[i] @ dT
+    kw["T_world_hand"], kw["T_world_hand_true"] = noisy, true
+
+    depth = rec.depth.astype(np.float64)
+    valid = depth > 0
+    if noise.depth_relative > 0:
+        depth += valid * rng.normal(size=depth.shape) * noise.depth_relative * depth**2
+    if noise.depth_dropout > 0:
+        depth[valid & (rng.random(depth.shape) < noise.depth_dropout)] = 0.0
+    res = rec.depth_resolution
+    kw["depth"] = (np.round(np.maximum(depth, 0.0) / res) * res).astype(np.float32)
+
+    if noise.drop_frames > 0:
+        keep = rng.random(n) >= noise.drop_frames
+        keep[0] = True
+        index = np.cumsum(keep) - 1  # new index of each kept frame
+        for k in (
+            "timestamps",
+            "rgb",
+            "depth",
+            "joint_positions",
+            "T_world_hand",
+            "T_world_hand_true",
+            "segmentation",
+        ):
+            if kw[k] is not None:
+                kw[k] = kw[k][keep]
+        segments = []
+        for s in rec.segments:
+            a, b = index[s.start] + (not keep[s.start]), index[s.stop - 1] + 1
+            if b > a:
+                segments.append(Segment(s.name, s.kind, int(a), int(b)))
+        kw["segments"] = tuple(segments)
+        kw["meta"]["dropped_frames"] = int((~keep).sum())
+        for ev in (kw["ground_truth"] or {}).get("sound_events", []):
+            f0, f1 = ev["frames"]
+            kept = np.nonzero(keep[f0 : f1 + 1])[0] + f0
+            ev["frames"] = [int(index[kept[0]]), int(index[kept[-1]])] if len(kept) else []
+    return Recording(**kw)
