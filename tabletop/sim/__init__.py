@@ -3,6 +3,7 @@ inserted audio, the sound bank, and recordings on disk."""
 
 from tabletop.sim.camera import CameraIntrinsics, WristCameraConfig, backproject
 from tabletop.sim.catalog import COLORS, OBJECT_KINDS, ObjectKind
+from tabletop.sim.noise import NoiseConfig, apply_noise
 from tabletop.sim.recording import (
     FORMAT_VERSION,
     Frame,
@@ -11,7 +12,6 @@ from tabletop.sim.recording import (
     load_recording,
     save_recording,
 )
-from tabletop.sim.noise import NoiseConfig, apply_noise
 from tabletop.sim.scan import ScanConfig, ScanStats, plan_scan, run_scan
 from tabletop.sim.scene import (
     AreaSpec,
