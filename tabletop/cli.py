@@ -222,10 +222,12 @@ def _machine() -> dict:
 
 
 def cmd_bench(args: argparse.Namespace) -> int:
+    from tabletop.arm.bench import run_arm_benchmark
     from tabletop.sim.scan import ScanConfig, run_scan
     from tabletop.sim.scene import load_scene_spec
 
     results: dict = {"machine": _machine()}
+    print("bench: scanning the default scene ...", file=sys.stderr)
     spec = load_scene_spec("default")
     rec, stats = run_scan(spec, ScanConfig(seed=0, episodes=2, repeat_sounds=0))
     results.update(
@@ -237,16 +239,57 @@ def cmd_bench(args: argparse.Namespace) -> int:
             "renderer": rec.meta["renderer"],
         }
     )
+    print(f"bench: arm, {args.arm_targets} seeded reach targets ...", file=sys.stderr)
+    arm = run_arm_benchmark(n_targets=args.arm_targets, seed=0)
+    results.update(
+        {
+            k: arm[k]
+            for k in (
+                "reach_within_1cm",
+                "object_within_10cm",
+                "contacts",
+                "reasons",
+                "probes_right_reason",
+                "ik_step_ms_median",
+                "ik_step_ms_p95",
+                "collision_check_ms_median",
+                "collision_check_ms_p95",
+                "ik_plus_collision_ms_median",
+                "dls_iter_ms_median",
+                "mink_over_dls_ratio",
+            )
+        }
+    )
+    results["reach_targets"] = arm["n_targets"]
+    results["reach_reachable"] = arm["reachable"]
     if args.json:
         print(json.dumps(results, indent=1))
-    else:
-        m = results["machine"]
-        print(f"machine: {m['cpus']} cpus, {m['platform']}, python {m['python']}")
-        print(
-            f"scan: {results['scan_frames']} frames at {rec.image_size[0]}x{rec.image_size[1]}: "
-            f"{results['scan_fps']} frames/s end to end, {results['scan_render_fps']} frames/s "
-            f"rendering alone ({results['renderer']})"
-        )
+        return 0
+    m = results["machine"]
+    r = results
+    print(f"machine: {m['cpus']} cpus, {m['platform']}, python {m['python']}")
+    print(
+        f"scan:  {r['scan_frames']} frames at {rec.image_size[0]}x{rec.image_size[1]}: "
+        f"{r['scan_fps']} frames/s end to end (IK, clearance checks, rendering), "
+        f"{r['scan_render_fps']} frames/s rendering alone ({r['renderer']})"
+    )
+    print(
+        f"arm:   {r['reach_targets']} targets, {r['reach_reachable']} reachable: "
+        f"{r['reach_within_1cm']:.1%} within 1 cm, objects within 10 cm "
+        f"{r['object_within_10cm']:.1%}, contacts {r['contacts']}, "
+        f"probes with the right reason {r['probes_right_reason']}"
+    )
+    print(f"       reasons {r['reasons']}")
+    print(
+        f"       mink IK step {r['ik_step_ms_median']:.3f} ms median "
+        f"({r['ik_step_ms_p95']:.3f} p95); collision check "
+        f"{r['collision_check_ms_median']:.3f} ms ({r['collision_check_ms_p95']:.3f} p95); "
+        f"together {r['ik_plus_collision_ms_median']:.3f} ms"
+    )
+    print(
+        f"       DLS reference {r['dls_iter_ms_median']:.3f} ms per iteration "
+        f"(mink step / DLS iteration = {r['mink_over_dls_ratio']:.2f})"
+    )
     return 0
 
 
@@ -277,6 +320,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("bench", help="performance figures of every part, in one run")
     p.add_argument("--json", action="store_true", help="machine-readable output")
+    p.add_argument("--arm-targets", type=int, default=200, help="reach targets (default 200)")
     p.set_defaults(func=cmd_bench)
     return parser
 
