@@ -242,26 +242,8 @@ def cmd_bench(args: argparse.Namespace) -> int:
     print(f"bench: arm, {args.arm_targets} seeded reach targets ...", file=sys.stderr)
     arm = run_arm_benchmark(n_targets=args.arm_targets, seed=0)
     results.update(
-        {
-            k: arm[k]
-            for k in (
-                "reach_within_1cm",
-                "object_within_10cm",
-                "contacts",
-                "reasons",
-                "probes_right_reason",
-                "ik_step_ms_median",
-                "ik_step_ms_p95",
-                "collision_check_ms_median",
-                "collision_check_ms_p95",
-                "ik_plus_collision_ms_median",
-                "dls_iter_ms_median",
-                "mink_over_dls_ratio",
-            )
-        }
+        {f"reach_{k}" if k in ("n_targets", "reachable", "seed") else k: v for k, v in arm.items()}
     )
-    results["reach_targets"] = arm["n_targets"]
-    results["reach_reachable"] = arm["reachable"]
     if args.json:
         print(json.dumps(results, indent=1))
         return 0
@@ -274,7 +256,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
         f"{r['scan_render_fps']} frames/s rendering alone ({r['renderer']})"
     )
     print(
-        f"arm:   {r['reach_targets']} targets, {r['reach_reachable']} reachable: "
+        f"arm:   {r['reach_n_targets']} targets, {r['reach_reachable']} reachable: "
         f"{r['reach_within_1cm']:.1%} within 1 cm, objects within 10 cm "
         f"{r['object_within_10cm']:.1%}, contacts {r['contacts']}, "
         f"probes with the right reason {r['probes_right_reason']}"

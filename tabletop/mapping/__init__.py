@@ -1,0 +1,1 @@
+"""Mapping: encoders, voxel fusion, the localisation modules, heatmaps and the AVLMap."""

@@ -1,0 +1,24 @@
+"""Encoders behind small protocols: text, dense image, global image, audio."""
+
+from tabletop.mapping.encoders.base import (
+    AudioEncoder,
+    DenseImageEncoder,
+    EncoderMismatchError,
+    GlobalImageEncoder,
+    TextEncoder,
+    check_same_space,
+    l2_normalize,
+)
+from tabletop.mapping.encoders.minilm import MINILM_SPACE, MiniLMTextEncoder
+
+__all__ = [
+    "MINILM_SPACE",
+    "AudioEncoder",
+    "DenseImageEncoder",
+    "EncoderMismatchError",
+    "GlobalImageEncoder",
+    "MiniLMTextEncoder",
+    "TextEncoder",
+    "check_same_space",
+    "l2_normalize",
+]
