@@ -36,7 +36,7 @@ from tabletop.sim.teleop import (
 from tabletop.sim.world import HOME_Q, SimWorld
 from tabletop.transforms import invert
 
-__all__ = ["ScanConfig", "ScanStats", "plan_scan", "run_scan"]
+__all__ = ["ScanConfig", "ScanStats", "T_hand_tcp", "plan_scan", "run_scan"]
 
 log = logging.getLogger(__name__)
 
@@ -131,7 +131,7 @@ _VELOCITY_FRACTION = 0.6
 
 
 @functools.cache
-def _T_hand_tcp() -> np.ndarray:
+def T_hand_tcp() -> np.ndarray:
     """(4, 4) pose of the tool centre point in the hand frame (fixed by the URDF)."""
     from tabletop.arm import HOME_Q, TCP_FRAME, PandaModel
 
@@ -149,7 +149,7 @@ def plan_scan(config: ScanConfig) -> _Plan:
     last = mapping_keyframes(np.random.default_rng(config.seed))[-1]
     centers = _episode_centers(rng, config.episodes)
     n = len(poses[0])
-    T_cam_tcp = invert(config.camera.T_hand_cam) @ _T_hand_tcp()
+    T_cam_tcp = invert(config.camera.T_hand_cam) @ T_hand_tcp()
     for i, c in enumerate(centers):
         dwell = dwell_keyframes(c, rng)
         # Shift the hover so that the tool centre point, not the camera, is above the region.

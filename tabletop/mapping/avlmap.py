@@ -1,0 +1,400 @@
+"""The AVLMap: a voxel map of vision-language features plus per-frame image embeddings, and
+audio segments tied to the poses where they were heard; queries in any modality become heatmaps.
+
+Build it from a recording with :meth:`AVLMap.build` (batch) or frame by frame with
+:meth:`AVLMap.add_frame` and :meth:`AVLMap.add_audio` (online: the same result). Queries:
+:meth:`object_heatmap` (text), :meth:`sound_heatmap` (text), :meth:`area_heatmap` (text),
+each returning a :class:`Heatmap` with a calibrated ``confidence`` and ``found`` flag.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import ndimage
+
+from tabletop.errors import ConfigError
+from tabletop.mapping.audio_segments import AudioSegment, NoiseGateConfig, segment_audio
+from tabletop.mapping.encoders.base import check_same_space
+from tabletop.mapping.grid import VoxelGrid
+from tabletop.mapping.heatmaps import (
+    AUX_DECAY,
+    MAJOR_DECAY,
+    point_heatmap_3d,
+    scored_points_heatmap_xy,
+)
+from tabletop.mapping.voxel_map import VoxelMap, frame_points
+
+__all__ = ["DEFAULT_CATEGORIES", "AVLMap", "Heatmap", "MapConfig", "MapStats"]
+
+log = logging.getLogger(__name__)
+
+#: The vocabulary a text query competes against: tabletop objects and the background.
+DEFAULT_CATEGORIES = (
+    "mug",
+    "duck",
+    "teddy bear",
+    "lego brick",
+    "jenga block",
+    "domino",
+    "soccer ball",
+    "tray",
+    "toy cube",
+    "toy cylinder",
+    "toy prism",
+    "ball",
+    "table",
+    "floor",
+    "robot arm",
+    "other",
+)
+_BACKGROUND = ("table", "floor", "robot arm", "other")
+
+
+@dataclass(frozen=True)
+class MapConfig:
+    """How a map is built and queried."""
+
+    grid: VoxelGrid = field(default_factory=VoxelGrid)
+    """The workspace box and voxel size (1 cm by default)."""
+    pixel_step: int = 2
+    """Fuse every ``pixel_step``-th pixel row and column (2: a quarter of the pixels)."""
+    frame_step: int = 1
+    """Fuse every ``frame_step``-th frame into the voxels (all frames enter the area module)."""
+    categories: tuple[str, ...] = DEFAULT_CATEGORIES
+    """Vocabulary a text query competes against (with "other")."""
+    major_decay: float = MAJOR_DECAY
+    """Decay [1/m] of primary heatmaps (``get_major_map``)."""
+    aux_decay: float = AUX_DECAY
+    """Decay [1/m] of auxiliary heatmaps (``get_map``)."""
+    select_margin: float = 0.25
+    """Target voxels score within this fraction of (best - median) of the best voxel."""
+    min_confidence: float = 0.5
+    """Below this calibrated confidence a query is reported as not found."""
+    gate: NoiseGateConfig = field(default_factory=NoiseGateConfig)
+
+    def __post_init__(self) -> None:
+        if self.pixel_step < 1 or self.frame_step < 1:
+            raise ConfigError("pixel_step and frame_step must be >= 1")
+        if "other" not in self.categories:
+            raise ConfigError("categories must include 'other'")
+
+
+@dataclass(frozen=True)
+class Heatmap:
+    """A query's heatmap over the map's grid, with what produced it."""
+
+    values: np.ndarray  # grid.shape float32 in [0, 1]
+    query: str
+    modality: str  # "object" | "sound" | "area" | "image" | "fused"
+    decay: float  # [1/m]
+    confidence: float  # calibrated, in [0, 1]
+    found: bool
+    reason: str = ""
+
+
+@dataclass(frozen=True)
+class MapStats:
+    frames: int
+    fused_frames: int
+    encoder_s: float
+    fusion_s: float
+    voxels: int
+    audio_segments: int
+
+
+def _tcp_positions(T_world_hand: np.ndarray) -> np.ndarray:
+    from tabletop.sim.scan import T_hand_tcp
+
+    T = T_world_hand @ T_hand_tcp()
+    return T[:, :3, 3]
+
+
+def _look_at_table(T_world_cam: np.ndarray) -> np.ndarray:
+    """(N, 2) xy where each camera's optical axis meets the table plane z = 0."""
+    o = T_world_cam[:, :3, 3]
+    d = T_world_cam[:, :3, 2]
+    t = np.where(d[:, 2] < -1e-3, -o[:, 2] / np.minimum(d[:, 2], -1e-3), 0.5)
+    return (o + t[:, None] * d)[:, :2]
+
+
+class AVLMap:
+    """The audio-visual-language map of one recording."""
+
+    def __init__(
+        self,
+        config: MapConfig,
+        text,
+        dense,
+        global_image,
+        audio,
+        encoder_names: dict[str, str] | None = None,
+    ) -> None:
+        for enc in (dense, global_image, audio):
+            if enc is not None:
+                check_same_space(text, enc)
+        self.config = config
+        self.grid = config.grid
+        self.text, self.dense, self.global_image, self.audio_encoder = (
+            text,
+            dense,
+            global_image,
+            audio,
+        )
+        self.encoder_names = dict(encoder_names or {})
+        self.voxels = VoxelMap(self.grid, text.dim)
+        self.frame_embeddings: list[np.ndarray] = []
+        self.frame_poses: list[np.ndarray] = []  # T_world_cam
+        self.segments: list[AudioSegment] = []
+        self.segment_embeddings: list[np.ndarray] = []
+        self.segment_positions: list[np.ndarray] = []  # (3,) mean TCP while heard
+        self._frames_seen = 0
+        self.encoder_s = 0.0
+        self.fusion_s = 0.0
+
+    # ------------------------------------------------------------------ building
+    def add_frame(self, rgb, depth, K, T_world_cam, context: dict | None = None) -> None:
+        """Fuse one RGB-D frame (online). ``context`` feeds the encoders (oracle: segmentation)."""
+        i = self._frames_seen
+        self._frames_seen += 1
+        t0 = time.perf_counter()
+        if self.global_image is not None:
+            self.frame_embeddings.append(self.global_image.encode_image(rgb, context))
+            self.frame_poses.append(np.asarray(T_world_cam, np.float64))
+        if i % self.config.frame_step:
+            self.encoder_s += time.perf_counter() - t0
+            return
+        feats = self.dense.encode_dense(rgb, context)
+        t1 = time.perf_counter()
+        pts, px = frame_points(depth, K, T_world_cam, self.config.pixel_step)
+        s = self.dense.stride
+        cell = feats[
+            np.minimum(px[:, 0] // s, feats.shape[0] - 1),
+            np.minimum(px[:, 1] // s, feats.shape[1] - 1),
+        ]
+        self.voxels.integrate(pts, cell, rgb[px[:, 0], px[:, 1]])
+        t2 = time.perf_counter()
+        self.encoder_s += t1 - t0
+        self.fusion_s += t2 - t1
+
+    def add_audio(
+        self, audio: np.ndarray, sample_rate: int, timestamps: np.ndarray, T_world_hand: np.ndarray
+    ) -> None:
+        """Segment a recording's audio track and tie each segment to the poses heard from."""
+        segs = segment_audio(audio, sample_rate, self.config.gate)
+        tcp = _tcp_positions(np.asarray(T_world_hand))
+        for seg in segs:
+            heard = (timestamps >= seg.start_s) & (timestamps <= seg.end_s)
+            if not heard.any():
+                heard = np.abs(timestamps - (seg.start_s + seg.end_s) / 2) == np.min(
+                    np.abs(timestamps - (seg.start_s + seg.end_s) / 2)
+                )
+            a, b = int(seg.start_s * sample_rate), int(seg.end_s * sample_rate)
+            emb = self.audio_encoder.encode_audio(
+                audio[a:b], sample_rate, {"span_s": (seg.start_s, seg.end_s)}
+            )
+            self.segments.append(seg)
+            self.segment_embeddings.append(emb)
+            self.segment_positions.append(tcp[heard].mean(axis=0))
+
+    @classmethod
+    def build(
+        cls,
+        recording,
+        config: MapConfig | None = None,
+        encoders: str = "oracle",
+        progress: Callable[[int, int], None] | None = None,
+    ) -> AVLMap:
+        """Build a map from a whole recording with the named encoder set."""
+        from tabletop.mapping.encoders.registry import make_encoders
+
+        config = config or MapConfig()
+        enc = make_encoders(encoders, recording)
+        m = cls(config, enc.text, enc.dense, enc.global_image, enc.audio, enc.names)
+        T_cam = recording.T_world_cam
+        for i in range(len(recording)):
+            ctx = None
+            if recording.segmentation is not None:
+                ctx = {"segmentation": recording.segmentation[i]}
+            m.add_frame(recording.rgb[i], recording.depth[i], recording.K, T_cam[i], ctx)
+            if progress is not None:
+                progress(i + 1, len(recording))
+        if recording.audio is not None and m.audio_encoder is not None:
+            m.add_audio(
+                recording.audio, recording.audio_rate, recording.timestamps, recording.T_world_hand
+            )
+        return m
+
+    @property
+    def stats(self) -> MapStats:
+        fused = (self._frames_seen + self.config.frame_step - 1) // self.config.frame_step
+        return MapStats(
+            self._frames_seen,
+            fused,
+            self.encoder_s,
+            self.fusion_s,
+            self.voxels.n,
+            len(self.segments),
+        )
+
+    # ------------------------------------------------------------------ queries
+    def _decay(self, major: bool) -> float:
+        return self.config.major_decay if major else self.config.aux_decay
+
+    def object_scores(self, query: str) -> tuple[np.ndarray, np.ndarray]:
+        """Per occupied voxel: the query's cosine score, and whether the query beats the
+        background concepts there."""
+        f = self.voxels.mean_features()
+        q = self.text.encode_text([query])[0]
+        bg = self.text.encode_text(list(_BACKGROUND))
+        s = f @ q
+        beats_bg = s > (f @ bg.T).max(axis=1)
+        return s, beats_bg
+
+    def object_heatmap(self, query: str, major: bool = True) -> Heatmap:
+        """Heat around the voxels that best match ``query`` (the object module)."""
+        decay = self._decay(major)
+        if self.voxels.n == 0:
+            return Heatmap(
+                np.zeros(self.grid.shape, np.float32),
+                query,
+                "object",
+                decay,
+                0.0,
+                False,
+                "the map is empty",
+            )
+        s, beats = self.object_scores(query)
+        cand = np.nonzero(beats)[0]
+        if not len(cand):
+            return Heatmap(
+                np.zeros(self.grid.shape, np.float32),
+                query,
+                "object",
+                decay,
+                0.0,
+                False,
+                f"no voxel matches {query!r} better than the background",
+            )
+        best = s[cand].max()
+        floor = np.median(s)
+        keep = cand[s[cand] >= best - self.config.select_margin * (best - floor)]
+        mask = np.zeros(self.grid.size, bool)
+        mask[self.voxels.linear_indices[keep]] = True
+        values = point_heatmap_3d(self.grid, mask.reshape(self.grid.shape), decay)
+        conf = self._confidence(best, floor)
+        found = conf >= self.config.min_confidence
+        return Heatmap(
+            values,
+            query,
+            "object",
+            decay,
+            conf,
+            found,
+            "" if found else f"best match {best:.2f} is weak (confidence {conf:.2f})",
+        )
+
+    def _confidence(self, best: float, floor: float) -> float:
+        """Map a best cosine score (against the map's median) to [0, 1].
+
+        A logistic on the margin above the median score; 0.5 at a margin of 0.2.
+        """
+        margin = best - floor
+        return float(1.0 / (1.0 + np.exp(-(margin - 0.2) / 0.05)))
+
+    def sound_heatmap(self, query: str, major: bool = True) -> Heatmap:
+        """Heat around where the sound best matching ``query`` was heard (the audio module)."""
+        decay = self._decay(major)
+        if not self.segment_embeddings:
+            return Heatmap(
+                np.zeros(self.grid.shape, np.float32),
+                query,
+                "sound",
+                decay,
+                0.0,
+                False,
+                "the map has no audio segments",
+            )
+        q = self.text.encode_text([query])[0]
+        s = np.stack(self.segment_embeddings) @ q
+        scores = _normalize_scores(s)
+        pos = np.stack(self.segment_positions)[:, :2]
+        values = scored_points_heatmap_xy(self.grid, pos, scores, decay)
+        floor = float(np.median(s)) if len(s) > 2 else float(s.min(initial=0.0))
+        conf = self._confidence(float(s.max()), min(floor, float(s.max()) - 0.0))
+        found = conf >= self.config.min_confidence or len(s) <= 2
+        return Heatmap(
+            values,
+            query,
+            "sound",
+            decay,
+            conf,
+            found,
+            "" if found else "no sound segment matches well",
+        )
+
+    def area_heatmap(self, query: str, major: bool = False) -> Heatmap:
+        """Heat where frames whose global embedding matches ``query`` looked (the area module)."""
+        decay = self._decay(major)
+        if not self.frame_embeddings:
+            return Heatmap(
+                np.zeros(self.grid.shape, np.float32),
+                query,
+                "area",
+                decay,
+                0.0,
+                False,
+                "the map has no frame embeddings",
+            )
+        q = self.text.encode_text([query])[0]
+        s = np.stack(self.frame_embeddings) @ q
+        scores = _normalize_scores(s)
+        pts = _look_at_table(np.stack(self.frame_poses))
+        top = scores >= 0.8  # the best-matching views carry the area
+        values = scored_points_heatmap_xy(self.grid, pts[top], scores[top], decay)
+        conf = self._confidence(float(s.max()), float(np.median(s)))
+        return Heatmap(values, query, "area", decay, conf, True)
+
+    def surface_z(self, xy: np.ndarray) -> float:
+        """Height [m] of the top occupied voxel at ``xy`` (0, the table, where none)."""
+        idx, inside = self.grid.world_to_index(np.array([[xy[0], xy[1], 0.0]]))
+        if not inside[0]:
+            return 0.0
+        occ = self.voxels.occupancy()[idx[0, 0], idx[0, 1]]
+        ks = np.nonzero(occ)[0]
+        if not len(ks):
+            return 0.0
+        return float(self.grid.axes()[2][ks.max()] + self.grid.voxel_size / 2)
+
+    def get_max_pos_3d(self, heatmap: Heatmap | np.ndarray) -> np.ndarray:
+        """World point [m] of the heatmap's maximum.
+
+        Ties (plateaus) resolve to the centroid of the largest connected tied region; when that
+        region spans the whole height (a top-down heatmap), the point is placed on the surface
+        beneath (the top of the map at that x, y).
+        """
+        values = heatmap.values if isinstance(heatmap, Heatmap) else np.asarray(heatmap)
+        if values.shape != self.grid.shape:
+            raise ConfigError(f"heatmap {values.shape} is not on this map's grid {self.grid.shape}")
+        m = float(values.max())
+        tied = values >= m - 1e-6
+        labels, n = ndimage.label(tied, structure=np.ones((3, 3, 3)))
+        if n > 1:
+            weights = ndimage.sum(values, labels, index=np.arange(1, n + 1))
+            tied = labels == (int(np.argmax(weights)) + 1)
+        idx = np.argwhere(tied)
+        p = self.grid.centers(idx).mean(axis=0)
+        if len(np.unique(idx[:, 2])) == self.grid.shape[2]:
+            p[2] = self.surface_z(p[:2])
+        return p
+
+
+def _normalize_scores(s: np.ndarray) -> np.ndarray:
+    lo, hi = float(s.min()), float(s.max())
+    if hi - lo < 1e-9:
+        return np.ones_like(s, dtype=np.float64)
+    return (s - lo) / (hi - lo)

@@ -1,0 +1,70 @@
+"""The workspace grid: a bounded box of cubic voxels in the world (= robot base) frame."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from tabletop.errors import ConfigError
+
+__all__ = ["VoxelGrid"]
+
+
+@dataclass(frozen=True)
+class VoxelGrid:
+    """Voxels of ``voxel_size`` [m] filling ``[lower, upper)`` [m], world frame.
+
+    Voxel (i, j, k) covers ``lower + [i, i+1) * voxel_size`` on x (and likewise y, z); its centre
+    is ``lower + (i + 0.5) * voxel_size``. Linear index = ``(i * ny + j) * nz + k``.
+    """
+
+    lower: tuple[float, float, float] = (-0.20, -0.60, -0.02)
+    upper: tuple[float, float, float] = (0.80, 0.60, 0.34)
+    voxel_size: float = 0.01
+
+    def __post_init__(self) -> None:
+        lo, hi = np.asarray(self.lower, float), np.asarray(self.upper, float)
+        if lo.shape != (3,) or hi.shape != (3,) or np.any(hi <= lo):
+            raise ConfigError(f"grid bounds must be 3-vectors with lower < upper, got {lo}, {hi}")
+        if not 0.001 <= self.voxel_size <= 0.2:
+            raise ConfigError(f"voxel_size must be in [0.001, 0.2] m, got {self.voxel_size}")
+
+    @property
+    def shape(self) -> tuple[int, int, int]:
+        ext = (np.asarray(self.upper) - np.asarray(self.lower)) / self.voxel_size
+        n = np.ceil(ext - 1e-9).astype(int)
+        return int(n[0]), int(n[1]), int(n[2])
+
+    @property
+    def size(self) -> int:
+        nx, ny, nz = self.shape
+        return nx * ny * nz
+
+    def world_to_index(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(N, 3) int voxel indices of (N, 3) points [m], and a mask of those inside the grid."""
+        idx = np.floor((np.asarray(points, float) - self.lower) / self.voxel_size).astype(np.int64)
+        inside = np.all((idx >= 0) & (idx < self.shape), axis=1)
+        return idx, inside
+
+    def linear(self, idx: np.ndarray) -> np.ndarray:
+        """Linear indices of (N, 3) voxel indices."""
+        _, ny, nz = self.shape
+        return (idx[:, 0] * ny + idx[:, 1]) * nz + idx[:, 2]
+
+    def unravel(self, lin: np.ndarray) -> np.ndarray:
+        """(N, 3) voxel indices of linear indices."""
+        return np.stack(np.unravel_index(np.asarray(lin), self.shape), axis=1)
+
+    def centers(self, idx: np.ndarray) -> np.ndarray:
+        """(N, 3) voxel centres [m] of (N, 3) voxel indices."""
+        return np.asarray(self.lower) + (np.asarray(idx) + 0.5) * self.voxel_size
+
+    def axes(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Voxel-centre coordinates [m] along x, y and z."""
+        return tuple(
+            self.lower[a] + (np.arange(n) + 0.5) * self.voxel_size for a, n in enumerate(self.shape)
+        )
+
+    def to_dict(self) -> dict:
+        return {"lower": list(self.lower), "upper": list(self.upper), "voxel_size": self.voxel_size}
