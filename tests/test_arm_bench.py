@@ -2,7 +2,9 @@
 
 import numpy as np
 
-from tabletop.arm.bench import cluttered_scene, run_arm_benchmark
+from tabletop.arm.bench import GoalAudit, audit_goal, cluttered_scene, run_arm_benchmark
+from tabletop.arm.collision import CollisionChecker
+from tabletop.arm.model import PandaModel
 from tabletop.arm.obstacles import Box, Cylinder
 
 KEYS = {
@@ -18,6 +20,13 @@ KEYS = {
     "mink_over_dls_ratio",
     "reasons",
     "probes_right_reason",
+    "reachable",
+    "reachable_by_audit",
+    "reachable_by_controller",
+    "missed_reachable",
+    "infeasible_by_audit",
+    "goal_search_ms_median",
+    "goal_search_ms_p95",
 }
 
 
@@ -38,3 +47,18 @@ def test_small_benchmark_reports_every_key():
     assert out["probes_right_reason"] == "6/6"
     assert sum(out["reasons"].values()) == 8
     assert out["reach_within_1cm"] >= 0.85
+    assert out["reachable"] == out["reachable_by_audit"]
+    assert out["reachable_by_audit"] == out["reachable_by_controller"] + out["missed_reachable"]
+
+
+def test_audit_finds_a_configuration_the_first_goal_check_missed():
+    """Benchmark seed 0, target 116 (beside box3): the first goal check called it blocked."""
+    scene = cluttered_scene(np.random.default_rng(0))
+    model = PandaModel()
+    checker = CollisionChecker(model, scene)
+    audit = audit_goal(model, checker, [0.586, 0.2344, 0.04], n_random=20)
+    assert isinstance(audit, GoalAudit) and audit.feasible
+    assert checker.clearance(audit.q).distance >= 0.01
+    np.testing.assert_allclose(model.fk(audit.q)[:3, 3], [0.586, 0.2344, 0.04], atol=1e-3)
+    far = audit_goal(model, checker, [0.8, 0.6, 0.7], n_random=3, n_yaw=2, climb_iters=5)
+    assert not far.feasible and far.converged == 0 and far.q is None

@@ -3,6 +3,8 @@
 import numpy as np
 import pytest
 
+from tabletop.arm.bench import cluttered_scene
+from tabletop.arm.collision import CollisionChecker
 from tabletop.arm.diffik import MinkDiffIK
 from tabletop.arm.driver import KinematicDriver
 from tabletop.arm.model import HOME_Q, PandaModel
@@ -17,6 +19,12 @@ CAN = Cylinder([0.45, -0.2, 0.08], 0.04, 0.16, name="can")
 WALL_A = Box([0.6, -0.035, 0.12], [0.06, 0.01, 0.12], name="wall_a")
 WALL_B = Box([0.6, 0.035, 0.12], [0.06, 0.01, 0.12], name="wall_b")
 SCENE = [table_box(), CUBE, CAN, WALL_A, WALL_B]
+# The benchmark's scene (seed 0) and two of its targets that the first goal check (the radial
+# top-down yaw and six IK seeds, no yaw sweep or clearance search) refused as blocked although
+# a collision-free configuration exists (the yaw sweep finds one beside box3 and box5).
+BENCH_SCENE = cluttered_scene(np.random.default_rng(0))
+MISSED_TARGETS = [[0.586, 0.2344, 0.0384], [0.2882, 0.0308, 0.058]]
+OLD_CHECK = ReachConfig(yaw_sweep=1, clearance_search_iters=0, goal_posture=False)
 
 
 @pytest.fixture(scope="module")
@@ -80,7 +88,7 @@ def test_every_step_is_checked_and_refused_before_contact(model):
     driver = KinematicDriver(HOME_Q)
     ctrl = ReachController(model, driver, [table_box(), box], diffik=blind)
     ctrl.obstacles = (table_box(),)  # the planner thinks the table is empty: no standoff
-    ctrl._goal_configuration = lambda goal, R, q: ("ok", np.asarray(HOME_Q))
+    ctrl._goal_configuration = lambda goal, R, q, free_yaw=True: ("ok", np.asarray(HOME_Q))
     sent = []
     orig = driver.command_positions
 
@@ -97,9 +105,32 @@ def test_every_step_is_checked_and_refused_before_contact(model):
     assert res.min_clearance_m >= ctrl.config.clearance_margin
 
 
+@pytest.fixture(scope="module")
+def bench_parts(model):
+    return MinkDiffIK(model, BENCH_SCENE), CollisionChecker(model, BENCH_SCENE)
+
+
+@pytest.mark.parametrize("target", MISSED_TARGETS)
+def test_a_goal_the_first_check_missed_is_now_reached(model, bench_parts, target):
+    diffik, checker = bench_parts
+    old = ReachController(
+        model, KinematicDriver(HOME_Q), BENCH_SCENE, OLD_CHECK, diffik=diffik, checker=checker
+    ).move_to(target)
+    assert old.reason == ReachReason.BLOCKED and old.steps == 0
+    ctrl = ReachController(
+        model, KinematicDriver(HOME_Q), BENCH_SCENE, diffik=diffik, checker=checker
+    )
+    res = ctrl.move_to(target)
+    assert res.reached and res.error_m <= 0.01
+    assert res.min_clearance_m >= ctrl.config.clearance_margin
+    np.testing.assert_allclose(diffik.q_posture, HOME_Q)  # the goal posture was temporary
+
+
 def test_invalid_target_and_config():
     with pytest.raises(ConfigError, match="standoff must be positive"):
         ReachConfig(standoff=0.0)
+    with pytest.raises(ConfigError, match="yaw_sweep must be >= 1"):
+        ReachConfig(yaw_sweep=0)
 
 
 def test_non_finite_target_is_refused(ctrl):

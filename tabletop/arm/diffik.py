@@ -168,6 +168,11 @@ class MinkDiffIK:
         )
         self._mink = mink
 
+    def set_posture(self, q_posture: object) -> None:
+        """Make the posture task pull towards ``q_posture`` (7,) [rad]."""
+        self.q_posture = as_arm_q(q_posture, "q_posture")
+        self.posture_task.set_target(self.q_posture)
+
     def step(self, q: object, T_world_target: object) -> DiffIKStep:
         """One QP step from ``q`` towards the TCP pose ``T_world_target`` (4, 4)."""
         t0 = time.perf_counter()

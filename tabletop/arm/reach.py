@@ -6,8 +6,10 @@
 2. lifts targets that lie inside an obstacle (or on/just above a surface) to a standoff above
    its top, so the TCP approaches it rather than being driven into it;
 3. checks with the damped-least-squares IK (several seeds) that some configuration puts the
-   TCP on the goal (``unreachable`` if none) and that one of them keeps the clearance margin
-   (``blocked`` if none);
+   TCP on the goal (``unreachable`` if none) and that one of them keeps the clearance margin;
+   when the first solutions all come too close to something, it turns the top-down gripper
+   about its axis (a yaw sweep), then searches for clearance around the best solutions
+   (perturbed seeds, position only); ``blocked`` if still none;
 4. moves through waypoints — a lift to the transit height, a pre-approach point above the goal,
    then a vertical descent — with the mink controller tracking a point that slides along each
    segment at a bounded speed;
@@ -35,7 +37,7 @@ from tabletop.arm.model import HOME_Q, PandaModel
 from tabletop.arm.obstacles import Box, Cylinder, obstacle_aabb
 from tabletop.arm.workspace import Workspace
 from tabletop.errors import ConfigError
-from tabletop.transforms import make_transform
+from tabletop.transforms import make_transform, rotation_about
 
 __all__ = ["ReachConfig", "ReachController", "ReachReason", "ReachResult"]
 
@@ -79,6 +81,18 @@ class ReachConfig:
     """Consecutive refused steps after which the move is declared blocked."""
     ik_seeds: int = 6
     """Configurations tried by the reachability check (current, home, then seeded random)."""
+    yaw_sweep: int = 12
+    """Yaw angles (evenly spaced about the TCP z axis, the default first) tried for the
+    top-down orientation, from the current and home configurations, when the first solutions
+    all break the clearance margin (1 = no sweep)."""
+    clearance_search_iters: int = 60
+    """IK solves of the clearance search: position-only IK from perturbed copies of the best
+    solution so far, kept when the clearance grows (0 = no search)."""
+    clearance_search_sigma: float = 0.3
+    """Standard deviation [rad] of the clearance search's perturbations."""
+    goal_posture: bool = True
+    """During the move, the mink posture task pulls towards the goal configuration the check
+    found (instead of the controller's own posture), so the arm ends where the check looked."""
 
     def __post_init__(self) -> None:
         for name in ("tolerance", "waypoint_tolerance", "standoff", "max_speed"):
@@ -86,8 +100,13 @@ class ReachConfig:
                 raise ConfigError(f"ReachConfig.{name} must be positive, got {getattr(self, name)}")
         if self.clearance_margin < 0:
             raise ConfigError(f"clearance_margin must be >= 0 [m], got {self.clearance_margin}")
-        if self.max_steps < 1 or self.stall_steps < 1 or self.ik_seeds < 1:
-            raise ConfigError("max_steps, stall_steps and ik_seeds must be >= 1")
+        if self.max_steps < 1 or self.stall_steps < 1 or self.ik_seeds < 1 or self.yaw_sweep < 1:
+            raise ConfigError("max_steps, stall_steps, ik_seeds and yaw_sweep must be >= 1")
+        if self.clearance_search_iters < 0 or not self.clearance_search_sigma > 0:
+            raise ConfigError(
+                "clearance_search_iters must be >= 0 and clearance_search_sigma positive, got "
+                f"{self.clearance_search_iters}, {self.clearance_search_sigma}"
+            )
 
 
 @dataclass(frozen=True)
@@ -107,6 +126,13 @@ class ReachResult:
     time_s: float  # driver time spent [s]
     wall_time_s: float  # wall-clock time of the call [s]
     standoff_applied: bool = False  # the target was inside an obstacle / on a surface
+    goal_search_s: float = 0.0  # wall time of the pre-motion goal search [s]
+
+
+def _yaw_offsets(n: int) -> np.ndarray:
+    """(n,) yaw offsets [rad] evenly spaced over a turn, ordered by size (0 first)."""
+    a = (np.arange(n) * (2.0 * np.pi / n) + np.pi) % (2.0 * np.pi) - np.pi
+    return a[np.argsort(np.abs(a), kind="stable")]
 
 
 class ReachController:
@@ -183,31 +209,65 @@ class ReachController:
         )
         return float(min(z, self.workspace.upper[2] - 0.05))
 
-    def _goal_configuration(self, goal: np.ndarray, R: np.ndarray, q_now: np.ndarray):
-        """(status, q) of the reachability check: 'ok', 'unreachable' or 'blocked'."""
-        T = make_transform(R, goal)
-        seeds = [q_now, np.asarray(HOME_Q)]
+    def _goal_configuration(
+        self, goal: np.ndarray, R: np.ndarray, q_now: np.ndarray, free_yaw: bool = True
+    ) -> tuple[str, np.ndarray | None]:
+        """(status, q) of the reachability check: 'ok', 'unreachable' or 'blocked'.
+
+        1. Full pose ``R`` then position only, from the current, home and seeded random
+           configurations (as many as ``ik_seeds``): none converges -> 'unreachable'.
+        2. With ``free_yaw`` (the default top-down orientation), ``R`` turned about the TCP
+           z axis through ``yaw_sweep`` angles, from the current and home configurations.
+        3. The clearance search: position-only IK from perturbed copies of the solution with
+           the largest clearance so far (its own posture as the null-space target), keeping
+           improvements, for ``clearance_search_iters`` solves.
+
+        The first solution that keeps ``clearance_margin`` is returned ('ok'); 'blocked' with
+        the best converged solution if none does.
+        """
+        c = self.config
+        margin = c.clearance_margin
         rng = np.random.default_rng([int(v) for v in np.round((goal + 10.0) * 1e4)])
-        while len(seeds) < self.config.ik_seeds:
+        seeds = [q_now, np.asarray(HOME_Q)]
+        while len(seeds) < c.ik_seeds:
             seeds.append(self.model.random_q(rng, margin=0.3))
-        reachable = None
+        best_q, best_d = None, -np.inf
+
+        def solve(R_: np.ndarray, seed: np.ndarray, position_only: bool, posture=None) -> bool:
+            nonlocal best_q, best_d
+            res = solve_ik(
+                self.model,
+                make_transform(R_, goal),
+                seed,
+                position_only=position_only,
+                tol_pos=1e-3,
+                tol_rot=0.05,
+                max_iters=60,
+                q_posture=posture,
+            )
+            if not res.success:
+                return False
+            d = self.checker.clearance(res.q).distance
+            if d > best_d:
+                best_q, best_d = res.q, d
+            return d >= margin
+
         for position_only in (False, True):
             for seed in seeds:
-                res = solve_ik(
-                    self.model,
-                    T,
-                    seed,
-                    position_only=position_only,
-                    tol_pos=1e-3,
-                    tol_rot=0.05,
-                    max_iters=60,
-                )
-                if not res.success:
-                    continue
-                reachable = res.q
-                if self.checker.clearance(res.q).distance >= self.config.clearance_margin:
-                    return "ok", res.q
-        return ("blocked", reachable) if reachable is not None else ("unreachable", None)
+                if solve(R, seed, position_only):
+                    return "ok", best_q
+        if best_q is None:
+            return "unreachable", None
+        if free_yaw:
+            for dyaw in _yaw_offsets(c.yaw_sweep)[1:]:
+                for seed in seeds[:2]:
+                    if solve(rotation_about("z", dyaw) @ R, seed, False):
+                        return "ok", best_q
+        for _ in range(c.clearance_search_iters):
+            seed = self.model.clip(best_q + rng.normal(0.0, c.clearance_search_sigma, 7))
+            if solve(R, seed, True, posture=seed):
+                return "ok", best_q
+        return "blocked", best_q
 
     # ------------------------------------------------------------------ motion
     def move_to(self, target: object, orientation: object | None = None) -> ReachResult:
@@ -221,6 +281,7 @@ class ReachController:
             a :class:`ReachResult`; failures are reasons in it, never exceptions.
         """
         wall0 = time.perf_counter()
+        goal_search_s = 0.0
         target = np.array(target, dtype=np.float64)
         if target.shape != (3,) or not np.all(np.isfinite(target)):
             raise ConfigError(f"target must be a finite (3,) point [m], got {target.tolist()}")
@@ -251,6 +312,7 @@ class ReachController:
                 time_s=self.driver.read_state().time_s - t_start,
                 wall_time_s=time.perf_counter() - wall0,
                 standoff_applied=moved,
+                goal_search_s=goal_search_s,
             )
 
         if not self.workspace.contains(target):
@@ -264,7 +326,9 @@ class ReachController:
             R = np.asarray(orientation, dtype=np.float64)
             if R.shape != (3, 3):
                 raise ConfigError(f"orientation must be a (3, 3) rotation, got {R.shape}")
-        status, q_goal = self._goal_configuration(goal, R, q)
+        t_search = time.perf_counter()
+        status, q_goal = self._goal_configuration(goal, R, q, free_yaw=orientation is None)
+        goal_search_s = time.perf_counter() - t_search
         if status == "unreachable":
             return result(ReachReason.UNREACHABLE, goal, moved=moved)
         if status == "blocked":
@@ -273,71 +337,79 @@ class ReachController:
         if orientation is None and np.linalg.norm(pin_log3(R_goal @ R.T)) > 0.05:
             R = R_goal  # top-down is out of reach here: keep the orientation IK found
 
-        tcp = self.model.fk(q)[:3, 3]
-        z_tr = max(self._transit_height(goal), goal[2])
-        waypoints = []
-        if tcp[2] < z_tr - 0.02 and np.linalg.norm(tcp[:2] - goal[:2]) > 0.02:
-            waypoints.append((np.array([tcp[0], tcp[1], z_tr]), c.waypoint_tolerance))
-        if z_tr - goal[2] > 0.02:
-            waypoints.append((np.array([goal[0], goal[1], z_tr]), c.waypoint_tolerance))
-        waypoints.append((goal, c.tolerance))
+        posture0 = self.diffik.q_posture
+        if c.goal_posture:
+            self.diffik.set_posture(q_goal)
+        try:
+            tcp = self.model.fk(q)[:3, 3]
+            z_tr = max(self._transit_height(goal), goal[2])
+            waypoints = []
+            if tcp[2] < z_tr - 0.02 and np.linalg.norm(tcp[:2] - goal[:2]) > 0.02:
+                waypoints.append((np.array([tcp[0], tcp[1], z_tr]), c.waypoint_tolerance))
+            if z_tr - goal[2] > 0.02:
+                waypoints.append((np.array([goal[0], goal[1], z_tr]), c.waypoint_tolerance))
+            waypoints.append((goal, c.tolerance))
 
-        steps = refused = 0
-        min_clear = self.checker.clearance(q).distance
-        dt = self.diffik.config.dt
-        step_len = c.max_speed * dt
-        for wp, tol in waypoints:
-            start = self.model.fk(q)[:3, 3]
-            seg = wp - start
-            seg_len = float(np.linalg.norm(seg))
-            s = 0.0
-            best, since_best, consecutive_refusals = np.inf, 0, 0
-            while True:
-                tcp = self.model.fk(q)[:3, 3]
-                dist = float(np.linalg.norm(tcp - wp))
-                if dist <= tol and s >= seg_len:
-                    break
-                if steps >= c.max_steps:
-                    self.driver.stop()
-                    return result(ReachReason.TIMEOUT, goal, steps, refused, min_clear, moved)
-                if dist < best - 1e-3:
-                    best, since_best = dist, 0
-                else:
-                    since_best += 1
-                if since_best >= c.stall_steps and s >= seg_len:
-                    self.driver.stop()
-                    near = self.checker.clearance(q).distance
-                    reason = (
-                        ReachReason.BLOCKED
-                        if near < self.diffik.config.collision_min_distance + 0.01
-                        else ReachReason.NO_PROGRESS
-                    )
-                    return result(reason, goal, steps, refused, min_clear, moved)
-                s = min(seg_len, s + step_len)
-                carrot = start + (seg * (s / seg_len) if seg_len > 0 else 0.0)
-                ik = self.diffik.step(q, make_transform(R, carrot))
-                c0 = self.checker.clearance(q)
-                ok = False
-                if ik.solved:
-                    q_next = ik.q
-                    for _ in range(3):  # the full step, then half, then a quarter
-                        mc = self.checker.check_motion(q, q_next, c.clearance_margin, c0)
-                        if mc.ok:
-                            ok = True
-                            break
-                        q_next = q + 0.5 * (q_next - q)
-                if not ok:
-                    refused += 1
-                    consecutive_refusals += 1
-                    if consecutive_refusals >= c.max_refusals:
+            steps = refused = 0
+            min_clear = self.checker.clearance(q).distance
+            dt = self.diffik.config.dt
+            step_len = c.max_speed * dt
+            for wp, tol in waypoints:
+                start = self.model.fk(q)[:3, 3]
+                seg = wp - start
+                seg_len = float(np.linalg.norm(seg))
+                s = 0.0
+                best, since_best, consecutive_refusals = np.inf, 0, 0
+                while True:
+                    tcp = self.model.fk(q)[:3, 3]
+                    dist = float(np.linalg.norm(tcp - wp))
+                    if dist <= tol and s >= seg_len:
+                        break
+                    if steps >= c.max_steps:
                         self.driver.stop()
-                        return result(ReachReason.BLOCKED, goal, steps, refused, min_clear, moved)
-                    self.driver.command_positions(q, dt)  # hold position for one period
+                        return result(ReachReason.TIMEOUT, goal, steps, refused, min_clear, moved)
+                    if dist < best - 1e-3:
+                        best, since_best = dist, 0
+                    else:
+                        since_best += 1
+                    if since_best >= c.stall_steps and s >= seg_len:
+                        self.driver.stop()
+                        near = self.checker.clearance(q).distance
+                        reason = (
+                            ReachReason.BLOCKED
+                            if near < self.diffik.config.collision_min_distance + 0.01
+                            else ReachReason.NO_PROGRESS
+                        )
+                        return result(reason, goal, steps, refused, min_clear, moved)
+                    s = min(seg_len, s + step_len)
+                    carrot = start + (seg * (s / seg_len) if seg_len > 0 else 0.0)
+                    ik = self.diffik.step(q, make_transform(R, carrot))
+                    c0 = self.checker.clearance(q)
+                    ok = False
+                    if ik.solved:
+                        q_next = ik.q
+                        for _ in range(3):  # the full step, then half, then a quarter
+                            mc = self.checker.check_motion(q, q_next, c.clearance_margin, c0)
+                            if mc.ok:
+                                ok = True
+                                break
+                            q_next = q + 0.5 * (q_next - q)
+                    if not ok:
+                        refused += 1
+                        consecutive_refusals += 1
+                        if consecutive_refusals >= c.max_refusals:
+                            self.driver.stop()
+                            return result(
+                                ReachReason.BLOCKED, goal, steps, refused, min_clear, moved
+                            )
+                        self.driver.command_positions(q, dt)  # hold position for one period
+                        q = self.driver.read_state().q
+                        continue
+                    consecutive_refusals = 0
+                    min_clear = min(min_clear, mc.swept_lower_bound)
+                    self.driver.command_positions(q_next, dt)
+                    steps += 1
                     q = self.driver.read_state().q
-                    continue
-                consecutive_refusals = 0
-                min_clear = min(min_clear, mc.swept_lower_bound)
-                self.driver.command_positions(q_next, dt)
-                steps += 1
-                q = self.driver.read_state().q
-        return result(ReachReason.REACHED, goal, steps, refused, min_clear, moved)
+            return result(ReachReason.REACHED, goal, steps, refused, min_clear, moved)
+        finally:
+            self.diffik.set_posture(posture0)
