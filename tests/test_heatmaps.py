@@ -29,11 +29,12 @@ def brute_object(grid, points, decay):
 
 def brute_scored_xy(grid, pts, scores, decay):
     """Paper eq. (area/sound): H(p) = max(max_i (s_i - eps * d_xy(p, p_i)), 0)."""
-    xs, ys, zs = grid.axes()
+    xs, ys, _ = grid.axes()
     out = np.zeros(grid.shape)
+    pairs = list(zip(pts, scores, strict=True))
     for i, x in enumerate(xs):
         for j, y in enumerate(ys):
-            v = max(max(s - decay * np.hypot(x - px, y - py) for (px, py), s in zip(pts, scores)), 0)
+            v = max(max(s - decay * np.hypot(x - px, y - py) for (px, py), s in pairs), 0)
             out[i, j, :] = v
     return out
 

@@ -71,7 +71,7 @@ class MapConfig:
     """Decay [1/m] of primary heatmaps (``get_major_map``)."""
     aux_decay: float = AUX_DECAY
     """Decay [1/m] of auxiliary heatmaps (``get_map``)."""
-    select_margin: float = 0.25
+    select_margin: float = 0.1
     """Target voxels score within this fraction of (best - median) of the best voxel."""
     min_confidence: float = 0.5
     """Below this calibrated confidence a query is reported as not found."""
@@ -245,15 +245,28 @@ class AVLMap:
     def _decay(self, major: bool) -> float:
         return self.config.major_decay if major else self.config.aux_decay
 
+    def _features(self) -> np.ndarray:
+        """Normalised mean voxel features, cached until the map changes."""
+        key = (self.voxels.n, self._frames_seen)
+        if getattr(self, "_feat_key", None) != key:
+            self._feat_cache = self.voxels.mean_features()
+            self._feat_key = key
+        return self._feat_cache
+
+    def _background_scores(self) -> np.ndarray:
+        """Per voxel, the best score of the background concepts (cached with the features)."""
+        f = self._features()
+        if getattr(self, "_bg_key", None) != self._feat_key:
+            bg = self.text.encode_text(list(_BACKGROUND))
+            self._bg_cache = (f @ bg.T).max(axis=1)
+            self._bg_key = self._feat_key
+        return self._bg_cache
+
     def object_scores(self, query: str) -> tuple[np.ndarray, np.ndarray]:
         """Per occupied voxel: the query's cosine score, and whether the query beats the
         background concepts there."""
-        f = self.voxels.mean_features()
-        q = self.text.encode_text([query])[0]
-        bg = self.text.encode_text(list(_BACKGROUND))
-        s = f @ q
-        beats_bg = s > (f @ bg.T).max(axis=1)
-        return s, beats_bg
+        s = self._features() @ self.text.encode_text([query])[0]
+        return s, s > self._background_scores()
 
     def object_heatmap(self, query: str, major: bool = True) -> Heatmap:
         """Heat around the voxels that best match ``query`` (the object module)."""

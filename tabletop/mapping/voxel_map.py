@@ -64,16 +64,30 @@ class VoxelMap:
         points: np.ndarray,
         features: np.ndarray | None = None,
         colors: np.ndarray | None = None,
+        feature_index: np.ndarray | None = None,
     ) -> int:
-        """Add (P, 3) world points [m] with (P, dim) features and (P, 3) uint8 colours.
+        """Add (P, 3) world points [m] with their features and (P, 3) uint8 colours.
 
-        Points outside the grid are dropped. Returns how many points were added.
+        ``features`` is (P, dim), one row per point, or — with ``feature_index`` (P,) — a table
+        (C, dim) whose row ``feature_index[i]`` belongs to point i (a dense encoder's cells:
+        many pixels share a cell, and the table is never expanded per point). Points outside
+        the grid are dropped. Returns how many points were added.
         """
         points = np.asarray(points, dtype=np.float64)
         if points.ndim != 2 or points.shape[1] != 3:
             raise ConfigError(f"points must be (P, 3), got {points.shape}")
-        if features is not None and features.shape != (len(points), self.dim):
-            raise ConfigError(f"features must be ({len(points)}, {self.dim}), got {features.shape}")
+        if features is not None:
+            features = np.asarray(features)
+            if feature_index is None:
+                if features.shape != (len(points), self.dim):
+                    raise ConfigError(
+                        f"features must be ({len(points)}, {self.dim}), got {features.shape}"
+                    )
+                feature_index = np.arange(len(points))
+            elif features.ndim != 2 or features.shape[1] != self.dim:
+                raise ConfigError(f"features must have {self.dim} columns, got {features.shape}")
+            elif len(feature_index) != len(points):
+                raise ConfigError("feature_index must have one entry per point")
         idx, inside = self.grid.world_to_index(points)
         if not inside.any():
             return 0
@@ -89,12 +103,19 @@ class VoxelMap:
             self._lin[self.n : self.n + n_new] = uniq[new]
             self.n += n_new
         P = len(inv)
-        S = sp.csr_matrix((np.ones(P, np.float32), (inv, np.arange(P))), shape=(len(uniq), P))
+        ones = np.ones(P, np.float32)
         if features is not None:
-            self._feat[rows] += S @ np.asarray(features, np.float32)[inside]
+            # (voxel, feature row) pair counts; duplicates are summed by the sparse format.
+            F = sp.csr_matrix(
+                (ones, (inv, np.asarray(feature_index)[inside])), shape=(len(uniq), len(features))
+            )
+            self._feat[rows] += F @ np.asarray(features, np.float32)
         self._count[rows] += np.bincount(inv, minlength=len(uniq))
         if colors is not None:
-            self._rgb[rows] += S @ np.asarray(colors, np.float64)[inside]
+            c = np.asarray(colors, np.float64)[inside]
+            self._rgb[rows] += np.stack(
+                [np.bincount(inv, weights=c[:, k], minlength=len(uniq)) for k in range(3)], 1
+            )
         return P
 
     # ------------------------------------------------------------------ reading

@@ -73,6 +73,9 @@ class AudioNetConfig:
     """Embedding size (MiniLM's)."""
     dropout: float = 0.2
     """Dropout before the projection (training only)."""
+    band_norm: bool = False
+    """Subtract each mel band's mean over time (removes a fixed channel colouring) instead of
+    one mean over all bins."""
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "channels", tuple(int(c) for c in self.channels))
@@ -126,6 +129,7 @@ class LogMel(nn.Module):
         self.register_buffer("window", torch.hann_window(cfg.win_length), persistent=False)
         fb = _mel_filterbank(cfg.n_fft, cfg.n_mels, cfg.f_min, cfg.f_max, AUDIO_SAMPLE_RATE)
         self.register_buffer("fb", torch.from_numpy(fb), persistent=False)
+        self.band_norm = cfg.band_norm
 
     def forward(self, wave: torch.Tensor) -> torch.Tensor:
         spec = torch.stft(
@@ -141,7 +145,8 @@ class LogMel(nn.Module):
         power = spec.real**2 + spec.imag**2  # (B, F, T)
         mel = torch.einsum("bft,fm->bmt", power, self.fb)
         logmel = torch.log(mel + 1e-6)
-        return logmel - logmel.mean(dim=(1, 2), keepdim=True)
+        dims = (2,) if self.band_norm else (1, 2)
+        return logmel - logmel.mean(dim=dims, keepdim=True)
 
 
 class AudioCNN(nn.Module):

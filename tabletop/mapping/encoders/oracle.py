@@ -43,11 +43,11 @@ def _need_context(context: dict | None, key: str, who: str):
 
 
 class OracleDenseEncoder:
-    """Per-pixel text embedding of the segmented instance's label; 0 where nothing is seen."""
+    """Text embedding of the segmented instance's label at every ``stride``-th pixel (the
+    pixel at the top-left of each cell); 0 where nothing is seen."""
 
-    stride = 1
-
-    def __init__(self, text: TextEncoder, labels: dict[int, str]) -> None:
+    def __init__(self, text: TextEncoder, labels: dict[int, str], stride: int = 2) -> None:
+        self.stride = int(stride)
         self.text = text
         self.space, self.dim = text.space, text.dim
         self.labels = dict(labels)
@@ -60,6 +60,7 @@ class OracleDenseEncoder:
         seg = np.asarray(_need_context(context, "segmentation", type(self).__name__))
         if seg.shape != np.asarray(rgb).shape[:2]:
             raise ConfigError(f"segmentation {seg.shape} does not match the image {rgb.shape[:2]}")
+        seg = seg[:: self.stride, :: self.stride]
         seg = np.where(seg < len(self._table), seg, 0)
         return self._table[seg]
 

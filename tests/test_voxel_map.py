@@ -1,0 +1,89 @@
+"""Voxel fusion: scatter-mean equals a per-point reference; online equals batch."""
+
+import numpy as np
+import pytest
+
+from tabletop.errors import ConfigError
+from tabletop.mapping.grid import VoxelGrid
+from tabletop.mapping.voxel_map import VoxelMap
+
+GRID = VoxelGrid(lower=(0.0, 0.0, 0.0), upper=(0.2, 0.2, 0.1), voxel_size=0.01)
+
+
+def reference_means(points, features):
+    """Per-point loop: the mean feature of the points in each voxel (dict of voxel -> mean)."""
+    sums, counts = {}, {}
+    for p, f in zip(points, features, strict=True):
+        idx = tuple(np.floor((p - GRID.lower) / GRID.voxel_size).astype(int))
+        if not all(0 <= i < n for i, n in zip(idx, GRID.shape, strict=True)):
+            continue
+        sums[idx] = sums.get(idx, 0) + f
+        counts[idx] = counts.get(idx, 0) + 1
+    return {k: sums[k] / counts[k] for k in sums}, counts
+
+
+def test_world_voxel_world_round_trip():
+    rng = np.random.default_rng(0)
+    idx = np.stack([rng.integers(0, n, 50) for n in GRID.shape], axis=1)
+    back, inside = GRID.world_to_index(GRID.centers(idx))
+    assert inside.all()
+    np.testing.assert_array_equal(back, idx)
+    np.testing.assert_array_equal(GRID.unravel(GRID.linear(idx)), idx)
+    _, inside = GRID.world_to_index(np.array([[-0.001, 0.1, 0.05], [0.1, 0.1, 0.1]]))
+    assert not inside.any()
+
+
+def test_scatter_mean_equals_per_point_loop():
+    rng = np.random.default_rng(1)
+    pts = rng.uniform(-0.02, 0.22, size=(3000, 3)) * [1, 1, 0.5]
+    feats = rng.normal(size=(3000, 8)).astype(np.float32)
+    m = VoxelMap(GRID, 8, capacity=4)  # tiny capacity: growth is exercised
+    m.integrate(pts[:1000], feats[:1000])
+    m.integrate(pts[1000:], feats[1000:])
+    ref, counts = reference_means(pts, feats)
+    assert m.n == len(ref)
+    got = m.mean_features(normalize=False)
+    for row, idx in enumerate(map(tuple, m.indices)):
+        np.testing.assert_allclose(got[row], ref[idx], rtol=1e-5, atol=1e-6)
+        assert m.counts[row] == counts[idx]
+
+
+def test_online_and_batch_give_the_same_map():
+    rng = np.random.default_rng(2)
+    frames = [
+        (rng.uniform(0, 0.2, (500, 3)) * [1, 1, 0.5], rng.normal(size=(500, 4))) for _ in range(6)
+    ]
+    online = VoxelMap(GRID, 4)
+    for p, f in frames:
+        online.integrate(p, f.astype(np.float32))
+    batch = VoxelMap(GRID, 4)
+    batch.integrate(
+        np.concatenate([p for p, _ in frames]),
+        np.concatenate([f for _, f in frames]).astype(np.float32),
+    )
+    order_a = np.argsort(online.linear_indices)
+    order_b = np.argsort(batch.linear_indices)
+    np.testing.assert_array_equal(online.linear_indices[order_a], batch.linear_indices[order_b])
+    np.testing.assert_allclose(
+        online.mean_features()[order_a], batch.mean_features()[order_b], atol=1e-6
+    )
+
+
+def test_state_round_trip_and_validation():
+    rng = np.random.default_rng(3)
+    m = VoxelMap(GRID, 4)
+    m.integrate(
+        rng.uniform(0, 0.1, (200, 3)),
+        rng.normal(size=(200, 4)).astype(np.float32),
+        rng.integers(0, 255, (200, 3)),
+    )
+    again = VoxelMap.from_state(GRID, 4, m.state())
+    np.testing.assert_array_equal(again.mean_features(), m.mean_features())
+    np.testing.assert_array_equal(again.mean_colors(), m.mean_colors())
+    np.testing.assert_array_equal(again.occupancy(), m.occupancy())
+    bad = m.state()
+    bad["linear"] = bad["linear"] + GRID.size
+    with pytest.raises(ConfigError, match="outside its grid"):
+        VoxelMap.from_state(GRID, 4, bad)
+    with pytest.raises(ConfigError, match=r"features must be \(2, 4\)"):
+        m.integrate(np.zeros((2, 3)), np.zeros((2, 5), np.float32))
