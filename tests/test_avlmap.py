@@ -109,3 +109,30 @@ def test_oracle_needs_ground_truth(rec):
         AVLMap.build(replace(rec, ground_truth=None), encoders="oracle")
     with pytest.raises(ConfigError, match="valid: \\['oracle', 'default'\\]"):
         AVLMap.build(rec, encoders="clip")
+
+
+def test_save_load_round_trip_and_errors(avlmap, rec, tmp_path):
+    from tabletop.mapping.persistence import MapFormatError
+
+    path = avlmap.save(tmp_path / "map.npz")
+    back = AVLMap.load(path)
+    np.testing.assert_array_equal(back.voxels.linear_indices, avlmap.voxels.linear_indices)
+    np.testing.assert_array_equal(back.voxels.mean_features(), avlmap.voxels.mean_features())
+    assert back.segments == avlmap.segments and back.encoder_names == avlmap.encoder_names
+    for q in ("red mug", "blue mug"):
+        np.testing.assert_array_equal(
+            back.object_heatmap(q).values, avlmap.object_heatmap(q).values
+        )
+    cap = rec.ground_truth["sound_events"][0]["caption"]
+    np.testing.assert_array_equal(back.sound_heatmap(cap).values, avlmap.sound_heatmap(cap).values)
+    # corrupted files name the problem
+    data = path.read_bytes()
+    (tmp_path / "cut.npz").write_bytes(data[: len(data) // 2])
+    with pytest.raises(MapFormatError, match=r"cut\.npz is not a readable map file"):
+        AVLMap.load(tmp_path / "cut.npz")
+    with pytest.raises(MapFormatError, match="not found"):
+        AVLMap.load(tmp_path / "none.npz")
+    np.savez(tmp_path / "other.npz", x=np.zeros(3))
+    with pytest.raises(MapFormatError, match="no header"):
+        AVLMap.load(tmp_path / "other.npz")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["cut.npz", "map.npz", "other.npz"]

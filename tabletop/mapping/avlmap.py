@@ -13,6 +13,7 @@ import logging
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 from scipy import ndimage
@@ -133,6 +134,8 @@ class AVLMap:
         global_image,
         audio,
         encoder_names: dict[str, str] | None = None,
+        encoder_set: str = "custom",
+        rebuild_info: dict | None = None,
     ) -> None:
         for enc in (dense, global_image, audio):
             if enc is not None:
@@ -146,6 +149,8 @@ class AVLMap:
             audio,
         )
         self.encoder_names = dict(encoder_names or {})
+        self.encoder_set = encoder_set
+        self.rebuild_info = dict(rebuild_info or {})
         self.voxels = VoxelMap(self.grid, text.dim)
         self.frame_embeddings: list[np.ndarray] = []
         self.frame_poses: list[np.ndarray] = []  # T_world_cam
@@ -214,7 +219,16 @@ class AVLMap:
 
         config = config or MapConfig()
         enc = make_encoders(encoders, recording)
-        m = cls(config, enc.text, enc.dense, enc.global_image, enc.audio, enc.names)
+        m = cls(
+            config,
+            enc.text,
+            enc.dense,
+            enc.global_image,
+            enc.audio,
+            enc.names,
+            encoders,
+            enc.rebuild,
+        )
         T_cam = recording.T_world_cam
         for i in range(len(recording)):
             ctx = None
@@ -227,6 +241,73 @@ class AVLMap:
             m.add_audio(
                 recording.audio, recording.audio_rate, recording.timestamps, recording.T_world_hand
             )
+        return m
+
+    def save(self, path) -> Path:
+        """Write the map to ``path`` (.npz); see :mod:`tabletop.mapping.persistence`."""
+        from tabletop.mapping.persistence import save_map
+
+        return save_map(self, path)
+
+    @classmethod
+    def load(cls, path) -> AVLMap:
+        """Load a map saved by :meth:`save`, re-creating its encoder set."""
+        from tabletop.mapping.encoders.registry import make_encoders_from_rebuild
+        from tabletop.mapping.persistence import MapFormatError, read_map_file
+
+        h, a = read_map_file(path)
+        c = h["config"]
+        try:
+            config = MapConfig(
+                grid=VoxelGrid(
+                    tuple(c["grid"]["lower"]), tuple(c["grid"]["upper"]), c["grid"]["voxel_size"]
+                ),
+                pixel_step=c["pixel_step"],
+                frame_step=c["frame_step"],
+                categories=tuple(c["categories"]),
+                major_decay=c["major_decay"],
+                aux_decay=c["aux_decay"],
+                select_margin=c["select_margin"],
+                min_confidence=c["min_confidence"],
+                gate=NoiseGateConfig(**c["gate"]),
+            )
+        except (KeyError, TypeError, ConfigError) as e:
+            raise MapFormatError(f"{path}: config is invalid: {e}") from None
+        enc = make_encoders_from_rebuild(h["encoder_set"], h["rebuild"])
+        if enc.text.space != h["space"] or enc.text.dim != h["dim"]:
+            raise MapFormatError(
+                f"{path}: built in space {h['space']!r} ({h['dim']}-d), but its encoders now "
+                f"give {enc.text.space!r} ({enc.text.dim}-d)"
+            )
+        m = cls(
+            config,
+            enc.text,
+            enc.dense,
+            enc.global_image,
+            enc.audio,
+            h["encoders"],
+            h["encoder_set"],
+            h["rebuild"],
+        )
+        try:
+            m.voxels = VoxelMap.from_state(
+                config.grid,
+                h["dim"],
+                {
+                    "linear": a["voxel_linear"],
+                    "feature_sums": a["voxel_feature_sums"],
+                    "counts": a["voxel_counts"],
+                    "color_sums": a["voxel_color_sums"],
+                },
+            )
+        except ConfigError as e:
+            raise MapFormatError(f"{path}: {e}") from None
+        m.frame_embeddings = list(a["frame_embeddings"])
+        m.frame_poses = list(a["frame_poses"])
+        m.segments = [AudioSegment(float(s0), float(s1)) for s0, s1 in h["segments"]]
+        m.segment_embeddings = list(a["segment_embeddings"])
+        m.segment_positions = list(a["segment_positions"])
+        m._frames_seen = int(h["frames_seen"])
         return m
 
     @property
