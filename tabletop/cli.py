@@ -143,6 +143,86 @@ def cmd_scan(args: argparse.Namespace) -> int:
     return 0
 
 
+# ---------------------------------------------------------------------- maps
+def cmd_build_map(args: argparse.Namespace) -> int:
+    from tabletop.mapping.avlmap import AVLMap, MapConfig
+    from tabletop.mapping.grid import VoxelGrid
+    from tabletop.sim.recording import load_recording
+
+    print(f"loading {args.recording} ...", file=sys.stderr)
+    rec = load_recording(args.recording)
+    config = MapConfig(grid=VoxelGrid(voxel_size=args.voxel_size), pixel_step=args.pixel_step)
+    bar = _progress(f"map ({args.encoders} encoders)", total=len(rec))
+    t0 = time.perf_counter()
+    try:
+        m = AVLMap.build(
+            rec, config, encoders=args.encoders, progress=lambda d, t: bar.update(d - bar.n)
+        )
+    finally:
+        bar.close()
+    wall = time.perf_counter() - t0
+    path = m.save(args.out)
+    st = m.stats
+    print(f"encoders:  {m.encoder_names.get('set', args.encoders)}")
+    print(f"frames:    {st.frames} ({st.fused_frames} fused), {wall:.1f} s in all")
+    print(f"encoder:   {st.frames / max(st.encoder_s, 1e-9):.1f} frames/s")
+    print(f"fusion:    {st.fused_frames / max(st.fusion_s, 1e-9):.1f} frames/s (encoder excluded)")
+    print(
+        f"map:       {st.voxels} occupied voxels at {config.grid.voxel_size * 100:g} cm, "
+        f"{m.voxels.nbytes / 1e6:.1f} MB; {st.audio_segments} audio segments"
+    )
+    print(f"written:   {path}")
+    return 0
+
+
+def cmd_query(args: argparse.Namespace) -> int:
+    from tabletop.mapping.avlmap import AVLMap
+    from tabletop.mapping.heatmaps import fuse
+    from tabletop.mapping.render import write_heatmap_views
+
+    m = AVLMap.load(args.map)
+    parts = []
+    for kind, major in (
+        ("obj", True),
+        ("sound", True),
+        ("area", True),
+        ("near_obj", False),
+        ("near_sound", False),
+        ("near_area", False),
+    ):
+        q = getattr(args, kind)
+        if q is None:
+            continue
+        modality = kind.removeprefix("near_")
+        fn = {"obj": m.object_heatmap, "sound": m.sound_heatmap, "area": m.area_heatmap}[modality]
+        parts.append(fn(q, major=major))
+    if not parts:
+        print("tabletop query: give at least one of --obj, --sound, --area", file=sys.stderr)
+        return 2
+    t0 = time.perf_counter()
+    fused = fuse(*[h.values for h in parts])
+    target = m.get_max_pos_3d(fused)
+    dt = time.perf_counter() - t0
+    print(f"encoders: {m.encoder_names.get('set', m.encoder_set)}")
+    for h in parts:
+        status = "found" if h.found else f"NOT FOUND ({h.reason})"
+        print(
+            f"  {h.modality:6s} {h.query!r:40s} decay {h.decay:g}/m  "
+            f"confidence {h.confidence:.2f}  {status}"
+        )
+    if not all(h.found for h in parts):
+        print("target:   none (a part of the query matches nothing in the map)")
+        return 1
+    print(
+        f"target:   x={target[0]:.3f} y={target[1]:.3f} z={target[2]:.3f} m (world frame)"
+        f"   fusion+argmax {dt * 1000:.1f} ms"
+    )
+    if args.out:
+        for p in write_heatmap_views(m, fused, args.out, target):
+            print(f"picture:  {p}")
+    return 0
+
+
 # ---------------------------------------------------------------------- sounds
 def cmd_sounds(args: argparse.Namespace) -> int:
     from tabletop.sim.sound_bank import SoundBank, load_esc50
@@ -286,6 +366,30 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", required=True, help="output recording directory")
     p.add_argument("--overwrite", action="store_true", help="replace an existing recording")
     p.set_defaults(func=cmd_scan)
+
+    p = sub.add_parser("build-map", help="fuse a recording into an AVLMap")
+    p.add_argument("recording", help="recording directory (tabletop scan --out ...)")
+    p.add_argument("--out", required=True, help="map file (.npz)")
+    p.add_argument(
+        "--encoders",
+        default="oracle",
+        choices=["oracle", "default"],
+        help="encoder set (oracle = simulator upper bound)",
+    )
+    p.add_argument("--voxel-size", type=float, default=0.01, help="voxel size [m] (0.01, 0.005)")
+    p.add_argument("--pixel-step", type=int, default=2, help="fuse every n-th pixel")
+    p.set_defaults(func=cmd_build_map)
+
+    p = sub.add_parser("query", help="query a map; print the target and write heatmap pictures")
+    p.add_argument("map", help="map file (.npz)")
+    p.add_argument("--obj", help="object description (primary, sharp heatmap)")
+    p.add_argument("--sound", help="sound description (primary)")
+    p.add_argument("--area", help="area description (primary)")
+    p.add_argument("--near-obj", help="object the target is near (auxiliary, broad)")
+    p.add_argument("--near-sound", help="sound the target is near (auxiliary)")
+    p.add_argument("--near-area", help="area the target is in (auxiliary)")
+    p.add_argument("--out", help="picture prefix: writes PREFIX_top.png and PREFIX_side.png")
+    p.set_defaults(func=cmd_query)
 
     p = sub.add_parser("sounds", help="list the sound bank's categories, clips and licences")
     p.add_argument("--esc50", metavar="DIR", help="describe an ESC-50 directory instead")

@@ -77,6 +77,8 @@ class MapConfig:
     min_confidence: float = 0.5
     """Below this calibrated confidence a query is reported as not found."""
     gate: NoiseGateConfig = field(default_factory=NoiseGateConfig)
+    self_filter_margin: float | None = 0.01
+    """Drop points within this margin [m] of the robot's links (None: keep them)."""
 
     def __post_init__(self) -> None:
         if self.pixel_step < 1 or self.frame_step < 1:
@@ -162,8 +164,17 @@ class AVLMap:
         self.fusion_s = 0.0
 
     # ------------------------------------------------------------------ building
-    def add_frame(self, rgb, depth, K, T_world_cam, context: dict | None = None) -> None:
-        """Fuse one RGB-D frame (online). ``context`` feeds the encoders (oracle: segmentation)."""
+    def add_frame(
+        self,
+        rgb,
+        depth,
+        K,
+        T_world_cam,
+        context: dict | None = None,
+        joint_positions: np.ndarray | None = None,
+    ) -> None:
+        """Fuse one RGB-D frame (online). ``context`` feeds the encoders (oracle: segmentation);
+        with ``joint_positions`` the robot's own points are filtered out."""
         i = self._frames_seen
         self._frames_seen += 1
         t0 = time.perf_counter()
@@ -176,6 +187,13 @@ class AVLMap:
         feats = self.dense.encode_dense(rgb, context)
         t1 = time.perf_counter()
         pts, px = frame_points(depth, K, T_world_cam, self.config.pixel_step)
+        if joint_positions is not None and self.config.self_filter_margin is not None:
+            if getattr(self, "_self_filter", None) is None:
+                from tabletop.mapping.self_filter import RobotSelfFilter
+
+                self._self_filter = RobotSelfFilter(self.config.self_filter_margin)
+            keep = ~self._self_filter.mask(pts, joint_positions)
+            pts, px = pts[keep], px[keep]
         s = self.dense.stride
         cell = feats[
             np.minimum(px[:, 0] // s, feats.shape[0] - 1),
@@ -234,7 +252,14 @@ class AVLMap:
             ctx = None
             if recording.segmentation is not None:
                 ctx = {"segmentation": recording.segmentation[i]}
-            m.add_frame(recording.rgb[i], recording.depth[i], recording.K, T_cam[i], ctx)
+            m.add_frame(
+                recording.rgb[i],
+                recording.depth[i],
+                recording.K,
+                T_cam[i],
+                ctx,
+                recording.joint_positions[i],
+            )
             if progress is not None:
                 progress(i + 1, len(recording))
         if recording.audio is not None and m.audio_encoder is not None:
@@ -270,6 +295,7 @@ class AVLMap:
                 select_margin=c["select_margin"],
                 min_confidence=c["min_confidence"],
                 gate=NoiseGateConfig(**c["gate"]),
+                self_filter_margin=c["self_filter_margin"],
             )
         except (KeyError, TypeError, ConfigError) as e:
             raise MapFormatError(f"{path}: config is invalid: {e}") from None

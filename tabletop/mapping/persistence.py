@@ -52,6 +52,7 @@ def save_map(m, path: str | Path, *, rebuild: dict | None = None) -> Path:
             "select_margin": cfg.select_margin,
             "min_confidence": cfg.min_confidence,
             "gate": asdict(cfg.gate),
+            "self_filter_margin": cfg.self_filter_margin,
         },
         "encoders": m.encoder_names,
         "encoder_set": m.encoder_set,

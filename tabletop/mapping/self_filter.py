@@ -1,0 +1,84 @@
+"""Robot self-filter: drop the points of a frame that lie on the robot itself.
+
+A wrist camera sees the gripper's fingers in every frame and other links now and then; fused
+into the map they would leave a trail of "robot" voxels wherever the arm went. Each link's
+collision mesh from the one URDF is boxed in its link frame (inflated by a margin); for a frame
+the link poses come from the recorded joint positions (forward kinematics), and points inside
+any box are dropped. This works the same on a real Panda: it needs only the joint positions.
+"""
+
+from __future__ import annotations
+
+import functools
+import xml.etree.ElementTree as ET
+
+import numpy as np
+
+from tabletop.paths import panda_urdf_path
+from tabletop.transforms import invert, make_transform, rotation_about
+
+__all__ = ["RobotSelfFilter"]
+
+
+def _rpy(r: float, p: float, y: float) -> np.ndarray:
+    return rotation_about("z", y) @ rotation_about("y", p) @ rotation_about("x", r)
+
+
+@functools.cache
+def _link_boxes() -> tuple[tuple[str, np.ndarray, np.ndarray], ...]:
+    """(link, lo (3,), hi (3,)) boxes of each link's collision mesh, in the link frame [m]."""
+    urdf = panda_urdf_path()
+    root = ET.parse(urdf).getroot()
+    boxes = []
+    for link in root.iter("link"):
+        pts = []
+        for col in link.iter("collision"):
+            mesh = col.find("geometry/mesh")
+            if mesh is None:
+                continue
+            fname = mesh.get("filename").replace("package://", "")
+            verts = [
+                list(map(float, ln.split()[1:4]))
+                for ln in (urdf.parent / fname).read_text().splitlines()
+                if ln.startswith("v ")
+            ]
+            origin = col.find("origin")
+            xyz = [
+                float(v)
+                for v in (origin.get("xyz", "0 0 0").split() if origin is not None else [0, 0, 0])
+            ]
+            rpy = [
+                float(v)
+                for v in (origin.get("rpy", "0 0 0").split() if origin is not None else [0, 0, 0])
+            ]
+            T = make_transform(_rpy(*rpy), xyz)
+            v = np.asarray(verts)
+            pts.append(v @ T[:3, :3].T + T[:3, 3])
+        if pts:
+            v = np.concatenate(pts)
+            boxes.append((link.get("name"), v.min(axis=0), v.max(axis=0)))
+    return tuple(boxes)
+
+
+class RobotSelfFilter:
+    """Tests points against the Panda's link boxes at a given joint configuration."""
+
+    def __init__(self, margin: float = 0.01) -> None:
+        from tabletop.arm import PandaModel
+
+        self.model = PandaModel()
+        self.margin = float(margin)
+        boxes = [b for b in _link_boxes() if b[0] in self.model.frame_names]
+        self.links = [b[0] for b in boxes]
+        self.lo = np.stack([b[1] for b in boxes]) - self.margin
+        self.hi = np.stack([b[2] for b in boxes]) + self.margin
+
+    def mask(self, points_world: np.ndarray, q: np.ndarray) -> np.ndarray:
+        """Boolean (P,) mask of the points (world frame [m]) on the robot at joints ``q``."""
+        poses = self.model.fk_frames(q, self.links)
+        on = np.zeros(len(points_world), bool)
+        for k, link in enumerate(self.links):
+            T = invert(poses[link])
+            p = points_world @ T[:3, :3].T + T[:3, 3]
+            on |= np.all((p >= self.lo[k]) & (p <= self.hi[k]), axis=1)
+        return on
