@@ -63,6 +63,13 @@ def test_sounds_are_found_where_they_were_heard(avlmap, rec):
     assert min(np.linalg.norm(p - e["table_point"]) for e in rep) <= 0.10
 
 
+def test_self_filter_keeps_the_robot_out_of_the_map(avlmap):
+    # No voxel of the map is labelled "robot arm" by the oracle: the fingers and links the
+    # wrist camera saw were filtered with the recorded joint positions.
+    s = avlmap.voxels.mean_features() @ avlmap.text.encode_text(["robot arm"])[0]
+    assert (s > 0.99).sum() <= 5
+
+
 def test_unknown_object_is_not_found(avlmap):
     h = avlmap.object_heatmap("a laptop computer")
     assert not h.found and h.reason
@@ -94,7 +101,14 @@ def test_map_is_small_and_online_equals_batch(avlmap, rec):
         avlmap.config, avlmap.text, avlmap.dense, avlmap.global_image, avlmap.audio_encoder
     )
     for f in sub:
-        online.add_frame(f.rgb, f.depth, sub.K, f.T_world_cam, {"segmentation": f.segmentation})
+        online.add_frame(
+            f.rgb,
+            f.depth,
+            sub.K,
+            f.T_world_cam,
+            {"segmentation": f.segmentation},
+            f.joint_positions,
+        )
     a, b = np.argsort(online.voxels.linear_indices), np.argsort(batch.voxels.linear_indices)
     np.testing.assert_array_equal(online.voxels.linear_indices[a], batch.voxels.linear_indices[b])
     np.testing.assert_allclose(
