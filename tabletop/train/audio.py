@@ -245,6 +245,10 @@ class AudioTrainConfig:
     """Share of segments that get a second clip of another category at -10..-20 dB."""
     channels: tuple[int, ...] = (16, 32, 64, 128)
     """Conv block widths of :class:`~tabletop.mapping.encoders.audio.AudioCNN`."""
+    band_norm: bool = False
+    """Per-band mean normalisation of the log-mel input (see ``AudioNetConfig.band_norm``)."""
+    dropout: float = 0.2
+    """Dropout before the projection head."""
     n_threads: int = 1
     """torch intra-op threads (other jobs share the machine)."""
     eval_every: int = 0
@@ -543,7 +547,9 @@ def train_audio(config: AudioTrainConfig | None = None) -> Path:
             torch.from_numpy(text.encode_text(phrases_for(c, bank.caption(c))).copy()) for c in cats
         ]
 
-        net_cfg = AudioNetConfig(channels=cfg.channels)
+        net_cfg = AudioNetConfig(
+            channels=cfg.channels, band_norm=cfg.band_norm, dropout=cfg.dropout
+        )
         net = _Net(net_cfg)
         logit_scale = torch.nn.Parameter(torch.tensor(math.log(1 / 0.07)))
         params = [*net.parameters(), logit_scale]

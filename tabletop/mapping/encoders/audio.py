@@ -286,13 +286,21 @@ class MelCNNAudioEncoder:
 
     ``weights`` is a checkpoint path (default: the committed ``tabletop/data/weights/audio.pt``);
     a missing or foreign file raises :class:`~tabletop.errors.AssetError`. The network is loaded
-    once per path and shared. Learned encoders ignore ``context``.
+    once per path and shared. ``num_threads`` is the torch intra-op thread count used during a
+    forward pass and restored after it (the network is small: one thread is as fast as two and
+    does not collapse when other processes keep the cores busy); None leaves torch's setting.
+    Learned encoders ignore ``context``.
     """
 
     space = MINILM_SPACE
     dim = 384
 
-    def __init__(self, weights: str | Path | None = None) -> None:
+    def __init__(self, weights: str | Path | None = None, *, num_threads: int | None = 1) -> None:
+        if num_threads is not None and (int(num_threads) != num_threads or num_threads < 1):
+            raise ConfigError(
+                f"num_threads must be a positive integer or None, got {num_threads!r}"
+            )
+        self.num_threads = num_threads
         self.weights = Path(weights) if weights is not None else DEFAULT_AUDIO_WEIGHTS
         path = self.weights.resolve()
         mtime = path.stat().st_mtime_ns if path.is_file() else -1
@@ -309,8 +317,14 @@ class MelCNNAudioEncoder:
         """(384,) float32 L2-normalised embedding of one mono segment ``audio`` (S,) float in
         [-1, 1] at ``sample_rate`` [Hz]."""
         x = _prepare(audio, sample_rate)
-        with torch.inference_mode():
-            e = self._net(torch.from_numpy(x)[None]).numpy()[0]
+        before = torch.get_num_threads()
+        if self.num_threads is not None:
+            torch.set_num_threads(self.num_threads)
+        try:
+            with torch.inference_mode():
+                e = self._net(torch.from_numpy(x)[None]).numpy()[0]
+        finally:
+            torch.set_num_threads(before)
         return l2_normalize(e)
 
     def encode_audio_batch(self, segments: list[np.ndarray], sample_rate: int) -> np.ndarray:
