@@ -319,6 +319,10 @@ def cmd_bench(args: argparse.Namespace) -> int:
             "renderer": rec.meta["renderer"],
         }
     )
+    print("bench: map (oracle encoders) and its references ...", file=sys.stderr)
+    from tabletop.mapping.bench import run_map_benchmark
+
+    results.update(run_map_benchmark(rec))
     print(f"bench: arm, {args.arm_targets} seeded reach targets ...", file=sys.stderr)
     arm = run_arm_benchmark(n_targets=args.arm_targets, seed=0)
     results.update(
@@ -377,7 +381,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="encoder set (oracle = simulator upper bound)",
     )
     p.add_argument("--voxel-size", type=float, default=0.01, help="voxel size [m] (0.01, 0.005)")
-    p.add_argument("--pixel-step", type=int, default=2, help="fuse every n-th pixel")
+    p.add_argument("--pixel-step", type=int, default=3, help="fuse every n-th pixel row/column")
     p.set_defaults(func=cmd_build_map)
 
     p = sub.add_parser("query", help="query a map; print the target and write heatmap pictures")

@@ -72,13 +72,20 @@ class RobotSelfFilter:
         self.links = [b[0] for b in boxes]
         self.lo = np.stack([b[1] for b in boxes]) - self.margin
         self.hi = np.stack([b[2] for b in boxes]) + self.margin
+        self.center = (self.lo + self.hi) / 2  # (L, 3) box centres in the link frames
+        self.radius = np.linalg.norm(self.hi - self.lo, axis=1) / 2  # bounding spheres
 
     def mask(self, points_world: np.ndarray, q: np.ndarray) -> np.ndarray:
         """Boolean (P,) mask of the points (world frame [m]) on the robot at joints ``q``."""
         poses = self.model.fk_frames(q, self.links)
         on = np.zeros(len(points_world), bool)
         for k, link in enumerate(self.links):
-            T = invert(poses[link])
-            p = points_world @ T[:3, :3].T + T[:3, 3]
-            on |= np.all((p >= self.lo[k]) & (p <= self.hi[k]), axis=1)
+            T_world_link = poses[link]
+            c = T_world_link[:3, :3] @ self.center[k] + T_world_link[:3, 3]
+            near = np.nonzero(np.sum((points_world - c) ** 2, axis=1) <= self.radius[k] ** 2)[0]
+            if not len(near):
+                continue
+            T = invert(T_world_link)
+            p = points_world[near] @ T[:3, :3].T + T[:3, 3]
+            on[near[np.all((p >= self.lo[k]) & (p <= self.hi[k]), axis=1)]] = True
         return on

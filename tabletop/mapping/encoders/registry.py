@@ -69,7 +69,7 @@ def make_encoders_from_rebuild(name: str, rebuild: dict) -> EncoderSet:
             raise ConfigError(f"oracle encoders: rebuild info is incomplete ({e})") from None
         return EncoderSet(
             text,
-            OracleDenseEncoder(text, labels),
+            OracleDenseEncoder(text, labels, stride=1),
             OracleGlobalImageEncoder(text, labels),
             OracleAudioEncoder(text, events),
             {
