@@ -1,0 +1,58 @@
+"""The robot API shared by every embodiment, on top of an AVLMap.
+
+Typical use::
+
+    from tabletop.mapping.avlmap import AVLMap
+    from tabletop.robot import SimArm
+
+    robot = SimArm(AVLMap.load("map.npz"), "default")
+    robot.move_to_left("red mug")                       # a ReachResult
+    obj_map = robot.get_major_map(obj="mug")
+    sound_map = robot.get_map(sound="a trumpet playing")
+    robot.move_to(robot.get_max_pos_3d(obj_map * sound_map))
+"""
+
+from tabletop.robot.api import (
+    GoalNotFound,
+    ImageGoalUnavailable,
+    RobotAPI,
+    RobotError,
+    SpatialConfig,
+)
+from tabletop.robot.arm import SimArm
+from tabletop.robot.mobile import BaseMoveResult, MobileBase, MobileConfig, astar
+from tabletop.robot.obstacles import (
+    ARM,
+    MOBILE_BASE,
+    Embodiment,
+    ObstacleVoxels,
+    OccupancyGrid,
+    arm_obstacles,
+    label_voxels,
+    merge_boxes,
+    obstacle_voxels,
+    occupancy_grid,
+)
+
+__all__ = [
+    "ARM",
+    "MOBILE_BASE",
+    "BaseMoveResult",
+    "Embodiment",
+    "GoalNotFound",
+    "ImageGoalUnavailable",
+    "MobileBase",
+    "MobileConfig",
+    "ObstacleVoxels",
+    "OccupancyGrid",
+    "RobotAPI",
+    "RobotError",
+    "SimArm",
+    "SpatialConfig",
+    "arm_obstacles",
+    "astar",
+    "label_voxels",
+    "merge_boxes",
+    "obstacle_voxels",
+    "occupancy_grid",
+]

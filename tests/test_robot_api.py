@@ -1,0 +1,203 @@
+"""The robot API on a short scan's oracle map: queries, spatial targets, the simulated arm and
+the kinematic mobile base."""
+
+import numpy as np
+import pytest
+from robot_helpers import box_distance, scan_and_map
+
+from tabletop.errors import ConfigError, TabletopError
+from tabletop.robot import (
+    GoalNotFound,
+    ImageGoalUnavailable,
+    MobileBase,
+    RobotAPI,
+    SimArm,
+    SpatialConfig,
+)
+
+
+class PointRobot(RobotAPI):
+    """An embodiment that only records where it was sent."""
+
+    def __init__(self, avlmap, pos=(0.3, 0.0, 0.2), spatial=None):
+        super().__init__(avlmap, spatial)
+        self.pos = np.array(pos, float)
+        self.sent = []
+
+    def move_to(self, pos):
+        self.sent.append(np.array(pos, float))
+        self.pos = np.array(pos, float)
+        return self.pos
+
+    def current_position(self):
+        return self.pos.copy()
+
+
+@pytest.fixture(scope="module")
+def rec_map():
+    return scan_and_map()
+
+
+@pytest.fixture(scope="module")
+def gt(rec_map):
+    return {o["name"]: o for o in rec_map[0].ground_truth["objects"]}
+
+
+@pytest.fixture(scope="module")
+def arm(rec_map):
+    a = SimArm(rec_map[1], "default")
+    yield a
+    a.close()
+
+
+def test_spatial_targets_are_on_the_right_side(rec_map, gt):
+    robot = PointRobot(rec_map[1])
+    mug = gt["red_mug"]
+    lo, hi = np.array(mug["aabb_min"]), np.array(mug["aabb_max"])
+    c = robot.get_pos("red mug")
+    assert box_distance(c, mug) == 0.0  # the centre is inside the mug's box
+    left, right = robot.left_of("red mug"), robot.right_of("red mug")
+    front, back = robot.in_front_of("red mug"), robot.behind("red mug")
+    assert left[1] > hi[1] and lo[0] <= left[0] <= hi[0]  # left = +y
+    assert right[1] < lo[1] and lo[0] <= right[0] <= hi[0]  # right = -y
+    assert front[0] > hi[0] and lo[1] <= front[1] <= hi[1]  # front = +x, away from the robot
+    assert back[0] < lo[0] and lo[1] <= back[1] <= hi[1]
+    np.testing.assert_allclose(np.linalg.norm(left - c), 0.10, atol=1e-9)  # the default offset
+    # A large object: the target clears its extent by side_gap.
+    tray = gt["tray"]
+    assert robot.left_of("tray")[1] >= tray["aabb_max"][1] + 0.02
+    # between: the midpoint of the two objects
+    mid = (np.add(mug["center"], gt["blue_mug"]["center"])) / 2
+    assert np.linalg.norm(robot.between("red mug", "blue mug")[:2] - mid[:2]) <= 0.02
+    # configurable offset
+    far = PointRobot(rec_map[1], spatial=SpatialConfig(side_offset=0.2))
+    np.testing.assert_allclose(far.left_of("red mug") - c, [0, 0.2, 0], atol=1e-9)
+
+
+def test_compass_moves_are_relative_to_the_current_position(rec_map):
+    robot = PointRobot(rec_map[1], pos=(0.3, 0.0, 0.2))
+    robot.move_north(0.1)
+    robot.move_west(0.05)
+    robot.move_south(0.02)
+    robot.move_east(0.15)
+    np.testing.assert_allclose(
+        robot.sent, [[0.4, 0, 0.2], [0.4, 0.05, 0.2], [0.38, 0.05, 0.2], [0.38, -0.1, 0.2]]
+    )
+    robot.move_to_left("red mug")
+    np.testing.assert_allclose(robot.sent[-1], robot.left_of("red mug"))
+    with pytest.raises(ConfigError, match="finite"):
+        robot.move_north(float("nan"))
+
+
+def test_a_duplicated_category_near_a_sound_picks_the_right_instance(rec_map, gt):
+    rec, avlmap = rec_map
+    robot = PointRobot(avlmap)
+    events = rec.ground_truth["sound_events"]
+    cats = [e["category"] for e in events]
+    unique = [e for e in events if cats.count(e["category"]) == 1]
+    assert unique
+    checked = 0
+    for kind in ("mug", "duck"):
+        instances = [o for o in gt.values() if o["kind"] == kind]
+        for e in unique:
+            sound_xy = np.array(e["table_point"][:2])
+            d = [np.hypot(*(np.array(o["center"][:2]) - sound_xy)) for o in instances]
+            nearest = instances[int(np.argmin(d))]
+            if sorted(d)[1] - sorted(d)[0] < 0.15:
+                continue  # not a clear case
+            # one call: obj sharp, sound broad ...
+            p = robot.get_max_pos_3d(robot.get_major_map(obj=kind, sound=e["caption"]))
+            assert box_distance(p, nearest) <= 0.02, (kind, e["caption"], p)
+            # ... equals the paper's product of a major and an auxiliary map
+            fused = robot.get_major_map(obj=kind) * robot.get_map(sound=e["caption"])
+            np.testing.assert_allclose(robot.get_max_pos_3d(fused), p, atol=1e-9)
+            checked += 1
+    assert checked >= 1
+    # the last query's parts are kept, with their confidence
+    robot.get_major_map(obj="mug", sound=unique[0]["caption"])
+    assert [h.modality for h in robot.last_heatmaps] == ["object", "sound"]
+
+
+def test_heatmap_values_and_argument_errors(rec_map, tmp_path):
+    robot = PointRobot(rec_map[1])
+    h = robot.get_major_map(obj="red mug")
+    assert h.shape == rec_map[1].grid.shape and h.dtype == np.float32
+    assert 0.0 <= h.min() and h.max() == pytest.approx(1.0)
+    broad = robot.get_map(obj="red mug")
+    assert (broad > 0).sum() > (h > 0).sum()  # auxiliary decay is broader
+    with pytest.raises(ConfigError, match="at least one"):
+        robot.get_major_map()
+    with pytest.raises(ConfigError, match="primary"):
+        robot.get_major_map(obj="mug", primary="sound")
+    with pytest.raises(GoalNotFound, match="zero everywhere"):
+        robot.get_max_pos_3d(np.zeros_like(h))
+    # load_image reads RGB (not BGR); img= needs the visual localization module
+    import cv2
+
+    img = np.zeros((8, 10, 3), np.uint8)
+    img[..., 0] = 200  # red
+    cv2.imwrite(str(tmp_path / "q.png"), img[:, :, ::-1])
+    got = robot.load_image(tmp_path / "q.png")
+    np.testing.assert_array_equal(got, img)
+    with pytest.raises(ConfigError, match="does not exist"):
+        robot.load_image(tmp_path / "missing.png")
+    if not hasattr(rec_map[1], "image_heatmap"):
+        with pytest.raises(ImageGoalUnavailable, match="image_heatmap"):
+            robot.get_major_map(img=tmp_path / "q.png")
+
+
+def test_unknown_object_raises_and_nothing_moves(arm):
+    arm.reset()
+    tcp, n = arm.current_position(), len(arm.history)
+    with pytest.raises(GoalNotFound, match="laptop") as e:
+        arm.move_to_object("a laptop computer")
+    assert isinstance(e.value, TabletopError) and e.value.reason
+    with pytest.raises(GoalNotFound):
+        arm.move_in_between("red mug", "a laptop computer")
+    assert len(arm.history) == n
+    np.testing.assert_allclose(arm.current_position(), tcp, atol=1e-9)
+
+
+@pytest.mark.parametrize(
+    "query, name", [("red mug", "red_mug"), ("yellow duck", "yellow_duck"), ("tray", "tray")]
+)
+def test_sim_arm_reaches_object_goals_without_contact(arm, gt, query, name):
+    arm.reset()
+    r = arm.move_to_object(query)
+    assert r.reached, r.reason
+    assert box_distance(r.final_tcp, gt[name]) <= 0.10
+    assert arm.contacts[-1] == 0
+    assert arm.history[-1] is r
+
+
+def test_sim_arm_spatial_primitive_without_contact(arm, gt):
+    arm.reset()
+    r = arm.move_to_left("red mug")
+    assert r.reached, r.reason
+    assert r.final_tcp[1] > gt["red_mug"]["aabb_max"][1]
+    r = arm.move_north(0.05)
+    assert r.reached, r.reason
+    assert arm.contacts[-2:] == [0, 0]
+
+
+def test_mobile_base_plans_around_obstacles(rec_map, gt):
+    base = MobileBase(rec_map[1], start=(0.30, 0.0))
+    tray = gt["tray"]
+    # The straight line to the far side of the tray crosses it; the path goes around.
+    r = base.move_to([0.76, 0.0, 0.0])
+    assert r.reached and r.reason == "reached"
+    np.testing.assert_allclose(r.final_position, [0.76, 0.0, 0.0])
+    assert r.length_m > 0.46 + 0.1
+    lo, hi = np.array(tray["aabb_min"][:2]), np.array(tray["aabb_max"][:2])
+    inside = np.all((r.path[:, :2] >= lo) & (r.path[:, :2] <= hi), axis=1)
+    assert not inside.any()
+    cells = np.array([base.blocked.to_cell(p)[0] for p in r.path[1:-1]])
+    assert not base.blocked.occupied[cells[:, 0], cells[:, 1]].any()
+    # An object goal ends beside the object; the same API, another embodiment.
+    r = base.move_to_object("red mug")
+    assert r.reached and r.goal_shifted
+    assert box_distance(np.r_[r.final_position[:2], 0.05], gt["red_mug"]) <= 0.10
+    with pytest.raises(GoalNotFound):
+        base.move_to_object("a laptop computer")
+    r = base.move_to([2.0, 0.0, 0.0])
+    assert not r.reached and r.reason == "outside_map"
