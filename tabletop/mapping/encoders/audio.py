@@ -260,7 +260,6 @@ def _cached_net(path: str, mtime_ns: int) -> tuple[_Net, dict]:
 
 def _prepare(audio: np.ndarray, sample_rate: int) -> np.ndarray:
     """Validate one segment and bring it to 16 kHz, at least :data:`MIN_SEGMENT_S` long."""
-    from tabletop.sim.audio import resample
 
     if isinstance(sample_rate, bool) or int(sample_rate) != sample_rate or sample_rate <= 0:
         raise ConfigError(f"sample_rate must be a positive integer [Hz], got {sample_rate!r}")
@@ -271,8 +270,11 @@ def _prepare(audio: np.ndarray, sample_rate: int) -> np.ndarray:
         raise ConfigError("audio is empty")
     if not np.all(np.isfinite(x)):
         raise ConfigError("audio contains NaN or inf")
-    if sample_rate != AUDIO_SAMPLE_RATE:
-        x = resample(x, int(sample_rate), AUDIO_SAMPLE_RATE)
+    if sample_rate != AUDIO_SAMPLE_RATE:  # polyphase FIR (Kaiser window), milliseconds
+        from scipy.signal import resample_poly
+
+        g = math.gcd(int(sample_rate), AUDIO_SAMPLE_RATE)
+        x = resample_poly(x, AUDIO_SAMPLE_RATE // g, int(sample_rate) // g).astype(np.float32)
     n_min = round(MIN_SEGMENT_S * AUDIO_SAMPLE_RATE)
     if len(x) < n_min:
         reps = math.ceil(n_min / len(x))
