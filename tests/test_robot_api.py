@@ -62,7 +62,8 @@ def test_spatial_targets_are_on_the_right_side(rec_map, gt):
     assert right[1] < lo[1] and lo[0] <= right[0] <= hi[0]  # right = -y
     assert front[0] > hi[0] and lo[1] <= front[1] <= hi[1]  # front = +x, away from the robot
     assert back[0] < lo[0] and lo[1] <= back[1] <= hi[1]
-    np.testing.assert_allclose(np.linalg.norm(left - c), 0.10, atol=1e-9)  # the default offset
+    np.testing.assert_allclose(np.linalg.norm((left - c)[:2]), 0.10, atol=1e-9)  # default offset
+    assert left[2] == pytest.approx(hi[2], abs=0.011)  # level with the mug's top
     # A large object: the target clears its extent by side_gap.
     tray = gt["tray"]
     assert robot.left_of("tray")[1] >= tray["aabb_max"][1] + 0.02
@@ -71,7 +72,7 @@ def test_spatial_targets_are_on_the_right_side(rec_map, gt):
     assert np.linalg.norm(robot.between("red mug", "blue mug")[:2] - mid[:2]) <= 0.02
     # configurable offset
     far = PointRobot(rec_map[1], spatial=SpatialConfig(side_offset=0.2))
-    np.testing.assert_allclose(far.left_of("red mug") - c, [0, 0.2, 0], atol=1e-9)
+    np.testing.assert_allclose((far.left_of("red mug") - c)[:2], [0, 0.2], atol=1e-9)
 
 
 def test_compass_moves_are_relative_to_the_current_position(rec_map):

@@ -219,12 +219,15 @@ class RobotAPI(abc.ABC):
     # ------------------------------------------------------------------ spatial targets
     def side_target(self, name: str, direction) -> np.ndarray:
         """(3,) [m]: the point beside object ``name`` along the horizontal ``direction`` (a
-        unit axis), ``side_offset`` from its centre and at least ``side_gap`` beyond it."""
+        unit axis), ``side_offset`` from its centre and at least ``side_gap`` beyond its extent,
+        level with its top."""
         d = np.asarray(direction, np.float64)
         c, lo, hi = self._object(name)
         half = float(np.abs(d[:2]) @ ((hi - lo)[:2] / 2))
         dist = max(self.spatial.side_offset, half + self.spatial.side_gap)
-        return c + dist * d
+        p = c + dist * d
+        p[2] = hi[2]  # level with the object's top: a gripper beside it clears its neighbours
+        return p
 
     def above(self, name: str) -> np.ndarray:
         """(3,) [m]: ``above_gap`` above the top of object ``name``, over its centre."""
