@@ -253,17 +253,30 @@ def cmd_scenes(args: argparse.Namespace) -> int:
 
 
 # ---------------------------------------------------------------------- demo
+def _box_distance(p, obj) -> float:
+    import numpy as np
+
+    lo, hi = np.array(obj["aabb_min"]), np.array(obj["aabb_max"])
+    return float(np.linalg.norm(np.maximum(lo - p, 0) + np.maximum(p - hi, 0)))
+
+
 def cmd_demo(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from tabletop.mapping.avlmap import AVLMap
+    from tabletop.mapping.heatmaps import fuse
+    from tabletop.mapping.render import write_heatmap_views
     from tabletop.sim.recording import load_recording, save_recording
 
     out = Path(args.out)
     print(
-        "tabletop demo — stages available in this version: scene, teleop scan with inserted "
-        "audio, recording on disk."
+        "tabletop demo — stages in this version: scene -> teleop scan with inserted audio -> "
+        "recording on disk -> AVLMap -> object and sound queries."
     )
     print(
-        "Not yet built (nothing below pretends otherwise): the AVLMap, encoders, queries, "
-        "the reach controller."
+        "Not in this version yet: the learned default encoders in the map (the map below is "
+        "built with the SIMULATOR ORACLE, an upper bound), image goals, the arm reaching the "
+        "targets, the evaluation suites.\n"
     )
     args.scene, args.seed, args.episodes = "default", 0, 6
     args.renderer, args.width, args.height = "auto", 320, 240
@@ -276,16 +289,56 @@ def cmd_demo(args: argparse.Namespace) -> int:
     print(f"\nscene '{spec.name}': " + ", ".join(o["label"] for o in gt["objects"]))
     print(
         f"scan: {len(back)} frames, {back.duration:.1f} s simulated, {stats.fps:.1f} frames/s "
-        f"({back.meta['renderer']} renderer)"
+        f"({back.meta['renderer']} renderer); recording {out / 'recording'} (reloaded, valid)"
     )
-    print("sound events (ground truth):")
-    for e in gt["sound_events"]:
-        print(
-            f"  {e['episode']:10s} {e['category']:16s} heard {e['onset_s']:6.2f}-"
-            f"{e['offset_s']:6.2f} s over table point ({e['table_point'][0]:.2f}, "
-            f"{e['table_point'][1]:.2f})"
-        )
-    print(f"recording: {out / 'recording'} (reloaded and validated)")
+
+    bar = _progress("map (oracle encoders)", total=len(back))
+    try:
+        m = AVLMap.build(back, encoders="oracle", progress=lambda d, t: bar.update(d - bar.n))
+    finally:
+        bar.close()
+    m.save(out / "map.npz")
+    st = m.stats
+    print(
+        f"map: {st.voxels} voxels at 1 cm, {st.audio_segments} audio segments, fusion "
+        f"{st.fused_frames / st.fusion_s:.0f} frames/s; encoders: {m.encoder_names['set']}"
+    )
+
+    print("\nobject goals (oracle encoders): target -> distance to the object's box")
+    ok = 0
+    for o in gt["objects"]:
+        p = m.get_max_pos_3d(m.object_heatmap(o["label"]))
+        d = _box_distance(p, o)
+        ok += d <= 0.10
+        print(f"  {o['label']:20s} ({p[0]:.2f}, {p[1]:.2f}, {p[2]:.2f})  {d * 100:5.1f} cm")
+    print(f"  within 10 cm: {ok}/{len(gt['objects'])}")
+    print("sound goals (oracle encoders): target -> distance to where it was heard")
+    events = gt["sound_events"]
+    cats = [e["category"] for e in events]
+    for e in events:
+        p = m.get_max_pos_3d(m.sound_heatmap(e["caption"]))
+        ds = [
+            np.linalg.norm(p[:2] - np.array(x["table_point"][:2]))
+            for x in events
+            if x["category"] == e["category"]
+        ]
+        note = " (heard in two places: either counts)" if cats.count(e["category"]) > 1 else ""
+        print(f"  {e['caption']:40s} {min(ds) * 100:5.1f} cm{note}")
+    # an ambiguous goal: a duplicated kind, disambiguated by the sound heard nearest one of them
+    kinds = [o["kind"] for o in gt["objects"]]
+    dup = next(k for k in kinds if kinds.count(k) > 1)
+    e = events[0]
+    fused = fuse(
+        m.object_heatmap(dup.replace("_", " ")).values,
+        m.sound_heatmap(e["caption"], major=False).values,
+    )
+    p = m.get_max_pos_3d(fused)
+    print(
+        f"ambiguous goal: 'the {dup.replace('_', ' ')} near {e['caption']}' -> "
+        f"({p[0]:.2f}, {p[1]:.2f}, {p[2]:.2f})"
+    )
+    paths = write_heatmap_views(m, fused, out / "ambiguous", p)
+    print("heatmap pictures: " + ", ".join(str(x) for x in paths))
     return 0
 
 

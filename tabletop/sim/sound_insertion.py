@@ -14,7 +14,22 @@ import numpy as np
 from tabletop.errors import ConfigError
 from tabletop.sim.recording import Segment
 
-__all__ = ["insert_sounds"]
+__all__ = ["MIN_EVENT_S", "insert_sounds"]
+
+#: Clips shorter than this [s] are repeated (with 0.15 s gaps) up to it: a hammer is heard
+#: hammering, a knock knocking. A lone 0.2 s sound is below what a noise gate with a 250 ms
+#: attack can pass.
+MIN_EVENT_S = 1.0
+
+
+def _repeat_to(audio: np.ndarray, rate: int, min_s: float) -> np.ndarray:
+    if len(audio) >= min_s * rate:
+        return audio
+    gap = np.zeros(int(0.15 * rate), audio.dtype)
+    parts = [audio]
+    while sum(len(p) for p in parts) < min_s * rate:
+        parts += [gap, audio]
+    return np.concatenate(parts)
 
 
 def _choose_categories(bank, rng: np.random.Generator, n: int, repeats: int, split: str):
@@ -66,7 +81,7 @@ def insert_sounds(
         fresh = [c for c in clips if c.id not in used.get(cat, [])] or clips
         clip = fresh[int(rng.integers(len(fresh)))]
         used.setdefault(cat, []).append(clip.id)
-        audio = clip.load()
+        audio = _repeat_to(clip.load(), rate, MIN_EVENT_S)
         t0, t1 = timestamps[seg.start], timestamps[seg.stop - 1] + dt
         length = len(audio) / rate
         if length > (t1 - t0) - 0.4:
