@@ -150,3 +150,23 @@ def test_save_load_round_trip_and_errors(avlmap, rec, tmp_path):
     with pytest.raises(MapFormatError, match="no header"):
         AVLMap.load(tmp_path / "other.npz")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["cut.npz", "map.npz", "other.npz"]
+
+
+def test_map_goal_evaluation_scores_the_oracle_map(avlmap, rec):
+    from tabletop.eval.map_goals import evaluate_map_goals, map_goals
+
+    goals = map_goals(rec.ground_truth)
+    assert {g.kind for g in goals} >= {"object", "sound"}
+    r = evaluate_map_goals(avlmap, rec.ground_truth)
+    assert r["object"]["goals"] == len(rec.ground_truth["objects"])
+    assert r["object"]["success_rate"] == 1.0
+    assert r["sound"]["success_rate"] >= 0.75
+    # a goal scored against the wrong truth fails: the scoring can say no
+    gt = {
+        **rec.ground_truth,
+        "objects": [
+            {**o, "aabb_min": [9, 9, 9], "aabb_max": [9.1, 9.1, 9.1]}
+            for o in rec.ground_truth["objects"]
+        ],
+    }
+    assert evaluate_map_goals(avlmap, gt)["object"]["success_rate"] == 0.0
