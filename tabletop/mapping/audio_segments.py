@@ -4,11 +4,12 @@ segmentation, as in the paper's real-robot set-up.
 The paper's real-robot parameters are the defaults: a gate threshold of -10 dB, attack 250 ms,
 hold 1000 ms, release 170 ms, and a silence threshold of 0.1 on the gated signal. Levels are
 RMS amplitudes in 10 ms windows relative to a reference level. The paper normalises by the
-recording's peak (``reference="peak"``: the loudest window); with several sounds of equal power but different crest factors that
-hides the quieter ones (measured here: clips at the same 15 dB SNR peak between 0.15 and 0.66,
-and the peak reference lost 3 of 6). The default reference is therefore the noise floor (the
-median 10 ms RMS envelope) raised by ``floor_headroom_db`` = 22 dB, so that the paper's -10 dB gate
-opens 12 dB above the floor and its 0.1 silence threshold sits 2 dB above it.
+recording's peak (``reference="peak"``: the loudest window); with several sounds of equal
+power but different crest factors that hides the quieter ones (measured here: clips inserted at
+the same 15 dB SNR peaked between 0.15 and 0.66, and the peak reference lost 3 of 6). The
+default reference is therefore the noise floor (the median 10 ms RMS envelope) raised by
+``floor_headroom_db`` = 22 dB, so that the paper's -10 dB gate opens 12 dB above the floor and
+its 0.1 silence threshold sits 2 dB above it.
 """
 
 from __future__ import annotations

@@ -29,31 +29,17 @@ from tabletop.mapping.heatmaps import (
     scored_points_heatmap_xy,
 )
 from tabletop.mapping.voxel_map import VoxelMap, frame_points
+from tabletop.sim.catalog import OBJECT_KINDS
 
-__all__ = ["DEFAULT_CATEGORIES", "AVLMap", "Heatmap", "MapConfig", "MapStats"]
+__all__ = ["DEFAULT_CATEGORIES", "OBJECT_CATEGORIES", "AVLMap", "Heatmap", "MapConfig", "MapStats"]
 
 log = logging.getLogger(__name__)
 
-#: The vocabulary a text query competes against: tabletop objects and the background.
-DEFAULT_CATEGORIES = (
-    "mug",
-    "duck",
-    "teddy bear",
-    "lego brick",
-    "jenga block",
-    "domino",
-    "soccer ball",
-    "tray",
-    "toy cube",
-    "toy cylinder",
-    "toy prism",
-    "ball",
-    "table",
-    "floor",
-    "robot arm",
-    "other",
-)
 _BACKGROUND = ("table", "floor", "robot arm", "other")
+#: Object nouns of the default vocabulary: the simulator catalog's kinds.
+OBJECT_CATEGORIES = tuple(k.label for k in OBJECT_KINDS.values())
+#: The vocabulary a text query competes against: tabletop objects and the background.
+DEFAULT_CATEGORIES = (*OBJECT_CATEGORIES, *_BACKGROUND)
 
 
 @dataclass(frozen=True)
@@ -381,26 +367,12 @@ class AVLMap:
         """Heat around the voxels that best match ``query`` (the object module)."""
         decay = self._decay(major)
         if self.voxels.n == 0:
-            return Heatmap(
-                np.zeros(self.grid.shape, np.float32),
-                query,
-                "object",
-                decay,
-                0.0,
-                False,
-                "the map is empty",
-            )
+            return self._empty(query, "object", decay, "the map is empty")
         s, beats = self.object_scores(query)
         cand = np.nonzero(beats)[0]
         if not len(cand):
-            return Heatmap(
-                np.zeros(self.grid.shape, np.float32),
-                query,
-                "object",
-                decay,
-                0.0,
-                False,
-                f"no voxel matches {query!r} better than the background",
+            return self._empty(
+                query, "object", decay, f"no voxel matches {query!r} better than the background"
             )
         best = s[cand].max()
         floor = np.median(s)
@@ -420,6 +392,12 @@ class AVLMap:
             "" if found else f"best match {best:.2f} is weak (confidence {conf:.2f})",
         )
 
+    def _empty(self, query: str, modality: str, decay: float, reason: str) -> Heatmap:
+        """A not-found result: an all-zero heatmap with the reason."""
+        return Heatmap(
+            np.zeros(self.grid.shape, np.float32), query, modality, decay, 0.0, False, reason
+        )
+
     def _confidence(self, best: float, floor: float) -> float:
         """Map a best cosine score (against the map's median) to [0, 1].
 
@@ -432,22 +410,14 @@ class AVLMap:
         """Heat around where the sound best matching ``query`` was heard (the audio module)."""
         decay = self._decay(major)
         if not self.segment_embeddings:
-            return Heatmap(
-                np.zeros(self.grid.shape, np.float32),
-                query,
-                "sound",
-                decay,
-                0.0,
-                False,
-                "the map has no audio segments",
-            )
+            return self._empty(query, "sound", decay, "the map has no audio segments")
         q = self.text.encode_text([query])[0]
         s = np.stack(self.segment_embeddings) @ q
         scores = _normalize_scores(s)
         pos = np.stack(self.segment_positions)[:, :2]
         values = scored_points_heatmap_xy(self.grid, pos, scores, decay)
         floor = float(np.median(s)) if len(s) > 2 else float(s.min(initial=0.0))
-        conf = self._confidence(float(s.max()), min(floor, float(s.max()) - 0.0))
+        conf = self._confidence(float(s.max()), floor)
         found = conf >= self.config.min_confidence or len(s) <= 2
         return Heatmap(
             values,
@@ -463,15 +433,7 @@ class AVLMap:
         """Heat where frames whose global embedding matches ``query`` looked (the area module)."""
         decay = self._decay(major)
         if not self.frame_embeddings:
-            return Heatmap(
-                np.zeros(self.grid.shape, np.float32),
-                query,
-                "area",
-                decay,
-                0.0,
-                False,
-                "the map has no frame embeddings",
-            )
+            return self._empty(query, "area", decay, "the map has no frame embeddings")
         q = self.text.encode_text([query])[0]
         s = np.stack(self.frame_embeddings) @ q
         scores = _normalize_scores(s)

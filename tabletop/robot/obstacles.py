@@ -28,6 +28,7 @@ from scipy import ndimage
 
 from tabletop.arm.obstacles import TABLE_THICKNESS, Box
 from tabletop.errors import ConfigError
+from tabletop.mapping.avlmap import OBJECT_CATEGORIES
 from tabletop.mapping.grid import VoxelGrid
 
 __all__ = [
@@ -43,20 +44,7 @@ __all__ = [
     "occupancy_grid",
 ]
 
-_OBJECTS = (
-    "mug",
-    "duck",
-    "teddy bear",
-    "lego brick",
-    "jenga block",
-    "domino",
-    "soccer ball",
-    "tray",
-    "toy cube",
-    "toy cylinder",
-    "toy prism",
-    "ball",
-)
+_OBJECTS = OBJECT_CATEGORIES
 
 
 @dataclass(frozen=True)
