@@ -223,6 +223,32 @@ def cmd_query(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_eval_map(args: argparse.Namespace) -> int:
+    from tabletop.eval.map_goals import run_map_eval
+
+    def show(run):
+        r = run["result"]
+        print(
+            f"  {run['scene']:8s} seed {run['seed']}: "
+            + ", ".join(f"{k} {v['successes']}/{v['goals']}" for k, v in r.items()),
+            flush=True,
+        )
+
+    print(
+        f"map goals on {args.seeds} x 2 scans (default scene and a generated one), "
+        f"{args.encoders} encoders; success = target within 10 cm of the truth"
+    )
+    res = run_map_eval(args.seeds, args.speed, args.encoders, progress=show)
+    if args.json:
+        print(json.dumps({"by_type": res["by_type"], "encoders": res["encoders"]}, indent=1))
+        return 0
+    print(f"encoders: {res['encoders'].get('set')}")
+    print(f"{'goal type':12s} {'goals':>6s} {'success':>8s}")
+    for k, v in res["by_type"].items():
+        print(f"{k:12s} {v['goals']:6d} {v['success_rate']:8.1%}")
+    return 0
+
+
 # ---------------------------------------------------------------------- sounds
 def cmd_sounds(args: argparse.Namespace) -> int:
     from tabletop.sim.sound_bank import SoundBank, load_esc50
@@ -470,6 +496,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--near-area", help="area the target is in (auxiliary)")
     p.add_argument("--out", help="picture prefix: writes PREFIX_top.png and PREFIX_side.png")
     p.set_defaults(func=cmd_query)
+
+    p = sub.add_parser("eval-map", help="score map targets of object, sound and ambiguous goals")
+    p.add_argument("--seeds", type=int, default=3, help="seeds per scene (default 3)")
+    p.add_argument("--speed", type=float, default=0.3, help="scan speed [m/s]")
+    p.add_argument("--encoders", default="oracle", choices=["oracle", "default"])
+    p.add_argument("--json", action="store_true")
+    p.set_defaults(func=cmd_eval_map)
 
     p = sub.add_parser("sounds", help="list the sound bank's categories, clips and licences")
     p.add_argument("--esc50", metavar="DIR", help="describe an ESC-50 directory instead")

@@ -93,3 +93,43 @@ def evaluate_map_goals(m, ground_truth: dict) -> dict:
         r["success_rate"] = r["successes"] / r["goals"]
         r["mean_error_m"] = float(np.mean(r.pop("errors")))
     return out
+
+
+def run_map_eval(
+    seeds: int = 3, speed: float = 0.3, encoders: str = "oracle", progress=None
+) -> dict:
+    """Scan the default scene and a generated scene per seed, build maps, score the goals.
+
+    Returns {"runs": [...], "by_type": {type: {goals, successes, success_rate}}, "encoders"}.
+    """
+    import tempfile
+    from pathlib import Path
+
+    from tabletop.mapping.avlmap import AVLMap
+    from tabletop.sim.scan import ScanConfig, run_scan
+    from tabletop.sim.scene import load_scene_spec
+
+    runs, totals = [], {}
+    names = None
+    for seed in range(seeds):
+        for scene in ("default", "random"):
+            if scene == "default":
+                spec = load_scene_spec("default")
+            else:
+                path = Path(tempfile.mkdtemp()) / "random.toml"
+                path.write_text(f"[random]\nseed = {seed + 10}\ncount = 9\nduplicates = 2\n")
+                spec = load_scene_spec(path)
+            rec, _ = run_scan(spec, ScanConfig(seed=seed, speed=speed, episodes=6))
+            m = AVLMap.build(rec, encoders=encoders)
+            names = m.encoder_names
+            r = evaluate_map_goals(m, rec.ground_truth)
+            runs.append({"scene": scene, "seed": seed, "result": r})
+            for k, v in r.items():
+                t = totals.setdefault(k, {"goals": 0, "successes": 0})
+                t["goals"] += v["goals"]
+                t["successes"] += v["successes"]
+            if progress is not None:
+                progress(runs[-1])
+    for t in totals.values():
+        t["success_rate"] = t["successes"] / t["goals"]
+    return {"runs": runs, "by_type": totals, "encoders": names}
