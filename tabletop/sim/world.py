@@ -139,7 +139,8 @@ class SimWorld:
 
     def _egl_renders(self) -> bool:
         T = make_transform(np.diag([1.0, -1.0, -1.0]), (0.4, 0.0, 0.8))
-        img = self.render(T)
+        with _quiet_stdout():  # the first EGL frame prints the GL vendor from C
+            img = self.render(T)
         return bool(np.any(img.segmentation == INSTANCE_TABLE))
 
     def _build(self) -> None:
