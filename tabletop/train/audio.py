@@ -215,7 +215,7 @@ class AudioTrainConfig:
     """A sound bank's ``manifest.json``; None = the shipped bank (``SoundBank.default()``)."""
     seed: int = 0
     """Seeds numpy (segments) and torch (initialisation, dropout): same seed, same weights."""
-    steps: int = 1500
+    steps: int = 1000
     """Optimiser steps (about 1 s each on one core)."""
     batch_size: int = 64
     """Segments per step."""
@@ -243,6 +243,9 @@ class AudioTrainConfig:
     """SpecAugment: one time mask and one frequency mask per segment."""
     mixup_fraction: float = 0.3
     """Share of segments that get a second clip of another category at -10..-20 dB."""
+    text_smoothing: float = 0.0
+    """Share of each target spread over the other categories in proportion to
+    ``softmax(caption similarity / 0.05)`` (semantic label smoothing; 0 = one-hot)."""
     channels: tuple[int, ...] = (16, 32, 64, 128)
     """Conv block widths of :class:`~tabletop.mapping.encoders.audio.AudioCNN`."""
     band_norm: bool = False
@@ -274,7 +277,7 @@ class AudioTrainConfig:
             object.__setattr__(self, name, (float(lo), float(hi)))
         if not self.speed[0] > 0:
             raise ConfigError(f"speed factors must be > 0, got {self.speed}")
-        for name in ("clean_fraction", "mixup_fraction"):
+        for name in ("clean_fraction", "mixup_fraction", "text_smoothing"):
             if not 0 <= getattr(self, name) <= 1:
                 raise ConfigError(f"{name} must be in [0, 1], got {getattr(self, name)}")
         if self.lr <= 0 or self.weight_decay < 0 or self.warmup_steps < 0 or self.eq_db < 0:
@@ -547,6 +550,11 @@ def train_audio(config: AudioTrainConfig | None = None) -> Path:
             torch.from_numpy(text.encode_text(phrases_for(c, bank.caption(c))).copy()) for c in cats
         ]
 
+        cap = torch.stack([pe[0] for pe in phrase_emb])  # (C, D) captions
+        sem = cap @ cap.T / 0.05
+        sem.fill_diagonal_(-torch.inf)
+        soft = (1 - cfg.text_smoothing) * torch.eye(len(cats)) + cfg.text_smoothing * sem.softmax(1)
+
         net_cfg = AudioNetConfig(
             channels=cfg.channels, band_norm=cfg.band_norm, dropout=cfg.dropout
         )
@@ -599,7 +607,8 @@ def train_audio(config: AudioTrainConfig | None = None) -> Path:
             # one phrasing per category this step
             t = torch.stack([pe[int(rng.integers(len(pe)))] for pe in phrase_emb])  # (C, D)
             logits = logit_scale.clamp(max=math.log(100.0)).exp() * emb @ t.T
-            loss = torch.nn.functional.cross_entropy(logits, torch.from_numpy(ks).long())
+            target = soft[torch.from_numpy(ks).long()]  # (B, C)
+            loss = torch.nn.functional.cross_entropy(logits, target)
             for g in opt.param_groups:
                 g["lr"] = lr_at(step)
             opt.zero_grad(set_to_none=True)
@@ -613,7 +622,7 @@ def train_audio(config: AudioTrainConfig | None = None) -> Path:
                     cfg.steps,
                     float(loss.detach()),
                     acc,
-                    float(logit_scale.exp()),
+                    float(logit_scale.detach().exp()),
                     time.perf_counter() - t_start,
                 )
             if cfg.eval_every and (step + 1) % cfg.eval_every == 0 and step + 1 < cfg.steps:
