@@ -32,9 +32,10 @@ from tabletop.train.audio import (
     phrases_for,
 )
 
-#: Below the figures measured on the committed weights (docs/encoders_audio.md).
-MIN_RECALL3_HELDOUT = 0.6
-MIN_RECALL1_HELDOUT = 0.35
+#: Below the figures measured on the committed weights (0.68 and 0.38 on 47 held-out clips,
+#: docs/encoders_audio.md), with room for clips added to the bank later.
+MIN_RECALL3_HELDOUT = 0.55
+MIN_RECALL1_HELDOUT = 0.25
 
 
 @pytest.fixture(scope="module")
@@ -186,4 +187,4 @@ def test_speed(encoder):
     for _ in range(10):
         encoder.encode_audio(x, 16000)
     per_call = (time.perf_counter() - t) / 10
-    assert per_call < 0.05  # measured ~3 ms on 2 cores; generous for loaded CI machines
+    assert per_call < 0.05  # measured 2.8 ms on an idle core; generous for busy CI machines
