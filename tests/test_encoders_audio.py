@@ -188,3 +188,18 @@ def test_speed(encoder):
         encoder.encode_audio(x, 16000)
     per_call = (time.perf_counter() - t) / 10
     assert per_call < 0.05  # measured 2.8 ms on an idle core; generous for busy CI machines
+
+
+def test_training_is_seeded(tmp_path):
+    from tabletop.train.audio import train_audio
+
+    kw = dict(steps=2, batch_size=4, warmup_steps=1, max_segment_s=0.5, seed=3)
+    a = train_audio(AudioTrainConfig(out=tmp_path / "a.pt", **kw))
+    b = train_audio(AudioTrainConfig(out=tmp_path / "b.pt", **kw))
+    sa = torch.load(a, weights_only=True)["state_dict"]
+    sb = torch.load(b, weights_only=True)["state_dict"]
+    assert sa.keys() == sb.keys()
+    assert all(torch.equal(sa[k], sb[k]) for k in sa)
+    meta = load_audio_checkpoint(a)[1]
+    assert meta["train_config"]["steps"] == 2
+    assert 0.0 <= meta["heldout"]["audio_recall3_heldout"] <= 1.0
