@@ -1,4 +1,10 @@
-"""Encoders behind small protocols: text, dense image, global image, audio."""
+"""Encoders behind small protocols: text, dense image, global image, audio.
+
+Backends with heavy imports are not imported here: ``tabletop.mapping.encoders.audio``
+(``MelCNNAudioEncoder``, the embedded default audio encoder; torch),
+``tabletop.mapping.encoders.clap`` (``MSClapEncoder``; the ``clap`` extra),
+``tabletop.mapping.encoders.oracle`` (the simulator oracle).
+"""
 
 from tabletop.mapping.encoders.base import (
     AudioEncoder,
