@@ -406,14 +406,17 @@ class AVLMap:
         margin = best - floor
         return float(1.0 / (1.0 + np.exp(-(margin - 0.2) / 0.05)))
 
+    def _scores(self, embeddings: list[np.ndarray], query: str) -> tuple[np.ndarray, np.ndarray]:
+        """Cosine scores of stored embeddings with ``query``, raw and min-max normalised."""
+        s = np.stack(embeddings) @ self.text.encode_text([query])[0]
+        return s, _normalize_scores(s)
+
     def sound_heatmap(self, query: str, major: bool = True) -> Heatmap:
         """Heat around where the sound best matching ``query`` was heard (the audio module)."""
         decay = self._decay(major)
         if not self.segment_embeddings:
             return self._empty(query, "sound", decay, "the map has no audio segments")
-        q = self.text.encode_text([query])[0]
-        s = np.stack(self.segment_embeddings) @ q
-        scores = _normalize_scores(s)
+        s, scores = self._scores(self.segment_embeddings, query)
         pos = np.stack(self.segment_positions)[:, :2]
         values = scored_points_heatmap_xy(self.grid, pos, scores, decay)
         floor = float(np.median(s)) if len(s) > 2 else float(s.min(initial=0.0))
@@ -434,9 +437,7 @@ class AVLMap:
         decay = self._decay(major)
         if not self.frame_embeddings:
             return self._empty(query, "area", decay, "the map has no frame embeddings")
-        q = self.text.encode_text([query])[0]
-        s = np.stack(self.frame_embeddings) @ q
-        scores = _normalize_scores(s)
+        s, scores = self._scores(self.frame_embeddings, query)
         pts = _look_at_table(np.stack(self.frame_poses))
         top = scores >= 0.8  # the best-matching views carry the area
         values = scored_points_heatmap_xy(self.grid, pts[top], scores[top], decay)
