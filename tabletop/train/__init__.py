@@ -1,0 +1,1 @@
+"""Training of the embedded default encoders (seeded, CPU): ``tabletop train vision|audio``."""
