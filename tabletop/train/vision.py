@@ -28,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-from tabletop.errors import ConfigError
+from tabletop.errors import ConfigError, SceneError
 
 __all__ = [
     "HELDOUT_COMBOS",
@@ -110,7 +110,7 @@ class VisionTrainConfig:
     """Held-out scenes measured after training (layout seeds ``EVAL_SEED_BASE + i``)."""
     eval_views: int = 6
     """Camera poses per held-out scene."""
-    steps: int = 3000
+    steps: int = 2000
     """Optimiser steps."""
     batch_size: int = 8
     """Images per step."""
@@ -152,7 +152,12 @@ def _layout(layout_seed: int, heldout: bool):
     base = np.array(TableSpec().color)
     table = TableSpec(color=tuple(np.clip(base + rng.uniform(-0.08, 0.08, 3), 0, 1)))
     count = int(rng.integers(6, 12))
-    objs = generate_objects(RandomSpec(seed=layout_seed, count=count, duplicates=2), table)
+    while True:  # a crowded draw may not fit: ask for one object fewer
+        try:
+            objs = generate_objects(RandomSpec(seed=layout_seed, count=count, duplicates=2), table)
+            break
+        except SceneError:
+            count -= 1
     held = set(HELDOUT_COMBOS)
     out, names = [], set()
     for o in objs:
