@@ -1,0 +1,243 @@
+"""Calibrated query confidence: the probability that a query's target is right.
+
+A query's raw evidence is the *margin* of its best match over the map's typical match
+(object: best voxel score minus the median voxel score; sound: best segment minus the median
+segment; image: PnP inliers). A confidence must mean something: of the queries answered with
+confidence 0.8, about 80 % should land within 10 cm of the truth. :func:`fit_platt` fits a
+logistic ``p = 1 / (1 + exp(-(a * margin + b)))`` (Platt scaling) to labelled queries:
+queries of things in the scene (right when the target lands within 10 cm) and queries of things
+that are not there (always wrong: the right answer is "not found").
+
+Fitted parameters live per encoder set and modality in ``tabletop/data/calibration/<set>.json``
+(written by ``tabletop calibrate``, which also records the held-out reliability: expected
+calibration error and the accuracy of the found / not-found decision). A map whose encoder
+set has no calibration file uses :data:`UNCALIBRATED` and says so in its reports.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from tabletop.errors import AssetError, ConfigError
+from tabletop.paths import DATA_DIR
+
+__all__ = [
+    "CALIBRATION_DIR",
+    "MODALITIES",
+    "UNCALIBRATED",
+    "Calibration",
+    "Platt",
+    "expected_calibration_error",
+    "fit_platt",
+    "load_calibration",
+]
+
+CALIBRATION_DIR = DATA_DIR / "calibration"
+MODALITIES = ("object", "sound", "area", "image")
+
+
+@dataclass(frozen=True)
+class Platt:
+    """``p = sigmoid(a * margin + b)``."""
+
+    a: float
+    b: float
+
+    def __call__(self, margin) -> np.ndarray | float:
+        z = self.a * np.asarray(margin, dtype=np.float64) + self.b
+        p = 1.0 / (1.0 + np.exp(-np.clip(z, -50, 50)))
+        return float(p) if np.ndim(p) == 0 else p
+
+
+#: The prior used without a fitted file: 0.5 at a cosine margin of 0.2, steep around it.
+UNCALIBRATED = Platt(a=20.0, b=-4.0)
+
+
+@dataclass(frozen=True)
+class Calibration:
+    """Per-modality Platt parameters of one encoder set, and how well they held out."""
+
+    encoder_set: str
+    models: dict  # modality -> Platt
+    report: dict  # held-out figures written by ``tabletop calibrate``
+
+    def confidence(self, modality: str, margin: float) -> float:
+        """Calibrated confidence in [0, 1] of a query of ``modality`` with ``margin``."""
+        if modality not in MODALITIES:
+            raise ConfigError(f"unknown modality {modality!r}; valid: {list(MODALITIES)}")
+        return float(self.models.get(modality, UNCALIBRATED)(margin))
+
+    @property
+    def calibrated(self) -> tuple[str, ...]:
+        """The modalities with fitted parameters."""
+        return tuple(m for m in MODALITIES if m in self.models)
+
+    def to_json(self) -> dict:
+        return {
+            "format": "tabletop-calibration",
+            "version": 1,
+            "encoder_set": self.encoder_set,
+            "models": {k: {"a": v.a, "b": v.b} for k, v in self.models.items()},
+            "report": self.report,
+        }
+
+    def save(self, path: str | Path | None = None) -> Path:
+        path = Path(path) if path is not None else CALIBRATION_DIR / f"{self.encoder_set}.json"
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_suffix(".tmp")
+        tmp.write_text(json.dumps(self.to_json(), indent=1) + "\n")
+        tmp.replace(path)
+        return path
+
+
+def load_calibration(encoder_set: str, path: str | Path | None = None) -> Calibration:
+    """The calibration of ``encoder_set`` (every modality :data:`UNCALIBRATED` when no file
+    exists); a malformed file raises :class:`AssetError` naming the problem."""
+    p = Path(path) if path is not None else CALIBRATION_DIR / f"{encoder_set}.json"
+    if not p.is_file():
+        if path is not None:
+            raise AssetError(f"calibration file {p} does not exist")
+        return Calibration(encoder_set, {}, {})
+    try:
+        d = json.loads(p.read_text())
+        if d.get("format") != "tabletop-calibration" or d.get("version") != 1:
+            raise ValueError(f"format {d.get('format')!r} v{d.get('version')!r} is not v1")
+        models = {}
+        for k, v in d["models"].items():
+            if k not in MODALITIES:
+                raise ValueError(f"unknown modality {k!r} (valid: {list(MODALITIES)})")
+            models[k] = Platt(float(v["a"]), float(v["b"]))
+        return Calibration(str(d["encoder_set"]), models, dict(d.get("report", {})))
+    except (ValueError, KeyError, TypeError, AttributeError) as e:
+        raise AssetError(f"calibration file {p} is malformed: {e}") from None
+
+
+def fit_platt(margins, correct, l2: float = 0.01, iterations: int = 100) -> Platt:
+    """Logistic regression of ``correct`` (bool) on ``margins`` by Newton's method with a
+    small L2 penalty on the slope (keeps separable data finite). Needs both classes."""
+    x = np.asarray(margins, dtype=np.float64).ravel()
+    y = np.asarray(correct, dtype=np.float64).ravel()
+    if x.shape != y.shape or x.size < 4:
+        raise ConfigError(f"fit_platt needs >= 4 paired samples, got {x.size} and {y.size}")
+    if y.min() == y.max():
+        raise ConfigError("fit_platt needs right and wrong queries (only one class given)")
+    X = np.stack([x, np.ones_like(x)], axis=1)
+    w = np.zeros(2)
+    reg = np.diag([l2, 0.0])
+    for _ in range(iterations):
+        p = 1.0 / (1.0 + np.exp(-np.clip(X @ w, -50, 50)))
+        g = X.T @ (p - y) + reg @ w
+        H = X.T @ (X * (p * (1 - p))[:, None]) + reg + 1e-9 * np.eye(2)
+        step = np.linalg.solve(H, g)
+        w -= step
+        if np.abs(step).max() < 1e-10:
+            break
+    return Platt(float(w[0]), float(w[1]))
+
+
+def expected_calibration_error(confidence, correct, bins: int = 10) -> float:
+    """Mean |accuracy - confidence| over equal-width confidence bins, weighted by count."""
+    c = np.asarray(confidence, dtype=np.float64).ravel()
+    y = np.asarray(correct, dtype=np.float64).ravel()
+    if c.size == 0:
+        return float("nan")
+    idx = np.minimum((c * bins).astype(int), bins - 1)
+    err = 0.0
+    for b in range(bins):
+        m = idx == b
+        if m.any():
+            err += m.sum() * abs(y[m].mean() - c[m].mean())
+    return float(err / c.size)
+
+
+# --------------------------------------------------------------------------- fitting from maps
+SUCCESS_M = 0.10
+
+
+def _box_dist(p, lo, hi) -> float:
+    p = np.asarray(p, dtype=np.float64)
+    return float(np.linalg.norm(np.maximum(np.subtract(lo, p), 0) + np.maximum(p - hi, 0)))
+
+
+def calibration_samples(m, ground_truth: dict) -> list[dict]:
+    """Labelled queries of one map: ``{"modality", "query", "margin", "correct"}`` each.
+
+    Objects: every object label and every kind name present (right when the target lands
+    within 10 cm of an object carrying it) and every catalog kind absent from the scene
+    (always wrong). Sounds: the caption of every inserted category (right within 10 cm of a
+    place it was heard) and of sound-bank categories never inserted (always wrong).
+    """
+    from tabletop.sim.catalog import OBJECT_KINDS
+    from tabletop.sim.sound_bank import SoundBank
+
+    out = []
+
+    def add(modality, query, h, truth):
+        if not h.found and h.evidence is None:
+            margin, ok = -1.0, False  # nothing matched at all: the weakest evidence there is
+        else:
+            margin = float(h.evidence)
+            ok = bool(truth) and h.values.max() > 0 and min(truth(m.get_max_pos_3d(h))) <= SUCCESS_M
+        out.append({"modality": modality, "query": query, "margin": margin, "correct": ok})
+
+    objs = ground_truth["objects"]
+    by_query: dict[str, list] = {}
+    for o in objs:
+        by_query.setdefault(o["label"], []).append(o)
+        by_query.setdefault(OBJECT_KINDS[o["kind"]].label, []).append(o)
+    for q, os_ in sorted(by_query.items()):
+        boxes = [(o["aabb_min"], o["aabb_max"]) for o in os_]
+        add("object", q, m.object_heatmap(q), lambda p, b=boxes: [_box_dist(p, *x) for x in b])
+    present = {o["kind"] for o in objs}
+    for k in sorted(set(OBJECT_KINDS) - present):
+        add("object", OBJECT_KINDS[k].label, m.object_heatmap(OBJECT_KINDS[k].label), None)
+
+    events = ground_truth.get("sound_events", [])
+    if events:
+        heard: dict[str, list] = {}
+        for e in events:
+            heard.setdefault(e["category"], []).append(e)
+        for _cat, es in sorted(heard.items()):
+            pts = [np.asarray(e["table_point"]) for e in es]
+            add(
+                "sound",
+                es[0]["caption"],
+                m.sound_heatmap(es[0]["caption"]),
+                lambda p, pts=pts: [float(np.linalg.norm(p - x)) for x in pts],
+            )
+        bank = SoundBank.default()
+        for cat in sorted(set(bank.categories) - set(heard)):
+            cap = bank.caption(cat)
+            add("sound", cap, m.sound_heatmap(cap), None)
+    return out
+
+
+def fit_calibration(encoder_set: str, train: list[dict], test: list[dict]) -> Calibration:
+    """Platt parameters per modality fitted on ``train``; the report holds ``test`` figures:
+    samples, expected calibration error (fitted and uncalibrated prior), and the accuracy of
+    the found (confidence >= 0.5) / not-found decision."""
+    models, report = {}, {}
+    for mod in MODALITIES:
+        tr = [s for s in train if s["modality"] == mod]
+        te = [s for s in test if s["modality"] == mod]
+        if not tr or len({s["correct"] for s in tr}) < 2:
+            continue
+        f = fit_platt([s["margin"] for s in tr], [s["correct"] for s in tr])
+        models[mod] = f
+        if te:
+            x = np.array([s["margin"] for s in te])
+            y = np.array([s["correct"] for s in te], dtype=bool)
+            p = np.asarray(f(x))
+            report[mod] = {
+                "train_samples": len(tr),
+                "test_samples": len(te),
+                "test_right": int(y.sum()),
+                "ece_test": expected_calibration_error(p, y),
+                "ece_test_uncalibrated": expected_calibration_error(UNCALIBRATED(x), y),
+                "decision_accuracy_test": float(np.mean((p >= 0.5) == y)),
+            }
+    return Calibration(encoder_set, models, report)

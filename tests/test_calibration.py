@@ -1,0 +1,91 @@
+"""Confidence calibration: Platt fits, reliability, and the calibration file format."""
+
+import json
+
+import numpy as np
+import pytest
+
+from tabletop.errors import AssetError, ConfigError
+from tabletop.mapping.calibration import (
+    UNCALIBRATED,
+    Calibration,
+    Platt,
+    expected_calibration_error,
+    fit_calibration,
+    fit_platt,
+    load_calibration,
+)
+
+
+def _samples(a, b, n, seed=0):
+    rng = np.random.default_rng(seed)
+    x = rng.uniform(-0.2, 0.6, n)
+    y = rng.random(n) < Platt(a, b)(x)
+    return x, y
+
+
+def test_fit_recovers_a_known_logistic():
+    x, y = _samples(12.0, -2.0, 4000)
+    f = fit_platt(x, y)
+    assert f.a == pytest.approx(12.0, rel=0.15)
+    assert f.b == pytest.approx(-2.0, abs=0.3)
+
+
+def test_fitted_confidences_are_calibrated_and_the_prior_is_not():
+    x, y = _samples(6.0, -1.0, 3000, seed=1)
+    f = fit_platt(x[:1500], y[:1500])
+    assert expected_calibration_error(f(x[1500:]), y[1500:]) < 0.05
+    # a much steeper prior is overconfident on the same data
+    assert expected_calibration_error(UNCALIBRATED(x[1500:]), y[1500:]) > 0.1
+
+
+def test_separable_data_stays_finite():
+    f = fit_platt([0.0, 0.1, 0.5, 0.6], [False, False, True, True])
+    assert np.isfinite([f.a, f.b]).all() and f(0.55) > 0.5 > f(0.05)
+
+
+def test_fit_needs_both_classes_and_pairs():
+    with pytest.raises(ConfigError, match="one class"):
+        fit_platt([0.1, 0.2, 0.3, 0.4], [True] * 4)
+    with pytest.raises(ConfigError, match="paired"):
+        fit_platt([0.1, 0.2], [True, False, True])
+
+
+def test_fit_calibration_reports_held_out_figures():
+    x, y = _samples(10.0, -2.0, 400, seed=2)
+    s = [{"modality": "object", "margin": m, "correct": bool(c)} for m, c in zip(x, y)]
+    cal = fit_calibration("default", s[:200], s[200:])
+    assert cal.calibrated == ("object",)
+    r = cal.report["object"]
+    assert r["test_samples"] == 200 and 0.5 < r["decision_accuracy_test"] <= 1.0
+    assert r["ece_test"] < r["ece_test_uncalibrated"]
+    # modalities without samples keep the prior
+    assert cal.confidence("sound", 0.2) == pytest.approx(UNCALIBRATED(0.2))
+    with pytest.raises(ConfigError, match="valid"):
+        cal.confidence("smell", 0.2)
+
+
+def test_file_round_trip_and_errors(tmp_path):
+    cal = Calibration("default", {"object": Platt(8.0, -1.5)}, {"object": {"ece_test": 0.03}})
+    p = cal.save(tmp_path / "default.json")
+    back = load_calibration("default", p)
+    assert back.models == cal.models and back.report == cal.report
+    assert load_calibration("no-such-set").models == {}  # no file: the prior
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps({"format": "tabletop-calibration", "version": 1, "models": {}}))
+    with pytest.raises(AssetError, match="malformed"):
+        load_calibration("x", bad)
+    bad.write_text(
+        json.dumps(
+            {
+                "format": "tabletop-calibration",
+                "version": 1,
+                "encoder_set": "x",
+                "models": {"smell": {"a": 1, "b": 0}},
+            }
+        )
+    )
+    with pytest.raises(AssetError, match="unknown modality"):
+        load_calibration("x", bad)
+    with pytest.raises(AssetError, match="does not exist"):
+        load_calibration("x", tmp_path / "missing.json")
