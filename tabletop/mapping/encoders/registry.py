@@ -29,8 +29,9 @@ def _check_name(name: str) -> None:
         raise ConfigError(f"unknown encoder set {name!r}; valid: {list(ENCODER_SETS)}")
 
 
-def make_encoders(name: str, recording=None) -> EncoderSet:
-    """The named encoder set. The oracle reads the recording's ground truth."""
+def make_encoders(name: str, recording=None, options: dict | None = None) -> EncoderSet:
+    """The named encoder set. The oracle reads the recording's ground truth; ``options``
+    (default set: ``vision_weights``, ``audio_weights`` paths) override the committed weights."""
     _check_name(name)
     if name == "oracle":
         from tabletop.mapping.encoders.oracle import oracle_labels
@@ -46,7 +47,7 @@ def make_encoders(name: str, recording=None) -> EncoderSet:
             "sound_events": gt.get("sound_events", []),
         }
         return make_encoders_from_rebuild("oracle", rebuild)
-    return make_encoders_from_rebuild(name, {})
+    return make_encoders_from_rebuild(name, dict(options or {}))
 
 
 def make_encoders_from_rebuild(name: str, rebuild: dict) -> EncoderSet:
@@ -81,7 +82,39 @@ def make_encoders_from_rebuild(name: str, rebuild: dict) -> EncoderSet:
             },
             {"labels": {str(k): v for k, v in labels.items()}, "sound_events": events},
         )
-    raise ConfigError(
-        "the 'default' learned encoders are not wired into the map yet in this version; "
-        "use 'oracle'"
-    )
+    if name == "default":
+        from tabletop.mapping.encoders.audio import DEFAULT_AUDIO_WEIGHTS, MelCNNAudioEncoder
+        from tabletop.mapping.encoders.lseg import VISION_WEIGHTS_PATH, LSegEncoder
+
+        vision_w = rebuild.get("vision_weights") or str(VISION_WEIGHTS_PATH)
+        audio_w = rebuild.get("audio_weights") or str(DEFAULT_AUDIO_WEIGHTS)
+        image = LSegEncoder(vision_w)  # dense and global embeddings from one network
+        return EncoderSet(
+            text,
+            image,
+            image,
+            MelCNNAudioEncoder(audio_w),
+            {
+                "set": "default (embedded learned encoders)",
+                "text": "minilm-l6-v2",
+                "dense": f"lseg-style small net ({_short(vision_w)})",
+                "global_image": "lseg-style small net, mean of cell embeddings",
+                "audio": f"mel-cnn ({_short(audio_w)})",
+            },
+            # None = the committed weights, wherever the package lives when the map is loaded
+            {k: rebuild.get(k) for k in ("vision_weights", "audio_weights")},
+        )
+    raise AssertionError(name)  # _check_name guards
+
+
+def _short(path: str) -> str:
+    """A weights path as shown in reports: relative to the package data when it is there."""
+    from pathlib import Path
+
+    from tabletop.paths import DATA_DIR
+
+    p = Path(path)
+    try:
+        return str(p.resolve().relative_to(DATA_DIR.resolve().parent))
+    except ValueError:
+        return str(p)
