@@ -241,3 +241,43 @@ def fit_calibration(encoder_set: str, train: list[dict], test: list[dict]) -> Ca
                 "decision_accuracy_test": float(np.mean((p >= 0.5) == y)),
             }
     return Calibration(encoder_set, models, report)
+
+
+#: Generator seeds of the calibration scenes (apart from the evaluation suites' seeds).
+CALIBRATION_SEEDS = tuple(range(700, 706))
+
+
+def run_calibration(
+    encoder_set: str = "default",
+    seeds=CALIBRATION_SEEDS,
+    speed: float = 0.3,
+    progress=None,
+) -> Calibration:
+    """Scan a generated scene per seed, build its map with ``encoder_set``, label queries,
+    fit on the first half of the scenes and report on the second (held-out scenes)."""
+    import tempfile
+
+    from tabletop.mapping.avlmap import AVLMap
+    from tabletop.sim.scan import ScanConfig, run_scan
+    from tabletop.sim.scene import load_scene_spec
+
+    seeds = list(seeds)
+    if len(seeds) < 2:
+        raise ConfigError("calibration needs at least 2 scene seeds (fit and held-out halves)")
+    per_scene = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for seed in seeds:
+            path = Path(tmp) / f"calib-{seed}.toml"
+            path.write_text(f"[random]\nseed = {seed}\ncount = 9\nduplicates = 2\n")
+            rec, _ = run_scan(load_scene_spec(path), ScanConfig(seed=seed, speed=speed))
+            m = AVLMap.build(rec, encoders=encoder_set)
+            per_scene.append(calibration_samples(m, rec.ground_truth))
+            if progress is not None:
+                progress(seed, per_scene[-1])
+    half = len(per_scene) // 2
+    train = [s for scene in per_scene[:half] for s in scene]
+    test = [s for scene in per_scene[half:] for s in scene]
+    cal = fit_calibration(encoder_set, train, test)
+    cal.report["seeds_fit"] = seeds[:half]
+    cal.report["seeds_heldout"] = seeds[half:]
+    return cal
