@@ -1,0 +1,57 @@
+"""Errors of the language-to-code stage: one base class, one subclass per failure."""
+
+from __future__ import annotations
+
+from tabletop.errors import TabletopError
+
+__all__ = [
+    "CodeRejected",
+    "LLMError",
+    "LanguageError",
+    "ParseError",
+    "SandboxError",
+    "SandboxLimit",
+]
+
+
+class LanguageError(TabletopError):
+    """Base class of the language stage's errors."""
+
+
+class ParseError(LanguageError, ValueError):
+    """The offline parser did not understand (part of) an instruction; nothing was generated.
+
+    ``fragment`` is the part it did not understand, ``instruction`` the whole sentence.
+    """
+
+    def __init__(self, instruction: str, fragment: str, why: str) -> None:
+        super().__init__(f"did not understand {fragment!r} in {instruction!r}: {why}")
+        self.instruction = instruction
+        self.fragment = fragment
+        self.why = why
+
+
+class SandboxError(LanguageError):
+    """Generated code was refused or stopped by the sandbox."""
+
+
+class CodeRejected(SandboxError, ValueError):
+    """The code failed the static check; none of it ran, so the robot did not move.
+
+    ``problems`` holds one ``"line N: ..."`` message per refused construct.
+    """
+
+    def __init__(self, problems: list[str]) -> None:
+        shown = "; ".join(problems[:5]) + (
+            f"; ... ({len(problems)} in all)" if len(problems) > 5 else ""
+        )
+        super().__init__(f"code rejected, nothing ran: {shown}")
+        self.problems = list(problems)
+
+
+class SandboxLimit(SandboxError, RuntimeError):
+    """Running code hit a limit (steps, robot calls, moves or time) and was stopped."""
+
+
+class LLMError(LanguageError, RuntimeError):
+    """The chat endpoint could not be reached or gave no usable code."""

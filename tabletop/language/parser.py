@@ -1,0 +1,626 @@
+"""The offline instruction parser: a table-top instruction in English becomes robot code.
+
+No model is involved: a small grammar over the instruction families of the paper's prompts
+(object, sound, image and area goals; "X near Y" for any two modalities; "between A and B";
+left/right/front/behind of an object; compass moves; sequences with "then"; repetition with
+"twice" or "3 times"; back and forth between two goals). The code it writes is the code a
+prompted LLM writes against :class:`tabletop.robot.RobotAPI` (``robot.get_major_map(...)``,
+``robot.get_max_pos_3d(...)``, ``robot.move_to(...)``, ...), and it goes through the same
+sandbox. Anything outside the grammar raises :class:`ParseError` naming the part it did not
+understand; the parser never guesses.
+
+Typical use::
+
+    from tabletop.language import parse_instruction, plan_to_code
+
+    plan = parse_instruction("go to the mug near the sound of a dog barking, then to the duck")
+    code = plan_to_code(plan)
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+
+from tabletop.language.errors import ParseError
+
+__all__ = [
+    "MAX_DISTANCE_M",
+    "MAX_REPEAT",
+    "Above",
+    "BackAndForth",
+    "Between",
+    "Compass",
+    "GoTo",
+    "Goal",
+    "Part",
+    "Side",
+    "Step",
+    "instruction_to_code",
+    "parse_instruction",
+    "plan_to_code",
+]
+
+MAX_REPEAT = 20
+"""Most repetitions of one step ("20 times")."""
+MAX_DISTANCE_M = 1.0
+"""Longest compass move [m]: the table is about a metre across."""
+
+KINDS = ("obj", "sound", "img", "area")
+
+
+# ---------------------------------------------------------------------- the plan (values)
+@dataclass(frozen=True)
+class Part:
+    """One goal in one modality: ``kind`` in obj, sound, img, area; ``text`` is the object,
+    sound or area description, or the image path."""
+
+    kind: str
+    text: str
+
+
+@dataclass(frozen=True)
+class Goal:
+    """A target: the ``primary`` part (sharp map) constrained by ``near`` parts (broad maps)."""
+
+    primary: Part
+    near: tuple[Part, ...] = ()
+
+
+@dataclass(frozen=True)
+class GoTo:
+    goal: Goal
+
+
+@dataclass(frozen=True)
+class Between:
+    a: Goal
+    b: Goal
+
+
+@dataclass(frozen=True)
+class Side:
+    """``side`` in left, right, front, behind of the object ``landmark``."""
+
+    side: str
+    landmark: str
+
+
+@dataclass(frozen=True)
+class Above:
+    landmark: str
+
+
+@dataclass(frozen=True)
+class Compass:
+    """``direction`` in north, south, east, west; ``distance_m`` [m] from the current point."""
+
+    direction: str
+    distance_m: float
+
+
+@dataclass(frozen=True)
+class BackAndForth:
+    a: Goal
+    b: Goal
+
+
+@dataclass(frozen=True)
+class Step:
+    """One clause of the instruction, done ``times`` times."""
+
+    action: GoTo | Between | Side | Above | Compass | BackAndForth
+    times: int
+    text: str
+
+
+# ---------------------------------------------------------------------- vocabulary
+_NUMBERS = {
+    "a": 1,
+    "an": 1,
+    "one": 1,
+    "two": 2,
+    "three": 3,
+    "four": 4,
+    "five": 5,
+    "six": 6,
+    "seven": 7,
+    "eight": 8,
+    "nine": 9,
+    "ten": 10,
+    "twelve": 12,
+    "fifteen": 15,
+    "twenty": 20,
+    "thirty": 30,
+    "forty": 40,
+    "fifty": 50,
+}
+_NUM = r"(?:\d+(?:\.\d+)?|\.\d+|" + "|".join(sorted(_NUMBERS, key=len, reverse=True)) + ")"
+_UNITS = {
+    "mm": 0.001,
+    "millimeter": 0.001,
+    "millimetre": 0.001,
+    "cm": 0.01,
+    "centimeter": 0.01,
+    "centimetre": 0.01,
+    "m": 1.0,
+    "meter": 1.0,
+    "metre": 1.0,
+}
+_UNIT = r"(?:mm|cm|m|millimet(?:er|re)s?|centimet(?:er|re)s?|met(?:er|re)s?)"
+_DIST = rf"({_NUM})\s*({_UNIT})"
+_DIRECTIONS = {
+    "north": "north",
+    "forward": "north",
+    "forwards": "north",
+    "ahead": "north",
+    "away": "north",
+    "south": "south",
+    "back": "south",
+    "backward": "south",
+    "backwards": "south",
+    "west": "west",
+    "left": "west",
+    "east": "east",
+    "right": "east",
+}
+_DIR = "(" + "|".join(sorted(_DIRECTIONS, key=len, reverse=True)) + ")"
+
+# Words that carry structure: inside an object description they mean the sentence had a
+# construction the grammar does not know, so the parser stops instead of guessing.
+_RESERVED = frozenset(
+    """left right front behind back between middle halfway of and or then near next close
+    closest nearest beside times twice thrice once sound sounds noise image picture photo where
+    heard hear north south east west quickly slowly carefully gently fast not no don't dont
+    never without avoid except if while until unless below under beneath over above to from
+    with into onto towards toward after before again repeat meters metres meter metre cm mm
+    grab pick place put push open close turn rotate face look it its them there here me you
+    everything all every""".split()
+)
+_ARTICLES = re.compile(r"^(?:(?:the|a|an|some|any|that|this)\s+)+")
+
+_VERB = re.compile(
+    r"^(?:please\s+)?(?:now\s+)?(?:"
+    r"(?:go|move|head|navigate|travel|get|come|drive|bring|take|send|guide)"
+    r"(?:\s+(?:the\s+)?(?:arm|gripper|hand|robot|end[\s-]effector|tcp))?"
+    r"(?:\s+back\s+to|\s+over\s+to|\s+up\s+to|\s+straight\s+to|\s+to|\s+towards?|\s+into|\s+onto)?"
+    r"|return\s+to|reach(?:\s+for)?|approach|visit|find|locate"
+    r")(?:\s+|$)"
+)
+_STEP_SPLIT = re.compile(
+    r"\s*(?:[,;.]\s*)?(?:\band\s+)?\b(?:then|after\s+that|afterwards|finally|lastly)\b\s*,?\s*"
+    r"|\s*;\s*|\.\s+"
+)
+_FIRST = re.compile(r"^(?:first(?:ly)?|start\s+by|to\s+begin)\s*,?\s*")
+_REPEAT = re.compile(rf"[\s,]*\b(?:(once|twice|thrice)|({_NUM})\s+times)\s*$")
+_LEAD_REPEAT = re.compile(rf"^(?:(once|twice|thrice)|({_NUM})\s+times)\b\s*,?\s*")
+_BACK_FORTH = re.compile(
+    r"^(?:please\s+)?(?:go|move|travel|shuttle|head)(?:\s+(?:the\s+)?(?:arm|gripper|hand))?"
+    r"\s+back\s+and\s+forth\s+(?:between|to|from)\s+(.+)$"
+)
+_COMPASS = [
+    re.compile(rf"^{_DIST}\s+(?:to(?:wards)?\s+(?:the\s+)?)?{_DIR}(?:wards?)?$"),
+    re.compile(rf"^(?:to(?:wards)?\s+(?:the\s+)?)?{_DIR}(?:wards?)?\s+(?:by\s+|for\s+)?{_DIST}$"),
+]
+_BETWEEN = re.compile(
+    r"^(?:to\s+)?(?:the\s+)?(?:(?:in\s+)?between|halfway\s+between|"
+    r"(?:exact\s+)?(?:middle|midpoint|centre|center|halfway\s+point)\s+(?:of|between))\s+(.+)$"
+)
+_SIDES = [
+    (
+        "left",
+        re.compile(r"^(?:(?:to|on)\s+)?(?:the\s+)?left(?:[\s-]+hand)?(?:\s+side)?\s+of\s+(.+)$"),
+    ),
+    (
+        "right",
+        re.compile(r"^(?:(?:to|on)\s+)?(?:the\s+)?right(?:[\s-]+hand)?(?:\s+side)?\s+of\s+(.+)$"),
+    ),
+    ("front", re.compile(r"^(?:(?:to|on)\s+)?(?:the\s+)?(?:in\s+)?front(?:\s+side)?\s+of\s+(.+)$")),
+    (
+        "behind",
+        re.compile(
+            r"^(?:(?:to\s+)?behind|(?:(?:to|on)\s+)?(?:the\s+)?(?:back|rear)(?:\s+side)?\s+of)"
+            r"\s+(.+)$"
+        ),
+    ),
+]
+_ABOVE = re.compile(r"^(?:right\s+|just\s+)?(?:above|over|on\s+top\s+of|the\s+top\s+of)\s+(.+)$")
+_TABLE_AREA = re.compile(
+    r"\b(?:the\s+)?(left|right|front|back|far|near|centre|center|middle)"
+    r"(?:\s+(?:side|part|half|edge|end))?\s+of\s+the\s+table\b"
+)
+_AREA_PLACEHOLDER = re.compile(r"@area(\d+)@")
+_IMAGE_PLACE = re.compile(
+    r"\b(?:the\s+)?(?:place|spot|location|view|scene)\s+(?:(?:shown|seen|depicted)\s+)?"
+    r"(?:in|at|from|of)\s+(?:the\s+)?(?:(?:image|picture|photo|photograph|snapshot)\s+)?"
+    r"(@img\d+@)"
+)
+_PLACE_WORDS = frozenset({"place", "spot", "point", "location"})
+_AREA_NAMES = {
+    "left": "left side of the table",
+    "right": "right side of the table",
+    "front": "front of the table",
+    "far": "front of the table",
+    "back": "back of the table",
+    "near": "back of the table",
+    "centre": "center of the table",
+    "center": "center of the table",
+    "middle": "center of the table",
+}
+_AREA_SUFFIX = re.compile(r"^(?:the\s+)?(.+?)\s+(?:area|region|zone)$")
+_SOUND_OF = re.compile(r"^(?:the\s+)?(?:sound|noise)s?\s+(?:of|made\s+by)\s+(.+)$")
+_SOUND_SUFFIX = re.compile(r"^(?:the\s+)?(.+?)\s+(?:sound|noise)$")
+_HEARD = re.compile(
+    r"^(?:(?:the\s+)?(?:place|spot|point|location)\s+)?where\s+(?:you|i|we)\s+heard\s+(.+)$"
+)
+_WAS_HEARD = re.compile(r"\bwhere\s+(.+?)\s+(?:was|were)\s+heard\b")
+_CONNECT = re.compile(
+    r"\s+(?:(?:that|which)\s+(?:is|was)\s+)?"
+    r"(near(?:\s+to)?|next\s+to|close\s+to|closest\s+to|nearest(?:\s+to)?|beside|by|around|in|"
+    r"on|where\s+(?:you|i|we)\s+heard)\s+"
+)
+_IMAGE_WORDS = frozenset(
+    """the a an image picture photo photograph view snapshot goal place spot location shown seen
+    in at from of file where""".split()
+)
+_PLACEHOLDER = re.compile(r"@img(\d+)@")
+_PATH = re.compile(
+    r"""(?<![\w@])["']?((?:\.{1,2}/|~/|/)[^\s"',;]+|[^\s"',;]+\.(?:png|jpe?g|bmp|webp|tiff?))["']?"""
+    r"""(?=[\s,;]|[.!?]?\s*$|[.!?]\s)""",
+    re.IGNORECASE,
+)
+
+
+# ---------------------------------------------------------------------- parsing
+class _Parser:
+    def __init__(self, instruction: str) -> None:
+        if not isinstance(instruction, str) or not instruction.strip():
+            raise ParseError(str(instruction), str(instruction), "the instruction is empty")
+        self.instruction = instruction
+        self.paths: list[str] = []
+        self.areas: list[tuple[str, str]] = []  # (as written, the map's area name)
+
+    def fail(self, fragment: str, why: str):
+        raise ParseError(self.instruction, self._restore(fragment), why)
+
+    def _restore(self, text: str) -> str:
+        text = _AREA_PLACEHOLDER.sub(lambda m: self.areas[int(m.group(1))][0], text)
+        return _PLACEHOLDER.sub(lambda m: self.paths[int(m.group(1))], text)
+
+    def _hide_areas(self, text: str) -> str:
+        def repl(m: re.Match) -> str:
+            self.areas.append((m.group(0), _AREA_NAMES[m.group(1)]))
+            return f"@area{len(self.areas) - 1}@"
+
+        return _TABLE_AREA.sub(repl, text)
+
+    def _hide_paths(self, text: str) -> str:
+        def repl(m: re.Match) -> str:
+            self.paths.append(m.group(1))
+            return f" @img{len(self.paths) - 1}@ "
+
+        return _PATH.sub(repl, text)
+
+    def parse(self) -> tuple[Step, ...]:
+        text = self._hide_paths(self.instruction.strip())
+        text = re.sub(r"\s+", " ", text.lower()).strip()
+        text = re.sub(r"[.!?]+$", "", text).strip()
+        text = _WAS_HEARD.sub(r"where you heard \1", text)
+        text = _IMAGE_PLACE.sub(r"the image \1", text)
+        text = self._hide_areas(text)
+        clauses = [c.strip(" ,") for c in _STEP_SPLIT.split(text)]
+        if any(not c for c in clauses):
+            self.fail(text, "an empty step: 'then' must join two steps")
+        return tuple(self.step(c, i == 0) for i, c in enumerate(clauses))
+
+    # --------------------------------------------------------------- one step
+    def step(self, clause: str, first: bool) -> Step:
+        body = _FIRST.sub("", clause)
+        times = 1
+        m = _REPEAT.search(body)
+        if m:
+            times = self.times(m, clause)
+            body = body[: m.start()].strip(" ,")
+        m = _BACK_FORTH.match(body)
+        if m:
+            a, b = self.two_goals(m.group(1), "back and forth", sep=r"\s+(?:and|to)\s+")
+            return Step(BackAndForth(a, b), times, self._restore(clause))
+        m = _LEAD_REPEAT.match(body)
+        if m and times == 1:
+            times = self.times(m, clause)
+            body = body[m.end() :].strip(" ,")
+        m = _VERB.match(body)
+        if not m and not first:
+            # later steps may leave the verb out: "..., then (to) the duck"
+            m = re.match(r"^(?:to(?:wards)?\s+|on\s+to\s+)?", body)
+        if not m:
+            self.fail(
+                clause,
+                "a step starts with a motion verb: go to, move to, reach, approach, "
+                "head to, navigate to, return to, move back and forth between",
+            )
+        rest = body[m.end() :].strip()
+        if not rest:
+            self.fail(clause, "the step names no goal")
+        return Step(self.action(rest, clause), times, self._restore(clause))
+
+    def times(self, m: re.Match, clause: str) -> int:
+        word = m.group(1) or m.group(2)
+        n = {"once": 1, "twice": 2, "thrice": 3}.get(word) or self.number(word, clause)
+        if n != int(n) or not 1 <= n <= MAX_REPEAT:
+            self.fail(m.group(0).strip(" ,"), f"repeat a step 1 to {MAX_REPEAT} times")
+        return int(n)
+
+    def action(self, rest: str, clause: str):
+        for rx in _COMPASS:
+            m = rx.match(rest)
+            if m:
+                g = m.groups()
+                if g[0] in _DIRECTIONS:
+                    direction, num, unit = g
+                else:
+                    num, unit, direction = g
+                d = self.number(num, clause) * _UNITS[unit.rstrip("s")]
+                if not 0 < d <= MAX_DISTANCE_M:
+                    self.fail(
+                        rest, f"a compass move goes more than 0 and at most {MAX_DISTANCE_M} m"
+                    )
+                return Compass(_DIRECTIONS[direction], round(d, 6))
+        if re.match(rf"^(?:to(?:wards)?\s+(?:the\s+)?)?{_DIR}(?:wards?)?$", rest):
+            self.fail(rest, "a compass move needs a distance, e.g. 'move 10 cm north'")
+        m = _BETWEEN.match(rest)
+        if m:
+            try:
+                a, b = self.two_goals(m.group(1), "between")
+            except ParseError:
+                if not re.match(r"^(?:the\s+)?(?:middle|centre|center)\s+of\s+", rest):
+                    raise
+            else:
+                return Between(a, b)
+        for side, rx in _SIDES:
+            m = rx.match(rest)
+            if m:
+                return Side(side, self.landmark(m.group(1), side))
+        m = _ABOVE.match(rest)
+        if m:
+            return Above(self.landmark(m.group(1), "above"))
+        return GoTo(self.goal(rest))
+
+    def landmark(self, text: str, relation: str) -> str:
+        goal = self.goal(text)
+        if goal.near or goal.primary.kind != "obj":
+            self.fail(
+                text,
+                f"'{relation}' needs one object as its landmark (e.g. 'the left of the red mug'); "
+                "sound, image and area goals or 'X near Y' work with go to, between and near",
+            )
+        return goal.primary.text
+
+    def two_goals(self, text: str, what: str, sep: str = r"\s+and\s+") -> tuple[Goal, Goal]:
+        """Split ``A and B`` at the first 'and' where both sides are goals."""
+        errors = []
+        for m in re.finditer(sep, text):
+            left, right = text[: m.start()], text[m.end() :]
+            try:
+                return self.goal(left), self.goal(right)
+            except ParseError as e:
+                errors.append(e)
+        if not errors:
+            self.fail(text, f"'{what}' needs two goals joined by 'and' ({what} A and B)")
+        raise errors[-1]
+
+    # --------------------------------------------------------------- goals
+    def goal(self, text: str) -> Goal:
+        text = text.strip(" ,")
+        pieces = _CONNECT.split(text)
+        # pieces = [primary, connector, constraint, connector, constraint, ...]
+        if (
+            len(pieces) > 2
+            and "heard" in pieces[1]
+            and _ARTICLES.sub("", pieces[0].strip()) in _PLACE_WORDS
+        ):  # "the place where you heard S ..." is the sound itself
+            pieces = [f"where you heard {pieces[2]}", *pieces[3:]]
+        primary = self.part(pieces[0], None)
+        near: list[Part] = []
+        for i in range(1, len(pieces), 2):
+            connector, constraint = pieces[i], pieces[i + 1]
+            forced = "sound" if "heard" in connector else None
+            for sub in re.split(r"\s+and\s+", constraint):
+                near.append(self.part(sub, forced))
+        return Goal(primary, tuple(near))
+
+    def part(self, text: str, forced: str | None) -> Part:
+        text = text.strip(" ,'\"")
+        if not text:
+            self.fail(self.instruction, "a goal is missing")
+        if _PLACEHOLDER.search(text):
+            return self.image(text)
+        if forced == "sound":
+            m = _SOUND_OF.match(text) or _SOUND_SUFFIX.match(text)
+            return Part("sound", self.description(m.group(1) if m else text, "sound"))
+        m = _HEARD.match(text)
+        if m:
+            return Part("sound", self.description(m.group(1), "sound"))
+        m = _SOUND_OF.match(text) or _SOUND_SUFFIX.match(text)
+        if m:
+            return Part("sound", self.description(m.group(1), "sound"))
+        if re.match(r"^(?:the\s+)?(?:image|picture|photo|photograph|snapshot)\b", text):
+            self.fail(text, "an image goal needs a file path, e.g. 'the image ./goal.png'")
+        m = _AREA_PLACEHOLDER.fullmatch(_ARTICLES.sub("", text))
+        if m:
+            return Part("area", self.areas[int(m.group(1))][1])
+        m = _AREA_SUFFIX.match(text)
+        if m:
+            return Part("area", self.description(m.group(1), "area") + " area")
+        return Part("obj", self.description(text, "object"))
+
+    def image(self, text: str) -> Part:
+        found = _PLACEHOLDER.findall(text)
+        others = [w for w in _PLACEHOLDER.sub(" ", text).split() if w not in _IMAGE_WORDS]
+        if len(found) != 1 or others:
+            self.fail(text, "an image goal is 'the image PATH' (one path, nothing else)")
+        return Part("img", self.paths[int(found[0])])
+
+    def description(self, text: str, kind: str) -> str:
+        words = _ARTICLES.sub("", text.strip()).split()
+        if not words:
+            self.fail(text, f"the {kind} description is empty")
+        bad = [w for w in words if w in _RESERVED or not re.fullmatch(r"[a-z][a-z0-9'-]*", w)]
+        if kind == "sound":  # sounds are free text, but not spatial structure
+            bad = [
+                w for w in bad if w in _RESERVED_SOUND or not re.fullmatch(r"[a-z][a-z0-9'-]*", w)
+            ]
+        if bad:
+            self.fail(
+                text,
+                f"{', '.join(repr(w) for w in bad)} cannot be part of {_a(kind)} description; "
+                "the offline parser knows: go to/reach/approach X; X near/next to/close to Y; "
+                "X where you heard S; between A and B; left/right/in front of/behind/above X; "
+                "move 10 cm north/south/east/west/left/right; steps joined by 'then'; "
+                "'twice', 'N times'; 'the sound of S'; 'the image PATH'; 'the X area' "
+                "(use --backend llm for anything else)",
+            )
+        if len(words) > 6:
+            self.fail(text, f"a {kind} description has at most 6 words")
+        return " ".join(words)
+
+    def number(self, word: str, clause: str) -> float:
+        if word in _NUMBERS:
+            return float(_NUMBERS[word])
+        try:
+            return float(word)
+        except ValueError:
+            self.fail(clause, f"{word!r} is not a number")
+
+
+_RESERVED_SOUND = frozenset(
+    """left right front behind between middle halfway near next close closest nearest beside
+    then times twice image picture photo north south east west not no don't dont never without
+    avoid except if while until""".split()
+)
+
+
+def _a(noun: str) -> str:
+    return ("an " if noun[0] in "aeiou" else "a ") + noun
+
+
+def parse_instruction(instruction: str) -> tuple[Step, ...]:
+    """The steps of ``instruction``; :class:`ParseError` names what was not understood."""
+    return _Parser(instruction).parse()
+
+
+# ---------------------------------------------------------------------- code generation
+class _Names:
+    """Variable names in the paper's style (obj_map, sound_map, pos1, ...), numbered on reuse."""
+
+    def __init__(self) -> None:
+        self.used: dict[str, int] = {}
+
+    def __call__(self, base: str) -> str:
+        n = self.used.get(base, 0) + 1
+        self.used[base] = n
+        return base if n == 1 else f"{base}_{n}"
+
+
+def _q(text: str) -> str:
+    return '"' + text.replace("\\", "\\\\").replace('"', '\\"') + '"'
+
+
+def _arg(part: Part, lines: list[str], names: _Names) -> str:
+    if part.kind != "img":
+        return f"{part.kind}={_q(part.text)}"
+    var = names("img")
+    lines.append(f"{var} = robot.load_image({_q(part.text)})")
+    return f"img={var}"
+
+
+def _goal_map(goal: Goal, lines: list[str], names: _Names) -> str:
+    """Append the lines that build the goal's heatmap; return its variable."""
+    arg = _arg(goal.primary, lines, names)
+    main = names(f"{goal.primary.kind}_map")
+    lines.append(f"{main} = robot.get_major_map({arg})")
+    if not goal.near:
+        return main
+    factors = [main]
+    for part in goal.near:
+        arg = _arg(part, lines, names)
+        var = names(f"{part.kind}_map")
+        lines.append(f"{var} = robot.get_map({arg})")
+        factors.append(var)
+    fused = names("fuse_map")
+    lines.append(f"{fused} = {' * '.join(factors)}")
+    return fused
+
+
+def _is_plain_object(goal: Goal) -> bool:
+    return goal.primary.kind == "obj" and not goal.near
+
+
+def _point(goal: Goal, lines: list[str], names: _Names, var: str) -> None:
+    """Lines that put the goal's target point into ``var``."""
+    if _is_plain_object(goal):
+        lines.append(f"{var} = robot.above({_q(goal.primary.text)})")
+        return
+    heat = _goal_map(goal, lines, names)
+    lines.append(f"{var} = robot.get_max_pos_3d({heat})")
+
+
+_SIDE_CALLS = {
+    "left": "move_to_left",
+    "right": "move_to_right",
+    "front": "move_in_front_of",
+    "behind": "move_behind",
+}
+
+
+def _step_code(step: Step, names: _Names) -> list[str]:
+    a = step.action
+    setup: list[str] = []
+    moves: list[str]
+    if isinstance(a, GoTo):
+        if _is_plain_object(a.goal):
+            moves = [f"robot.move_to_object({_q(a.goal.primary.text)})"]
+        else:
+            heat = _goal_map(a.goal, setup, names)
+            pos = names("pos")
+            setup.append(f"{pos} = robot.get_max_pos_3d({heat})")
+            moves = [f"robot.move_to({pos})"]
+    elif isinstance(a, Between):
+        ha = _goal_map(a.a, setup, names)
+        hb = _goal_map(a.b, setup, names)
+        p1, p2, pos = names("pos1"), names("pos2"), names("pos")
+        setup += [
+            f"{p1} = robot.get_max_pos_3d({ha})",
+            f"{p2} = robot.get_max_pos_3d({hb})",
+            f"{pos} = ({p1} + {p2}) / 2",
+        ]
+        moves = [f"robot.move_to({pos})"]
+    elif isinstance(a, Side):
+        moves = [f"robot.{_SIDE_CALLS[a.side]}({_q(a.landmark)})"]
+    elif isinstance(a, Above):
+        moves = [f"robot.move_to_object({_q(a.landmark)})"]
+    elif isinstance(a, Compass):
+        moves = [f"robot.move_{a.direction}({a.distance_m!r})"]
+    else:  # BackAndForth
+        p1, p2 = names("pos1"), names("pos2")
+        _point(a.a, setup, names, p1)
+        _point(a.b, setup, names, p2)
+        moves = [f"robot.move_to({p1})", f"robot.move_to({p2})"]
+    if step.times == 1:
+        return setup + moves
+    return [*setup, f"for _ in range({step.times}):", *("    " + m for m in moves)]
+
+
+def plan_to_code(steps: tuple[Step, ...]) -> str:
+    """Python against the robot API, one commented block per step (the sandbox's input)."""
+    names = _Names()
+    out: list[str] = []
+    for step in steps:
+        out.append("# " + re.sub(r"\s+", " ", step.text).strip())
+        out += _step_code(step, names)
+    return "\n".join(out) + "\n"
+
+
+def instruction_to_code(instruction: str) -> str:
+    """Parse ``instruction`` and write its robot code (:class:`ParseError` if not understood)."""
+    return plan_to_code(parse_instruction(instruction))

@@ -1,0 +1,560 @@
+"""A sandbox for generated robot code: a static check with ``ast``, then a small interpreter.
+
+The code is never handed to ``exec``. :func:`check_code` parses it and refuses everything but
+
+- calls ``robot.<method>(...)`` of the robot API (:data:`ROBOT_METHODS`),
+- arithmetic ``+ - * / // %`` and unary minus on numbers and arrays,
+- assignments to plain names (and tuple unpacking), ``+=`` and friends,
+- number, string, tuple and list literals, ``name[i]`` with a literal index,
+- ``for _ in range(n)`` with literal bounds (at most ``max_loop`` iterations), and ``pass``;
+
+so imports, attribute access other than ``robot.<method>``, dunder names, ``open``, ``eval``,
+``exec``, ``while``, ``if``, ``lambda``, comprehensions, function and class definitions,
+``**`` and the like are refused, each with its line. Loops have literal bounds, so the number
+of steps and robot calls is known before anything runs: code over the limits is refused too.
+Refused code raises :class:`CodeRejected` before its first line runs, so the robot never moves.
+While running, :func:`run_code` also counts steps and checks a wall-clock limit between steps.
+"""
+
+from __future__ import annotations
+
+import ast
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from numbers import Real
+
+import numpy as np
+
+from tabletop.errors import ConfigError, TabletopError
+from tabletop.language.errors import CodeRejected, SandboxError, SandboxLimit
+
+__all__ = [
+    "ROBOT_METHODS",
+    "ROBOT_MOVES",
+    "CallRecord",
+    "CheckedCode",
+    "SandboxConfig",
+    "SandboxRun",
+    "check_code",
+    "run_code",
+]
+
+#: Robot API methods that move the robot.
+ROBOT_MOVES = frozenset(
+    {
+        "move_to",
+        "move_to_object",
+        "move_to_left",
+        "move_to_right",
+        "move_in_front_of",
+        "move_behind",
+        "move_in_between",
+        "move_north",
+        "move_south",
+        "move_east",
+        "move_west",
+    }
+)
+#: Every robot API method generated code may call (queries, targets and moves).
+ROBOT_METHODS = ROBOT_MOVES | frozenset(
+    {
+        "load_image",
+        "get_major_map",
+        "get_map",
+        "get_max_pos_3d",
+        "get_pos",
+        "current_position",
+        "above",
+        "left_of",
+        "right_of",
+        "in_front_of",
+        "behind",
+        "between",
+    }
+)
+ROBOT_NAME = "robot"
+
+_BINOPS = {
+    ast.Add: lambda a, b: a + b,
+    ast.Sub: lambda a, b: a - b,
+    ast.Mult: lambda a, b: a * b,
+    ast.Div: lambda a, b: a / b,
+    ast.FloorDiv: lambda a, b: a // b,
+    ast.Mod: lambda a, b: a % b,
+}
+_UNARY = {ast.USub: lambda a: -a, ast.UAdd: lambda a: +a}
+_REFUSED = {
+    ast.Import: "import statements",
+    ast.ImportFrom: "import statements",
+    ast.While: "while loops (loop with 'for _ in range(n)')",
+    ast.If: "if statements",
+    ast.IfExp: "conditional expressions",
+    ast.FunctionDef: "function definitions",
+    ast.AsyncFunctionDef: "function definitions",
+    ast.ClassDef: "class definitions",
+    ast.Lambda: "lambda",
+    ast.ListComp: "comprehensions",
+    ast.SetComp: "comprehensions",
+    ast.DictComp: "comprehensions",
+    ast.GeneratorExp: "generator expressions",
+    ast.Try: "try statements",
+    ast.With: "with statements",
+    ast.AsyncWith: "with statements",
+    ast.AsyncFor: "async for",
+    ast.Raise: "raise",
+    ast.Return: "return",
+    ast.Assert: "assert",
+    ast.Delete: "del",
+    ast.Global: "global",
+    ast.Nonlocal: "nonlocal",
+    ast.Break: "break",
+    ast.Continue: "continue",
+    ast.Yield: "yield",
+    ast.YieldFrom: "yield",
+    ast.Await: "await",
+    ast.NamedExpr: "assignment expressions (:=)",
+    ast.JoinedStr: "f-strings",
+    ast.Starred: "starred arguments",
+    ast.Dict: "dict literals",
+    ast.Set: "set literals",
+    ast.Compare: "comparisons",
+    ast.BoolOp: "and/or",
+    ast.Slice: "slices",
+}
+if hasattr(ast, "TryStar"):
+    _REFUSED[ast.TryStar] = "try statements"
+if hasattr(ast, "Match"):
+    _REFUSED[ast.Match] = "match statements"
+
+
+@dataclass(frozen=True)
+class SandboxConfig:
+    """Limits of the sandbox."""
+
+    max_code_chars: int = 20_000
+    """Longest accepted code [characters]."""
+    max_loop: int = 100
+    """Most iterations of one ``for _ in range(n)`` loop."""
+    max_steps: int = 20_000
+    """Most evaluation steps (statements and expression nodes, loops unrolled)."""
+    max_calls: int = 500
+    """Most robot API calls (loops unrolled)."""
+    max_moves: int = 50
+    """Most robot motions (loops unrolled)."""
+    timeout_s: float = 600.0
+    """Wall-clock limit [s] of one run, checked between steps (a motion in progress ends)."""
+    max_string: int = 500
+    """Longest string literal [characters]."""
+
+    def __post_init__(self) -> None:
+        for name in ("max_code_chars", "max_loop", "max_steps", "max_calls", "max_moves"):
+            if getattr(self, name) < 1:
+                raise ConfigError(f"SandboxConfig.{name} must be >= 1, got {getattr(self, name)}")
+        if not self.timeout_s > 0:
+            raise ConfigError(f"SandboxConfig.timeout_s must be > 0 [s], got {self.timeout_s}")
+
+
+@dataclass(frozen=True)
+class CheckedCode:
+    """Code that passed :func:`check_code`, with its bounds known before running."""
+
+    source: str
+    tree: ast.Module
+    steps: int
+    """Evaluation steps with every loop unrolled."""
+    calls: int
+    """Robot API calls with every loop unrolled."""
+    moves: int
+    """Robot motions with every loop unrolled."""
+
+
+@dataclass(frozen=True)
+class CallRecord:
+    """One robot API call the code made."""
+
+    line: int
+    method: str
+    args: tuple
+    kwargs: dict
+    result: object
+
+
+@dataclass(frozen=True)
+class SandboxRun:
+    """What a run did: every robot call in order, the steps taken and the time [s]."""
+
+    calls: tuple[CallRecord, ...]
+    steps: int
+    elapsed_s: float
+
+
+# ---------------------------------------------------------------------- static check
+class _Checker:
+    def __init__(self, config: SandboxConfig) -> None:
+        self.config = config
+        self.problems: list[str] = []
+        self.defined: set[str] = set()
+        self.steps = self.calls = self.moves = 0
+
+    def refuse(self, node: ast.AST, what: str) -> None:
+        self.problems.append(f"line {getattr(node, 'lineno', '?')}: {what}")
+
+    def name_ok(self, node: ast.AST, name: str) -> bool:
+        if name.startswith("__"):
+            self.refuse(node, f"dunder name {name!r} is not allowed")
+            return False
+        return True
+
+    # ----------------------------------------------------------- statements
+    def body(self, stmts: list[ast.stmt], mult: int) -> None:
+        for s in stmts:
+            self.stmt(s, mult)
+
+    def stmt(self, s: ast.stmt, mult: int) -> None:
+        self.steps += mult
+        if isinstance(s, ast.Expr):
+            if isinstance(s.value, ast.Constant) and isinstance(s.value.value, str):
+                return  # a docstring or a note: nothing runs
+            if not isinstance(s.value, ast.Call):
+                self.refuse(s, "a bare expression does nothing; call a robot method or assign")
+            self.expr(s.value, mult)
+        elif isinstance(s, ast.Assign):
+            self.expr(s.value, mult)
+            for t in s.targets:
+                self.target(t)
+        elif isinstance(s, ast.AugAssign):
+            if type(s.op) not in _BINOPS:
+                self.refuse(s, f"operator {type(s.op).__name__} is not allowed")
+            if not isinstance(s.target, ast.Name):
+                self.refuse(s, "augmented assignment only to a plain name")
+            elif s.target.id not in self.defined:
+                self.refuse(s, f"name {s.target.id!r} is used before it is assigned")
+            self.expr(s.value, mult)
+        elif isinstance(s, ast.For):
+            n = self.range_len(s)
+            if s.orelse:
+                self.refuse(s, "for ... else is not allowed")
+            self.target(s.target)
+            self.body(s.body, mult * max(n, 0))
+        elif isinstance(s, ast.Pass):
+            pass
+        else:
+            self.refuse(s, f"{_REFUSED.get(type(s), type(s).__name__)} are not allowed")
+
+    def range_len(self, s: ast.For) -> int:
+        it = s.iter
+        ok = (
+            isinstance(it, ast.Call)
+            and isinstance(it.func, ast.Name)
+            and it.func.id == "range"
+            and not it.keywords
+            and 1 <= len(it.args) <= 3
+        )
+        if not ok:
+            self.refuse(s, "a loop must be 'for NAME in range(n)' with literal integer bounds")
+            return 0
+        bounds = [_literal_int(a) for a in it.args]
+        if any(b is None for b in bounds) or (len(bounds) == 3 and bounds[2] == 0):
+            self.refuse(s, "range() bounds must be literal integers (a step other than 0)")
+            return 0
+        n = len(range(*bounds))
+        if n > self.config.max_loop:
+            self.refuse(s, f"range() gives {n} iterations; at most {self.config.max_loop}")
+        return n
+
+    def target(self, t: ast.expr) -> None:
+        if isinstance(t, ast.Name):
+            if not self.name_ok(t, t.id):
+                return
+            if t.id in (ROBOT_NAME, "range"):
+                self.refuse(t, f"{t.id!r} cannot be assigned")
+                return
+            self.defined.add(t.id)
+        elif isinstance(t, (ast.Tuple, ast.List)) and all(isinstance(e, ast.Name) for e in t.elts):
+            for e in t.elts:
+                self.target(e)
+        else:
+            self.refuse(t, "assign only to names (or a tuple of names)")
+
+    # ----------------------------------------------------------- expressions
+    def expr(self, e: ast.expr, mult: int) -> None:
+        self.steps += mult
+        if isinstance(e, ast.Constant):
+            v = e.value
+            if isinstance(v, bool) or v is None or isinstance(v, (int, float)):
+                return
+            if isinstance(v, str):
+                if len(v) > self.config.max_string:
+                    self.refuse(e, f"a string longer than {self.config.max_string} characters")
+                return
+            self.refuse(e, f"{type(v).__name__} literals are not allowed")
+        elif isinstance(e, ast.Name):
+            if not self.name_ok(e, e.id):
+                return
+            if e.id == ROBOT_NAME:
+                self.refuse(e, "'robot' may only be used to call a method: robot.<method>(...)")
+            elif e.id not in self.defined:
+                self.refuse(
+                    e,
+                    f"name {e.id!r} is not defined (there are no builtins: call robot methods, "
+                    f"one of {sorted(ROBOT_METHODS)})",
+                )
+        elif isinstance(e, ast.BinOp):
+            if type(e.op) not in _BINOPS:
+                sym = {ast.Pow: "**", ast.MatMult: "@", ast.LShift: "<<", ast.RShift: ">>"}
+                self.refuse(
+                    e, f"operator {sym.get(type(e.op), type(e.op).__name__)!r} is not allowed"
+                )
+            self.expr(e.left, mult)
+            self.expr(e.right, mult)
+        elif isinstance(e, ast.UnaryOp):
+            if type(e.op) not in _UNARY:
+                self.refuse(e, f"unary operator {type(e.op).__name__} is not allowed")
+            self.expr(e.operand, mult)
+        elif isinstance(e, (ast.Tuple, ast.List)):
+            if len(e.elts) > 16:
+                self.refuse(e, "tuple/list literals have at most 16 items")
+            for x in e.elts:
+                self.expr(x, mult)
+        elif isinstance(e, ast.Subscript):
+            if not isinstance(e.value, ast.Name) or _literal_int(e.slice) is None:
+                self.refuse(e, "indexing only as name[integer literal]")
+            else:
+                self.expr(e.value, mult)
+        elif isinstance(e, ast.Call):
+            self.call(e, mult)
+        elif isinstance(e, ast.Attribute):
+            self.refuse(
+                e,
+                f"attribute access '.{e.attr}' is not allowed (only robot.<method>(...) calls)",
+            )
+        else:
+            self.refuse(e, f"{_REFUSED.get(type(e), type(e).__name__)} are not allowed")
+
+    def call(self, c: ast.Call, mult: int) -> None:
+        f = c.func
+        if isinstance(f, ast.Name):
+            if f.id == "range":
+                self.refuse(c, "range() only as the iterable of a for loop")
+            else:
+                self.refuse(
+                    c,
+                    f"calling {f.id!r} is not allowed; call robot methods: {sorted(ROBOT_METHODS)}",
+                )
+            return
+        if not (isinstance(f, ast.Attribute) and isinstance(f.value, ast.Name)):
+            self.refuse(c, "only robot.<method>(...) can be called")
+            return
+        if f.value.id != ROBOT_NAME:
+            self.refuse(c, f"attribute access '{f.value.id}.{f.attr}' is not allowed")
+            return
+        if not self.name_ok(c, f.attr):
+            return
+        if f.attr not in ROBOT_METHODS:
+            self.refuse(
+                c, f"robot.{f.attr} is not part of the robot API; valid: {sorted(ROBOT_METHODS)}"
+            )
+            return
+        self.calls += mult
+        if f.attr in ROBOT_MOVES:
+            self.moves += mult
+        for a in c.args:
+            self.expr(a, mult)
+        for k in c.keywords:
+            if k.arg is None:
+                self.refuse(c, "**keyword unpacking is not allowed")
+                continue
+            if self.name_ok(c, k.arg):
+                self.expr(k.value, mult)
+
+
+def _literal_int(node: ast.expr) -> int | None:
+    if isinstance(node, ast.Constant) and type(node.value) is int:
+        return node.value
+    if (
+        isinstance(node, ast.UnaryOp)
+        and isinstance(node.op, ast.USub)
+        and isinstance(node.operand, ast.Constant)
+        and type(node.operand.value) is int
+    ):
+        return -node.operand.value
+    return None
+
+
+def check_code(code: str, config: SandboxConfig | None = None) -> CheckedCode:
+    """Parse and check ``code``; :class:`CodeRejected` lists every refused construct."""
+    config = config or SandboxConfig()
+    if not isinstance(code, str):
+        raise CodeRejected([f"code must be a string, got {type(code).__name__}"])
+    if len(code) > config.max_code_chars:
+        raise CodeRejected([f"code is {len(code)} characters; at most {config.max_code_chars}"])
+    if "\x00" in code:
+        raise CodeRejected(["code contains a NUL character"])
+    try:
+        tree = ast.parse(code, mode="exec")
+    except SyntaxError as e:
+        raise CodeRejected([f"line {e.lineno}: syntax error: {e.msg}"]) from None
+    checker = _Checker(config)
+    checker.body(tree.body, 1)
+    c = checker
+    if not c.problems:
+        for value, limit, what in (
+            (c.steps, config.max_steps, "evaluation steps"),
+            (c.calls, config.max_calls, "robot calls"),
+            (c.moves, config.max_moves, "robot motions"),
+        ):
+            if value > limit:
+                c.problems.append(f"the code makes {value} {what} with its loops; at most {limit}")
+    if c.problems:
+        raise CodeRejected(c.problems)
+    return CheckedCode(code, tree, c.steps, c.calls, c.moves)
+
+
+# ---------------------------------------------------------------------- interpreter
+_NUMERIC = (Real, np.number, np.ndarray)
+_MAX_INT = 2**63
+
+
+class _Interpreter:
+    def __init__(self, robot, config: SandboxConfig, on_call) -> None:
+        self.robot = robot
+        self.config = config
+        self.on_call = on_call
+        self.env: dict[str, object] = {}
+        self.calls: list[CallRecord] = []
+        self.steps = 0
+        self.t0 = time.monotonic()
+
+    def tick(self, node: ast.AST) -> None:
+        self.steps += 1
+        if self.steps > self.config.max_steps:
+            raise SandboxLimit(f"line {node.lineno}: more than {self.config.max_steps} steps")
+        if time.monotonic() - self.t0 > self.config.timeout_s:
+            raise SandboxLimit(
+                f"line {node.lineno}: the run took longer than {self.config.timeout_s} s"
+            )
+
+    def body(self, stmts) -> None:
+        for s in stmts:
+            self.stmt(s)
+
+    def stmt(self, s: ast.stmt) -> None:
+        self.tick(s)
+        if isinstance(s, ast.Expr):
+            if not isinstance(s.value, ast.Constant):
+                self.expr(s.value)
+        elif isinstance(s, ast.Assign):
+            value = self.expr(s.value)
+            for t in s.targets:
+                self.assign(t, value)
+        elif isinstance(s, ast.AugAssign):
+            value = self.binop(s, s.op, self.lookup(s, s.target.id), self.expr(s.value))
+            self.env[s.target.id] = value
+        elif isinstance(s, ast.For):
+            for i in range(*[_literal_int(a) for a in s.iter.args]):
+                self.assign(s.target, i)
+                self.body(s.body)
+
+    def lookup(self, node: ast.AST, name: str):
+        if name not in self.env:  # assigned only inside a loop that ran no iteration
+            raise SandboxError(f"line {node.lineno}: name {name!r} has no value")
+        return self.env[name]
+
+    def assign(self, t: ast.expr, value) -> None:
+        if isinstance(t, ast.Name):
+            self.env[t.id] = value
+            return
+        try:
+            values = list(value)
+        except TypeError:
+            raise SandboxError(f"line {t.lineno}: cannot unpack {type(value).__name__}") from None
+        if len(values) != len(t.elts):
+            raise SandboxError(
+                f"line {t.lineno}: unpacking {len(values)} values into {len(t.elts)} names"
+            )
+        for e, v in zip(t.elts, values, strict=True):
+            self.env[e.id] = v
+
+    def expr(self, e: ast.expr):
+        self.tick(e)
+        if isinstance(e, ast.Constant):
+            return e.value
+        if isinstance(e, ast.Name):
+            return self.lookup(e, e.id)
+        if isinstance(e, ast.BinOp):
+            return self.binop(e, e.op, self.expr(e.left), self.expr(e.right))
+        if isinstance(e, ast.UnaryOp):
+            v = self.expr(e.operand)
+            if not isinstance(v, _NUMERIC) or isinstance(v, bool):
+                raise SandboxError(f"line {e.lineno}: unary minus on {type(v).__name__}")
+            return _UNARY[type(e.op)](v)
+        if isinstance(e, ast.Tuple):
+            return tuple(self.expr(x) for x in e.elts)
+        if isinstance(e, ast.List):
+            return [self.expr(x) for x in e.elts]
+        if isinstance(e, ast.Subscript):
+            v = self.lookup(e, e.value.id)
+            if not isinstance(v, (tuple, list, np.ndarray)):
+                raise SandboxError(f"line {e.lineno}: {type(v).__name__} cannot be indexed")
+            try:
+                return v[_literal_int(e.slice)]
+            except IndexError as err:
+                raise SandboxError(f"line {e.lineno}: {err}") from None
+        return self.call(e)
+
+    def binop(self, node: ast.AST, op: ast.operator, a, b):
+        arrays = isinstance(a, np.ndarray) or isinstance(b, np.ndarray)
+        for v in (a, b):
+            seq_ok = arrays and isinstance(v, (tuple, list))
+            if not (isinstance(v, _NUMERIC) or seq_ok) or isinstance(v, bool):
+                raise SandboxError(
+                    f"line {node.lineno}: arithmetic on {type(v).__name__} is not allowed "
+                    "(numbers and arrays only)"
+                )
+        try:
+            with np.errstate(all="raise"):
+                out = _BINOPS[type(op)](a, b)
+        except (ArithmeticError, ValueError, TypeError, FloatingPointError) as err:
+            raise SandboxError(f"line {node.lineno}: {type(err).__name__}: {err}") from None
+        if isinstance(out, int) and abs(out) >= _MAX_INT:
+            raise SandboxError(f"line {node.lineno}: integer result beyond 2**63")
+        return out
+
+    def call(self, c: ast.Call):
+        method = c.func.attr
+        args = tuple(self.expr(a) for a in c.args)
+        kwargs = {k.arg: self.expr(k.value) for k in c.keywords}
+        fn = getattr(self.robot, method, None)
+        if fn is None or not callable(fn):
+            raise SandboxError(f"line {c.lineno}: this robot has no method {method!r}")
+        try:
+            result = fn(*args, **kwargs)
+        except TabletopError:
+            raise
+        except TypeError as err:
+            raise SandboxError(f"line {c.lineno}: robot.{method}: {err}") from None
+        rec = CallRecord(c.lineno, method, args, kwargs, result)
+        self.calls.append(rec)
+        if self.on_call is not None:
+            self.on_call(rec)
+        return result
+
+
+def run_code(
+    code: str | CheckedCode,
+    robot,
+    config: SandboxConfig | None = None,
+    on_call: Callable[[CallRecord], None] | None = None,
+) -> SandboxRun:
+    """Check ``code`` (unless already checked) and run it against ``robot``.
+
+    ``robot`` is bound to the name ``robot``; nothing else is in scope. Errors: CodeRejected
+    (nothing ran), SandboxLimit (stopped), SandboxError (a runtime error with its line), and the
+    robot API's own errors (e.g. GoalNotFound) unchanged.
+    """
+    config = config or SandboxConfig()
+    checked = code if isinstance(code, CheckedCode) else check_code(code, config)
+    interp = _Interpreter(robot, config, on_call)
+    interp.body(checked.tree.body)
+    return SandboxRun(tuple(interp.calls), interp.steps, time.monotonic() - interp.t0)
