@@ -576,6 +576,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", action="store_true", help="machine-readable output")
     p.add_argument("--arm-targets", type=int, default=200, help="reach targets (default 200)")
     p.set_defaults(func=cmd_bench)
+
+    from tabletop.language.cli import add_commands as add_language_commands
+
+    add_language_commands(sub)  # tabletop parse, tabletop run
     return parser
 
 

@@ -14,6 +14,7 @@ module that knows the suite's goal images. Any other map (a scanned one) works t
 
 from __future__ import annotations
 
+import functools
 import zlib
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -160,16 +161,21 @@ class ReferenceMap(AVLMap):
         return self._empty("image", "image", self._decay(major), "no view matches the picture")
 
 
-def reference_map(suite: Suite | None = None, voxel_size: float = 0.02):
+def reference_map(suite: Suite | None = None, voxel_size: float = 0.02) -> ReferenceMap:
     """A real AVLMap of the suite's scene built from geometry (see the module docstring).
 
-    Loads the text encoder (MiniLM, a few seconds); the rest takes well under a second.
+    Loads the text encoder (MiniLM, a few seconds); the rest takes well under a second. The map
+    is cached per (suite, voxel size): the same object comes back, so do not change it.
     """
+    return _reference_map(suite or load_suite(), voxel_size)
+
+
+@functools.lru_cache(maxsize=2)
+def _reference_map(suite: Suite, voxel_size: float) -> ReferenceMap:
     from tabletop.mapping.encoders.minilm import MiniLMTextEncoder
     from tabletop.mapping.grid import VoxelGrid
     from tabletop.sim.scene import load_scene_spec
 
-    suite = suite or load_suite()
     spec = load_scene_spec(suite.scene)
     text = MiniLMTextEncoder()
     grid = VoxelGrid(voxel_size=voxel_size)

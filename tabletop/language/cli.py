@@ -1,0 +1,271 @@
+"""The ``tabletop parse`` and ``tabletop run`` commands (registered by :func:`add_commands`)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import tempfile
+
+import numpy as np
+
+from tabletop.language.run import BACKENDS
+
+__all__ = ["add_commands", "cmd_parse", "cmd_run"]
+
+REFERENCE = "reference"
+"""The MAP value that selects the suite's reference map (built from the scene's geometry)."""
+
+
+def _add_backend_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--backend",
+        choices=BACKENDS,
+        default="offline",
+        help="offline: the built-in instruction parser (default); llm: an OpenAI-compatible "
+        "chat endpoint",
+    )
+    p.add_argument("--llm-url", help="chat endpoint root, e.g. http://127.0.0.1:8000/v1")
+    p.add_argument("--llm-model", help="model name the endpoint serves")
+    p.add_argument(
+        "--llm-config",
+        metavar="FILE",
+        help="TOML file with an [llm] table (base_url, model, api_key_env, timeout_s)",
+    )
+
+
+def _llm_config(args: argparse.Namespace):
+    if args.backend != "llm":
+        return None
+    from tabletop.language.llm import LLMConfig
+
+    if args.llm_config:
+        return LLMConfig.from_file(args.llm_config).with_overrides(
+            base_url=args.llm_url, model=args.llm_model
+        )
+    return LLMConfig.from_env(base_url=args.llm_url, model=args.llm_model)
+
+
+def _numbered(code: str) -> str:
+    lines = code.rstrip("\n").split("\n")
+    return "\n".join(f"  {i:3d} | {line}" for i, line in enumerate(lines, start=1))
+
+
+def _fmt(p) -> str:
+    return "(" + ", ".join(f"{v:+.3f}" for v in np.asarray(p, float)) + ") m"
+
+
+# ---------------------------------------------------------------------- parse
+def cmd_parse(args: argparse.Namespace) -> int:
+    from tabletop.language.run import generate_code
+    from tabletop.language.sandbox import check_code
+
+    if args.suite:
+        return _suite_on_reference(args)
+    if not args.instruction:
+        print("tabletop parse: give an instruction (or --suite)", file=sys.stderr)
+        return 2
+    code = generate_code(args.instruction, args.backend, _llm_config(args))
+    sys.stdout.write(code)
+    check_code(code)  # a refusal is reported as an error (exit status 2)
+    return 0
+
+
+def _suite_on_reference(args: argparse.Namespace) -> int:
+    from tabletop.language.suite import (
+        PointRobot,
+        load_suite,
+        reference_map,
+        write_suite_images,
+    )
+
+    suite = load_suite(args.suite_file)
+    robot = PointRobot(reference_map(suite), suite.start)
+    with tempfile.TemporaryDirectory() as d:
+        write_suite_images(suite, d)
+        return _report_suite(args, suite, robot, d)
+
+
+def _report_suite(args, suite, robot, image_dir) -> int:
+    from tabletop.language.errors import ParseError
+    from tabletop.language.run import generate_code
+    from tabletop.language.suite import evaluate_suite
+
+    config = _llm_config(args)
+    report = evaluate_suite(
+        robot, lambda text: generate_code(text, args.backend, config), suite, image_dir=image_dir
+    )
+    refused = []
+    if args.backend == "offline":
+        for bad in suite.unparseable:
+            try:
+                generate_code(bad.instruction, "offline")
+            except ParseError as e:
+                refused.append(bad.fragment in e.fragment)
+            else:
+                refused.append(False)
+    if args.json:
+        out = {
+            "matched": report.matched,
+            "cases": len(report.results),
+            "share": report.share,
+            "tol_m": report.tol_m,
+            "by_family": {
+                k: {"matched": a, "cases": n} for k, (a, n) in report.by_family().items()
+            },
+            "failures": [
+                {"id": r.case.id, "instruction": r.case.instruction, "reason": r.reason}
+                for r in report.results
+                if not r.match
+            ],
+            "unparseable_refused": sum(refused),
+            "unparseable": len(refused),
+        }
+        print(json.dumps(out, indent=2))
+    else:
+        print(f"suite: {len(report.results)} instructions, backend {args.backend}")
+        for fam, (a, n) in report.by_family().items():
+            print(f"  {fam:10s} {a:3d} / {n:3d}")
+        for r in report.results:
+            if not r.match:
+                print(f"  MISS {r.case.id}: {r.case.instruction!r}: {r.reason}")
+        print(
+            f"targets match (within {report.tol_m * 1000:.0f} mm): {report.matched} / "
+            f"{len(report.results)} = {report.share:.1%}"
+        )
+        if refused:
+            print(f"unparseable instructions refused: {sum(refused)} / {len(refused)}")
+    return 0 if report.matched == len(report.results) and all(refused) else 1
+
+
+# ---------------------------------------------------------------------- run
+def _load_map(path: str, suite):
+    if path == REFERENCE:
+        from tabletop.language.suite import reference_map
+
+        return reference_map(suite)
+    from tabletop.mapping.avlmap import AVLMap
+
+    return AVLMap.load(path)
+
+
+def cmd_run(args: argparse.Namespace) -> int:
+    from tabletop.language.run import run_instruction
+    from tabletop.language.sandbox import SandboxConfig
+    from tabletop.language.suite import PointRobot, load_suite, write_suite_images
+
+    suite = load_suite(args.suite_file) if (args.suite or args.map == REFERENCE) else None
+    m = _load_map(args.map, suite)
+    if args.suite:
+        robot = PointRobot(m, suite.start)
+        if args.image_dir:
+            return _report_suite(args, suite, robot, args.image_dir)
+        with tempfile.TemporaryDirectory() as d:
+            return _report_suite(args, suite, robot, write_suite_images(suite, d))
+    if not args.instruction:
+        print("tabletop run: give an instruction (or --suite)", file=sys.stderr)
+        return 2
+    image_dir = args.image_dir
+    tmp = None
+    if args.map == REFERENCE and image_dir is None:  # its goal images, for trying it out
+        tmp = tempfile.TemporaryDirectory()
+        image_dir = write_suite_images(suite, tmp.name)
+    if args.dry_run or args.embodiment == "point":
+        robot = PointRobot(m, (0.3, 0.0, 0.3))
+    elif args.embodiment == "base":
+        from tabletop.robot import MobileBase
+
+        robot = MobileBase(m)
+    else:
+        from tabletop.robot import SimArm
+
+        print("starting the simulated arm ...", file=sys.stderr)
+        robot = SimArm(m, args.scene)
+
+    def on_code(code: str) -> None:
+        print(f"code ({args.backend}, checked by the sandbox):")
+        print(_numbered(code))
+        print("dry run: nothing moves" if args.dry_run else "running:")
+
+    def on_motion(motion) -> None:
+        if motion.result is None:
+            print(f"  {motion.method:17s} target {_fmt(motion.target)}", flush=True)
+            return
+        r = motion.result
+        reached = getattr(r, "reached", None)
+        reason = getattr(getattr(r, "reason", None), "value", getattr(r, "reason", ""))
+        err = getattr(r, "target_error_m", getattr(r, "error_m", None))
+        where = getattr(r, "final_tcp", getattr(r, "final_position", None))
+        line = f"  {'':17s} -> {'reached' if reached else 'NOT reached'} ({reason})"
+        if where is not None:
+            line += f", ends at {_fmt(where)}"
+        if err is not None:
+            line += f", {err * 100:.1f} cm from the target"
+        print(line, flush=True)
+
+    try:
+        run = run_instruction(
+            args.instruction,
+            robot,
+            backend=args.backend,
+            llm_config=_llm_config(args),
+            dry_run=args.dry_run,
+            image_dir=image_dir,
+            sandbox=SandboxConfig(timeout_s=args.timeout),
+            on_code=on_code,
+            on_motion=on_motion,
+        )
+    finally:
+        if hasattr(robot, "close"):
+            robot.close()
+        if tmp is not None:
+            tmp.cleanup()
+    results = [mo.result for mo in run.motions]
+    failed = sum(1 for r in results if r is not None and not getattr(r, "reached", True))
+    print(
+        f"{len(run.motions)} target(s), {run.run.steps} steps, {run.run.elapsed_s:.2f} s"
+        + ("" if args.dry_run else f", {len(results) - failed} reached, {failed} not reached")
+    )
+    return 0 if failed == 0 else 1
+
+
+# ---------------------------------------------------------------------- registration
+def add_commands(sub) -> None:
+    """Register ``parse`` and ``run`` on the ``tabletop`` sub-command parser."""
+    p = sub.add_parser(
+        "parse", help="print the robot code of an instruction (as the sandbox receives it)"
+    )
+    p.add_argument("instruction", nargs="?", help='e.g. "go to the mug near the sound of a dog"')
+    _add_backend_args(p)
+    p.add_argument(
+        "--suite",
+        action="store_true",
+        help="score the backend on the instruction suite over its reference map instead",
+    )
+    p.add_argument("--suite-file", help="a suite TOML (default: the shipped suite)")
+    p.add_argument("--json", action="store_true", help="with --suite: machine-readable output")
+    p.set_defaults(func=cmd_parse)
+
+    p = sub.add_parser("run", help="run an instruction on a map: code, targets, reach results")
+    p.add_argument("map", help=f"map file (.npz), or '{REFERENCE}' for the suite's reference map")
+    p.add_argument("instruction", nargs="?", help='e.g. "move to the left of the red mug"')
+    _add_backend_args(p)
+    p.add_argument("--dry-run", action="store_true", help="print code and targets; nothing moves")
+    p.add_argument(
+        "--embodiment",
+        choices=["arm", "base", "point"],
+        default="arm",
+        help="arm: the simulated Panda (default); base: the kinematic mobile base; point: a "
+        "robot that jumps to each target",
+    )
+    p.add_argument("--scene", default="default", help="the scene the map was built from")
+    p.add_argument("--image-dir", help="relative image paths in instructions are read from here")
+    p.add_argument("--timeout", type=float, default=600.0, help="time limit of the run [s]")
+    p.add_argument(
+        "--suite",
+        action="store_true",
+        help="score the backend on the instruction suite over this map (dry; nothing moves)",
+    )
+    p.add_argument("--suite-file", help="a suite TOML (default: the shipped suite)")
+    p.add_argument("--json", action="store_true", help="with --suite: machine-readable output")
+    p.set_defaults(func=cmd_run)

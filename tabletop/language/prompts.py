@@ -1,0 +1,135 @@
+"""The few-shot prompt for an LLM backend, in the style of the paper's prompts (an instruction
+as a comment, then the robot code), written for the table-top robot API.
+
+The examples use objects, sounds and pictures that are not in the shipped scenes, so a model
+has to carry the pattern over rather than copy an answer.
+"""
+
+from __future__ import annotations
+
+__all__ = ["EXAMPLES", "SYSTEM_PROMPT", "prompt_messages", "prompt_text"]
+
+SYSTEM_PROMPT = """\
+You write Python for a robot arm above a table. The arm has a map of the table built from its
+wrist camera and microphone. Answer with code only: no explanations, no imports, no functions,
+no if or while. Use only the object `robot`, numbers, strings, variables, + - * /, tuples and
+lists, and `for _ in range(n)` loops. Positions are 3D points in metres in the robot's base
+frame: north = +x (away from the robot), west = left = +y, east = right = -y, z up.
+
+robot.load_image(path)                  -> an image array read from a file
+robot.get_major_map(obj=, sound=, img=, area=)  -> a sharp heatmap: where exactly the goal is
+robot.get_map(obj=, sound=, img=, area=)        -> a broad heatmap: the region near the goal
+robot.get_max_pos_3d(heatmap)           -> the 3D point of highest heat
+robot.get_pos(name)                     -> the centre of an object
+robot.above(name)                       -> the point just above an object
+robot.current_position()                -> where the gripper is now
+robot.move_to(pos)                      -> move the gripper to a 3D point
+robot.move_to_object(name)              -> move just above an object
+robot.move_to_left(name) / robot.move_to_right(name)        -> beside an object (+y / -y)
+robot.move_in_front_of(name) / robot.move_behind(name)      -> beside an object (+x / -x)
+robot.move_north(m) / move_south(m) / move_east(m) / move_west(m) -> move m metres
+
+obj= is an object description, sound= a sound description, area= a region of the table
+("left side of the table", "center of the table", "tray area"), img= an image from
+robot.load_image. Multiply heatmaps to combine them: the goal the robot should reach gets
+get_major_map, every goal that only narrows it down ("near", "next to", "where you heard")
+gets get_map. "Between A and B" is the average of the two goals' points.
+"""
+
+#: (instruction, code) pairs, in the order they are shown to the model.
+EXAMPLES: tuple[tuple[str, str], ...] = (
+    (
+        "go to the green bowl",
+        'robot.move_to_object("green bowl")',
+    ),
+    (
+        "move to the cup next to the sound of a kettle whistling",
+        'obj_map = robot.get_major_map(obj="cup")\n'
+        'sound_map = robot.get_map(sound="kettle whistling")\n'
+        "fuse_map = obj_map * sound_map\n"
+        "pos = robot.get_max_pos_3d(fuse_map)\n"
+        "robot.move_to(pos)",
+    ),
+    (
+        "reach the sound of a phone ringing near the banana",
+        'sound_map = robot.get_major_map(sound="phone ringing")\n'
+        'obj_map = robot.get_map(obj="banana")\n'
+        "fuse_map = sound_map * obj_map\n"
+        "pos = robot.get_max_pos_3d(fuse_map)\n"
+        "robot.move_to(pos)",
+    ),
+    (
+        "approach the plate close to the sound of a clock ticking and the sound of typing",
+        'obj_map = robot.get_major_map(obj="plate")\n'
+        'sound_map = robot.get_map(sound="clock ticking") * robot.get_map(sound="typing")\n'
+        "fuse_map = obj_map * sound_map\n"
+        "pos = robot.get_max_pos_3d(fuse_map)\n"
+        "robot.move_to(pos)",
+    ),
+    (
+        "move halfway between the sound of a bird singing and the image ./views/shelf.png",
+        'img = robot.load_image("./views/shelf.png")\n'
+        'sound_map = robot.get_major_map(sound="bird singing")\n'
+        "img_map = robot.get_major_map(img=img)\n"
+        "pos1 = robot.get_max_pos_3d(sound_map)\n"
+        "pos2 = robot.get_max_pos_3d(img_map)\n"
+        "pos = (pos1 + pos2) / 2\n"
+        "robot.move_to(pos)",
+    ),
+    (
+        "go in between the spoon and the fork near the right side of the table",
+        'obj_map_1 = robot.get_major_map(obj="spoon")\n'
+        'obj_map_2 = robot.get_major_map(obj="fork")\n'
+        'area_map = robot.get_map(area="right side of the table")\n'
+        "fuse_map = obj_map_2 * area_map\n"
+        "pos1 = robot.get_max_pos_3d(obj_map_1)\n"
+        "pos2 = robot.get_max_pos_3d(fuse_map)\n"
+        "pos = (pos1 + pos2) / 2\n"
+        "robot.move_to(pos)",
+    ),
+    (
+        "move to the picture /data/goal_3.jpg",
+        'img = robot.load_image("/data/goal_3.jpg")\n'
+        "img_map = robot.get_major_map(img=img)\n"
+        "pos = robot.get_max_pos_3d(img_map)\n"
+        "robot.move_to(pos)",
+    ),
+    (
+        "go to the center of the table",
+        'area_map = robot.get_major_map(area="center of the table")\n'
+        "pos = robot.get_max_pos_3d(area_map)\n"
+        "robot.move_to(pos)",
+    ),
+    (
+        "move a little to the right of the orange block, then behind the box",
+        'robot.move_to_right("orange block")\nrobot.move_behind("box")',
+    ),
+    (
+        "slide 4 cm to the left and then 10 cm away from me",
+        "robot.move_west(0.04)\nrobot.move_north(0.1)",
+    ),
+    (
+        "go back and forth between the toy car and the sound of a bell 3 times",
+        'pos1 = robot.above("toy car")\n'
+        'pos2 = robot.get_max_pos_3d(robot.get_major_map(sound="bell"))\n'
+        "for _ in range(3):\n"
+        "    robot.move_to(pos1)\n"
+        "    robot.move_to(pos2)",
+    ),
+)
+
+
+def prompt_text(instruction: str) -> str:
+    """The whole prompt as one text (for completion endpoints and for reading)."""
+    shots = "\n\n".join(f"# {q}\n{code}" for q, code in EXAMPLES)
+    return f"{SYSTEM_PROMPT}\n{shots}\n\n# {instruction.strip()}\n"
+
+
+def prompt_messages(instruction: str) -> list[dict]:
+    """Chat messages: the API description, the examples as user/assistant turns, the query."""
+    messages = [{"role": "system", "content": SYSTEM_PROMPT}]
+    for q, code in EXAMPLES:
+        messages.append({"role": "user", "content": f"# {q}"})
+        messages.append({"role": "assistant", "content": code})
+    messages.append({"role": "user", "content": f"# {instruction.strip()}"})
+    return messages
