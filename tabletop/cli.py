@@ -580,6 +580,9 @@ def build_parser() -> argparse.ArgumentParser:
     from tabletop.language.cli import add_commands as add_language_commands
 
     add_language_commands(sub)  # tabletop parse, tabletop run
+    from tabletop.eval.cli import add_commands as add_eval_commands
+
+    add_eval_commands(sub)  # tabletop eval
     return parser
 
 

@@ -1,0 +1,199 @@
+"""Results of an evaluation: per goal, per task file, per encoder set, and their summaries.
+
+Metrics per goal type (the paper's tabletop criterion and its cross-modal indexing tables):
+
+- ``success_rate``: the TCP ends within 10 cm of the goal's ground truth;
+- ``recall_at``: recall@1 of the predicted target (the point the robot was sent to, before the
+  controller's standoff) within 2, 5 and 10 cm of the ground truth;
+- ``mean_error_m`` (final TCP to truth) and ``mean_target_error_m`` (predicted target to truth);
+- ``contacts``: PyBullet contact points between the robot and the table or objects during the
+  motions; ``time_per_goal_s``: wall time of query and reach;
+- ``in_a_row``: for sequences, the share of sequences whose first n goals all succeeded.
+
+Goals that could not be attempted because a component is missing (an image goal without the
+visual localization module, an instruction without the parser) are counted as ``unavailable``
+and left out of the rates; a goal the map does not find, or a reach that fails, is a failure.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from tabletop.eval.tasks import GOAL_TYPES
+
+__all__ = [
+    "RECALL_RADII_M",
+    "SUCCESS_RADIUS_M",
+    "EncoderRun",
+    "GoalResult",
+    "TaskRun",
+    "summarize",
+]
+
+SUCCESS_RADIUS_M = 0.10
+RECALL_RADII_M = (0.02, 0.05, 0.10)
+ORACLE_NOTE = "simulator upper bound"
+
+
+@dataclass(frozen=True)
+class GoalResult:
+    """What happened to one goal."""
+
+    goal_id: str
+    type: str
+    text: str
+    sequence: str
+    status: str  # "done" | "not_found" | "failed" | "unavailable"
+    reason: str = ""
+    target: tuple | None = None  # (3,) [m] predicted target, world frame
+    target_error_m: float | None = None  # predicted target to the truth [m]
+    tcp: tuple | None = None  # (3,) [m] final TCP
+    error_m: float | None = None  # final TCP to the truth [m]
+    success: bool = False
+    reach: str = ""  # the reach controller's reason ("reached", "blocked", ...)
+    contacts: int = 0
+    time_s: float = 0.0
+    truth: list = field(default_factory=list)  # boxes [[lo, hi], ...] [m]
+    code: str = ""  # an instruction's generated code
+
+    @property
+    def attempted(self) -> bool:
+        return self.status != "unavailable"
+
+    def to_json(self) -> dict:
+        d = dict(self.__dict__)
+        for k in ("target", "tcp"):
+            if d[k] is not None:
+                d[k] = [round(float(v), 4) for v in d[k]]
+        for k in ("target_error_m", "error_m", "time_s"):
+            if d[k] is not None:
+                d[k] = round(float(d[k]), 4)
+        return d
+
+
+@dataclass
+class TaskRun:
+    """One task file's goals under one encoder set."""
+
+    task_name: str
+    task_path: str
+    scene: str
+    goals: list[GoalResult]
+    figures: dict = field(default_factory=dict)  # name -> path (relative to the report)
+    scan_s: float = 0.0
+    map_s: float = 0.0
+    cached: bool = False
+    encoder_names: dict = field(default_factory=dict)
+
+
+@dataclass
+class EncoderRun:
+    """Every task file under one encoder set; ``available`` is False when the set could not
+    be built (the reason says why)."""
+
+    encoders: str
+    encoder_names: dict
+    available: bool
+    reason: str = ""
+    tasks: list[TaskRun] = field(default_factory=list)
+    wall_s: float = 0.0
+
+    @property
+    def label(self) -> str:
+        return f"{self.encoders} ({ORACLE_NOTE})" if self.encoders == "oracle" else self.encoders
+
+    @property
+    def goals(self) -> list[GoalResult]:
+        return [g for t in self.tasks for g in t.goals]
+
+    def summary(self) -> dict:
+        s = summarize(self.goals, _sequences(self.tasks))
+        return {
+            "encoders": self.encoders,
+            "encoders_label": self.label,
+            "encoder_names": self.encoder_names,
+            "available": self.available,
+            "reason": self.reason,
+            "wall_s": round(self.wall_s, 1),
+            **s,
+        }
+
+
+def _sequences(tasks: list[TaskRun]) -> list[list[GoalResult]]:
+    out: dict[tuple, list] = {}
+    for t in tasks:
+        for g in t.goals:
+            out.setdefault((t.task_path, g.sequence), []).append(g)
+    return list(out.values())
+
+
+def _rate(goals: list[GoalResult]) -> dict:
+    att = [g for g in goals if g.attempted]
+    n = len(att)
+    out = {
+        "goals": len(goals),
+        "attempted": n,
+        "unavailable": len(goals) - n,
+        "successes": sum(g.success for g in att),
+        "success_rate": None,
+        "recall_at": {f"{int(r * 100)}cm": None for r in RECALL_RADII_M},
+        "mean_error_m": None,
+        "mean_target_error_m": None,
+        "not_found": sum(g.status == "not_found" for g in att),
+        "contacts": sum(g.contacts for g in att),
+        "time_per_goal_s": None,
+    }
+    if not n:
+        reasons = sorted({g.reason for g in goals})
+        out["unavailable_reason"] = "; ".join(reasons)
+        return out
+    out["success_rate"] = out["successes"] / n
+    # A goal without a prediction (not found) counts as a miss at every radius.
+    terr = [g.target_error_m for g in att]
+    for r in RECALL_RADII_M:
+        out["recall_at"][f"{int(r * 100)}cm"] = sum(e is not None and e <= r for e in terr) / n
+    errs = [g.error_m for g in att if g.error_m is not None]
+    terrs = [e for e in terr if e is not None]
+    out["mean_error_m"] = float(np.mean(errs)) if errs else None
+    out["mean_target_error_m"] = float(np.mean(terrs)) if terrs else None
+    out["time_per_goal_s"] = float(np.mean([g.time_s for g in att]))
+    return out
+
+
+def in_a_row(sequences: list[list[GoalResult]]) -> dict:
+    """{n: share of sequences of >= n attempted goals whose first n all succeeded}."""
+    seqs = [[g for g in s if g.attempted] for s in sequences]
+    seqs = [s for s in seqs if len(s) > 1]
+    out = {}
+    for n in range(1, max((len(s) for s in seqs), default=0) + 1):
+        long = [s for s in seqs if len(s) >= n]
+        out[str(n)] = {
+            "sequences": len(long),
+            "success_rate": sum(all(g.success for g in s[:n]) for s in long) / len(long),
+        }
+    return out
+
+
+def summarize(goals: list[GoalResult], sequences: list[list[GoalResult]]) -> dict:
+    """``by_type`` (in :data:`GOAL_TYPES` order, types present only), ``all``, ``contacts``,
+    ``in_a_row`` (sequences of two or more goals)."""
+    by_type = {}
+    for t in GOAL_TYPES:
+        gs = [g for g in goals if g.type == t]
+        if gs:
+            by_type[t] = _rate(gs)
+    total = _rate(goals)
+    return {
+        "by_type": by_type,
+        "all": total,
+        "goals": len(goals),
+        "contacts": total["contacts"],
+        "in_a_row": in_a_row(sequences),
+    }
+
+
+def dumps(obj) -> str:
+    return json.dumps(obj, indent=1, default=float)

@@ -1,0 +1,186 @@
+"""Ground truth of goals, resolved against a recording's ground truth.
+
+A :class:`Region` is a union of axis-aligned boxes (a point is a box of zero size, the column
+beneath a microphone a box of zero width); the distance of a point to it is the distance to the
+nearest box (0 inside). Every reference (object name, sound category, area name) is checked
+against the recording and a wrong one is named together with the valid ones.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from tabletop.eval.tasks import TaskFileError, Truth
+from tabletop.robot.api import SpatialConfig
+
+__all__ = ["AREA_HEIGHT_M", "Region", "resolve_truth", "sound_occurrences"]
+
+#: An area's truth is its rectangle from the table top up to this height [m].
+AREA_HEIGHT_M = 0.30
+
+#: Unit directions of the side relations (robot API conventions: left = +y, in front = +x).
+_SIDES = {
+    "left_of": (0.0, 1.0, 0.0),
+    "right_of": (0.0, -1.0, 0.0),
+    "in_front_of": (1.0, 0.0, 0.0),
+    "behind": (-1.0, 0.0, 0.0),
+}
+
+
+@dataclass(frozen=True)
+class Region:
+    """Acceptable places of a goal: boxes (K, 2, 3) [m] world frame (lower, upper corners)."""
+
+    boxes: np.ndarray  # (K, 2, 3) float64 [m]
+    description: str
+
+    def distance(self, p) -> float:
+        """Distance [m] from a point (3,) to the nearest box (0 inside)."""
+        p = np.asarray(p, np.float64)
+        lo, hi = self.boxes[:, 0], self.boxes[:, 1]
+        d = np.maximum(lo - p, 0) + np.maximum(p - hi, 0)
+        return float(np.linalg.norm(d, axis=1).min())
+
+    @property
+    def center(self) -> np.ndarray:
+        """(3,) centre of the first box [m]."""
+        return self.boxes[0].mean(axis=0)
+
+    def to_json(self) -> list:
+        return np.round(self.boxes, 4).tolist()
+
+
+def _region(boxes, description: str) -> Region:
+    b = np.asarray(boxes, np.float64).reshape(-1, 2, 3)
+    b.setflags(write=False)
+    return Region(b, description)
+
+
+def sound_occurrences(ground_truth: dict, category: str) -> list[dict]:
+    """The sound events of ``category``, in time order."""
+    events = sorted(ground_truth.get("sound_events", []), key=lambda e: e["onset_s"])
+    return [e for e in events if e["category"] == category]
+
+
+def _object(gt: dict, name: str, where: str) -> dict:
+    for o in gt["objects"]:
+        if o["name"] == name:
+            return o
+    raise TaskFileError(
+        f"{where}: no object {name!r} in the scene; objects: {[o['name'] for o in gt['objects']]}"
+    )
+
+
+def _sound_events(gt: dict, t: Truth, where: str) -> list[dict]:
+    occ = sound_occurrences(gt, t.sound)
+    if not occ:
+        inserted = sorted({e["category"] for e in gt.get("sound_events", [])})
+        raise TaskFileError(
+            f"{where}: sound {t.sound!r} was not inserted in this scan; inserted: {inserted}"
+        )
+    if t.occurrence is not None:
+        if t.occurrence >= len(occ):
+            raise TaskFileError(
+                f"{where}: sound {t.sound!r} occurrence {t.occurrence} does not exist; it was "
+                f"inserted {len(occ)} time(s) (occurrences 0..{len(occ) - 1})"
+            )
+        occ = [occ[t.occurrence]]
+    return occ
+
+
+def _area(gt: dict, name: str, where: str) -> dict:
+    for a in gt["areas"]:
+        if a["name"] == name or name in a.get("aliases", ()):
+            return a
+    raise TaskFileError(f"{where}: no area {name!r}; areas: {[a['name'] for a in gt['areas']]}")
+
+
+def _anchor(gt: dict, t: Truth, where: str) -> tuple[np.ndarray, np.ndarray]:
+    """(centre (3,), half extents (3,)) [m] of a truth used as a relation's landmark."""
+    if t.kind == "object":
+        o = _object(gt, t.object, where)
+        lo, hi = np.array(o["aabb_min"]), np.array(o["aabb_max"])
+        return (lo + hi) / 2, (hi - lo) / 2
+    if t.kind == "sound":
+        occ = _sound_events(gt, t, where)
+        if len(occ) > 1:
+            raise TaskFileError(
+                f"{where}: sound {t.sound!r} was heard in {len(occ)} places; a relation needs "
+                f"one: give occurrence = 0..{len(occ) - 1}"
+            )
+        return np.array(occ[0]["table_point"], np.float64), np.zeros(3)
+    if t.kind == "area":
+        a = _area(gt, t.area, where)
+        c = np.array([np.mean(a["x"]), np.mean(a["y"]), 0.0])
+        return c, np.array([np.ptp(a["x"]) / 2, np.ptp(a["y"]) / 2, 0.0])
+    if t.kind in ("point", "camera"):
+        p = np.array(t.point, np.float64)
+        if t.kind == "camera":
+            p[2] = 0.0
+        return p, np.zeros(3)
+    if t.kind == "box":
+        lo, hi = np.array(t.box[0]), np.array(t.box[1])
+        return (lo + hi) / 2, (hi - lo) / 2
+    r = resolve_truth(t, gt, where)
+    if len(r.boxes) != 1:
+        raise TaskFileError(f"{where}: a nested relation must resolve to one place")
+    lo, hi = r.boxes[0]
+    return (lo + hi) / 2, (hi - lo) / 2
+
+
+def relation_point(
+    relation: str,
+    anchors: list[tuple[np.ndarray, np.ndarray]],
+    spatial: SpatialConfig | None = None,
+) -> np.ndarray:
+    """(3,) [m] the point a relation names, from its landmarks' (centre, half extents), with the
+    robot API's offsets (:class:`tabletop.robot.SpatialConfig`)."""
+    s = spatial or SpatialConfig()
+    if relation == "between":
+        return (anchors[0][0] + anchors[1][0]) / 2
+    c, half = anchors[0]
+    top = c[2] + half[2]
+    if relation == "above":
+        return np.array([c[0], c[1], top + s.above_gap])
+    d = np.array(_SIDES[relation])
+    dist = max(s.side_offset, float(np.abs(d[:2]) @ half[:2]) + s.side_gap)
+    p = c + dist * d
+    p[2] = top
+    return p
+
+
+def resolve_truth(t: Truth, ground_truth: dict, where: str = "truth") -> Region:
+    """The :class:`Region` a :class:`~tabletop.eval.tasks.Truth` names in a recording's ground
+    truth.
+
+    Raises:
+        TaskFileError: a reference the recording does not have (naming the valid ones).
+    """
+    gt = ground_truth
+    if t.kind == "object":
+        o = _object(gt, t.object, where)
+        return _region([[o["aabb_min"], o["aabb_max"]]], f"box of {t.object}")
+    if t.kind == "sound":
+        boxes = []
+        for e in _sound_events(gt, t, where):
+            p = np.array(e["table_point"], np.float64)
+            top = max(float(e["tcp_mean"][2]), 0.0)
+            boxes.append([p, [p[0], p[1], top]])
+        return _region(boxes, f"where {t.sound!r} was heard ({len(boxes)} place(s))")
+    if t.kind == "area":
+        a = _area(gt, t.area, where)
+        lo = [a["x"][0], a["y"][0], 0.0]
+        hi = [a["x"][1], a["y"][1], AREA_HEIGHT_M]
+        return _region([[lo, hi]], f"area {a['name']!r}")
+    if t.kind == "point":
+        return _region([[t.point, t.point]], f"point {list(t.point)}")
+    if t.kind == "camera":
+        p = np.array(t.point)
+        return _region([[[p[0], p[1], 0.0], p]], "beneath the camera that took the image")
+    if t.kind == "box":
+        return _region([t.box], "box")
+    anchors = [_anchor(gt, x, f"{where}.of[{i}]") for i, x in enumerate(t.of)]
+    p = relation_point(t.relation, anchors)
+    return _region([[p, p]], t.describe())
