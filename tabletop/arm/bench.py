@@ -20,6 +20,8 @@ position control) and the :class:`ReachController`, and reports:
   executed step, and the damped-least-squares reference per iteration (``dls_iter_ms_median``);
 - ``goal_search_ms_median`` / ``_p95``: wall time of the controller's pre-motion goal search
   per reach;
+- ``reach_s_median`` / ``_p95``: wall time of one whole reach [s] (goal search, motion with
+  physics stepping, checks);
 - ``reasons``: how many reaches ended with each reason; unreachable and out-of-workspace probes
   must come back with the right reason, never an exception.
 """
@@ -285,14 +287,16 @@ def run_arm_benchmark(
         reachable = within_1cm = by_controller = missed = infeasible = 0
         audit_checker = None  # built on first use: its timings stay out of the step figures
         audit_s = 0.0
-        goal_search = []
+        goal_search, reach_times = [], []
         obj_total = obj_ok = 0
         errors = []
         for i, (target, ob) in enumerate(benchmark_targets(rng, objects, n_targets)):
             for j, v in zip(arm, HOME_Q, strict=True):
                 pb.resetJointState(robot, j, float(v), physicsClientId=cid)
             is_object = ob is not None
+            t_reach = time.perf_counter()
             res = ctrl.move_to(target)
+            reach_times.append(time.perf_counter() - t_reach)
             reasons[res.reason.value] = reasons.get(res.reason.value, 0) + 1
             goal_search.append(res.goal_search_s)
             refused = res.reason in (ReachReason.UNREACHABLE, ReachReason.BLOCKED) and (
@@ -393,6 +397,8 @@ def run_arm_benchmark(
             "goal_search_ms_median": gs_med,
             "goal_search_ms_p95": gs_p95,
             "physics_steps": driver.steps,
+            "reach_s_median": float(np.median(reach_times)) if reach_times else float("nan"),
+            "reach_s_p95": float(np.percentile(reach_times, 95)) if reach_times else float("nan"),
         }
     finally:
         pb.disconnect(cid)
