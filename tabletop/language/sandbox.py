@@ -325,16 +325,21 @@ class _Checker:
         elif isinstance(e, ast.Call):
             self.call(e, mult)
         elif isinstance(e, ast.Attribute):
-            self.refuse(
-                e,
-                f"attribute access '.{e.attr}' is not allowed (only robot.<method>(...) calls)",
-            )
+            if self.name_ok(e, e.attr):
+                self.refuse(
+                    e,
+                    f"attribute access '.{e.attr}' is not allowed (only robot.<method>(...) calls)",
+                )
+            if not (isinstance(e.value, ast.Name) and e.value.id == ROBOT_NAME):
+                self.expr(e.value, mult)
         else:
             self.refuse(e, f"{_REFUSED.get(type(e), type(e).__name__)} are not allowed")
 
     def call(self, c: ast.Call, mult: int) -> None:
         f = c.func
         if isinstance(f, ast.Name):
+            if not self.name_ok(c, f.id):
+                return
             if f.id == "range":
                 self.refuse(c, "range() only as the iterable of a for loop")
             else:
@@ -343,8 +348,11 @@ class _Checker:
                     f"calling {f.id!r} is not allowed; call robot methods: {sorted(ROBOT_METHODS)}",
                 )
             return
-        if not (isinstance(f, ast.Attribute) and isinstance(f.value, ast.Name)):
+        if not isinstance(f, ast.Attribute):
             self.refuse(c, "only robot.<method>(...) can be called")
+            return
+        if not isinstance(f.value, ast.Name):  # x().attr(...), a.b.c(...)
+            self.expr(f, mult)
             return
         if f.value.id != ROBOT_NAME:
             self.refuse(c, f"attribute access '{f.value.id}.{f.attr}' is not allowed")

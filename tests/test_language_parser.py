@@ -1,0 +1,247 @@
+"""The offline instruction parser: the plans and code it writes, and what it refuses."""
+
+import ast
+
+import pytest
+
+from tabletop.language import ParseError, check_code, instruction_to_code, parse_instruction
+from tabletop.language.parser import (
+    Above,
+    BackAndForth,
+    Between,
+    Compass,
+    Goal,
+    GoTo,
+    Part,
+    Side,
+)
+from tabletop.language.suite import load_suite
+
+
+def only(instruction):
+    steps = parse_instruction(instruction)
+    assert len(steps) == 1
+    return steps[0]
+
+
+@pytest.mark.parametrize(
+    "text",
+    [
+        "go to the red mug",
+        "move to the red mug",
+        "reach the red mug",
+        "approach the red mug",
+        "Please head to the red mug.",
+        "navigate to the red mug",
+        "move the gripper to the red mug",
+    ],
+)
+def test_motion_verbs_give_the_same_object_goal(text):
+    step = only(text)
+    assert step.action == GoTo(Goal(Part("obj", "red mug")))
+    assert step.times == 1
+
+
+@pytest.mark.parametrize(
+    "text, kind, desc",
+    [
+        ("go to the sound of a dog barking", "sound", "dog barking"),
+        ("go to the noise of the piano playing", "sound", "piano playing"),
+        ("go to the alarm clock sound", "sound", "alarm clock"),
+        ("go to where you heard the cat meowing", "sound", "cat meowing"),
+        ("go to the place where you heard the cat meowing", "sound", "cat meowing"),
+        ("go to where the cat meowing was heard", "sound", "cat meowing"),
+        ("go to the left side of the table", "area", "left side of the table"),
+        ("go to the far side of the table", "area", "front of the table"),
+        ("go to the middle of the table", "area", "center of the table"),
+        ("go to the tray area", "area", "tray area"),
+        ("go to the image ./Goals/View_1.PNG", "img", "./Goals/View_1.PNG"),
+        ("go to the picture /tmp/a b/../x.jpg", None, None),
+        ("go to the place shown in the image goal.png", "img", "goal.png"),
+        ("go to the view in 'shots/a.jpeg'", "img", "shots/a.jpeg"),
+    ],
+)
+def test_modalities_are_recognised(text, kind, desc):
+    if kind is None:  # a path with a space is two words: the parser refuses, never guesses
+        with pytest.raises(ParseError):
+            parse_instruction(text)
+        return
+    assert only(text).action == GoTo(Goal(Part(kind, desc)))
+
+
+@pytest.mark.parametrize(
+    "connector", ["near", "next to", "close to", "beside", "that is near", "by", "nearest to"]
+)
+def test_near_phrasings(connector):
+    step = only(f"go to the mug {connector} the sound of a dog barking")
+    assert step.action == GoTo(Goal(Part("obj", "mug"), (Part("sound", "dog barking"),)))
+
+
+def test_where_you_heard_makes_the_constraint_a_sound():
+    step = only("reach the mug where you heard the alarm clock")
+    assert step.action.goal.near == (Part("sound", "alarm clock"),)
+
+
+def test_every_pair_of_modalities_fuses_sharp_primary_with_broad_constraint():
+    phrases = {
+        "obj": "the duck",
+        "sound": "the sound of a cat meowing",
+        "img": "the image ./a.png",
+        "area": "the tray area",
+    }
+    for k1, p1 in phrases.items():
+        for k2, p2 in phrases.items():
+            code = instruction_to_code(f"go to {p1} near {p2}")
+            tree = ast.parse(code)
+            calls = [
+                n.func.attr
+                for n in ast.walk(tree)
+                if isinstance(n, ast.Call) and isinstance(n.func, ast.Attribute)
+            ]
+            assert calls.count("get_major_map") == 1 and calls.count("get_map") == 1, code
+            major = next(
+                n
+                for n in ast.walk(tree)
+                if isinstance(n, ast.Call) and n.func.attr == "get_major_map"
+            )
+            broad = next(
+                n for n in ast.walk(tree) if isinstance(n, ast.Call) and n.func.attr == "get_map"
+            )
+            assert major.keywords[0].arg == k1 and broad.keywords[0].arg == k2
+            assert " * " in code and code.rstrip().endswith("robot.move_to(pos)")
+            check_code(code)
+
+
+def test_two_constraints_multiply():
+    code = instruction_to_code(
+        "go to the duck near the sound of a cat meowing and the sound of a dog barking"
+    )
+    assert "fuse_map = obj_map * sound_map * sound_map_2" in code
+
+
+def test_between_averages_two_argmaxes_and_splits_at_the_first_valid_and():
+    step = only("move in between the image ./006899.png and the backpack near the sound of glass")
+    assert step.action == Between(
+        Goal(Part("img", "./006899.png")),
+        Goal(Part("obj", "backpack"), (Part("sound", "glass"),)),
+    )
+    code = instruction_to_code("go halfway between the red mug and the duck")
+    assert "pos = (pos1 + pos2) / 2" in code and code.count("get_max_pos_3d") == 2
+
+
+@pytest.mark.parametrize(
+    "text, side",
+    [
+        ("move to the left of the red mug", "left"),
+        ("go to the left-hand side of the red mug", "left"),
+        ("move on the right side of the red mug", "right"),
+        ("go in front of the red mug", "front"),
+        ("approach the front side of the red mug", "front"),
+        ("go behind the red mug", "behind"),
+        ("go to the back of the red mug", "behind"),
+        ("move to the rear of the red mug", "behind"),
+    ],
+)
+def test_sides_of_a_landmark(text, side):
+    assert only(text).action == Side(side, "red mug")
+
+
+def test_the_table_sides_are_areas_not_landmarks():
+    assert only("go to the back of the table").action == GoTo(
+        Goal(Part("area", "back of the table"))
+    )
+    assert only("go to the left side of the table near the duck").action == GoTo(
+        Goal(Part("area", "left side of the table"), (Part("obj", "duck"),))
+    )
+
+
+@pytest.mark.parametrize(
+    "text, direction, dist",
+    [
+        ("move 10 cm north", "north", 0.1),
+        ("move north by 10 cm", "north", 0.1),
+        ("go 0.1 m forward", "north", 0.1),
+        ("move left 5 centimetres", "west", 0.05),
+        ("move 50 mm to the right", "east", 0.05),
+        ("go back 3 cm", "south", 0.03),
+        ("move ten centimeters to the south", "south", 0.1),
+    ],
+)
+def test_compass_moves(text, direction, dist):
+    a = only(text).action
+    assert a == Compass(direction, pytest.approx(dist))
+
+
+def test_sequences_and_repetition():
+    steps = parse_instruction(
+        "first move to the left of the tray, then move between the ball and the duck, "
+        "and then go back and forth between the red mug and the blue mug twice; "
+        "after that move 5 cm north 3 times. Finally go above the tray"
+    )
+    assert [type(s.action) for s in steps] == [Side, Between, BackAndForth, Compass, Above]
+    assert [s.times for s in steps] == [1, 1, 2, 3, 1]
+    code = instruction_to_code("move 5 cm north 3 times")
+    assert "for _ in range(3):\n    robot.move_north(0.05)" in code
+    # later steps may leave the verb out
+    steps = parse_instruction("go to the red mug, then the duck, then twice to the tray")
+    assert [s.action for s in steps] == [
+        GoTo(Goal(Part("obj", "red mug"))),
+        GoTo(Goal(Part("obj", "duck"))),
+        GoTo(Goal(Part("obj", "tray"))),
+    ]
+    assert steps[2].times == 2
+
+
+def test_back_and_forth_loops_over_two_fixed_points():
+    code = instruction_to_code("move back and forth between the sofa and the table 3 times")
+    assert code.endswith("for _ in range(3):\n    robot.move_to(pos1)\n    robot.move_to(pos2)\n")
+    assert 'pos1 = robot.above("sofa")' in code
+
+
+def test_code_is_commented_per_step_and_passes_the_sandbox():
+    code = instruction_to_code("go to the image ./Goal.PNG, then move 4 cm east")
+    assert code.splitlines()[0] == "# go to the image ./Goal.PNG"
+    assert 'robot.load_image("./Goal.PNG")' in code  # the path keeps its case
+    assert "# move 4 cm east" in code
+    check_code(code)
+
+
+def test_quotes_in_descriptions_cannot_break_out_of_the_string():
+    with pytest.raises(ParseError):
+        parse_instruction('go to the mug") ; import os ; ("')
+
+
+@pytest.mark.parametrize(
+    "text, fragment, words",
+    [
+        ("", "", "empty"),
+        ("dance", "dance", "motion verb"),
+        ("go to the mug and the duck", "the mug and the duck", "'and'"),
+        ("go north", "north", "distance"),
+        ("move 2 m west", "2 m west", "at most 1.0 m"),
+        ("go to the mug 21 times", "21 times", "1 to 20"),
+        ("go to the left of the mug near the duck", "the mug near the duck", "one object"),
+        ("go to the picture", "the picture", "file path"),
+        ("go to the mug slowly", "the mug slowly", "'slowly'"),
+        ("go to the image a.png b.png", "the image a.png b.png", "one path"),
+        ("go to the mug, then, then the duck", None, "empty step"),
+        ("go between the mug", "the mug", "two goals"),
+        ("do not go to the mug", "do not go to the mug", "motion verb"),
+    ],
+)
+def test_refusals_name_what_was_not_understood(text, fragment, words):
+    with pytest.raises(ParseError) as e:
+        parse_instruction(text)
+    if fragment is not None:
+        assert e.value.fragment == fragment
+    assert words in str(e.value)
+    assert repr(text) in str(e.value) or not text
+
+
+def test_the_suites_unparseable_instructions_are_refused():
+    suite = load_suite()
+    assert len(suite.unparseable) >= 10
+    for bad in suite.unparseable:
+        with pytest.raises(ParseError) as e:
+            parse_instruction(bad.instruction)
+        assert e.value.fragment == bad.fragment, bad.instruction

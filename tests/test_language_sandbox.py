@@ -1,0 +1,205 @@
+"""The sandbox: hostile and malformed code is refused before anything runs, and the robot does
+not move; allowed code runs with its limits."""
+
+import time
+
+import numpy as np
+import pytest
+
+from tabletop.language import (
+    CodeRejected,
+    SandboxConfig,
+    SandboxError,
+    SandboxLimit,
+    check_code,
+    run_code,
+)
+from tabletop.language.sandbox import ROBOT_METHODS
+from tabletop.robot.api import RobotAPI
+
+
+class CountingRobot(RobotAPI):
+    """An embodiment without a body: counts every motion and every API call it gets.
+
+    The map queries of RobotAPI need a map; the hostile snippets must never get that far."""
+
+    def __init__(self, delay_s=0.0):
+        super().__init__(avlmap=None)
+        self.moves = []
+        self.delay_s = delay_s
+        self.pos = np.array([0.3, 0.0, 0.3])
+
+    def move_to(self, pos):
+        time.sleep(self.delay_s)
+        self.moves.append(np.array(pos, float))
+        self.pos = np.array(pos, float)
+        return "moved"
+
+    def current_position(self):
+        return self.pos.copy()
+
+
+# Every entry must be refused by the static check (CodeRejected) with the robot untouched.
+# (snippet, a word the refusal must contain)
+HOSTILE = [
+    ("import os\nos.system('rm -rf /')", "import"),
+    ("from subprocess import run\nrun(['ls'])", "import"),
+    ("__import__('os').system('id')", "dunder"),
+    ("open('/etc/passwd').read()", "attribute"),
+    ("x = open('/tmp/pwned', 'w')", "calling 'open'"),
+    ("eval('1+1')", "calling 'eval'"),
+    ("exec('import os')", "calling 'exec'"),
+    ("compile('1', 'f', 'exec')", "calling 'compile'"),
+    ("getattr(robot, 'map')", "calling 'getattr'"),
+    ("robot.map.grid", "attribute access"),
+    ("robot.__class__.__bases__", "dunder"),
+    ("m = robot.__dict__", "dunder"),
+    ("robot.move_to.__globals__", "attribute access"),
+    ("r = robot\nr.move_to((0, 0, 0))", "'robot' may only"),
+    ("robot.close()", "not part of the robot API"),
+    ("robot.reset()", "not part of the robot API"),
+    ("robot.controller.move_to((0.4, 0, 0.1))", "attribute access"),
+    ("while True:\n    robot.move_north(0.01)", "while"),
+    ("for i in range(10**9):\n    robot.move_north(0.01)", "literal"),
+    ("for i in range(1000):\n    robot.move_north(0.001)", "at most 100"),
+    ("for i in [1, 2]:\n    robot.move_north(0.01)", "range"),
+    ("n = 5\nfor i in range(n):\n    robot.move_north(0.01)", "literal"),
+    (
+        "for a in range(100):\n    for b in range(100):\n        for c in range(100):\n"
+        "            robot.get_pos('mug')",
+        "at most",
+    ),
+    ("for i in range(60):\n    robot.move_north(0.001)", "robot motions"),
+    ("f = lambda: 0", "lambda"),
+    ("def f():\n    pass", "function definitions"),
+    ("class A:\n    pass", "class definitions"),
+    ("x = [p for p in range(3)]", "comprehensions"),
+    ("x = (p for p in range(3))", "generator"),
+    ("x = {1: 2}", "dict"),
+    ("if True:\n    robot.move_north(0.1)", "if statements"),
+    ("try:\n    pass\nexcept Exception:\n    pass", "try"),
+    ("with open('x') as f:\n    pass", "with"),
+    ("x = 2 ** 1000000", "'**'"),
+    ("x = 'a' + f'{robot}'", "f-strings"),
+    ("global x", "global"),
+    ("del x", "del"),
+    ("raise SystemExit", "raise"),
+    ("assert False", "assert"),
+    ("x = y + 1", "not defined"),
+    ("print('hi')", "calling 'print'"),
+    ("robot.move_to(*[(0, 0, 0)])", "starred"),
+    ("robot.get_major_map(**{'obj': 'mug'})", "keyword unpacking"),
+    ("robot.move_to((0.4, 0, 0.1)) if True else None", "conditional"),
+    ("(x := 3)", "assignment expressions"),
+    ("x = 1 < 2", "comparisons"),
+    ("pos = robot.get_pos('mug')\nx = pos[0:2]", "indexing only"),
+    ("robot.move_to((0.4, 0.0, 0.1))\nrobot.move_to(", "syntax error"),
+    ("robot.move_to((0.4, 0.0, 0.1))\nimport os", "import"),
+    ("async def f():\n    await robot.move_to((0, 0, 0))", "function definitions"),
+    ("x = 'a' * 10\nrange = 3", "cannot be assigned"),
+    ("robot = 3", "cannot be assigned"),
+    ("__builtins__", "dunder"),
+    ("x = b'bytes'", "bytes literals"),
+    ("x" * 30_000, "characters"),
+    ("robot.move_to((0.4, 0, 0.1))\x00", "NUL"),
+]
+
+
+@pytest.mark.parametrize("snippet, word", HOSTILE, ids=[f"h{i:02d}" for i in range(len(HOSTILE))])
+def test_hostile_code_is_refused_and_the_robot_does_not_move(snippet, word):
+    robot = CountingRobot()
+    with pytest.raises(CodeRejected) as e:
+        run_code(snippet, robot)
+    assert word in str(e.value), str(e.value)
+    assert e.value.problems
+    assert robot.moves == []
+
+
+def test_there_are_at_least_twenty_hostile_snippets():
+    assert len(HOSTILE) >= 20
+
+
+def test_a_refusal_after_valid_lines_still_runs_nothing():
+    robot = CountingRobot()
+    code = "robot.move_north(0.05)\nrobot.move_north(0.05)\nimport os\n"
+    with pytest.raises(CodeRejected, match="line 3: import"):
+        run_code(code, robot)
+    assert robot.moves == []
+
+
+def test_every_problem_is_listed_with_its_line():
+    with pytest.raises(CodeRejected) as e:
+        check_code("import os\nx = 1\nwhile x:\n    pass\nopen('f')\n")
+    lines = [p.split(":")[0] for p in e.value.problems]
+    assert lines == ["line 1", "line 3", "line 5"]
+
+
+def test_allowed_code_runs_in_order_and_counts_its_bounds():
+    code = (
+        "# a note\n"
+        '"""a docstring"""\n'
+        "p = robot.current_position()\n"
+        "q = (p + [0.1, 0.0, 0.0]) * 1\n"
+        "d = -0.02\n"
+        "d += 0.04\n"
+        "a, b = 1, 2\n"
+        "for _ in range(2):\n"
+        "    robot.move_to(q)\n"
+        "    robot.move_west(d * a / b)\n"
+        "robot.move_to([q[0], q[1], 0.25])\n"
+        "pass\n"
+    )
+    checked = check_code(code)
+    assert (checked.calls, checked.moves) == (6, 5)
+    robot = CountingRobot()
+    run = run_code(checked, robot)
+    assert len(robot.moves) == 5
+    np.testing.assert_allclose(robot.moves[0], [0.4, 0.0, 0.3])
+    np.testing.assert_allclose(robot.moves[1], [0.4, 0.01, 0.3])
+    np.testing.assert_allclose(robot.moves[-1], [0.4, 0.0, 0.25])
+    assert [c.method for c in run.calls] == ["current_position"] + ["move_to", "move_west"] * 2 + [
+        "move_to"
+    ]
+    assert run.calls[1].line == 9 and run.calls[1].result == "moved"
+
+
+def test_the_allowed_api_is_the_robot_api():
+    assert all(callable(getattr(RobotAPI, m, None)) for m in ROBOT_METHODS)
+    assert not {"close", "reset", "map", "controller", "history"} & ROBOT_METHODS
+
+
+@pytest.mark.parametrize(
+    "code, word",
+    [
+        ("x = 'mug' * 3", "arithmetic on str"),
+        ("x = [0] * 3", "arithmetic on list"),
+        ("x = 1 / 0", "ZeroDivisionError"),
+        ("x = 3\ny = x[0]", "cannot be indexed"),
+        ("a, b = 1", "cannot unpack"),
+        ("a, b = (1, 2, 3)", "unpacking 3 values"),
+        ("for _ in range(0):\n    y = 1\nz = y", "has no value"),
+        ("x = 2\nfor _ in range(70):\n    x = x * x", "beyond 2**63"),
+        ("robot.move_north()", "robot.move_north"),
+    ],
+)
+def test_runtime_errors_name_the_line(code, word):
+    with pytest.raises(SandboxError) as e:
+        run_code(code, CountingRobot())
+    assert word in str(e.value) and "line" in str(e.value)
+
+
+def test_step_and_time_limits_stop_a_run():
+    with pytest.raises(CodeRejected, match="evaluation steps"):
+        check_code("for _ in range(100):\n    x = 1 + 2 + 3\n", SandboxConfig(max_steps=50))
+    slow = CountingRobot(delay_s=0.05)
+    code = "for _ in range(10):\n    robot.move_north(0.001)\n"
+    with pytest.raises(SandboxLimit, match="longer than"):
+        run_code(code, slow, SandboxConfig(timeout_s=0.01))
+    assert 1 <= len(slow.moves) < 10  # stopped between motions
+
+
+def test_config_is_checked():
+    with pytest.raises(Exception, match="max_loop"):
+        SandboxConfig(max_loop=0)
+    with pytest.raises(Exception, match="timeout_s"):
+        SandboxConfig(timeout_s=0)
