@@ -119,3 +119,12 @@ def test_a_malformed_suite_file_is_a_clear_error(tmp_path):
         load_suite(f)
     with pytest.raises(Exception, match="does not exist"):
         load_suite(tmp_path / "missing.toml")
+
+
+def test_cases_the_map_cannot_answer_are_skipped_not_missed(robot, suite, tmp_path):
+    # no goal images in this directory: the expected code of an image case fails itself
+    rep = evaluate_suite(robot, suite=suite, image_dir=tmp_path, cases=["image-01", "object-01"])
+    skipped = [r for r in rep.results if r.skipped]
+    assert [r.case.id for r in skipped] == ["image-01"]
+    assert "does not exist" in skipped[0].reason
+    assert (rep.evaluated, rep.matched, rep.skipped, rep.share) == (1, 1, 1, 1.0)

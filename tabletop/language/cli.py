@@ -107,7 +107,8 @@ def _report_suite(args, suite, robot, image_dir) -> int:
     if args.json:
         out = {
             "matched": report.matched,
-            "cases": len(report.results),
+            "cases": report.evaluated,
+            "skipped": report.skipped,
             "share": report.share,
             "tol_m": report.tol_m,
             "by_family": {
@@ -128,14 +129,16 @@ def _report_suite(args, suite, robot, image_dir) -> int:
             print(f"  {fam:10s} {a:3d} / {n:3d}")
         for r in report.results:
             if not r.match:
-                print(f"  MISS {r.case.id}: {r.case.instruction!r}: {r.reason}")
+                tag = "SKIP" if r.skipped else "MISS"
+                print(f"  {tag} {r.case.id}: {r.case.instruction!r}: {r.reason}")
         print(
             f"targets match (within {report.tol_m * 1000:.0f} mm): {report.matched} / "
-            f"{len(report.results)} = {report.share:.1%}"
+            f"{report.evaluated} = {report.share:.1%}"
+            + (f" ({report.skipped} skipped)" if report.skipped else "")
         )
         if refused:
             print(f"unparseable instructions refused: {sum(refused)} / {len(refused)}")
-    return 0 if report.matched == len(report.results) and all(refused) else 1
+    return 0 if report.matched == report.evaluated and all(refused) else 1
 
 
 # ---------------------------------------------------------------------- run

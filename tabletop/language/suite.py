@@ -252,6 +252,9 @@ class CaseResult:
     error_m: float | None
     """Largest distance [m] between corresponding targets (None: counts differ or failed)."""
     reason: str = ""
+    skipped: bool = False
+    """The expected code itself fails on this map (e.g. image goals on a map without visual
+    localization): the case is left out of the share."""
 
 
 @dataclass(frozen=True)
@@ -264,12 +267,24 @@ class SuiteReport:
         return sum(r.match for r in self.results)
 
     @property
+    def evaluated(self) -> int:
+        """Cases whose expected code runs on the map (the share's denominator)."""
+        return sum(not r.skipped for r in self.results)
+
+    @property
+    def skipped(self) -> int:
+        return len(self.results) - self.evaluated
+
+    @property
     def share(self) -> float:
-        return self.matched / len(self.results) if self.results else 0.0
+        return self.matched / self.evaluated if self.evaluated else 0.0
 
     def by_family(self) -> dict[str, tuple[int, int]]:
+        """family -> (matched, evaluated)."""
         out: dict[str, list[int]] = {}
         for r in self.results:
+            if r.skipped:
+                continue
             f = out.setdefault(r.case.family, [0, 0])
             f[0] += r.match
             f[1] += 1
@@ -311,7 +326,12 @@ def evaluate_suite(
         chosen = tuple(c for c in suite.cases if c.id in cases)
     results = []
     for case in chosen:
-        expected = _targets(case.expected, robot, suite.start, image_dir)
+        try:
+            expected = _targets(case.expected, robot, suite.start, image_dir)
+        except TabletopError as e:  # e.g. no image goals on this map: the case says nothing
+            reason = f"skipped: the expected code fails on this map: {e}"
+            results.append(CaseResult(case, None, None, None, False, None, reason, skipped=True))
+            continue
         try:
             code = generate(case.instruction)
         except LanguageError as e:
