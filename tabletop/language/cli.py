@@ -128,9 +128,17 @@ def _report_suite(args, suite, robot, image_dir) -> int:
         for fam, (a, n) in report.by_family().items():
             print(f"  {fam:10s} {a:3d} / {n:3d}")
         for r in report.results:
-            if not r.match:
-                tag = "SKIP" if r.skipped else "MISS"
-                print(f"  {tag} {r.case.id}: {r.case.instruction!r}: {r.reason}")
+            if not r.match and not r.skipped:
+                print(f"  MISS {r.case.id}: {r.case.instruction!r}: {r.reason}")
+        skipped = [r for r in report.results if r.skipped]
+        if skipped:
+            print(
+                f"  skipped, their expected code fails on this map ({len(skipped)}): "
+                + ", ".join(r.case.id for r in skipped)
+            )
+            reasons = dict.fromkeys(r.reason.split("on this map: ", 1)[-1] for r in skipped)
+            for reason in list(reasons)[:3]:
+                print(f"    e.g. {reason}")
         print(
             f"targets match (within {report.tol_m * 1000:.0f} mm): {report.matched} / "
             f"{report.evaluated} = {report.share:.1%}"
