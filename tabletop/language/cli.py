@@ -212,6 +212,8 @@ def cmd_run(args: argparse.Namespace) -> int:
             line += f", ends at {_fmt(where)}"
         if err is not None:
             line += f", {err * 100:.1f} cm from the target"
+        if getattr(r, "standoff_applied", False):
+            line += " (the target was inside an obstacle: stopped at a standoff)"
         print(line, flush=True)
 
     try:
