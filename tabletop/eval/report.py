@@ -174,9 +174,10 @@ class EvalResult:
                     out += [
                         f"![{t.task_name}: scene from above]({f['scene']})",
                         "",
-                        "Green: ground-truth boxes; blue rings: where sounds were heard; "
-                        "filled dots: final TCP of a success, rings with a cross: of a miss; "
-                        "yellow crosses: predicted targets.",
+                        "Green: ground-truth boxes and (diamonds) truth points of spatial and "
+                        "image goals; blue rings: where sounds were heard; red filled dots: "
+                        "final TCP of a success, red rings with a cross: of a miss; yellow "
+                        "crosses: predicted targets.",
                         "",
                     ]
                 for key, path in f.items():
@@ -253,6 +254,10 @@ def scene_picture(m, ground_truth: dict, goals, regions) -> np.ndarray:
         cv2.putText(
             img, e["category"], (c[0] + 10, c[1] + 4), cv2.FONT_HERSHEY_SIMPLEX, 0.35, _BLUE, 1
         )
+    for g in goals:  # truths smaller than 2 cm across (spatial points, image cameras)
+        b = regions[g.goal_id].boxes
+        if len(b) == 1 and np.all(b[0, 1, :2] - b[0, 0, :2] < 0.02):
+            cv2.drawMarker(img, _pixel(m, b[0, 0]), _GREEN, cv2.MARKER_DIAMOND, 9, 1)
     for g in goals:
         if g.target is not None:
             cv2.drawMarker(img, _pixel(m, g.target), _YELLOW, cv2.MARKER_CROSS, 8, 1)

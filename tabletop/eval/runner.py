@@ -66,7 +66,8 @@ def collect_task_files(items: str | Path | TaskFile | Iterable) -> list[TaskFile
         elif p.exists() or p.suffix:
             out.append(load_tasks(p))
         else:
-            dirs = sorted(d.name for d in _tasks_dir().iterdir() if d.is_dir())
+            d = _tasks_dir()
+            dirs = sorted(x.name for x in d.iterdir() if x.is_dir()) if d.is_dir() else []
             shipped = list_shipped_tasks()
             if p.name not in shipped:
                 raise TaskFileError(
@@ -107,7 +108,7 @@ def _recording(tf: TaskFile, spec, cache: Path | None, progress: Progress | None
 
     key = _key({"scene": spec.to_dict(), "scan": tf.scan, "sim": _fingerprint("sim")})
     path = cache / f"rec-{spec.name}-{key}" if cache else None
-    if path is not None and (path / "header.json").is_file():
+    if path is not None and path.is_dir():
         try:
             return load_recording(path), 0.0, True
         except TabletopError as e:
@@ -252,8 +253,9 @@ def _spatial_target(ctx: _Context, goal: Goal) -> np.ndarray:
     for i, (m, is_obj) in enumerate(zip(marks, plain, strict=True)):
         if is_obj:
             p = robot.get_pos(m.as_dict["obj"])
-        else:
+        else:  # a found place: level with the highest surface there (an object's top)
             p = _query_target(ctx, goal, m, tag=f"landmark {i + 1} ")
+            p = hover_point(ctx.map, p, 0.0)
         anchors.append((np.asarray(p, np.float64), np.zeros(3)))
     return relation_point(goal.relation, anchors, robot.spatial)
 

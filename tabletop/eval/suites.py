@@ -1,0 +1,494 @@
+"""Generate task files from a scene's ground truth (the shipped default suites come from here).
+
+The generator scans the scene once (through the evaluation cache) to learn which sounds the
+seeded scan inserts and where, then writes goals of every type whose truth it can state
+unambiguously. The files it writes are plain data: they are committed, and the runner takes
+any task file, generated or written by hand. Regenerate the shipped suites with::
+
+    python -m tabletop.eval.suites            # writes tabletop/data/tasks/default/*.toml, demo.toml
+
+Goal choices are seeded (``generator.seed`` in each file), so the same scan gives the same file.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+import numpy as np
+
+from tabletop.eval.tasks import FORMAT_NAME, FORMAT_VERSION, Truth, parse_tasks
+from tabletop.eval.truth import resolve_truth, sound_occurrences
+
+__all__ = ["DEFAULT_SUITES", "generate_suite", "to_toml", "write_default_suites"]
+
+#: (file stem, scene section, scan section, map section, goal counts) of the shipped suites.
+_SCAN = {"speed": 0.3, "episodes": 6, "episode_s": 4.0, "repeat_sounds": 1}
+_MAP = {"frame_step": 2}
+DEFAULT_SUITES = [
+    ("scene-default", {"name": "default"}, {"seed": 0, **_SCAN}),
+    *[
+        (
+            f"scene-random-{s}",
+            {"random": {"seed": s, "count": 9, "duplicates": 2}},
+            {"seed": i + 1, **_SCAN},
+        )
+        for i, s in enumerate((11, 12, 13, 14, 15))
+    ],
+]
+_FULL = dict(
+    object=8,
+    sound=5,
+    image=3,
+    area=5,
+    amb_sound=2,
+    amb_image=2,
+    amb_object=1,
+    amb_area=1,
+    spatial=5,
+    mm_spatial=3,
+    instruction=6,
+    sequences=3,
+)
+_DEMO = dict(
+    object=3,
+    sound=2,
+    image=2,
+    area=2,
+    amb_sound=1,
+    amb_image=1,
+    amb_object=1,
+    amb_area=0,
+    spatial=2,
+    mm_spatial=2,
+    instruction=3,
+    sequences=1,
+)
+
+
+# ---------------------------------------------------------------------------- TOML output
+def _toml_value(v) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, (int, np.integer)):
+        return str(int(v))
+    if isinstance(v, (float, np.floating)):
+        return repr(round(float(v), 4))
+    if isinstance(v, str):
+        return json.dumps(v)
+    if isinstance(v, (list, tuple)):
+        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
+    if isinstance(v, dict):
+        return "{ " + ", ".join(f"{k} = {_toml_value(x)}" for k, x in v.items()) + " }"
+    raise TypeError(f"cannot write {type(v).__name__} to TOML")
+
+
+def to_toml(doc: dict, header: str = "") -> str:
+    """A task document as TOML: scalars, then tables, then arrays of tables."""
+    lines = [f"# {x}" if x else "#" for x in header.splitlines()]
+    scalars = {k: v for k, v in doc.items() if not isinstance(v, (dict, list)) or k == "x"}
+    tables = {k: v for k, v in doc.items() if isinstance(v, dict)}
+    arrays = {k: v for k, v in doc.items() if isinstance(v, list)}
+    lines += [f"{k} = {_toml_value(v)}" for k, v in scalars.items()]
+    for k, t in tables.items():
+        lines += ["", f"[{k}]"] + [f"{a} = {_toml_value(b)}" for a, b in t.items()]
+    for k, items in arrays.items():
+        for it in items:
+            lines += ["", f"[[{k}]]"] + [f"{a} = {_toml_value(b)}" for a, b in it.items()]
+    return "\n".join(lines) + "\n"
+
+
+# ---------------------------------------------------------------------------- goal drawing
+def _box_dist(p, o) -> float:
+    lo, hi = np.array(o["aabb_min"]), np.array(o["aabb_max"])
+    return float(np.linalg.norm(np.maximum(lo - p, 0) + np.maximum(p - hi, 0)))
+
+
+def _xy_clear(p, objects, exclude=(), margin: float = 0.03) -> bool:
+    """The point's column is at least ``margin`` [m] from every object box but ``exclude``."""
+    for o in objects:
+        if o["name"] in exclude:
+            continue
+        q = np.array([p[0], p[1], 0.0])
+        lo, hi = np.array(o["aabb_min"]), np.array(o["aabb_max"])
+        d = np.maximum(lo[:2] - q[:2], 0) + np.maximum(q[:2] - hi[:2], 0)
+        if np.linalg.norm(d) < margin:
+            return False
+    return True
+
+
+def _reachable(p) -> bool:
+    """Inside the part of the table the scans cover and the arm reaches from above."""
+    return 0.25 <= p[0] <= 0.72 and abs(p[1]) <= 0.42
+
+
+def _view(rng, target_xy) -> dict:
+    """A camera 0.36-0.42 m above the table, up to 4 cm beside ``target_xy``, looking at it."""
+    eye = [
+        float(target_xy[0] + rng.uniform(-0.04, 0.04)),
+        float(target_xy[1] + rng.uniform(-0.04, 0.04)),
+        float(rng.uniform(0.36, 0.42)),
+    ]
+    return {
+        "eye": [round(v, 3) for v in eye],
+        "look_at": [round(float(v), 3) for v in target_xy] + [0.0],
+    }
+
+
+def _the(label: str) -> str:
+    return f"the {label}"
+
+
+def generate_suite(
+    name: str,
+    scene: dict,
+    scan: dict,
+    ground_truth: dict,
+    counts: dict,
+    seed: int = 0,
+    map_section: dict | None = None,
+    description: str = "",
+) -> dict:
+    """A task document (dict) for one scene from its recording's ground truth."""
+    rng = np.random.default_rng(seed)
+    gt = ground_truth
+    objs = [o for o in gt["objects"] if _reachable(o["center"])]
+    by_name = {o["name"]: o for o in gt["objects"]}
+    kinds = [o["kind"] for o in gt["objects"]]
+    dup_kinds = sorted({k for k in kinds if kinds.count(k) > 1})
+    events = sorted(gt.get("sound_events", []), key=lambda e: e["onset_s"])
+    cats = [e["category"] for e in events]
+    unique_events = [e for e in events if cats.count(e["category"]) == 1]
+    caption = {e["category"]: e["caption"] for e in events}
+    goals: list[dict] = []
+
+    def add(gid, gtype, text, truth, **kw):
+        goals.append({"id": gid, "type": gtype, "text": text, **kw, "truth": truth})
+
+    def pick(seq, n):
+        seq = list(seq)
+        if len(seq) <= n:
+            return seq
+        return [seq[i] for i in sorted(rng.choice(len(seq), n, replace=False))]
+
+    # object goals: a colour and a noun, unambiguous in the scene
+    for o in pick(objs, counts["object"]):
+        add(
+            f"object-{o['name']}",
+            "object",
+            _the(o["label"]),
+            {"object": o["name"]},
+            query={"obj": o["label"]},
+        )
+    # sound goals: every category inserted (a repeated one counts wherever it was heard)
+    for cat in pick(dict.fromkeys(cats), counts["sound"]):
+        add(f"sound-{cat}", "sound", caption[cat], {"sound": cat}, query={"sound": caption[cat]})
+    # image goals: views from above a reachable table point near an object
+    for i, o in enumerate(pick(objs, counts["image"])):
+        v = _view(rng, o["center"][:2])
+        add(
+            f"image-{i}",
+            "image",
+            f"where this image was taken (over the {o['label']})",
+            {"camera": v["eye"]},
+            query={"img": v},
+        )
+    # area goals
+    for a in pick([a for a in gt["areas"]], counts["area"]):
+        add(
+            f"area-{a['name'].replace(' ', '-')}",
+            "area",
+            _the(a["name"]),
+            {"area": a["name"]},
+            query={"area": a["name"]},
+        )
+    # ambiguous: a duplicated kind disambiguated by a sound heard near one of them
+    amb = []
+    for k in dup_kinds:
+        dups = [o for o in gt["objects"] if o["kind"] == k]
+        for e in unique_events:
+            d = sorted((_box_dist(e["table_point"], o), o["name"]) for o in dups)
+            if d[1][0] - d[0][0] >= 0.10:
+                amb.append((by_name[d[0][1]], e))
+    for o, e in pick(amb, counts["amb_sound"]):
+        add(
+            f"ambiguous-{o['name']}-sound-{e['category']}",
+            "ambiguous",
+            f"the {o['category']} near {e['caption']}",
+            {"object": o["name"]},
+            query={"obj": o["category"], "sound": e["caption"]},
+            primary="obj",
+        )
+    # ambiguous: a duplicated kind disambiguated by an image taken above one of them
+    amb_img = [
+        o for k in dup_kinds for o in gt["objects"] if o["kind"] == k and _reachable(o["center"])
+    ]
+    for o in pick(amb_img, counts["amb_image"]):
+        v = _view(rng, o["center"][:2])
+        add(
+            f"ambiguous-{o['name']}-image",
+            "ambiguous",
+            f"the {o['category']} near this image",
+            {"object": o["name"]},
+            query={"obj": o["category"], "img": v},
+            primary="obj",
+        )
+    # ambiguous: a sound heard in two places, disambiguated by an object near one of them
+    amb_obj = []
+    for cat in sorted({c for c in cats if cats.count(c) > 1}):
+        occ = sound_occurrences(gt, cat)
+        for i, e in enumerate(occ):
+            for o in gt["objects"]:
+                if kinds.count(o["kind"]) > 1:
+                    continue
+                mine = _box_dist(e["table_point"], o)
+                other = min(_box_dist(x["table_point"], o) for j, x in enumerate(occ) if j != i)
+                if mine <= 0.15 and other - mine >= 0.15:
+                    amb_obj.append((cat, i, o))
+    for cat, i, o in pick(amb_obj, counts["amb_object"]):
+        add(
+            f"ambiguous-sound-{cat}-{i}-near-{o['name']}",
+            "ambiguous",
+            f"{caption[cat]} near the {o['label']}",
+            {"sound": cat, "occurrence": i},
+            query={"obj": o["label"], "sound": caption[cat]},
+            primary="sound",
+        )
+    # ambiguous: a duplicated kind disambiguated by the table area it is in
+    amb_area = []
+    for k in dup_kinds:
+        dups = [o for o in gt["objects"] if o["kind"] == k]
+        for a in gt["areas"]:
+            inside = [
+                o
+                for o in dups
+                if a["x"][0] <= o["center"][0] <= a["x"][1]
+                and a["y"][0] <= o["center"][1] <= a["y"][1]
+            ]
+            if len(inside) == 1 and a["name"] in (
+                "left side of the table",
+                "right side of the table",
+            ):
+                amb_area.append((inside[0], a))
+    for o, a in pick(amb_area, counts["amb_area"]):
+        add(
+            f"ambiguous-{o['name']}-area",
+            "ambiguous",
+            f"the {o['category']} on the {a['name']}",
+            {"object": o["name"]},
+            query={"obj": o["category"], "area": a["name"]},
+            primary="obj",
+        )
+    # spatial: between two objects, beside one (the truth point must be free table)
+    spatial = []
+    for i, a in enumerate(objs):
+        for b in objs[i + 1 :]:
+            t = Truth(
+                "relation",
+                relation="between",
+                of=(Truth("object", object=a["name"]), Truth("object", object=b["name"])),
+            )
+            p = resolve_truth(t, gt).center
+            if (
+                _xy_clear(p, gt["objects"])
+                and 0.12 <= np.linalg.norm(np.subtract(a["center"], b["center"])) <= 0.45
+            ):
+                spatial.append(("between", [a, b]))
+        for rel in ("left_of", "right_of", "in_front_of", "behind"):
+            t = Truth("relation", relation=rel, of=(Truth("object", object=a["name"]),))
+            p = resolve_truth(t, gt).center
+            if _reachable(p) and _xy_clear(p, gt["objects"], margin=0.05):
+                spatial.append((rel, [a]))
+    words = {
+        "between": "between",
+        "left_of": "to the left of",
+        "right_of": "to the right of",
+        "in_front_of": "in front of",
+        "behind": "behind",
+    }
+    for rel, os_ in pick(spatial, counts["spatial"]):
+        text = (
+            f"between the {os_[0]['label']} and the {os_[1]['label']}"
+            if rel == "between"
+            else f"{words[rel]} the {os_[0]['label']}"
+        )
+        add(
+            f"spatial-{rel}-" + "-".join(o["name"] for o in os_),
+            "spatial",
+            text,
+            {"relation": rel, "of": [{"object": o["name"]} for o in os_]},
+            relation=rel,
+            landmarks=[{"obj": o["label"]} for o in os_],
+        )
+    # multimodal spatial: between a sound and an object; beside an object found by a sound
+    mm = []
+    for e in unique_events:
+        for o in objs:
+            mid = (np.array(e["table_point"]) + np.array(o["center"])) / 2
+            d = np.linalg.norm(np.subtract(e["table_point"][:2], o["center"][:2]))
+            if _xy_clear(mid, gt["objects"]) and 0.12 <= d <= 0.45:
+                mm.append(("between-sound", e, o))
+    for o, e in amb:
+        for rel in ("left_of", "right_of", "in_front_of", "behind"):
+            t = Truth("relation", relation=rel, of=(Truth("object", object=o["name"]),))
+            p = resolve_truth(t, gt).center
+            if _reachable(p) and _xy_clear(p, gt["objects"], margin=0.05):
+                mm.append((rel, e, o))
+    for kind, e, o in pick(mm, counts["mm_spatial"]):
+        if kind == "between-sound":
+            add(
+                f"mm-between-{e['category']}-{o['name']}",
+                "multimodal_spatial",
+                f"between {e['caption']} and the {o['label']}",
+                {"relation": "between", "of": [{"sound": e["category"]}, {"object": o["name"]}]},
+                relation="between",
+                landmarks=[{"sound": e["caption"]}, {"obj": o["label"]}],
+            )
+        else:
+            add(
+                f"mm-{kind}-{o['name']}-{e['category']}",
+                "multimodal_spatial",
+                f"{words[kind]} the {o['category']} near {e['caption']}",
+                {"relation": kind, "of": [{"object": o["name"]}]},
+                relation=kind,
+                landmarks=[{"obj": o["category"], "sound": e["caption"]}],
+            )
+    # free-language instructions, phrased as a person would, through the instruction parser
+    verbs = ["go to", "move to", "reach", "approach"]
+    inst = []
+    for o in objs:
+        inst.append((f"{{v}} the {o['label']}", {"object": o["name"]}))
+    for cat in dict.fromkeys(cats):
+        if cats.count(cat) == 1:
+            inst.append((f"{{v}} {caption[cat]}", {"sound": cat}))
+    for o, e in amb:
+        inst.append((f"{{v}} the {o['category']} near {e['caption']}", {"object": o["name"]}))
+    for rel, os_ in spatial:
+        if rel == "between":
+            inst.append(
+                (
+                    f"move in between the {os_[0]['label']} and the {os_[1]['label']}",
+                    {"relation": rel, "of": [{"object": o["name"]} for o in os_]},
+                )
+            )
+        else:
+            inst.append(
+                (
+                    f"go {words[rel]} the {os_[0]['label']}",
+                    {"relation": rel, "of": [{"object": os_[0]["name"]}]},
+                )
+            )
+    for j, (text, truth) in enumerate(pick(inst, counts["instruction"])):
+        text = text.replace("{v}", verbs[j % len(verbs)])
+        add(f"instruction-{j}", "instruction", text, truth, instruction=text)
+    # sequences like the paper's tables: a sound, an image, then two objects, in a row
+    seqs = []
+    snd = [g["id"] for g in goals if g["type"] == "sound"]
+    img = [g["id"] for g in goals if g["type"] == "image"]
+    obj = [g["id"] for g in goals if g["type"] == "object"]
+    for i in range(min(counts["sequences"], len(snd), len(img), len(obj) // 2)):
+        seqs.append({"id": f"sequence-{i}", "goals": [snd[i], img[i], obj[2 * i], obj[2 * i + 1]]})
+    doc = {
+        "format": FORMAT_NAME,
+        "version": FORMAT_VERSION,
+        "name": name,
+        "description": description,
+        "scene": scene,
+        "scan": scan,
+        "map": dict(map_section or _MAP),
+        "generator": {"seed": seed, "module": "tabletop.eval.suites"},
+        "goals": goals,
+        "sequences": seqs,
+    }
+    parse_tasks(json.loads(json.dumps(doc)), source=name)  # what is written must load
+    return doc
+
+
+def _scan_ground_truth(scene: dict, scan: dict, cache_dir) -> dict:
+    from tabletop.eval.runner import _recording
+
+    tf = parse_tasks(
+        {
+            "format": FORMAT_NAME,
+            "version": FORMAT_VERSION,
+            "scene": scene,
+            "scan": scan,
+            "goals": [
+                {
+                    "id": "x",
+                    "type": "object",
+                    "text": "x",
+                    "query": {"obj": "x"},
+                    "truth": {"point": [0, 0, 0]},
+                }
+            ],
+        },
+        source="generator",
+    )
+    spec = tf.scene.load()
+    rec, _, _ = _recording(tf, spec, Path(cache_dir) if cache_dir else None, None)
+    return rec.ground_truth
+
+
+def write_default_suites(out_dir: Path, cache_dir="out/eval-cache", only=None) -> list[Path]:
+    """Write the shipped suites (``default/*.toml``) and the demo suite (``demo.toml``)."""
+    out_dir = Path(out_dir)
+    (out_dir / "default").mkdir(parents=True, exist_ok=True)
+    written = []
+    header = (
+        "Generated by `python -m tabletop.eval.suites` from the scene's ground truth and the\n"
+        "seeded scan below; plain data: edit it or write another, the runner takes any task file."
+    )
+    for i, (stem, scene, scan) in enumerate(DEFAULT_SUITES):
+        if only and stem not in only:
+            continue
+        gt = _scan_ground_truth(scene, scan, cache_dir)
+        doc = generate_suite(
+            stem,
+            scene,
+            scan,
+            gt,
+            _FULL,
+            seed=100 + i,
+            description="default suite: every goal type on one seeded scene",
+        )
+        p = out_dir / "default" / f"{stem}.toml"
+        p.write_text(to_toml(doc, header))
+        written.append(p)
+    if not only or "demo" in only:
+        scene, scan = (
+            {"name": "default"},
+            {"seed": 0, "speed": 0.3, "episodes": 6, "episode_s": 4.0, "repeat_sounds": 1},
+        )
+        gt = _scan_ground_truth(scene, scan, cache_dir)
+        doc = generate_suite(
+            "demo",
+            scene,
+            scan,
+            gt,
+            _DEMO,
+            seed=7,
+            description="the demo's short suite: a few goals of each type",
+        )
+        p = out_dir / "demo.toml"
+        p.write_text(to_toml(doc, header))
+        written.append(p)
+    return written
+
+
+def main(argv=None) -> int:
+    from tabletop.eval.tasks import _tasks_dir
+
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--out", default=str(_tasks_dir()), help="tasks directory")
+    ap.add_argument("--cache-dir", default="out/eval-cache")
+    ap.add_argument("--only", nargs="*", help="suite stems to write (default: all)")
+    args = ap.parse_args(argv)
+    for p in write_default_suites(Path(args.out), args.cache_dir, args.only):
+        print(p)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
