@@ -1,0 +1,275 @@
+"""Task files: parsing, validation errors that name the problem, truth resolution, the shipped
+suites' coverage. No simulation here."""
+
+import copy
+import json
+
+import numpy as np
+import pytest
+
+from tabletop.eval.report import EvalResult
+from tabletop.eval.results import EncoderRun, GoalResult, TaskRun, in_a_row
+from tabletop.eval.suites import to_toml
+from tabletop.eval.tasks import (
+    GOAL_TYPES,
+    TaskFileError,
+    Truth,
+    list_shipped_tasks,
+    load_tasks,
+    parse_tasks,
+)
+from tabletop.eval.truth import resolve_truth
+
+DOC = {
+    "format": "tabletop-tasks",
+    "version": 1,
+    "name": "t",
+    "scene": {"name": "default"},
+    "scan": {"seed": 1, "speed": 0.45, "episodes": 4},
+    "goals": [
+        {
+            "id": "o",
+            "type": "object",
+            "text": "the red mug",
+            "query": {"obj": "red mug"},
+            "truth": {"object": "red_mug"},
+        },
+        {
+            "id": "a",
+            "type": "ambiguous",
+            "text": "the mug near the dog",
+            "query": {"sound": "a dog barking", "obj": "mug"},
+            "primary": "obj",
+            "truth": {"object": "red_mug"},
+        },
+        {
+            "id": "s",
+            "type": "spatial",
+            "text": "between",
+            "relation": "between",
+            "landmarks": [{"obj": "tray"}, {"obj": "red mug"}],
+            "truth": {"relation": "between", "of": [{"object": "tray"}, {"object": "red_mug"}]},
+        },
+        {
+            "id": "i",
+            "type": "image",
+            "text": "this image",
+            "query": {"img": {"eye": [0.4, 0.3, 0.4], "look_at": [0.4, 0.3, 0.0]}},
+            "truth": {"camera": [0.4, 0.3, 0.4]},
+        },
+        {
+            "id": "n",
+            "type": "instruction",
+            "text": "go to the red mug",
+            "instruction": "go to the red mug",
+            "truth": {"object": "red_mug"},
+        },
+    ],
+    "sequences": [{"id": "q", "goals": ["s", "o"]}],
+}
+
+GT = {
+    "objects": [
+        {"name": "red_mug", "aabb_min": [0.3, 0.2, 0.0], "aabb_max": [0.4, 0.3, 0.1]},
+        {"name": "tray", "aabb_min": [0.5, -0.1, 0.0], "aabb_max": [0.7, 0.1, 0.02]},
+    ],
+    "sound_events": [
+        {
+            "category": "dog",
+            "onset_s": 5.0,
+            "table_point": [0.6, 0.3, 0.0],
+            "tcp_mean": [0, 0, 0.3],
+        },
+        {
+            "category": "dog",
+            "onset_s": 1.0,
+            "table_point": [0.3, -0.3, 0.0],
+            "tcp_mean": [0, 0, 0.3],
+        },
+    ],
+    "areas": [
+        {"name": "left side of the table", "aliases": ["left"], "x": [0.2, 0.7], "y": [0.2, 0.5]}
+    ],
+}
+
+
+def bad(mutate):
+    d = copy.deepcopy(DOC)
+    mutate(d)
+    with pytest.raises(TaskFileError) as e:
+        parse_tasks(d, source="t.toml")
+    return str(e.value)
+
+
+def test_valid_file_parses_with_sequences_first():
+    tf = parse_tasks(copy.deepcopy(DOC), source="t.toml")
+    assert [g.id for g in tf.goals] == ["o", "a", "s", "i", "n"]
+    amb = tf.goal("a")
+    assert [k for k, _ in amb.query.parts] == ["obj", "sound"] and amb.query.primary == "obj"
+    assert tf.goal("i").needs_image and not tf.goal("o").needs_image
+    runs = tf.runs()
+    assert runs[0] == ("q", [tf.goal("s"), tf.goal("o")])
+    assert [sid for sid, _ in runs[1:]] == ["a", "i", "n"]  # the rest one by one
+
+
+@pytest.mark.parametrize(
+    ("mutate", "needles"),
+    [
+        (lambda d: d["goals"][0].update(type="objekt"), ["unknown goal type 'objekt'", "sound"]),
+        (lambda d: d["goals"][0].update(colour="red"), ["unknown keys ['colour']", "query"]),
+        (lambda d: d["goals"][0].pop("truth"), ["missing required keys ['truth']", "'o'"]),
+        (
+            lambda d: d["goals"][0].update(truth={"thing": 1}),
+            ["give exactly one of", "object", "relation"],
+        ),
+        (lambda d: d["goals"][0]["query"].update(smell="x"), ["unknown query parts ['smell']"]),
+        (
+            lambda d: d["goals"][0]["query"].update(sound="dog"),
+            ["'object' goal queries obj= alone", "ambiguous"],
+        ),
+        (lambda d: d["goals"][1].update(primary="img"), ["primary 'img' is not one of"]),
+        (lambda d: d["goals"][2]["landmarks"].pop(), ["relation 'between' takes 2 landmarks"]),
+        (lambda d: d["goals"][2].update(relation="near"), ["unknown relation 'near'", "left_of"]),
+        (
+            lambda d: d["goals"][2]["landmarks"].__setitem__(0, {"sound": "dog"}),
+            ["multimodal_spatial"],
+        ),
+        (lambda d: d["goals"][3]["query"]["img"].pop("eye"), ["missing required keys ['eye']"]),
+        (lambda d: d["goals"][3]["truth"].update(camera=[1, 2]), ["list of 3 numbers"]),
+        (lambda d: d["goals"][1].update(id="o"), ["goal ids must be unique", "'o'"]),
+        (lambda d: d["sequences"][0]["goals"].append("zz"), ["unknown goal id 'zz'"]),
+        (lambda d: d["scene"].update(path="x.toml"), ["exactly one of name, path, random"]),
+        (lambda d: d.update(version=9), ["version 9 is not supported"]),
+        (lambda d: d.update(format="x"), ["expected 'tabletop-tasks'"]),
+        (lambda d: d["scan"].update(episodes=-1), ["[scan]", "episodes"]),
+        (lambda d: d["scan"].update(sped=1), ["unknown keys ['sped']", "speed"]),
+        (lambda d: d.update(goals=[]), ["non-empty list"]),
+    ],
+)
+def test_bad_files_name_the_problem_and_the_options(mutate, needles):
+    msg = bad(mutate)
+    assert msg.startswith("t.toml")
+    for n in needles:
+        assert n in msg, (n, msg)
+
+
+def test_load_errors_name_the_file(tmp_path):
+    with pytest.raises(TaskFileError, match="not found; shipped suites"):
+        load_tasks(tmp_path / "nope.toml")
+    p = tmp_path / "broken.toml"
+    p.write_text("format = ")
+    with pytest.raises(TaskFileError, match="broken.toml is not valid TOML"):
+        load_tasks(p)
+    p = tmp_path / "t.yaml"
+    p.write_text("x")
+    with pytest.raises(TaskFileError, match="valid: .toml, .json"):
+        load_tasks(p)
+
+
+def test_toml_writer_round_trips(tmp_path):
+    p = tmp_path / "t.toml"
+    p.write_text(to_toml(DOC, "a header"))
+    j = tmp_path / "t.json"
+    j.write_text(json.dumps(DOC))
+    a, b = load_tasks(p), load_tasks(j)
+    assert a.goals == b.goals and a.sequences == b.sequences and a.scan == b.scan
+
+
+def test_truth_resolves_against_ground_truth():
+    r = resolve_truth(Truth("object", object="red_mug"), GT)
+    assert r.distance([0.35, 0.25, 0.05]) == 0.0
+    assert r.distance([0.35, 0.25, 0.2]) == pytest.approx(0.1)
+    # a sound heard twice counts at either place, up to the microphone's height
+    s = resolve_truth(Truth("sound", sound="dog"), GT)
+    assert len(s.boxes) == 2 and s.distance([0.6, 0.3, 0.25]) == 0.0
+    first = resolve_truth(Truth("sound", sound="dog", occurrence=0), GT)  # in time order
+    assert first.distance([0.3, -0.3, 0.0]) == 0.0 and first.distance([0.6, 0.3, 0.0]) > 0.5
+    a = resolve_truth(Truth("area", area="left"), GT)
+    assert a.distance([0.5, 0.3, 0.1]) == 0.0
+    left = resolve_truth(
+        Truth("relation", relation="left_of", of=(Truth("object", object="red_mug"),)), GT
+    )
+    # 10 cm to the left (+y) of the centre, level with the top (robot API conventions)
+    assert np.allclose(left.boxes[0, 0], [0.35, 0.35, 0.1])
+    mid = resolve_truth(
+        Truth(
+            "relation",
+            relation="between",
+            of=(Truth("object", object="tray"), Truth("sound", sound="dog", occurrence=1)),
+        ),
+        GT,
+    )
+    assert np.allclose(mid.boxes[0, 0], [0.6, 0.15, 0.005])
+
+
+@pytest.mark.parametrize(
+    ("truth", "needle"),
+    [
+        (
+            Truth("object", object="blue_mug"),
+            "no object 'blue_mug' in the scene; objects: ['red_mug'",
+        ),
+        (Truth("sound", sound="cat"), "'cat' was not inserted in this scan; inserted: ['dog']"),
+        (Truth("sound", sound="dog", occurrence=2), "occurrences 0..1"),
+        (Truth("area", area="kitchen"), "no area 'kitchen'; areas: ['left side of the table']"),
+        (
+            Truth("relation", relation="behind", of=(Truth("sound", sound="dog"),)),
+            "heard in 2 places; a relation needs one: give occurrence = 0..1",
+        ),
+    ],
+)
+def test_truth_references_the_recording_lacks_are_named(truth, needle):
+    with pytest.raises(TaskFileError) as e:
+        resolve_truth(truth, GT, "f.toml goal 'x' truth")
+    assert needle in str(e.value) and str(e.value).startswith("f.toml goal 'x' truth")
+
+
+def _g(gid, seq, success, status="done", err=0.01):
+    return GoalResult(gid, "object", gid, seq, status, success=success, target_error_m=err)
+
+
+def test_in_a_row_counts_leading_successes():
+    seqs = [
+        [_g("a", "1", True), _g("b", "1", True), _g("c", "1", False)],
+        [_g("d", "2", True), _g("e", "2", False), _g("f", "2", True)],
+        [_g("g", "3", False), _g("h", "3", True)],
+    ]
+    r = in_a_row(seqs)
+    assert r["1"]["success_rate"] == pytest.approx(2 / 3)
+    assert r["2"]["success_rate"] == pytest.approx(1 / 3)
+    assert r["3"] == {"sequences": 2, "success_rate": 0.0}
+
+
+def test_unavailable_goals_and_encoder_sets_are_reported_not_counted():
+    goals = [
+        _g("a", "a", True),
+        _g("b", "b", False, status="not_found", err=None),
+        GoalResult("c", "image", "img", "c", "unavailable", reason="image goals unavailable: x"),
+    ]
+    run = EncoderRun("oracle", {"set": "oracle"}, True, tasks=[TaskRun("t", "t.toml", "s", goals)])
+    off = EncoderRun("default", {}, False, "ConfigError: not wired")
+    res = EvalResult(["t.toml"], [run, off])
+    s = res.to_json()
+    assert s["encoders"] == "oracle" and "simulator upper bound" in s["encoders_label"]
+    obj = s["by_type"]["object"]
+    assert obj["success_rate"] == 0.5 and obj["recall_at"]["2cm"] == 0.5 and obj["not_found"] == 1
+    assert s["by_type"]["image"]["success_rate"] is None
+    assert s["by_type"]["image"]["unavailable"] == 1
+    assert s["rows"][1]["available"] is False and "not wired" in s["rows"][1]["reason"]
+    md = res.to_markdown()
+    assert "unavailable: image goals unavailable: x" in md
+    assert "default | unavailable: ConfigError: not wired" in md
+
+
+def test_shipped_suites_cover_every_goal_type():
+    from tabletop.eval.runner import collect_task_files
+
+    files = collect_task_files("default")
+    scenes = {json.dumps(f.scene.__dict__, default=str, sort_keys=True) for f in files}
+    goals = [g for f in files for g in f.goals]
+    assert len(scenes) >= 5 and len(goals) >= 150
+    assert {g.type for g in goals} == set(GOAL_TYPES)
+    assert sum(len(f.sequences) for f in files) >= 5
+    assert "demo" in list_shipped_tasks()
+    demo = load_tasks("demo")
+    assert {g.type for g in demo.goals} == set(GOAL_TYPES) and len(demo.goals) <= 30
