@@ -8,7 +8,7 @@ from tabletop.errors import ConfigError
 
 __all__ = ["ENCODER_SETS", "EncoderSet", "make_encoders", "make_encoders_from_rebuild"]
 
-ENCODER_SETS = ("oracle", "default")
+ENCODER_SETS = ("oracle", "default", "openclip")
 
 
 @dataclass(frozen=True)
@@ -22,6 +22,9 @@ class EncoderSet:
     audio: object
     names: dict
     rebuild: dict
+    audio_text: object = None
+    """Text encoder of sound queries when the audio encoder has its own space (CLAP); None =
+    ``text``."""
 
 
 def _check_name(name: str) -> None:
@@ -104,7 +107,68 @@ def make_encoders_from_rebuild(name: str, rebuild: dict) -> EncoderSet:
             # None = the committed weights, wherever the package lives when the map is loaded
             {k: rebuild.get(k) for k in ("vision_weights", "audio_weights")},
         )
+    if name == "openclip":
+        return _openclip_set(rebuild)
     raise AssertionError(name)  # _check_name guards
+
+
+_OPENCLIP_KEYS = ("checkpoint", "model_name", "model_cfg", "space")
+_CLAP_KEYS = ("clap_checkpoint", "clap_text_model", "clap_version")
+
+
+def _openclip_set(options: dict) -> EncoderSet:
+    """open_clip for text, dense and global image embeddings; CLAP for audio when given.
+
+    ``options``: ``checkpoint`` (a local open_clip weights file) and ``model_name`` (or
+    ``model_cfg``); optional ``space``; optional ``clap_checkpoint`` + ``clap_text_model``
+    (+ ``clap_version``) for the audio module. Without CLAP the map has no audio module.
+    """
+    from tabletop.mapping.encoders.openclip import OpenClipEncoder
+
+    unknown = sorted(set(options) - set(_OPENCLIP_KEYS) - set(_CLAP_KEYS))
+    if unknown:
+        raise ConfigError(
+            f"openclip encoders: unknown options {unknown}; valid: "
+            f"{list(_OPENCLIP_KEYS + _CLAP_KEYS)}"
+        )
+    if not options.get("checkpoint"):
+        raise ConfigError(
+            "the 'openclip' encoder set needs options={'checkpoint': <local weights file>, "
+            "'model_name': <open_clip architecture>} (nothing is downloaded)"
+        )
+    clip = OpenClipEncoder(
+        options["checkpoint"],
+        model_name=options.get("model_name"),
+        model_cfg=options.get("model_cfg"),
+        space=options.get("space"),
+    )
+    audio = audio_text = None
+    if options.get("clap_checkpoint"):
+        from tabletop.mapping.encoders.clap import MSClapEncoder
+
+        if not options.get("clap_text_model"):
+            raise ConfigError("clap_checkpoint needs clap_text_model (a local text model dir)")
+        audio = audio_text = MSClapEncoder(
+            options["clap_checkpoint"],
+            options["clap_text_model"],
+            version=str(options.get("clap_version", "2023")),
+        )
+    arch = options.get("model_name") or "custom architecture"
+    return EncoderSet(
+        clip,
+        clip,
+        clip,
+        audio,
+        {
+            "set": "openclip (foundation-model backends from local weights)",
+            "text": f"open_clip {arch} ({_short(options['checkpoint'])})",
+            "dense": f"open_clip {arch}, MaskCLIP dense head",
+            "global_image": f"open_clip {arch}",
+            "audio": "msclap" if audio is not None else "none (no CLAP checkpoint given)",
+        },
+        {k: options[k] for k in _OPENCLIP_KEYS + _CLAP_KEYS if k in options},
+        audio_text,
+    )
 
 
 def _short(path: str) -> str:
