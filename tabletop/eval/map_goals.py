@@ -3,37 +3,87 @@
 Goal types (the paper's tabletop experiment): ``object`` (an object's label, e.g. "red mug"),
 ``sound`` (a caption of an inserted sound; a sound heard in two regions counts at either),
 ``ambiguous`` (a duplicated kind, e.g. "mug", disambiguated by a sound heard near one of the
-duplicates: the product of the object's sharp heatmap and the sound's broad one). A goal
-succeeds when the map's target lies within 10 cm of the truth: the object's box, or the table
-point beneath where the sound was heard.
+duplicates: the product of the object's sharp heatmap and the sound's broad one), and with a
+simulator of the scene, ``image`` (an image the wrist camera would take over an object or a
+table point, rendered at a pose the scan never took; the truth is what the image looks at)
+and ``image_ambiguous`` (a duplicated kind disambiguated by an image of the table beside one
+duplicate: the object's sharp heatmap times the image's broad one). A goal succeeds when the
+map's target lies within 10 cm of the truth: the object's box, or the table point.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
+from tabletop.errors import SimulationError
 from tabletop.mapping.heatmaps import fuse
 
-__all__ = ["SUCCESS_M", "MapGoal", "evaluate_map_goals", "map_goals"]
+__all__ = [
+    "SUCCESS_M",
+    "ImageGoalConfig",
+    "MapGoal",
+    "evaluate_map_goals",
+    "image_goals",
+    "map_goals",
+]
 
 SUCCESS_M = 0.10
 
 
 @dataclass(frozen=True)
 class MapGoal:
-    kind: str  # "object" | "sound" | "ambiguous"
+    kind: str  # "object" | "sound" | "ambiguous" | "image" | "image_ambiguous"
     obj: str | None  # object query
     sound: str | None  # sound query
     truth_boxes: tuple  # ((lo, hi), ...) acceptable object boxes, or ()
     truth_points: tuple  # acceptable table points, or ()
+    image: np.ndarray | None = field(default=None, compare=False, repr=False)
+    """(H, W, 3) uint8 image query, rendered from ``T_world_cam``."""
+    T_world_cam: np.ndarray | None = field(default=None, compare=False, repr=False)
+    """(4, 4) [m] pose of the camera that took ``image`` (OpenCV optical frame)."""
+
+
+@dataclass(frozen=True)
+class ImageGoalConfig:
+    """How image goals are posed: a wrist camera over the table at a pose the scan never took."""
+
+    seed: int = 0
+    """Seed of the camera poses."""
+    distance_m: tuple[float, float] = (0.28, 0.45)
+    """Range of the camera's distance [m] from the point it looks at."""
+    elevation_deg: tuple[float, float] = (50.0, 85.0)
+    """Range of the viewing ray's angle [deg] above the table plane."""
+    roll_rad: float = np.pi / 2
+    """Roll about the viewing ray, uniform in [-roll_rad, roll_rad]."""
+    table_points: int = 4
+    """Table-point goals per scene: points 8-15 cm beside a random object (so that the image
+    shows something), outside every object's footprint."""
+    min_new_m: float = 0.05
+    """A goal camera is at least this far [m] from every camera pose of the recording."""
 
 
 def _box_dist(p, lo, hi) -> float:
     return float(
         np.linalg.norm(np.maximum(np.subtract(lo, p), 0) + np.maximum(np.subtract(p, hi), 0))
     )
+
+
+def _disambiguated(point, dups: list[dict], min_margin: float) -> dict | None:
+    """The duplicate nearest ``point`` if it is at least ``min_margin`` [m] nearer than the
+    others, else None."""
+    d = [_box_dist(point, o["aabb_min"], o["aabb_max"]) for o in dups]
+    order = np.argsort(d)
+    return dups[order[0]] if d[order[1]] - d[order[0]] >= min_margin else None
+
+
+def _duplicates(objs: list[dict]) -> list[list[dict]]:
+    kinds = [o["kind"] for o in objs]
+    return [
+        [o for o in objs if o["kind"] == k]
+        for k in sorted({k for k in kinds if kinds.count(k) > 1})
+    ]
 
 
 def map_goals(ground_truth: dict, min_margin: float = 0.05) -> list[MapGoal]:
@@ -47,41 +97,135 @@ def map_goals(ground_truth: dict, min_margin: float = 0.05) -> list[MapGoal]:
     for e in events:
         pts = tuple(tuple(x["table_point"]) for x in events if x["category"] == e["category"])
         goals.append(MapGoal("sound", None, e["caption"], (), pts))
-    kinds = [o["kind"] for o in objs]
-    for kind in sorted({k for k in kinds if kinds.count(k) > 1}):
-        dups = [o for o in objs if o["kind"] == kind]
+    for dups in _duplicates(objs):
         for e in events:
             if [x["category"] for x in events].count(e["category"]) > 1:
                 continue  # an ambiguous sound cannot disambiguate
-            d = [_box_dist(e["table_point"], o["aabb_min"], o["aabb_max"]) for o in dups]
-            order = np.argsort(d)
-            if d[order[1]] - d[order[0]] < min_margin:
-                continue
-            near = dups[order[0]]
-            goals.append(
-                MapGoal(
-                    "ambiguous",
-                    near["category"],
-                    e["caption"],
-                    ((near["aabb_min"], near["aabb_max"]),),
-                    (),
-                )
-            )
+            near = _disambiguated(e["table_point"], dups, min_margin)
+            if near is not None:
+                box = ((near["aabb_min"], near["aabb_max"]),)
+                goals.append(MapGoal("ambiguous", near["category"], e["caption"], box, ()))
     return goals
 
 
-def evaluate_map_goals(m, ground_truth: dict) -> dict:
-    """Per goal type: goals, successes, success rate, mean error [m]."""
-    out: dict = {}
-    for g in map_goals(ground_truth):
-        if g.kind == "object":
-            target = m.get_max_pos_3d(m.object_heatmap(g.obj))
-        elif g.kind == "sound":
-            target = m.get_max_pos_3d(m.sound_heatmap(g.sound))
-        else:
-            target = m.get_max_pos_3d(
-                fuse(m.object_heatmap(g.obj).values, m.sound_heatmap(g.sound, major=False).values)
+def image_goals(
+    ground_truth: dict,
+    world,
+    config: ImageGoalConfig | None = None,
+    recorded_T_world_cam: np.ndarray | None = None,
+    min_margin: float = 0.05,
+) -> list[MapGoal]:
+    """Image and image-ambiguous goals rendered by ``world`` (a
+    :class:`~tabletop.sim.world.SimWorld` of the recording's scene).
+
+    One image per object (looking at its centre), ``config.table_points`` images of table
+    points beside objects, and per duplicate of a duplicated kind one image of a table point
+    6-12 cm beside it (kept when that point is ``min_margin`` [m] nearer it than the other
+    duplicates). Camera poses are drawn until they lie ``config.min_new_m`` from every pose in
+    ``recorded_T_world_cam`` (N, 4, 4).
+    """
+    from tabletop.arm import HOME_Q, PandaModel, solve_ik
+    from tabletop.sim.teleop import look_at
+    from tabletop.transforms import invert
+
+    config = config or ImageGoalConfig()
+    rng = np.random.default_rng(config.seed)
+    objs = ground_truth["objects"]
+    model = PandaModel()
+    T_cam_hand = invert(world.camera.T_hand_cam)
+    recorded = None if recorded_T_world_cam is None else recorded_T_world_cam[:, :3, 3]
+
+    def render(target) -> tuple[np.ndarray, np.ndarray]:
+        # The arm holds the camera (IK), so the image shows what a wrist camera would: the
+        # fingers at the bottom, never the arm itself in front of the table.
+        for _ in range(100):
+            dist = rng.uniform(*config.distance_m)
+            elev = np.deg2rad(rng.uniform(*config.elevation_deg))
+            azim = rng.uniform(np.pi / 2, 3 * np.pi / 2)  # from the robot's side of the point
+            ray = np.array([np.cos(elev) * np.cos(azim), np.cos(elev) * np.sin(azim), np.sin(elev)])
+            eye = np.asarray(target, float) + dist * ray
+            if (
+                recorded is not None
+                and np.linalg.norm(recorded - eye, axis=1).min() < config.min_new_m
+            ):
+                continue
+            T = look_at(eye, target, rng.uniform(-config.roll_rad, config.roll_rad))
+            res = solve_ik(model, T @ T_cam_hand, HOME_Q, frame="panda_hand")
+            if res.pos_error_m > 0.002 or res.rot_error_rad > np.deg2rad(0.5):
+                continue
+            world.set_arm(res.q)
+            if world.min_clearance(0.02) < 0.01:
+                continue
+            T = world.T_world_cam()
+            return world.render(T).rgb, T
+        raise SimulationError(
+            f"no reachable new camera pose looks at {np.round(target, 3).tolist()}"
+        )
+
+    def beside(o, lo_m: float, hi_m: float) -> np.ndarray:
+        for _ in range(100):
+            a, r = rng.uniform(0, 2 * np.pi), rng.uniform(lo_m, hi_m)
+            p = np.array([*np.add(o["center"][:2], r * np.array([np.cos(a), np.sin(a)])), 0.0])
+            free = all(_box_dist(p, b["aabb_min"], b["aabb_max"]) > 0.01 for b in objs)
+            t = ground_truth["table"]
+            on_table = t["x"][0] + 0.03 < p[0] < t["x"][1] - 0.03 and t["y"][0] + 0.03 < p[1] < (
+                t["y"][1] - 0.03
             )
+            if free and on_table:
+                return p
+        return np.array([*o["center"][:2], 0.0])
+
+    goals = []
+    for o in objs:
+        img, T = render(o["center"])
+        box = ((o["aabb_min"], o["aabb_max"]),)
+        goals.append(MapGoal("image", None, None, box, (), img, T))
+    for _ in range(config.table_points):
+        p = beside(objs[rng.integers(len(objs))], 0.08, 0.15)
+        img, T = render(p)
+        goals.append(MapGoal("image", None, None, (), (tuple(p),), img, T))
+    for dups in _duplicates(objs):
+        for o in dups:
+            p = beside(o, 0.06, 0.12)
+            if _disambiguated(p, dups, min_margin) is not o:
+                continue
+            img, T = render(p)
+            box = ((o["aabb_min"], o["aabb_max"]),)
+            goals.append(MapGoal("image_ambiguous", o["category"], None, box, (), img, T))
+    return goals
+
+
+def _target(m, g: MapGoal) -> np.ndarray:
+    if g.kind == "object":
+        return m.get_max_pos_3d(m.object_heatmap(g.obj))
+    if g.kind == "sound":
+        return m.get_max_pos_3d(m.sound_heatmap(g.sound))
+    if g.kind == "ambiguous":
+        aux = m.sound_heatmap(g.sound, major=False)
+        return m.get_max_pos_3d(fuse(m.object_heatmap(g.obj).values, aux.values))
+    if g.kind == "image":
+        return m.get_max_pos_3d(m.image_heatmap(g.image))
+    aux = m.image_heatmap(g.image, major=False)
+    return m.get_max_pos_3d(fuse(m.object_heatmap(g.obj).values, aux.values))
+
+
+def evaluate_map_goals(
+    m,
+    ground_truth: dict,
+    *,
+    world=None,
+    image_config: ImageGoalConfig | None = None,
+    recorded_T_world_cam: np.ndarray | None = None,
+) -> dict:
+    """Per goal type: goals, successes, success rate, mean error [m]. With ``world`` (a
+    :class:`~tabletop.sim.world.SimWorld` of the scene), image goals too (:func:`image_goals`);
+    an image the map cannot localise is a failed goal."""
+    goals = map_goals(ground_truth)
+    if world is not None:
+        goals += image_goals(ground_truth, world, image_config, recorded_T_world_cam)
+    out: dict = {}
+    for g in goals:
+        target = _target(m, g)
         errs = [_box_dist(target, lo, hi) for lo, hi in g.truth_boxes]
         errs += [float(np.linalg.norm(np.subtract(target, p))) for p in g.truth_points]
         err = min(errs)
@@ -98,7 +242,8 @@ def evaluate_map_goals(m, ground_truth: dict) -> dict:
 def run_map_eval(
     seeds: int = 3, speed: float = 0.3, encoders: str = "oracle", progress=None
 ) -> dict:
-    """Scan the default scene and a generated scene per seed, build maps, score the goals.
+    """Scan the default scene and a generated scene per seed, build maps, score the goals
+    (image goals rendered by a second simulator of the same scene).
 
     Returns {"runs": [...], "by_type": {type: {goals, successes, success_rate}}, "encoders"}.
     """
@@ -108,6 +253,7 @@ def run_map_eval(
     from tabletop.mapping.avlmap import AVLMap
     from tabletop.sim.scan import ScanConfig, run_scan
     from tabletop.sim.scene import load_scene_spec
+    from tabletop.sim.world import SimWorld
 
     runs, totals = [], {}
     names = None
@@ -122,7 +268,14 @@ def run_map_eval(
             rec, _ = run_scan(spec, ScanConfig(seed=seed, speed=speed, episodes=6))
             m = AVLMap.build(rec, encoders=encoders)
             names = m.encoder_names
-            r = evaluate_map_goals(m, rec.ground_truth)
+            with SimWorld(spec) as world:
+                r = evaluate_map_goals(
+                    m,
+                    rec.ground_truth,
+                    world=world,
+                    image_config=ImageGoalConfig(seed=seed),
+                    recorded_T_world_cam=rec.T_world_cam,
+                )
             runs.append({"scene": scene, "seed": seed, "result": r})
             for k, v in r.items():
                 t = totals.setdefault(k, {"goals": 0, "successes": 0})

@@ -4,7 +4,8 @@ audio segments tied to the poses where they were heard; queries in any modality 
 Build it from a recording with :meth:`AVLMap.build` (batch) or frame by frame with
 :meth:`AVLMap.add_frame` and :meth:`AVLMap.add_audio` (online: the same result). Queries:
 :meth:`object_heatmap` (text), :meth:`sound_heatmap` (text), :meth:`area_heatmap` (text),
-each returning a :class:`Heatmap` with a calibrated ``confidence`` and ``found`` flag.
+:meth:`image_heatmap` (an RGB image of the table), each returning a :class:`Heatmap` with a
+``confidence`` and ``found`` flag.
 """
 
 from __future__ import annotations
@@ -12,7 +13,7 @@ from __future__ import annotations
 import logging
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -27,6 +28,14 @@ from tabletop.mapping.heatmaps import (
     MAJOR_DECAY,
     point_heatmap_3d,
     scored_points_heatmap_xy,
+)
+from tabletop.mapping.visual_localization import (
+    VisualDatabase,
+    VisualDatabaseError,
+    VisualLocalization,
+    VisualLocalizationConfig,
+    check_rgb,
+    localize_image,
 )
 from tabletop.mapping.voxel_map import VoxelMap, frame_points
 from tabletop.sim.catalog import OBJECT_KINDS
@@ -67,12 +76,19 @@ class MapConfig:
     gate: NoiseGateConfig = field(default_factory=NoiseGateConfig)
     self_filter_margin: float | None = 0.01
     """Drop points within this margin [m] of the robot's links (None: keep them)."""
+    visual: VisualLocalizationConfig | None = field(default_factory=VisualLocalizationConfig)
+    """The visual localization module's reference frames and matcher (None: no image goals)."""
+    image_target_px: float = 0.2
+    """An image goal's target is the median surface point of the rays through the central
+    ``image_target_px`` fraction of the image's width and height."""
 
     def __post_init__(self) -> None:
         if self.pixel_step < 1 or self.frame_step < 1:
             raise ConfigError("pixel_step and frame_step must be >= 1")
         if "other" not in self.categories:
             raise ConfigError("categories must include 'other'")
+        if not 0 < self.image_target_px <= 1:
+            raise ConfigError(f"image_target_px must be in (0, 1], got {self.image_target_px}")
 
 
 @dataclass(frozen=True)
@@ -86,6 +102,8 @@ class Heatmap:
     confidence: float  # calibrated, in [0, 1]
     found: bool
     reason: str = ""
+    target: np.ndarray | None = None  # (3,) [m] world frame: the point the query names, for
+    # the modules that locate one point (image: the surface the image looks at); else None
 
 
 @dataclass(frozen=True)
@@ -96,6 +114,8 @@ class MapStats:
     fusion_s: float
     voxels: int
     audio_segments: int
+    reference_frames: int = 0  # frames kept by the visual localization module
+    visual_s: float = 0.0  # time spent extracting their local features [s]
 
 
 def _tcp_positions(T_world_hand: np.ndarray) -> np.ndarray:
@@ -147,9 +167,12 @@ class AVLMap:
         self.segments: list[AudioSegment] = []
         self.segment_embeddings: list[np.ndarray] = []
         self.segment_positions: list[np.ndarray] = []  # (3,) mean TCP while heard
+        self.visual = None if config.visual is None else VisualDatabase(config.visual)
+        """The visual localization module's reference frames (None: no image goals)."""
         self._frames_seen = 0
         self.encoder_s = 0.0
         self.fusion_s = 0.0
+        self.visual_s = 0.0
 
     # ------------------------------------------------------------------ building
     def add_frame(
@@ -162,9 +185,14 @@ class AVLMap:
         joint_positions: np.ndarray | None = None,
     ) -> None:
         """Fuse one RGB-D frame (online). ``context`` feeds the encoders (oracle: segmentation);
-        with ``joint_positions`` the robot's own points are filtered out."""
+        with ``joint_positions`` the robot's own points are filtered out. Every
+        ``config.visual.stride``-th frame is kept as a visual reference frame."""
         i = self._frames_seen
         self._frames_seen += 1
+        if self.visual is not None:
+            t = time.perf_counter()
+            self.visual.add_frame(rgb, depth, K, T_world_cam)
+            self.visual_s += time.perf_counter() - t
         t0 = time.perf_counter()
         if self.global_image is not None:
             self.frame_embeddings.append(self.global_image.encode_image(rgb, context))
@@ -284,6 +312,7 @@ class AVLMap:
                 min_confidence=c["min_confidence"],
                 gate=NoiseGateConfig(**c["gate"]),
                 self_filter_margin=c["self_filter_margin"],
+                visual=None,  # restored with the reference frames below
             )
         except (KeyError, TypeError, ConfigError) as e:
             raise MapFormatError(f"{path}: config is invalid: {e}") from None
@@ -322,6 +351,13 @@ class AVLMap:
         m.segment_embeddings = list(a["segment_embeddings"])
         m.segment_positions = list(a["segment_positions"])
         m._frames_seen = int(h["frames_seen"])
+        if h.get("visual") is not None:
+            visual = {k.removeprefix("visual_"): v for k, v in a.items() if k.startswith("visual_")}
+            try:
+                m.visual = VisualDatabase.from_state(h["visual"], visual)
+            except VisualDatabaseError as e:
+                raise VisualDatabaseError(f"{path}: {e}") from None
+            m.config = replace(config, visual=m.visual.config)
         return m
 
     @property
@@ -334,6 +370,8 @@ class AVLMap:
             self.fusion_s,
             self.voxels.n,
             len(self.segments),
+            0 if self.visual is None else len(self.visual),
+            self.visual_s,
         )
 
     # ------------------------------------------------------------------ queries
@@ -443,6 +481,87 @@ class AVLMap:
         values = scored_points_heatmap_xy(self.grid, pts[top], scores[top], decay)
         conf = self._confidence(float(s.max()), float(np.median(s)))
         return Heatmap(values, query, "area", decay, conf, True)
+
+    def localize(self, rgb: np.ndarray, K: np.ndarray | None = None) -> VisualLocalization:
+        """Where the camera was when it took ``rgb`` (H, W, 3) uint8 (the visual localization
+        module); ``ok=False`` with a reason when that is not known. ``K`` (3, 3) [px] is needed
+        for an image of another size than the map's reference frames (another camera)."""
+        rgb = check_rgb(rgb)
+        if self.visual is None:
+            return VisualLocalization(
+                False,
+                "the map has no visual localization module (MapConfig.visual=None)",
+                None,
+                None,
+            )
+        size = (rgb.shape[1], rgb.shape[0])
+        if K is None and len(self.visual) and size != self.visual.image_size:
+            raise ConfigError(
+                f"the image is {size[0]}x{size[1]} px but the map's camera "
+                f"{self.visual.image_size[0]}x{self.visual.image_size[1]}: pass its intrinsics K"
+            )
+        return localize_image(self.visual, rgb, K)
+
+    def image_target(
+        self, T_world_cam: np.ndarray, K: np.ndarray, image_size: tuple[int, int]
+    ) -> np.ndarray:
+        """(3,) [m] world point an image taken from ``T_world_cam`` shows at its centre.
+
+        Rays through a 5 x 5 grid over the central ``config.image_target_px`` of the image
+        (``K`` (3, 3) [px], ``image_size`` = (width, height) [px]) are marched
+        through the map's occupancy to the first occupied voxel, or to the table plane z = 0;
+        the target is their per-axis median. A median of several rays is not swayed by one ray
+        that grazes an object's edge.
+        """
+        K = np.asarray(K, np.float64)
+        w, h = image_size
+        f = self.config.image_target_px / 2
+        u, v = np.meshgrid(
+            np.linspace(0.5 - f, 0.5 + f, 5) * w, np.linspace(0.5 - f, 0.5 + f, 5) * h
+        )
+        rays = np.stack([(u.ravel() - K[0, 2]) / K[0, 0], (v.ravel() - K[1, 2]) / K[1, 1]], 1)
+        rays = np.concatenate([rays, np.ones((len(rays), 1))], axis=1) @ T_world_cam[:3, :3].T
+        rays /= np.linalg.norm(rays, axis=1, keepdims=True)
+        c = T_world_cam[:3, 3]
+        # March to the table plane (2 m at most) in half-voxel steps.
+        s_max = np.where(rays[:, 2] < -1e-6, -c[2] / np.minimum(rays[:, 2], -1e-6), 2.0)
+        steps = np.arange(0.0, float(min(s_max.max(), 2.0)), self.grid.voxel_size / 2)
+        pts = c + steps[None, :, None] * rays[:, None, :]  # (R, S, 3)
+        idx, inside = self.grid.world_to_index(pts.reshape(-1, 3))
+        occ = np.zeros(len(idx), bool)
+        occ[inside] = self.voxels.occupancy()[tuple(idx[inside].T)]
+        occ = occ.reshape(len(rays), len(steps)) & (steps[None, :] <= s_max[:, None])
+        first = np.where(occ.any(axis=1), occ.argmax(axis=1), -1)
+        hits = [pts[r, first[r]] for r in range(len(rays)) if first[r] >= 0]
+        hits += [
+            c + s_max[r] * rays[r] for r in range(len(rays)) if first[r] < 0 and s_max[r] < 2.0
+        ]
+        if not hits:
+            return c + s_max[len(rays) // 2] * rays[len(rays) // 2]
+        return np.median(np.array(hits), axis=0)
+
+    def image_heatmap(
+        self, rgb: np.ndarray, major: bool = True, K: np.ndarray | None = None
+    ) -> Heatmap:
+        """Heat around the table region an image shows (the visual localization module).
+
+        ``rgb`` (H, W, 3) uint8 is an image of the table, as the wrist camera would take it.
+        The image is localised against the map's reference frames; its target ``p_v`` is the
+        surface point at the image's centre (:meth:`image_target`), and
+        ``H_v(p) = max(1 - eps * d_xy(p, p_v), 0)``. A failed localisation gives ``found=False``
+        with its reason; malformed input raises :class:`ConfigError`. ``K``: see
+        :meth:`localize`. ``confidence`` is the fraction of feature matches the pose explains.
+        """
+        decay = self._decay(major)
+        rgb = check_rgb(rgb)
+        query = f"image {rgb.shape[1]}x{rgb.shape[0]}"
+        loc = self.localize(rgb, K)
+        if not loc.ok:
+            return self._empty(query, "image", decay, loc.reason)
+        K = self.visual.K if K is None else K
+        target = self.image_target(loc.T_world_cam, K, (rgb.shape[1], rgb.shape[0]))
+        values = scored_points_heatmap_xy(self.grid, target[None, :2], [1.0], decay)
+        return Heatmap(values, query, "image", decay, loc.inlier_ratio, True, target=target)
 
     def surface_z(self, xy: np.ndarray) -> float:
         """Height [m] of the top occupied voxel at ``xy`` (0, the table, where none)."""

@@ -1,11 +1,14 @@
-"""Saving and loading an AVLMap: one ``.npz`` file with a JSON header (``tabletop-avlmap`` v1).
+"""Saving and loading an AVLMap: one ``.npz`` file with a JSON header (``tabletop-avlmap`` v2).
 
 The header holds the format name and version, the map config (grid, fusion and query
 parameters), the encoder set's name and what is needed to re-create it (the oracle's labels and
 sound events), and the counts every array must agree with. Arrays: the voxel state (linear
 indices, feature sums, point counts, colour sums), per-frame global embeddings and camera poses,
-audio segments with their embeddings and positions. Writing is atomic (a temporary file, then a
-rename); loading validates and names what is wrong. See ``docs/map_format.md``.
+audio segments with their embeddings and positions, and (version 2) the visual localization
+module's reference frames (``visual_*`` arrays, described by the header's ``visual`` entry).
+Version 1 files (no visual module) still load; their maps answer image goals "not found".
+Writing is atomic (a temporary file, then a rename); loading validates and names what is wrong.
+See ``docs/mapping.md``.
 """
 
 from __future__ import annotations
@@ -24,7 +27,9 @@ from tabletop.errors import TabletopError
 __all__ = ["MAP_FORMAT", "MAP_VERSION", "MapFormatError", "read_map_file", "save_map"]
 
 MAP_FORMAT = "tabletop-avlmap"
-MAP_VERSION = 1
+MAP_VERSION = 2
+#: Versions this code reads: 1 (no visual module) and 2.
+READABLE_VERSIONS = (1, 2)
 
 
 class MapFormatError(TabletopError, ValueError):
@@ -64,11 +69,11 @@ def save_map(m, path: str | Path, *, rebuild: dict | None = None) -> Path:
         "frames_seen": m._frames_seen,
         "n_segments": len(m.segments),
         "segments": [[s.start_s, s.end_s] for s in m.segments],
+        "visual": None,
     }
     st = m.voxels.state()
     d = m.voxels.dim
     arrays = {
-        "header": np.frombuffer(json.dumps(header).encode(), dtype=np.uint8),
         "voxel_linear": st["linear"],
         "voxel_feature_sums": st["feature_sums"],
         "voxel_counts": st["counts"],
@@ -78,6 +83,10 @@ def save_map(m, path: str | Path, *, rebuild: dict | None = None) -> Path:
         "segment_embeddings": np.array(m.segment_embeddings, np.float32).reshape(-1, d),
         "segment_positions": np.array(m.segment_positions, np.float64).reshape(-1, 3),
     }
+    if m.visual is not None:
+        header["visual"], visual = m.visual.state()
+        arrays.update({f"visual_{k}": v for k, v in visual.items()})
+    arrays["header"] = np.frombuffer(json.dumps(header).encode(), dtype=np.uint8)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
     os.close(fd)
     try:
@@ -108,10 +117,10 @@ def read_map_file(path: str | Path) -> tuple[dict, dict[str, np.ndarray]]:
         raise MapFormatError(f"{path}: header is not valid JSON: {e}") from None
     if h.get("format") != MAP_FORMAT:
         raise MapFormatError(f"{path}: format {h.get('format')!r}, expected {MAP_FORMAT!r}")
-    if h.get("version") != MAP_VERSION:
+    if h.get("version") not in READABLE_VERSIONS:
         raise MapFormatError(
             f"{path}: version {h.get('version')!r} is not supported; this tabletop reads "
-            f"version {MAP_VERSION}"
+            f"versions {list(READABLE_VERSIONS)}"
         )
     expect = {
         "voxel_linear": (h["n_voxels"],),

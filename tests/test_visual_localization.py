@@ -1,0 +1,195 @@
+"""The visual localization module on real PyBullet renders: a short scan of the default scene
+is the reference; queries are rendered by a second simulator of the scene, the arm holding the
+wrist camera at poses the scan never took."""
+
+import numpy as np
+import pytest
+
+from tabletop.errors import ConfigError
+from tabletop.eval.map_goals import ImageGoalConfig, image_goals
+from tabletop.mapping.avlmap import AVLMap, MapConfig
+from tabletop.mapping.visual_localization import (
+    VisualDatabaseError,
+    VisualLocalizationConfig,
+    _unturn,
+    build_visual_database,
+    localize_image,
+    look_at_point,
+)
+from tabletop.sim.scan import ScanConfig, run_scan
+from tabletop.sim.scene import load_scene_spec
+from tabletop.sim.world import SimWorld
+
+#: Reference frames: every 10th of a ~320-frame scan (about 7 cm of camera travel apart).
+STRIDE = 10
+#: Queries: views of these objects (textured or coloured ones, each with neighbours in view).
+QUERY_OBJECTS = ("grey tray", "red lego brick", "green toy cube")
+
+
+@pytest.fixture(scope="module")
+def rec():
+    cfg = ScanConfig(seed=3, speed=0.45, episodes=0, repeat_sounds=0)
+    return run_scan(load_scene_spec("default"), cfg)[0]
+
+
+@pytest.fixture(scope="module")
+def queries(rec):
+    """Image goals of the objects in QUERY_OBJECTS: (goal, object label)."""
+    with SimWorld(load_scene_spec("default")) as world:
+        goals = image_goals(
+            rec.ground_truth, world, ImageGoalConfig(seed=2, table_points=0), rec.T_world_cam
+        )
+    labels = [o["label"] for o in rec.ground_truth["objects"]]
+    return [(g, lab) for g, lab in zip(goals, labels, strict=False) if lab in QUERY_OBJECTS]
+
+
+@pytest.fixture(scope="module")
+def databases(rec):
+    return {
+        m: build_visual_database(rec, VisualLocalizationConfig(matcher=m, stride=STRIDE))
+        for m in ("sift", "xfeat")
+    }
+
+
+def rotation_deg(R_a, R_b) -> float:
+    c = (np.trace(R_a.T @ R_b) - 1) / 2
+    return float(np.degrees(np.arccos(np.clip(c, -1, 1))))
+
+
+def test_queries_are_new_poses(rec, queries):
+    assert len(queries) == len(QUERY_OBJECTS)
+    cams = rec.T_world_cam[:, :3, 3]
+    for g, _ in queries:
+        assert np.linalg.norm(cams - g.T_world_cam[:3, 3], axis=1).min() >= 0.05
+        assert g.image.shape == (240, 320, 3) and g.image.dtype == np.uint8
+
+
+@pytest.mark.parametrize("matcher", ["sift", "xfeat"])
+def test_a_new_view_localises_within_cm_and_degrees(rec, databases, queries, matcher):
+    db = databases[matcher]
+    assert len(db) == -(-len(rec) // STRIDE) and db.frame_indices[1] == STRIDE
+    for g, label in queries:
+        loc = localize_image(db, g.image)
+        assert loc.ok, (matcher, label, loc.reason)
+        assert np.linalg.norm(loc.position - g.T_world_cam[:3, 3]) <= 0.03, (matcher, label)
+        assert rotation_deg(loc.T_world_cam[:3, :3], g.T_world_cam[:3, :3]) <= 3.0
+        truth = look_at_point(g.T_world_cam)
+        assert np.linalg.norm(loc.look_at_point - truth) <= 0.02
+        assert loc.inliers >= db.config.min_inliers and 0 < loc.inlier_ratio <= 1
+        assert len(loc.references) == db.config.top_n
+
+
+def test_blank_and_unrelated_images_fail_with_a_reason(databases):
+    db = databases["sift"]
+    blank = np.full((240, 320, 3), 128, np.uint8)
+    loc = localize_image(db, blank)
+    assert not loc.ok and loc.T_world_cam is None and "blank image" in loc.reason
+    # An unrelated picture: seeded random rectangles, rich in corners, none of the scene.
+    rng = np.random.default_rng(0)
+    img = np.zeros((240, 320, 3), np.uint8)
+    for _ in range(60):
+        x, y = rng.integers(0, 300), rng.integers(0, 220)
+        img[y : y + rng.integers(5, 40), x : x + rng.integers(5, 40)] = rng.integers(0, 255, 3)
+    for matcher in ("sift", "xfeat"):
+        loc = localize_image(databases[matcher], img)
+        assert not loc.ok and loc.position is None, matcher
+        assert loc.reason.startswith("no pose found"), loc.reason
+
+
+def test_bad_input_names_the_problem(databases):
+    db = databases["sift"]
+    with pytest.raises(ConfigError, match="uint8"):
+        localize_image(db, np.zeros((240, 320, 3), np.float32))
+    with pytest.raises(ConfigError, match=r"shape \(H, W, 3\)"):
+        localize_image(db, np.zeros((240, 320), np.uint8))
+    with pytest.raises(ConfigError, match="fx, fy > 0"):
+        localize_image(db, np.zeros((240, 320, 3), np.uint8), K=np.zeros((3, 3)))
+    with pytest.raises(ConfigError, match=r"unknown matcher 'orb'; valid: \['xfeat', 'sift'\]"):
+        VisualLocalizationConfig(matcher="orb")
+
+
+def test_turned_keypoints_map_back_to_the_same_pixels():
+    rng = np.random.default_rng(1)
+    img = rng.integers(0, 255, (24, 32)).astype(np.int64)
+    for k in range(4):
+        turned = np.rot90(img, k)
+        tv, tu = np.nonzero(turned >= 0)
+        back = _unturn(np.stack([tu, tv], 1).astype(np.float32), k, 32, 24).astype(int)
+        np.testing.assert_array_equal(img[back[:, 1], back[:, 0]], turned[tv, tu])
+
+
+# ---------------------------------------------------------------------------- in the map
+@pytest.fixture(scope="module")
+def avlmap(rec):
+    # SIFT keeps the map tests fast (XFeat is exercised above); the map code is the same.
+    config = MapConfig(frame_step=4, visual=VisualLocalizationConfig(matcher="sift", stride=STRIDE))
+    return AVLMap.build(rec, config, encoders="oracle")
+
+
+def test_map_image_heatmap_peaks_on_what_the_image_shows(avlmap, queries, rec):
+    objs = {o["label"]: o for o in rec.ground_truth["objects"]}
+    assert avlmap.stats.reference_frames == len(avlmap.visual) == -(-len(rec) // STRIDE)
+    for g, label in queries:
+        h = avlmap.image_heatmap(g.image)
+        assert h.found and h.modality == "image" and h.decay == avlmap.config.major_decay
+        assert h.values.shape == avlmap.grid.shape and h.values.dtype == np.float32
+        assert 0.0 <= h.values.min() and h.values.max() <= 1.0
+        p = avlmap.get_max_pos_3d(h)
+        lo, hi = np.array(objs[label]["aabb_min"]), np.array(objs[label]["aabb_max"])
+        assert np.linalg.norm(np.maximum(lo - p, 0) + np.maximum(p - hi, 0)) <= 0.10, label
+        # The paper's H_v(p) = max(1 - eps * d_xy(p, p_v), 0), checked at every voxel.
+        xs, ys, _ = avlmap.grid.axes()
+        d = np.hypot(xs[:, None] - h.target[0], ys[None, :] - h.target[1])
+        ref = np.maximum(1 - h.decay * d, 0)
+        np.testing.assert_allclose(h.values[:, :, 0], ref, atol=1e-5)
+
+
+def test_broad_image_heatmap_and_failure_is_not_found_not_an_exception(avlmap, queries):
+    g = queries[0][0]
+    h, broad = avlmap.image_heatmap(g.image), avlmap.image_heatmap(g.image, major=False)
+    assert broad.decay == avlmap.config.aux_decay and broad.values.sum() > h.values.sum()
+    np.testing.assert_array_equal(broad.target, h.target)
+    h = avlmap.image_heatmap(np.full((240, 320, 3), 90, np.uint8))
+    assert not h.found and "blank image" in h.reason and not h.values.any()
+    with pytest.raises(ConfigError, match="pass its intrinsics K"):
+        avlmap.image_heatmap(np.full((480, 640, 3), 90, np.uint8))
+
+
+def test_online_and_batch_reference_frames_agree(avlmap, rec):
+    batch = build_visual_database(rec, avlmap.config.visual)
+    (h_map, a_map), (h_batch, a_batch) = avlmap.visual.state(), batch.state()
+    assert h_map == h_batch
+    for k in a_map:
+        np.testing.assert_array_equal(a_map[k], a_batch[k], err_msg=k)
+
+
+def test_save_load_round_trip_and_corrupted_visual_arrays(avlmap, queries, tmp_path):
+    path = avlmap.save(tmp_path / "map.npz")
+    back = AVLMap.load(path)
+    assert back.config.visual == avlmap.config.visual
+    (h0, a0), (h1, a1) = avlmap.visual.state(), back.visual.state()
+    assert h0 == h1 and all(np.array_equal(a0[k], a1[k]) for k in a0)
+    g = queries[0][0]
+    np.testing.assert_array_equal(
+        back.image_heatmap(g.image).values, avlmap.image_heatmap(g.image).values
+    )
+
+    with np.load(path) as z:
+        arrays = {k: z[k] for k in z.files}
+
+    def corrupt(name, **change):
+        bad = {**arrays, **change}
+        np.savez(tmp_path / name, **bad)
+        return tmp_path / name
+
+    offsets = arrays["visual_keypoint_offsets"].copy()
+    offsets[-1] += 7
+    with pytest.raises(VisualDatabaseError, match=r"bad1\.npz: visual database keypoint_offsets"):
+        AVLMap.load(corrupt("bad1.npz", visual_keypoint_offsets=offsets))
+    short = arrays["visual_descriptors"][:-1]
+    with pytest.raises(VisualDatabaseError, match="'descriptors' has shape"):
+        AVLMap.load(corrupt("bad2.npz", visual_descriptors=short))
+    no_points = {k: v for k, v in arrays.items() if k != "visual_points_world"}
+    np.savez(tmp_path / "bad3.npz", **no_points)
+    with pytest.raises(VisualDatabaseError, match="array 'points_world' is missing"):
+        AVLMap.load(tmp_path / "bad3.npz")
