@@ -179,6 +179,7 @@ def cmd_query(args: argparse.Namespace) -> int:
     from tabletop.mapping.avlmap import AVLMap
     from tabletop.mapping.heatmaps import fuse
     from tabletop.mapping.render import write_heatmap_views
+    from tabletop.robot.api import RobotAPI
 
     m = AVLMap.load(args.map)
     parts = []
@@ -186,18 +187,23 @@ def cmd_query(args: argparse.Namespace) -> int:
         ("obj", True),
         ("sound", True),
         ("area", True),
+        ("img", True),
         ("near_obj", False),
         ("near_sound", False),
         ("near_area", False),
+        ("near_img", False),
     ):
         q = getattr(args, kind)
         if q is None:
             continue
         modality = kind.removeprefix("near_")
+        if modality == "img":
+            parts.append(m.image_heatmap(RobotAPI.load_image(q), major=major))
+            continue
         fn = {"obj": m.object_heatmap, "sound": m.sound_heatmap, "area": m.area_heatmap}[modality]
         parts.append(fn(q, major=major))
     if not parts:
-        print("tabletop query: give at least one of --obj, --sound, --area", file=sys.stderr)
+        print("tabletop query: give at least one of --obj, --sound, --area, --img", file=sys.stderr)
         return 2
     t0 = time.perf_counter()
     fused = fuse(*[h.values for h in parts])
@@ -210,6 +216,11 @@ def cmd_query(args: argparse.Namespace) -> int:
             f"  {h.modality:6s} {h.query!r:40s} decay {h.decay:g}/m  "
             f"confidence {h.confidence:.2f}  {status}"
         )
+        if h.modality == "image" and h.found:
+            print(
+                f"         the image shows x={h.target[0]:.3f} y={h.target[1]:.3f} "
+                f"z={h.target[2]:.3f} m (world frame)"
+            )
     if not all(h.found for h in parts):
         print("target:   none (a part of the query matches nothing in the map)")
         return 1
@@ -538,9 +549,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--obj", help="object description (primary, sharp heatmap)")
     p.add_argument("--sound", help="sound description (primary)")
     p.add_argument("--area", help="area description (primary)")
+    p.add_argument("--img", help="image of the table (PNG/JPEG from the wrist camera; primary)")
     p.add_argument("--near-obj", help="object the target is near (auxiliary, broad)")
     p.add_argument("--near-sound", help="sound the target is near (auxiliary)")
     p.add_argument("--near-area", help="area the target is in (auxiliary)")
+    p.add_argument("--near-img", help="image of a place the target is near (auxiliary)")
     p.add_argument("--out", help="picture prefix: writes PREFIX_top.png and PREFIX_side.png")
     p.set_defaults(func=cmd_query)
 
