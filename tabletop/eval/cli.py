@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
+import os
 import sys
 import time
 
@@ -36,18 +38,34 @@ class ProgressBars:
         self._stage = None
 
 
+@contextlib.contextmanager
+def _stdout_to_stderr():
+    """Send everything written to file descriptor 1 (native libraries' banners included) to
+    stderr, so that ``--json`` prints nothing but the JSON on stdout."""
+    sys.stdout.flush()
+    saved = os.dup(1)
+    os.dup2(2, 1)
+    try:
+        yield
+    finally:
+        sys.stdout.flush()
+        os.dup2(saved, 1)
+        os.close(saved)
+
+
 def cmd_eval(args: argparse.Namespace) -> int:
     from tabletop.eval.runner import run_eval
 
     encoders = [e.strip() for e in args.encoders.split(",") if e.strip()]
     t0 = time.perf_counter()
-    res = run_eval(
-        args.tasks,
-        encoders=encoders,
-        out_dir=args.out,
-        progress=not args.json,
-        cache_dir=None if args.no_cache else args.cache_dir,
-    )
+    with _stdout_to_stderr() if args.json else contextlib.nullcontext():
+        res = run_eval(
+            args.tasks,
+            encoders=encoders,
+            out_dir=args.out,
+            progress=not args.json,
+            cache_dir=None if args.no_cache else args.cache_dir,
+        )
     wall = time.perf_counter() - t0
     if args.json:
         d = res.to_json()
