@@ -102,8 +102,9 @@ class Heatmap:
     confidence: float  # calibrated, in [0, 1]
     found: bool
     reason: str = ""
-    target: np.ndarray | None = None  # (3,) [m] world frame: the point the query names, for
-    # the modules that locate one point (image: the surface the image looks at); else None
+    target: np.ndarray | None = field(default=None, compare=False)
+    """(3,) [m] world frame: the point the query names, for a module that locates one point
+    (image: the surface point the image shows at its centre); else None."""
 
 
 @dataclass(frozen=True)
