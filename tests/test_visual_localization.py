@@ -2,6 +2,8 @@
 is the reference; queries are rendered by a second simulator of the scene, the arm holding the
 wrist camera at poses the scan never took."""
 
+import json
+
 import numpy as np
 import pytest
 
@@ -189,6 +191,15 @@ def test_save_load_round_trip_and_corrupted_visual_arrays(avlmap, queries, tmp_p
     short = arrays["visual_descriptors"][:-1]
     with pytest.raises(VisualDatabaseError, match="'descriptors' has shape"):
         AVLMap.load(corrupt("bad2.npz", visual_descriptors=short))
+    # A version 1 file (before the visual module) loads; its image goals are not found.
+    header = json.loads(arrays["header"].tobytes())
+    v1 = {k: v for k, v in arrays.items() if not k.startswith("visual_")}
+    v1_header = {k: v for k, v in header.items() if k != "visual"} | {"version": 1}
+    v1["header"] = np.frombuffer(json.dumps(v1_header).encode(), np.uint8)
+    np.savez(tmp_path / "v1.npz", **v1)
+    old = AVLMap.load(tmp_path / "v1.npz")
+    h = old.image_heatmap(g.image)
+    assert old.visual is None and not h.found and "no visual localization" in h.reason
     no_points = {k: v for k, v in arrays.items() if k != "visual_points_world"}
     np.savez(tmp_path / "bad3.npz", **no_points)
     with pytest.raises(VisualDatabaseError, match="array 'points_world' is missing"):
