@@ -37,12 +37,15 @@ def rec():
 @pytest.fixture(scope="module")
 def queries(rec):
     """Image goals of the objects in QUERY_OBJECTS: (goal, object label)."""
+    objs = [o for o in rec.ground_truth["objects"] if o["label"] in QUERY_OBJECTS]
     with SimWorld(load_scene_spec("default")) as world:
         goals = image_goals(
-            rec.ground_truth, world, ImageGoalConfig(seed=2, table_points=0), rec.T_world_cam
+            {**rec.ground_truth, "objects": objs},
+            world,
+            ImageGoalConfig(seed=2, table_points=0),
+            rec.T_world_cam,
         )
-    labels = [o["label"] for o in rec.ground_truth["objects"]]
-    return [(g, lab) for g, lab in zip(goals, labels, strict=False) if lab in QUERY_OBJECTS]
+    return [(g, o["label"]) for g, o in zip(goals, objs, strict=True)]
 
 
 @pytest.fixture(scope="module")
