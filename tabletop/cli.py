@@ -171,6 +171,11 @@ def cmd_build_map(args: argparse.Namespace) -> int:
         f"map:       {st.voxels} occupied voxels at {config.grid.voxel_size * 100:g} cm, "
         f"{m.voxels.nbytes / 1e6:.1f} MB; {st.audio_segments} audio segments"
     )
+    if m.visual is not None:
+        print(
+            f"visual:    {st.reference_frames} reference frames ({m.visual.config.matcher} "
+            f"features, {st.visual_s:.1f} s)"
+        )
     print(f"written:   {path}")
     return 0
 
