@@ -29,7 +29,14 @@ from tabletop.eval.results import EncoderRun, GoalResult, TaskRun
 from tabletop.eval.tasks import Goal, Landmark, TaskFile, TaskFileError, load_tasks
 from tabletop.eval.truth import Region, relation_point, resolve_truth
 
-__all__ = ["DEFAULT_CACHE_DIR", "collect_task_files", "evaluate_task_file", "run_eval"]
+__all__ = [
+    "DEFAULT_CACHE_DIR",
+    "collect_task_files",
+    "evaluate_task_file",
+    "hover_point",
+    "run_eval",
+    "scan_recording",
+]
 
 log = logging.getLogger(__name__)
 
@@ -101,25 +108,42 @@ def _key(obj) -> str:
     return hashlib.sha1(json.dumps(obj, sort_keys=True, default=str).encode()).hexdigest()[:12]
 
 
-def _recording(tf: TaskFile, spec, cache: Path | None, progress: Progress | None):
-    """(recording, scan seconds, cached?) for a task file's scene and scan settings."""
+def _rec_key(spec, scan: dict) -> str:
+    return _key({"scene": spec.to_dict(), "scan": scan, "sim": _fingerprint("sim")})
+
+
+def _recording(name: str, scan: dict, spec, cache: Path | None, progress: Progress | None):
+    """(recording, scan seconds, cached?) for a scene and scan settings (``ScanConfig``
+    fields), through the cache."""
     from tabletop.sim.recording import load_recording, save_recording
     from tabletop.sim.scan import ScanConfig, run_scan
 
-    key = _key({"scene": spec.to_dict(), "scan": tf.scan, "sim": _fingerprint("sim")})
-    path = cache / f"rec-{spec.name}-{key}" if cache else None
+    path = cache / f"rec-{spec.name}-{_rec_key(spec, scan)}" if cache else None
     if path is not None and path.is_dir():
         try:
             return load_recording(path), 0.0, True
         except TabletopError as e:
             log.warning("cached recording %s is unusable (%s); scanning again", path, e)
     t0 = time.perf_counter()
-    cb = (lambda d, n: progress(f"scan {tf.name}", d, n)) if progress else None
-    rec, _ = run_scan(spec, ScanConfig(**tf.scan), progress=cb)
+    cb = (lambda d, n: progress(f"scan {name}", d, n)) if progress else None
+    rec, _ = run_scan(spec, ScanConfig(**scan), progress=cb)
     scan_s = time.perf_counter() - t0
     if path is not None:
+        cache.mkdir(parents=True, exist_ok=True)
         save_recording(rec, path, overwrite=True)
     return rec, scan_s, False
+
+
+def scan_recording(scene: dict, scan: dict, cache_dir: str | Path | None = DEFAULT_CACHE_DIR):
+    """(recording, cached?) of a task file's ``[scene]`` and ``[scan]`` sections, scanned or
+    taken from the cache (what the suite generator reads the ground truth from)."""
+    from tabletop.eval.tasks import _check_scan, scene_ref
+
+    _check_scan(scan)
+    spec = scene_ref(scene).load()
+    cache = Path(cache_dir) if cache_dir is not None else None
+    rec, _, cached = _recording(spec.name, dict(scan), spec, cache, None)
+    return rec, cached
 
 
 def _map_config(tf: TaskFile):
@@ -384,8 +408,8 @@ def evaluate_task_file(
     cache = Path(cache_dir) if cache_dir is not None else None
     if cache is not None:
         cache.mkdir(parents=True, exist_ok=True)
-    rec, scan_s, rec_cached = _recording(tf, spec, cache, progress)
-    rec_key = _key({"scene": spec.to_dict(), "scan": tf.scan, "sim": _fingerprint("sim")})
+    rec, scan_s, rec_cached = _recording(tf.name, tf.scan, spec, cache, progress)
+    rec_key = _rec_key(spec, tf.scan)
     m, map_s, map_cached = _map(tf, rec, encoders, cache, rec_key, progress)
     # Resolve every truth before anything moves: a wrong reference is a task-file error.
     where = str(tf.path or tf.name)

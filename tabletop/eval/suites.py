@@ -406,29 +406,9 @@ def generate_suite(
 
 
 def _scan_ground_truth(scene: dict, scan: dict, cache_dir) -> dict:
-    from tabletop.eval.runner import _recording
+    from tabletop.eval.runner import scan_recording
 
-    tf = parse_tasks(
-        {
-            "format": FORMAT_NAME,
-            "version": FORMAT_VERSION,
-            "scene": scene,
-            "scan": scan,
-            "goals": [
-                {
-                    "id": "x",
-                    "type": "object",
-                    "text": "x",
-                    "query": {"obj": "x"},
-                    "truth": {"point": [0, 0, 0]},
-                }
-            ],
-        },
-        source="generator",
-    )
-    spec = tf.scene.load()
-    rec, _, _ = _recording(tf, spec, Path(cache_dir) if cache_dir else None, None)
-    return rec.ground_truth
+    return scan_recording(scene, scan, cache_dir)[0].ground_truth
 
 
 def write_default_suites(out_dir: Path, cache_dir="out/eval-cache", only=None) -> list[Path]:

@@ -405,6 +405,21 @@ def _goal(d: object, where: str) -> Goal:
     return Goal(**common, query=query)
 
 
+def scene_ref(sc: object, source: str = "<tasks>", base_dir: Path | None = None) -> SceneRef:
+    """A task file's ``[scene]`` section as a :class:`SceneRef`."""
+    sc = _keys(sc, f"{source} [scene]", (), ("name", "path", "random"))
+    given = [k for k in ("name", "path", "random") if k in sc]
+    if len(given) != 1:
+        raise _err(f"{source} [scene]", f"give exactly one of name, path, random; got {given}")
+    if "name" in sc:
+        return SceneRef(name=_text(sc["name"], f"{source} [scene].name"))
+    if "path" in sc:
+        p = Path(_text(sc["path"], f"{source} [scene].path"))
+        return SceneRef(path=p if p.is_absolute() or base_dir is None else base_dir / p)
+    r = _keys(sc["random"], f"{source} [scene].random", ("seed",), ("count", "duplicates", "kinds"))
+    return SceneRef(random=dict(r))
+
+
 def parse_tasks(data: dict, source: str = "<tasks>", base_dir: Path | None = None) -> TaskFile:
     """Validate parsed TOML/JSON and build a :class:`TaskFile`.
 
@@ -423,20 +438,7 @@ def parse_tasks(data: dict, source: str = "<tasks>", base_dir: Path | None = Non
         raise _err(
             source, f"version {d['version']!r} is not supported; supported: {FORMAT_VERSION}"
         )
-    sc = _keys(d["scene"], f"{source} [scene]", (), ("name", "path", "random"))
-    given = [k for k in ("name", "path", "random") if k in sc]
-    if len(given) != 1:
-        raise _err(f"{source} [scene]", f"give exactly one of name, path, random; got {given}")
-    if "name" in sc:
-        scene = SceneRef(name=_text(sc["name"], f"{source} [scene].name"))
-    elif "path" in sc:
-        p = Path(_text(sc["path"], f"{source} [scene].path"))
-        scene = SceneRef(path=p if p.is_absolute() or base_dir is None else base_dir / p)
-    else:
-        r = _keys(
-            sc["random"], f"{source} [scene].random", ("seed",), ("count", "duplicates", "kinds")
-        )
-        scene = SceneRef(random=dict(r))
+    scene = scene_ref(d["scene"], source, base_dir)
     scan = dict(_keys(d.get("scan", {}), f"{source} [scan]", (), _SCAN_FIELDS))
     mapcfg = dict(_keys(d.get("map", {}), f"{source} [map]", (), _MAP_FIELDS))
     goals_raw = d["goals"]
