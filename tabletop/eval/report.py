@@ -269,7 +269,17 @@ def scene_picture(m, ground_truth: dict, goals, regions) -> np.ndarray:
         else:
             cv2.circle(img, c, 5, _RED, 1)
             cv2.drawMarker(img, c, _RED, cv2.MARKER_TILTED_CROSS, 8, 1)
-    return img
+    return _crop(m, img, _SCALE)
+
+
+#: Pictures show the table from this x [m] on (the robot's base and the floor behind it left out).
+_CROP_X_M = 0.15
+
+
+def _crop(m, img: np.ndarray, scale: int) -> np.ndarray:
+    """Rows of a top view (x up the image) from the far edge of the grid down to _CROP_X_M."""
+    rows = round((m.grid.upper[0] - _CROP_X_M) / m.grid.voxel_size * scale)
+    return img[: max(rows, 1)]
 
 
 def _labelled(img: np.ndarray, text: str) -> np.ndarray:
@@ -300,7 +310,7 @@ def write_task_figures(out_dir, tf, encoders, m, ground_truth, goals, regions, c
             q = cv2.cvtColor(ctx.images[gid], cv2.COLOR_RGB2BGR)
             panels.append(_labelled(q, "query image"))
         for label, values in maps:
-            v = heatmap_views(m, np.asarray(values), g.target, scale=4)["top"]
+            v = _crop(m, heatmap_views(m, np.asarray(values), g.target, scale=4)["top"], 4)
             panels.append(_labelled(v, label))
         h = max(x.shape[0] for x in panels)
         panels = [
