@@ -53,8 +53,10 @@ class ImageGoalConfig:
     """Seed of the camera poses."""
     distance_m: tuple[float, float] = (0.28, 0.45)
     """Range of the camera's distance [m] from the point it looks at."""
-    elevation_deg: tuple[float, float] = (50.0, 85.0)
-    """Range of the viewing ray's angle [deg] above the table plane."""
+    elevation_deg: tuple[float, float] = (60.0, 85.0)
+    """Range of the viewing ray's angle [deg] above the table plane: a picture taken over a
+    spot of the table. (From 50 deg, the top of a 58 deg-high image reaches 0.8 m past the
+    target: such views showed more floor than table.)"""
     roll_rad: float = np.pi / 2
     """Roll about the viewing ray, uniform in [-roll_rad, roll_rad]."""
     table_points: int = 4

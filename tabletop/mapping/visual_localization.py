@@ -590,20 +590,22 @@ def _pnp(
     return (T, n_inl) if np.all(np.isfinite(T)) else (None, 0)
 
 
-def _localize_turned(database: VisualDatabase, backend, rgb: np.ndarray, k: int, K) -> dict:
-    """One pose candidate: ``rgb`` turned by ``k`` quarter turns (``np.rot90``) is retrieved,
-    matched and solved; keypoints are turned back, so the pose is that of the unturned image.
-    Returns ``T`` (None and a ``reason`` when it fails), ``inliers``, ``matches``,
-    ``references``."""
+def _localize_turned(
+    database: VisualDatabase, backend, rgb: np.ndarray, k: int, K, n_frames: int
+) -> dict:
+    """One pose candidate: ``rgb`` turned by ``k`` quarter turns (``np.rot90``) is matched
+    with the ``n_frames`` reference frames it votes for most and solved; keypoints are turned
+    back, so the pose is that of the unturned image. Returns ``T`` (None and a ``reason`` when
+    it fails), ``inliers``, ``matches``, ``references`` and the ``turn`` k."""
     config = database.config
     turned = np.ascontiguousarray(np.rot90(rgb, k))
     xy_t, desc = backend.extract(turned, config.max_keypoints)
     query = _Features(xy_t, desc, (turned.shape[1], turned.shape[0]))
     xy = _unturn(xy_t, k, rgb.shape[1], rgb.shape[0])
     votes = database.retrieve(desc)
-    order = np.argsort(-votes, kind="stable")[: config.top_n]
+    order = np.argsort(-votes, kind="stable")[:n_frames]
     refs = tuple(database._frames[j]["index"] for j in order)
-    out = {"T": None, "inliers": 0, "matches": 0, "references": refs}
+    out = {"T": None, "inliers": 0, "matches": 0, "references": refs, "turn": k}
     pts, img = [np.zeros((0, 3))], [np.zeros((0, 2), np.float32)]
     for j in order:
         f = database._frames[j]
@@ -634,8 +636,9 @@ def localize_image(
     ``min_inliers`` inliers and ``min_inlier_ratio`` of the matches support it and the camera
     looks down at the table (a wrist camera always does). A descriptor that is not rotation
     invariant (XFeat) tries the query turned by 0, 90, 180 and 270 degrees and keeps the pose
-    with the most inliers. Returns ``ok=False`` with a reason when nothing counts; raises
-    :class:`ConfigError` only for malformed input.
+    with the most inliers. When no pose counts, the candidate with the most inliers is tried
+    once more with ``2 * top_n`` frames. Returns ``ok=False`` with a reason when nothing
+    counts; raises :class:`ConfigError` only for malformed input.
     """
     t0 = time.perf_counter()
     config = database.config
@@ -653,12 +656,15 @@ def localize_image(
     backend = _backend(config.matcher)
     best = None
     for k in (0,) if backend.rotation_invariant else (0, 1, 2, 3):
-        cand = _localize_turned(database, backend, rgb, k, K)
+        cand = _localize_turned(database, backend, rgb, k, K, config.top_n)
         if best is None or (cand["T"] is not None, cand["inliers"]) > (
             best["T"] is not None,
             best["inliers"],
         ):
             best = cand
+    if best["T"] is None and len(database) > config.top_n:
+        # The best-voted frames gave too few matches that agree: add the next-best frames.
+        best = _localize_turned(database, backend, rgb, best["turn"], K, 2 * config.top_n)
     kw = {k: best[k] for k in ("inliers", "matches", "references")}
     if best["T"] is None:
         return fail(
