@@ -259,9 +259,9 @@ def cmd_eval_map(args: argparse.Namespace) -> int:
         print(json.dumps({"by_type": res["by_type"], "encoders": res["encoders"]}, indent=1))
         return 0
     print(f"encoders: {res['encoders'].get('set')}")
-    print(f"{'goal type':12s} {'goals':>6s} {'success':>8s}")
+    print(f"{'goal type':16s} {'goals':>6s} {'success':>8s}")
     for k, v in res["by_type"].items():
-        print(f"{k:12s} {v['goals']:6d} {v['success_rate']:8.1%}")
+        print(f"{k:16s} {v['goals']:6d} {v['success_rate']:8.1%}")
     return 0
 
 
