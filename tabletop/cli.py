@@ -562,7 +562,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", help="picture prefix: writes PREFIX_top.png and PREFIX_side.png")
     p.set_defaults(func=cmd_query)
 
-    p = sub.add_parser("eval-map", help="score map targets of object, sound and ambiguous goals")
+    p = sub.add_parser("eval-map", help="score map goals: object, sound, ambiguous, image")
     p.add_argument("--seeds", type=int, default=3, help="seeds per scene (default 3)")
     p.add_argument("--speed", type=float, default=0.3, help="scan speed [m/s]")
     p.add_argument("--encoders", default="oracle", choices=["oracle", "default"])
