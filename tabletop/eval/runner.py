@@ -306,12 +306,12 @@ def _run_goal(ctx: _Context, goal: Goal, sequence: str, region: Region, parser) 
         )
     except ImageGoalUnavailable as e:
         return GoalResult(**base, status="unavailable", reason=f"image goals unavailable: {e}")
-    except GoalNotFound as e:
+    except TabletopError as e:  # not found, or a query the map or the API refuses
         tcp = robot.current_position()
         return GoalResult(
             **base,
-            status="not_found",
-            reason=str(e),
+            status="not_found" if isinstance(e, GoalNotFound) else "failed",
+            reason=str(e) if isinstance(e, GoalNotFound) else f"{type(e).__name__}: {e}",
             tcp=tuple(tcp),
             error_m=region.distance(tcp),
             time_s=time.perf_counter() - t0,
@@ -341,7 +341,6 @@ def _run_goal(ctx: _Context, goal: Goal, sequence: str, region: Region, parser) 
 def _run_code(ctx: _Context, goal: Goal, base: dict, parser, region: Region, t0: float):
     """Parse an instruction, run its code in the sandbox against the robot, score the TCP
     after the last motion. A parse error or rejected code is a failure (nothing moves)."""
-    from tabletop.language import LanguageError
     from tabletop.robot.api import GoalNotFound
 
     to_code, run_instruction = parser
@@ -351,7 +350,7 @@ def _run_code(ctx: _Context, goal: Goal, base: dict, parser, region: Region, t0:
     try:
         code = str(to_code(goal.instruction))
         run = run_instruction(goal.instruction, robot, code=code)
-    except (GoalNotFound, LanguageError) as e:
+    except TabletopError as e:  # a parse error, rejected code, not found, a refused query
         tcp = robot.current_position()
         return GoalResult(
             **base,
