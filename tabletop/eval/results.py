@@ -190,7 +190,7 @@ def summarize(goals: list[GoalResult], sequences: list[list[GoalResult]]) -> dic
         "by_type": by_type,
         "all": total,
         "goals": len(goals),
-        "contacts": total["contacts"],
+        "contacts": total["contacts"] if total["attempted"] else None,  # None: nothing moved
         "in_a_row": in_a_row(sequences),
     }
 
