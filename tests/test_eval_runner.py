@@ -75,13 +75,20 @@ def test_report_is_written_and_references_its_pictures(run):
     assert saved["by_type"]["object"]["success_rate"] == 1.0
 
 
-def test_second_run_reuses_the_cached_scan_and_map(run):
+def test_cli_json_second_run_reuses_the_cached_scan_and_map(run, capfd, tmp_path):
+    from tabletop.cli import main
+
     path, cache, _, first = run
-    again = run_eval(path, encoders="oracle", out_dir=None, progress=False, cache_dir=cache)
-    task = again.runs[0].tasks[0]
-    assert task.cached and task.scan_s == 0.0 and task.map_s == 0.0
+    capfd.readouterr()
+    argv = ["eval", str(path), "--json", "--goals", "--cache-dir", str(cache)]
+    assert main([*argv, "--out", str(tmp_path / "again")]) == 0
+    out = capfd.readouterr().out
+    d = json.loads(out)  # nothing but the JSON on stdout
+    assert d["encoders"] == "oracle" and "by_type" in d and d["contacts"] == 0
+    task = d["rows"][0]["tasks"][0]
+    assert task["cached"] and task["scan_s"] == 0.0 and task["map_s"] == 0.0
     a = [(g.goal_id, g.success) for g in first.runs[0].goals]
-    assert a == [(g.goal_id, g.success) for g in again.runs[0].goals]
+    assert a == [(g["goal_id"], g["success"]) for g in task["goals"]]
 
 
 def test_bad_inputs_to_the_runner():
