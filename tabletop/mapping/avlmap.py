@@ -21,6 +21,7 @@ from scipy import ndimage
 
 from tabletop.errors import ConfigError
 from tabletop.mapping.audio_segments import AudioSegment, NoiseGateConfig, segment_audio
+from tabletop.mapping.calibration import load_calibration
 from tabletop.mapping.encoders.base import check_same_space
 from tabletop.mapping.grid import VoxelGrid
 from tabletop.mapping.heatmaps import (
@@ -105,6 +106,9 @@ class Heatmap:
     target: np.ndarray | None = field(default=None, compare=False)
     """(3,) [m] world frame: the point the query names, for a module that locates one point
     (image: the surface point the image shows at its centre); else None."""
+    evidence: float | None = None
+    """The raw margin the confidence was computed from (see :mod:`tabletop.mapping.calibration`);
+    None when nothing matched at all."""
 
 
 @dataclass(frozen=True)
@@ -147,10 +151,18 @@ class AVLMap:
         encoder_names: dict[str, str] | None = None,
         encoder_set: str = "custom",
         rebuild_info: dict | None = None,
+        audio_text=None,
     ) -> None:
-        for enc in (dense, global_image, audio):
+        for enc in (dense, global_image):
             if enc is not None:
                 check_same_space(text, enc)
+        self.audio_text = audio_text if audio_text is not None else text
+        """Text encoder of sound queries: ``text`` unless the audio encoder has its own space
+        (CLAP)."""
+        if audio is not None:
+            check_same_space(self.audio_text, audio)
+        self.calibration = load_calibration(encoder_set)
+        """Confidence calibration of this encoder set (uncalibrated prior when none was fit)."""
         self.config = config
         self.grid = config.grid
         self.text, self.dense, self.global_image, self.audio_encoder = (
@@ -195,13 +207,21 @@ class AVLMap:
             self.visual.add_frame(rgb, depth, K, T_world_cam)
             self.visual_s += time.perf_counter() - t
         t0 = time.perf_counter()
+        fuse_frame = i % self.config.frame_step == 0
+        feats = None
         if self.global_image is not None:
-            self.frame_embeddings.append(self.global_image.encode_image(rgb, context))
+            both = getattr(self.dense, "encode_dense_and_global", None)
+            if fuse_frame and self.global_image is self.dense and both is not None:
+                feats, g = both(rgb)  # one network gives both: one forward pass
+            else:
+                g = self.global_image.encode_image(rgb, context)
+            self.frame_embeddings.append(g)
             self.frame_poses.append(np.asarray(T_world_cam, np.float64))
-        if i % self.config.frame_step:
+        if not fuse_frame:
             self.encoder_s += time.perf_counter() - t0
             return
-        feats = self.dense.encode_dense(rgb, context)
+        if feats is None:
+            feats = self.dense.encode_dense(rgb, context)
         t1 = time.perf_counter()
         pts, px = frame_points(depth, K, T_world_cam, self.config.pixel_step)
         if joint_positions is not None and self.config.self_filter_margin is not None:
@@ -248,12 +268,14 @@ class AVLMap:
         config: MapConfig | None = None,
         encoders: str = "oracle",
         progress: Callable[[int, int], None] | None = None,
+        encoder_options: dict | None = None,
     ) -> AVLMap:
-        """Build a map from a whole recording with the named encoder set."""
+        """Build a map from a whole recording with the named encoder set (``encoder_options``:
+        see :func:`~tabletop.mapping.encoders.registry.make_encoders`)."""
         from tabletop.mapping.encoders.registry import make_encoders
 
         config = config or MapConfig()
-        enc = make_encoders(encoders, recording)
+        enc = make_encoders(encoders, recording, encoder_options)
         m = cls(
             config,
             enc.text,
@@ -263,6 +285,7 @@ class AVLMap:
             enc.names,
             encoders,
             enc.rebuild,
+            enc.audio_text,
         )
         T_cam = recording.T_world_cam
         for i in range(len(recording)):
@@ -332,6 +355,7 @@ class AVLMap:
             h["encoders"],
             h["encoder_set"],
             h["rebuild"],
+            enc.audio_text,
         )
         try:
             m.voxels = VoxelMap.from_state(
@@ -419,7 +443,7 @@ class AVLMap:
         mask = np.zeros(self.grid.size, bool)
         mask[self.voxels.linear_indices[keep]] = True
         values = point_heatmap_3d(self.grid, mask.reshape(self.grid.shape), decay)
-        conf = self._confidence(best, floor)
+        conf = self._confidence("object", best - floor)
         found = conf >= self.config.min_confidence
         return Heatmap(
             values,
@@ -429,6 +453,7 @@ class AVLMap:
             conf,
             found,
             "" if found else f"best match {best:.2f} is weak (confidence {conf:.2f})",
+            evidence=float(best - floor),
         )
 
     def _empty(self, query: str, modality: str, decay: float, reason: str) -> Heatmap:
@@ -437,17 +462,16 @@ class AVLMap:
             np.zeros(self.grid.shape, np.float32), query, modality, decay, 0.0, False, reason
         )
 
-    def _confidence(self, best: float, floor: float) -> float:
-        """Map a best cosine score (against the map's median) to [0, 1].
+    def _confidence(self, modality: str, margin: float) -> float:
+        """Calibrated confidence in [0, 1] of a query whose best score beats the map's typical
+        score by ``margin`` (:mod:`tabletop.mapping.calibration`)."""
+        return self.calibration.confidence(modality, float(margin))
 
-        A logistic on the margin above the median score; 0.5 at a margin of 0.2.
-        """
-        margin = best - floor
-        return float(1.0 / (1.0 + np.exp(-(margin - 0.2) / 0.05)))
-
-    def _scores(self, embeddings: list[np.ndarray], query: str) -> tuple[np.ndarray, np.ndarray]:
+    def _scores(
+        self, embeddings: list[np.ndarray], query: str, text=None
+    ) -> tuple[np.ndarray, np.ndarray]:
         """Cosine scores of stored embeddings with ``query``, raw and min-max normalised."""
-        s = np.stack(embeddings) @ self.text.encode_text([query])[0]
+        s = np.stack(embeddings) @ (text or self.text).encode_text([query])[0]
         return s, _normalize_scores(s)
 
     def sound_heatmap(self, query: str, major: bool = True) -> Heatmap:
@@ -455,11 +479,12 @@ class AVLMap:
         decay = self._decay(major)
         if not self.segment_embeddings:
             return self._empty(query, "sound", decay, "the map has no audio segments")
-        s, scores = self._scores(self.segment_embeddings, query)
+        s, scores = self._scores(self.segment_embeddings, query, self.audio_text)
         pos = np.stack(self.segment_positions)[:, :2]
         values = scored_points_heatmap_xy(self.grid, pos, scores, decay)
         floor = float(np.median(s)) if len(s) > 2 else float(s.min(initial=0.0))
-        conf = self._confidence(float(s.max()), floor)
+        conf = self._confidence("sound", float(s.max()) - floor)
+        # a median of one or two scores says nothing about the typical score: not judged
         found = conf >= self.config.min_confidence or len(s) <= 2
         return Heatmap(
             values,
@@ -469,6 +494,7 @@ class AVLMap:
             conf,
             found,
             "" if found else "no sound segment matches well",
+            evidence=float(s.max()) - floor,
         )
 
     def area_heatmap(self, query: str, major: bool = False) -> Heatmap:
@@ -480,8 +506,9 @@ class AVLMap:
         pts = _look_at_table(np.stack(self.frame_poses))
         top = scores >= 0.8  # the best-matching views carry the area
         values = scored_points_heatmap_xy(self.grid, pts[top], scores[top], decay)
-        conf = self._confidence(float(s.max()), float(np.median(s)))
-        return Heatmap(values, query, "area", decay, conf, True)
+        margin = float(s.max()) - float(np.median(s))
+        conf = self._confidence("area", margin)
+        return Heatmap(values, query, "area", decay, conf, True, evidence=margin)
 
     def localize(self, rgb: np.ndarray, K: np.ndarray | None = None) -> VisualLocalization:
         """Where the camera was when it took ``rgb`` (H, W, 3) uint8 (the visual localization
