@@ -121,7 +121,7 @@ def LSegNet(width: int = 32, dim: int = 384):
 def preprocess(rgb: np.ndarray):
     """(H, W, 3) uint8 RGB (or (B, H, W, 3)) -> (B, 3, H, W) float32 normalised tensor."""
     torch = _torch()
-    x = torch.from_numpy(np.ascontiguousarray(rgb)).float().div_(255.0)
+    x = torch.from_numpy(np.require(rgb, requirements=["C", "W"])).float().div_(255.0)
     if x.ndim == 3:
         x = x[None]
     x = x.permute(0, 3, 1, 2)

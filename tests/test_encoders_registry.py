@@ -1,0 +1,69 @@
+"""Encoder sets by name: the oracle and the embedded default build maps through one code path."""
+
+import numpy as np
+import pytest
+
+from tabletop.errors import AssetError, ConfigError
+from tabletop.mapping.avlmap import AVLMap, MapConfig
+from tabletop.mapping.encoders.base import (
+    AudioEncoder,
+    DenseImageEncoder,
+    GlobalImageEncoder,
+    check_same_space,
+)
+from tabletop.mapping.encoders.registry import ENCODER_SETS, make_encoders
+from tabletop.sim.scan import ScanConfig, run_scan
+from tabletop.sim.scene import load_scene_spec
+
+
+@pytest.fixture(scope="module")
+def rec():
+    cfg = ScanConfig(seed=5, speed=0.6, episodes=2, episode_s=2.0, repeat_sounds=0)
+    return run_scan(load_scene_spec("default"), cfg)[0]
+
+
+def test_unknown_set_names_the_valid_ones():
+    with pytest.raises(ConfigError, match="valid") as e:
+        make_encoders("clip-large")
+    for name in ENCODER_SETS:
+        assert name in str(e.value)
+
+
+def test_oracle_needs_ground_truth():
+    with pytest.raises(ConfigError, match="ground truth"):
+        make_encoders("oracle", recording=None)
+
+
+def test_default_set_is_one_space_and_never_the_oracle():
+    enc = make_encoders("default")
+    assert isinstance(enc.dense, DenseImageEncoder)
+    assert isinstance(enc.global_image, GlobalImageEncoder)
+    assert isinstance(enc.audio, AudioEncoder)
+    for e in (enc.dense, enc.global_image, enc.audio):
+        check_same_space(enc.text, e)
+    assert "oracle" not in " ".join(enc.names.values())
+    assert "default" in enc.names["set"]
+    # the committed weights are recorded as "the committed ones", not as this machine's path
+    assert enc.rebuild == {"vision_weights": None, "audio_weights": None}
+
+
+def test_missing_weights_are_named(tmp_path):
+    with pytest.raises(AssetError, match="not found"):
+        make_encoders("default", options={"vision_weights": str(tmp_path / "nope.pt")})
+
+
+def test_default_map_builds_saves_and_loads(rec, tmp_path):
+    m = AVLMap.build(rec, MapConfig(), encoders="default")
+    assert m.encoder_set == "default"
+    assert m.stats.voxels > 1000
+    # the learned encoder, not the segmentation, decides: the duck's heat peaks on the duck
+    duck = next(o for o in rec.ground_truth["objects"] if o["kind"] == "duck")
+    p = m.get_max_pos_3d(m.object_heatmap(duck["label"]))
+    lo, hi = np.array(duck["aabb_min"]), np.array(duck["aabb_max"])
+    assert np.linalg.norm(np.maximum(lo - p, 0) + np.maximum(p - hi, 0)) < 0.10
+    path = m.save(tmp_path / "map.npz")
+    m2 = AVLMap.load(path)
+    assert m2.encoder_set == "default" and m2.encoder_names == m.encoder_names
+    np.testing.assert_array_equal(
+        m2.object_heatmap(duck["label"]).values, m.object_heatmap(duck["label"]).values
+    )
