@@ -106,8 +106,9 @@ def add_commands(sub) -> None:
     p.add_argument(
         "--encoders",
         default="oracle",
-        help="encoder set(s), comma-separated: oracle (simulator upper bound), default "
-        "(embedded learned); e.g. oracle,default for both rows",
+        help="encoder set(s), comma-separated, as the map's registry names them: oracle "
+        "(simulator upper bound), default (embedded learned), ...; e.g. oracle,default for "
+        "both rows (default: oracle)",
     )
     p.add_argument("--out", default="out/eval", help="report directory (default: out/eval)")
     p.add_argument("--json", action="store_true", help="print the machine-readable summary")
