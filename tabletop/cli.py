@@ -342,116 +342,35 @@ def cmd_scenes(args: argparse.Namespace) -> int:
 
 
 # ---------------------------------------------------------------------- demo
-def _box_distance(p, obj) -> float:
-    import numpy as np
-
-    lo, hi = np.array(obj["aabb_min"]), np.array(obj["aabb_max"])
-    return float(np.linalg.norm(np.maximum(lo - p, 0) + np.maximum(p - hi, 0)))
-
-
 def cmd_demo(args: argparse.Namespace) -> int:
-    import numpy as np
-
-    from tabletop.mapping.avlmap import AVLMap
-    from tabletop.mapping.heatmaps import fuse
-    from tabletop.mapping.render import write_heatmap_views
-    from tabletop.sim.recording import load_recording, save_recording
+    """The main job: scan the default scene, map it with the embedded default encoders, run
+    the demo suite (a few goals of every type) with the simulated arm, print the table and
+    write the report."""
+    from tabletop.eval.runner import run_eval
 
     out = Path(args.out)
+    encoders = [e.strip() for e in args.encoders.split(",") if e.strip()]
     print(
-        "tabletop demo — stages in this version: scene -> teleop scan with inserted audio -> "
-        "recording on disk -> AVLMap -> object and sound queries."
+        "tabletop demo: default scene -> teleop scan with inserted sounds -> AVLMap with the "
+        f"encoders {encoders} -> the demo suite (object, sound, image, area, ambiguous, "
+        "spatial, multimodal spatial and instruction goals) reached by the simulated Panda.\n"
+        "'default' = the embedded learned encoders (MiniLM text, the small LSeg-style image "
+        "network, the mel-CNN audio encoder); 'oracle' = the simulator's ground truth, an upper "
+        "bound.\n",
+        flush=True,
     )
-    print(
-        "Not in this version yet: the learned default encoders in the map (the map below is "
-        "built with the SIMULATOR ORACLE, an upper bound), image goals, the arm reaching the "
-        "targets, the evaluation suites.\n"
-    )
-    args.scene, args.seed, args.episodes = "default", 0, 6
-    args.renderer, args.width, args.height = "auto", 320, 240
-    args.pose_noise = args.rot_noise = args.depth_noise = args.depth_dropout = 0.0
-    args.drop_frames, args.noise_seed = 0.0, 0
-    spec, rec, stats = _do_scan(args)
-    save_recording(rec, out / "recording", overwrite=True)
-    back = load_recording(out / "recording")
-    gt = back.ground_truth
-    print(f"\nscene '{spec.name}': " + ", ".join(o["label"] for o in gt["objects"]))
-    print(
-        f"scan: {len(back)} frames, {back.duration:.1f} s simulated, {stats.fps:.1f} frames/s "
-        f"({back.meta['renderer']} renderer); recording {out / 'recording'} (reloaded, valid)"
-    )
-
-    bar = _progress("map (oracle encoders)", total=len(back))
-    try:
-        m = AVLMap.build(back, encoders="oracle", progress=lambda d, t: bar.update(d - bar.n))
-    finally:
-        bar.close()
-    m.save(out / "map.npz")
-    st = m.stats
-    print(
-        f"map: {st.voxels} voxels at 1 cm, {st.audio_segments} audio segments, fusion "
-        f"{st.fused_frames / st.fusion_s:.0f} frames/s; encoders: {m.encoder_names['set']}"
-    )
-
-    print("\nobject goals (oracle encoders): target -> distance to the object's box")
-    ok = 0
-    for o in gt["objects"]:
-        p = m.get_max_pos_3d(m.object_heatmap(o["label"]))
-        d = _box_distance(p, o)
-        ok += d <= 0.10
-        print(f"  {o['label']:20s} ({p[0]:.2f}, {p[1]:.2f}, {p[2]:.2f})  {d * 100:5.1f} cm")
-    print(f"  within 10 cm: {ok}/{len(gt['objects'])}")
-    print("sound goals (oracle encoders): target -> distance to where it was heard")
-    events = gt["sound_events"]
-    cats = [e["category"] for e in events]
-    for e in events:
-        p = m.get_max_pos_3d(m.sound_heatmap(e["caption"]))
-        ds = [
-            np.linalg.norm(p[:2] - np.array(x["table_point"][:2]))
-            for x in events
-            if x["category"] == e["category"]
-        ]
-        note = " (heard in two places: either counts)" if cats.count(e["category"]) > 1 else ""
-        print(f"  {e['caption']:40s} {min(ds) * 100:5.1f} cm{note}")
-    # an ambiguous goal: a duplicated kind, disambiguated by the sound heard nearest one of them
-    kinds = [o["kind"] for o in gt["objects"]]
-    dup = next(k for k in kinds if kinds.count(k) > 1)
-    e = events[0]
-    fused = fuse(
-        m.object_heatmap(dup.replace("_", " ")).values,
-        m.sound_heatmap(e["caption"], major=False).values,
-    )
-    p = m.get_max_pos_3d(fused)
-    print(
-        f"ambiguous goal: 'the {dup.replace('_', ' ')} near {e['caption']}' -> "
-        f"({p[0]:.2f}, {p[1]:.2f}, {p[2]:.2f})"
-    )
-    paths = write_heatmap_views(m, fused, out / "ambiguous", p)
-    print("heatmap pictures: " + ", ".join(str(x) for x in paths))
-
-    from tabletop.robot import SimArm
-
-    print("\nthe arm reaches (PyBullet physics, obstacles from the map; oracle-encoder map):")
-    robot = SimArm(m, spec)
-    try:
-        goals = [(f"the {o['label']}", o["label"]) for o in gt["objects"][:3]]
-        for text, label in goals:
-            res = robot.move_to_object(label)
-            o = next(x for x in gt["objects"] if x["label"] == label)
-            d = _box_distance(res.final_tcp, o)
-            print(
-                f"  {text:28s} {res.reason.value:10s} TCP {d * 100:5.1f} cm from its box "
-                f"({'success' if d <= 0.10 else 'miss'}), contacts {robot.contacts[-1]}"
-            )
-        res = robot.move_to(p)
-        d = min(_box_distance(res.final_tcp, o) for o in gt["objects"] if o["kind"] == dup)
-        print(
-            f"  {'the ambiguous goal above':28s} {res.reason.value:10s} TCP {d * 100:5.1f} cm "
-            f"from the nearest {dup.replace('_', ' ')}, contacts {robot.contacts[-1]}"
-        )
-    finally:
-        robot.close()
-    return 0
+    t0 = time.perf_counter()
+    res = run_eval("demo", encoders=encoders, out_dir=out, cache_dir=out / "cache")
+    wall = time.perf_counter() - t0
+    print()
+    print(res.table_markdown())
+    row = res.in_a_row_markdown()
+    if row:
+        print("\n" + row)
+    print(f"\n{sum(len(r.goals) for r in res.runs)} goals in {wall:.0f} s (scan, map, reaches)")
+    if res.report_path is not None:
+        print(f"report: {res.report_path}")
+    return 0 if all(r.available for r in res.runs) else 1
 
 
 # ---------------------------------------------------------------------- bench
@@ -588,6 +507,11 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("demo", help="the end-to-end demo on the embedded defaults")
     p.add_argument("--out", default="out/demo", help="output directory (default: out/demo)")
+    p.add_argument(
+        "--encoders",
+        default="default",
+        help="encoder sets, comma-separated: default, oracle (default: default)",
+    )
     p.set_defaults(func=cmd_demo)
 
     p = sub.add_parser("bench", help="performance figures of every part, in one run")
