@@ -63,7 +63,7 @@ class MapConfig:
     range a pixel spans 1.4-3.3 mm, so every third pixel still samples each 1 cm voxel a
     camera sees several times; use 1 for 5 mm voxels or distant views."""
     frame_step: int = 1
-    """Fuse every ``frame_step``-th frame into the voxels (all frames enter the area module)."""
+    """Encode and fuse every ``frame_step``-th frame (voxels and area-module embeddings)."""
     categories: tuple[str, ...] = DEFAULT_CATEGORIES
     """Vocabulary a text query competes against (with "other")."""
     major_decay: float = MAJOR_DECAY
@@ -209,9 +209,9 @@ class AVLMap:
         t0 = time.perf_counter()
         fuse_frame = i % self.config.frame_step == 0
         feats = None
-        if self.global_image is not None:
+        if self.global_image is not None and fuse_frame:  # the area module: fused frames
             both = getattr(self.dense, "encode_dense_and_global", None)
-            if fuse_frame and self.global_image is self.dense and both is not None:
+            if self.global_image is self.dense and both is not None:
                 feats, g = both(rgb)  # one network gives both: one forward pass
             else:
                 g = self.global_image.encode_image(rgb, context)
