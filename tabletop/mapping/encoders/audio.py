@@ -22,7 +22,7 @@ import torch
 from torch import nn
 
 from tabletop.errors import AssetError, ConfigError
-from tabletop.mapping.encoders.base import l2_normalize
+from tabletop.mapping.encoders.base import l2_normalize, torch_threads
 from tabletop.mapping.encoders.minilm import MINILM_SPACE
 from tabletop.paths import DATA_DIR
 
@@ -319,15 +319,9 @@ class MelCNNAudioEncoder:
         """(384,) float32 L2-normalised embedding of one mono segment ``audio`` (S,) float in
         [-1, 1] at ``sample_rate`` [Hz]."""
         x = _prepare(audio, sample_rate)
-        before = torch.get_num_threads()
-        if self.num_threads is not None:
-            torch.set_num_threads(self.num_threads)
-        try:
-            with torch.inference_mode():
-                e = self._net(torch.from_numpy(x)[None]).numpy()[0]
-        finally:
-            torch.set_num_threads(before)
-        return l2_normalize(e)
+        with torch_threads(self.num_threads):
+            e = self._net(torch.from_numpy(np.require(x, requirements=["C", "W"]))[None])
+        return l2_normalize(e.numpy()[0])
 
     def encode_audio_batch(self, segments: list[np.ndarray], sample_rate: int) -> np.ndarray:
         """(N, 384) float32 embeddings of N segments (each (S_i,) at ``sample_rate`` [Hz]).

@@ -8,6 +8,7 @@ similarity is a dot product. Two encoders can be compared only when they share a
 
 from __future__ import annotations
 
+import contextlib
 from typing import Protocol, runtime_checkable
 
 import numpy as np
@@ -22,11 +23,30 @@ __all__ = [
     "TextEncoder",
     "check_same_space",
     "l2_normalize",
+    "torch_threads",
 ]
 
 
 class EncoderMismatchError(ConfigError):
     """Two encoders that must share an embedding space do not."""
+
+
+@contextlib.contextmanager
+def torch_threads(n: int | None):
+    """Run a forward pass with ``n`` torch intra-op threads (None: leave torch's setting),
+    restoring the previous count after. The embedded networks are small: one thread is as fast
+    as two on an idle machine and does not collapse (measured 60 ms vs 1 s per image) when
+    other processes keep the cores busy."""
+    import torch
+
+    before = torch.get_num_threads()
+    if n is not None:
+        torch.set_num_threads(int(n))
+    try:
+        with torch.inference_mode():
+            yield
+    finally:
+        torch.set_num_threads(before)
 
 
 def l2_normalize(x: np.ndarray, axis: int = -1, eps: float = 1e-12) -> np.ndarray:

@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from tabletop.errors import AssetError, ConfigError
+from tabletop.mapping.encoders.base import torch_threads
 from tabletop.mapping.encoders.minilm import MINILM_SPACE
 from tabletop.paths import DATA_DIR
 
@@ -164,7 +165,11 @@ class LSegEncoder:
     dim = 384
     stride = 4
 
-    def __init__(self, weights: str | Path | None = None) -> None:
+    def __init__(self, weights: str | Path | None = None, *, num_threads: int | None = 1) -> None:
+        if num_threads is not None and (int(num_threads) != num_threads or num_threads < 1):
+            raise ConfigError(f"num_threads must be a positive integer or None: {num_threads!r}")
+        self.num_threads = num_threads
+        """torch threads during a forward pass (see :func:`~.base.torch_threads`)."""
         self.weights = Path(weights) if weights is not None else VISION_WEIGHTS_PATH
         self._net, ckpt = _load(str(self.weights))
         self.metrics: dict = dict(ckpt.get("metrics", {}))
@@ -182,8 +187,7 @@ class LSegEncoder:
         return rgb
 
     def _embed(self, rgb: np.ndarray):
-        torch = _torch()
-        with torch.inference_mode():
+        with torch_threads(self.num_threads):
             return self._net(preprocess(rgb))[0]  # (dim, h, w)
 
     def encode_dense(self, rgb: np.ndarray, context: dict | None = None) -> np.ndarray:
