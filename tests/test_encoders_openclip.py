@@ -96,3 +96,30 @@ def test_clear_errors(tmp_path, checkpoint):
     bad = dict(CFG, embed_dim=16)
     with pytest.raises(AssetError, match="does not fit"):
         OpenClipEncoder(checkpoint, model_cfg=bad)
+
+
+def test_a_map_builds_through_the_same_path(checkpoint, tmp_path):
+    """The 'openclip' encoder set builds, saves and loads a map like the others (random
+    weights: the map's answers mean nothing, its plumbing does)."""
+    from tabletop.mapping.avlmap import AVLMap, MapConfig
+    from tabletop.mapping.encoders.registry import make_encoders
+    from tabletop.sim.scan import ScanConfig, run_scan
+    from tabletop.sim.scene import load_scene_spec
+
+    rec = run_scan(
+        load_scene_spec("default"), ScanConfig(seed=1, speed=1.0, episodes=0, repeat_sounds=0)
+    )[0]
+    opts = {"checkpoint": str(checkpoint), "model_cfg": CFG, "space": "openclip-tiny-test"}
+    m = AVLMap.build(rec, MapConfig(visual=None, frame_step=4), "openclip", encoder_options=opts)
+    assert m.encoder_set == "openclip" and m.text.space == "openclip-tiny-test"
+    assert m.stats.voxels > 1000 and m.voxels.dim == 32
+    assert "none" in m.encoder_names["audio"]  # no CLAP checkpoint given: no audio module
+    assert not m.sound_heatmap("a dog barking").found
+    h = m.object_heatmap("a red mug")
+    assert h.values.shape == m.grid.shape and 0 <= h.values.min() <= h.values.max() <= 1
+    m2 = AVLMap.load(m.save(tmp_path / "m.npz"))
+    np.testing.assert_array_equal(m2.object_heatmap("a red mug").values, h.values)
+    with pytest.raises(ConfigError, match="unknown options"):
+        make_encoders("openclip", options={**opts, "checkpoint_path": "x"})
+    with pytest.raises(ConfigError, match="needs options"):
+        make_encoders("openclip")
