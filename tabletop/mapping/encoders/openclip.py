@@ -192,7 +192,7 @@ class OpenClipEncoder:
         rgb = np.asarray(rgb)
         if rgb.ndim != 3 or rgb.shape[2] != 3 or rgb.dtype != np.uint8:
             raise ConfigError(f"rgb must be an (H, W, 3) uint8 image, got {rgb.shape} {rgb.dtype}")
-        x = self._torch.from_numpy(np.ascontiguousarray(rgb)).float().div_(255.0)
+        x = self._torch.from_numpy(np.require(rgb, requirements=["C", "W"])).float().div_(255.0)
         return x.permute(2, 0, 1)[None]
 
     def _normalise(self, x):
