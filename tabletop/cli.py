@@ -373,6 +373,25 @@ def cmd_demo(args: argparse.Namespace) -> int:
     return 0 if all(r.available for r in res.runs) else 1
 
 
+# ---------------------------------------------------------------------- calibrate
+def cmd_calibrate(args: argparse.Namespace) -> int:
+    """Fit the confidence calibration of an encoder set on seeded scenes (first half) and
+    report it on the others; writes tabletop/data/calibration/<set>.json (or --out)."""
+    from tabletop.mapping.calibration import CALIBRATION_SEEDS, run_calibration
+
+    seeds = list(CALIBRATION_SEEDS)[: args.scenes] if args.scenes else list(CALIBRATION_SEEDS)
+    print(f"calibrating {args.encoders!r} on scenes {seeds} ...", file=sys.stderr)
+    cal = run_calibration(
+        args.encoders,
+        seeds,
+        progress=lambda seed, s: print(f"  scene {seed}: {len(s)} queries", file=sys.stderr),
+    )
+    path = cal.save(args.out)
+    print(json.dumps(cal.to_json(), indent=1))
+    print(f"written {path}", file=sys.stderr)
+    return 0
+
+
 # ---------------------------------------------------------------------- bench
 def _machine() -> dict:
     import os
@@ -513,6 +532,12 @@ def build_parser() -> argparse.ArgumentParser:
         help="encoder sets, comma-separated: default, oracle (default: default)",
     )
     p.set_defaults(func=cmd_demo)
+
+    p = sub.add_parser("calibrate", help="fit query confidence of an encoder set on seeded scenes")
+    p.add_argument("--encoders", default="default", help="encoder set (default: default)")
+    p.add_argument("--scenes", type=int, default=0, help="use the first N calibration scenes")
+    p.add_argument("--out", default=None, help="file to write (default: the shipped location)")
+    p.set_defaults(func=cmd_calibrate)
 
     p = sub.add_parser("bench", help="performance figures of every part, in one run")
     p.add_argument("--json", action="store_true", help="machine-readable output")
