@@ -53,7 +53,7 @@ def test_fit_needs_both_classes_and_pairs():
 
 def test_fit_calibration_reports_held_out_figures():
     x, y = _samples(10.0, -2.0, 400, seed=2)
-    s = [{"modality": "object", "margin": m, "correct": bool(c)} for m, c in zip(x, y)]
+    s = [{"modality": "object", "margin": m, "correct": bool(c)} for m, c in zip(x, y, strict=True)]
     cal = fit_calibration("default", s[:200], s[200:])
     assert cal.calibrated == ("object",)
     r = cal.report["object"]
@@ -89,3 +89,23 @@ def test_file_round_trip_and_errors(tmp_path):
         load_calibration("x", bad)
     with pytest.raises(AssetError, match="does not exist"):
         load_calibration("x", tmp_path / "missing.json")
+
+
+def test_operating_point_keeps_most_right_answers(tmp_path):
+    rng = np.random.default_rng(3)
+    right = rng.normal(0.35, 0.1, 200)
+    wrong = rng.normal(0.15, 0.05, 600)
+    s = [{"modality": "sound", "margin": m, "correct": True} for m in right]
+    s += [{"modality": "sound", "margin": m, "correct": False} for m in wrong]
+    rng.shuffle(s)
+    cal = fit_calibration("default", s[:400], s[400:])
+    t = cal.thresholds["sound"]
+    r = cal.report["sound"]
+    assert 0.9 <= r["right_kept_test"] <= 1.0 and r["wrong_refused_test"] > 0.3
+    # the decision follows the threshold, not the (base-rate driven) confidence
+    assert cal.found("sound", t + 0.01, confidence=0.1, min_confidence=0.5)
+    assert not cal.found("sound", t - 0.01, confidence=0.9, min_confidence=0.5)
+    # modalities without a threshold use the confidence
+    assert cal.found("object", 0.0, confidence=0.6, min_confidence=0.5)
+    back = load_calibration("default", cal.save(tmp_path / "c.json"))
+    assert back.thresholds == cal.thresholds

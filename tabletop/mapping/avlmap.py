@@ -444,7 +444,7 @@ class AVLMap:
         mask[self.voxels.linear_indices[keep]] = True
         values = point_heatmap_3d(self.grid, mask.reshape(self.grid.shape), decay)
         conf = self._confidence("object", best - floor)
-        found = conf >= self.config.min_confidence
+        found = self._found("object", best - floor, conf)
         return Heatmap(
             values,
             query,
@@ -467,6 +467,10 @@ class AVLMap:
         score by ``margin`` (:mod:`tabletop.mapping.calibration`)."""
         return self.calibration.confidence(modality, float(margin))
 
+    def _found(self, modality: str, margin: float, confidence: float) -> bool:
+        """The calibration's operating point, else ``confidence >= config.min_confidence``."""
+        return self.calibration.found(modality, margin, confidence, self.config.min_confidence)
+
     def _scores(
         self, embeddings: list[np.ndarray], query: str, text=None
     ) -> tuple[np.ndarray, np.ndarray]:
@@ -485,7 +489,7 @@ class AVLMap:
         floor = float(np.median(s)) if len(s) > 2 else float(s.min(initial=0.0))
         conf = self._confidence("sound", float(s.max()) - floor)
         # a median of one or two scores says nothing about the typical score: not judged
-        found = conf >= self.config.min_confidence or len(s) <= 2
+        found = self._found("sound", float(s.max()) - floor, conf) or len(s) <= 2
         return Heatmap(
             values,
             query,

@@ -17,7 +17,7 @@ set has no calibration file uses :data:`UNCALIBRATED` and says so in its reports
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -64,6 +64,14 @@ class Calibration:
     encoder_set: str
     models: dict  # modality -> Platt
     report: dict  # held-out figures written by ``tabletop calibrate``
+    thresholds: dict = field(default_factory=dict)
+    """modality -> the smallest margin reported as found (the operating point); a modality
+    without one is found when its confidence reaches ``MapConfig.min_confidence``."""
+
+    def found(self, modality: str, margin: float, confidence: float, min_confidence: float):
+        """The found / not-found decision for a query of ``modality``."""
+        t = self.thresholds.get(modality)
+        return bool(margin >= t) if t is not None else bool(confidence >= min_confidence)
 
     def confidence(self, modality: str, margin: float) -> float:
         """Calibrated confidence in [0, 1] of a query of ``modality`` with ``margin``."""
@@ -82,6 +90,7 @@ class Calibration:
             "version": 1,
             "encoder_set": self.encoder_set,
             "models": {k: {"a": v.a, "b": v.b} for k, v in self.models.items()},
+            "thresholds": self.thresholds,
             "report": self.report,
         }
 
@@ -111,7 +120,11 @@ def load_calibration(encoder_set: str, path: str | Path | None = None) -> Calibr
             if k not in MODALITIES:
                 raise ValueError(f"unknown modality {k!r} (valid: {list(MODALITIES)})")
             models[k] = Platt(float(v["a"]), float(v["b"]))
-        return Calibration(str(d["encoder_set"]), models, dict(d.get("report", {})))
+        thresholds = {str(k): float(v) for k, v in d.get("thresholds", {}).items()}
+        bad = sorted(set(thresholds) - set(MODALITIES))
+        if bad:
+            raise ValueError(f"thresholds for unknown modalities {bad}")
+        return Calibration(str(d["encoder_set"]), models, dict(d.get("report", {})), thresholds)
     except (ValueError, KeyError, TypeError, AttributeError) as e:
         raise AssetError(f"calibration file {p} is malformed: {e}") from None
 
@@ -216,11 +229,16 @@ def calibration_samples(m, ground_truth: dict) -> list[dict]:
     return out
 
 
-def fit_calibration(encoder_set: str, train: list[dict], test: list[dict]) -> Calibration:
-    """Platt parameters per modality fitted on ``train``; the report holds ``test`` figures:
-    samples, expected calibration error (fitted and uncalibrated prior), and the accuracy of
-    the found (confidence >= 0.5) / not-found decision."""
-    models, report = {}, {}
+def fit_calibration(
+    encoder_set: str, train: list[dict], test: list[dict], keep_right: float = 0.95
+) -> Calibration:
+    """Platt parameters per modality fitted on ``train``, and an operating point: the margin
+    threshold that keeps ``keep_right`` of the right answers of ``train`` reported as found
+    (a query of something present is rarely refused; what a weak encoder cannot tell apart
+    is then reported with a low confidence instead). The report holds ``test`` figures:
+    samples, expected calibration error (fitted and uncalibrated prior), share of right
+    answers kept and of wrong ones refused at the operating point."""
+    models, report, thresholds = {}, {}, {}
     for mod in MODALITIES:
         tr = [s for s in train if s["modality"] == mod]
         te = [s for s in test if s["modality"] == mod]
@@ -228,6 +246,9 @@ def fit_calibration(encoder_set: str, train: list[dict], test: list[dict]) -> Ca
             continue
         f = fit_platt([s["margin"] for s in tr], [s["correct"] for s in tr])
         models[mod] = f
+        right = np.array([s["margin"] for s in tr if s["correct"]])
+        t = float(np.quantile(right, 1 - keep_right, method="lower"))
+        thresholds[mod] = t
         if te:
             x = np.array([s["margin"] for s in te])
             y = np.array([s["correct"] for s in te], dtype=bool)
@@ -239,8 +260,11 @@ def fit_calibration(encoder_set: str, train: list[dict], test: list[dict]) -> Ca
                 "ece_test": expected_calibration_error(p, y),
                 "ece_test_uncalibrated": expected_calibration_error(UNCALIBRATED(x), y),
                 "decision_accuracy_test": float(np.mean((p >= 0.5) == y)),
+                "threshold_margin": t,
+                "right_kept_test": float(np.mean(x[y] >= t)) if y.any() else float("nan"),
+                "wrong_refused_test": float(np.mean(x[~y] < t)) if (~y).any() else float("nan"),
             }
-    return Calibration(encoder_set, models, report)
+    return Calibration(encoder_set, models, report, thresholds)
 
 
 #: Generator seeds of the calibration scenes (apart from the evaluation suites' seeds).
