@@ -3,8 +3,6 @@ MiniLM's space, and keep their held-out quality (CI does not retrain)."""
 
 from __future__ import annotations
 
-import time
-
 import numpy as np
 import pytest
 import torch
@@ -178,16 +176,6 @@ def test_heldout_recall_of_committed_weights(encoder):
         assert 0.0 <= m[k] <= 1.0
     assert m["audio_recall3_heldout"] >= MIN_RECALL3_HELDOUT, m
     assert m["audio_recall1_heldout"] >= MIN_RECALL1_HELDOUT, m
-
-
-def test_speed(encoder):
-    x = _tone(440, 1.0)
-    encoder.encode_audio(x, 16000)
-    t = time.perf_counter()
-    for _ in range(10):
-        encoder.encode_audio(x, 16000)
-    per_call = (time.perf_counter() - t) / 10
-    assert per_call < 0.05  # measured 2.8 ms on an idle core; generous for busy CI machines
 
 
 def test_training_is_seeded(tmp_path):
