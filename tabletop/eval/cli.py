@@ -39,7 +39,7 @@ class ProgressBars:
 
 
 @contextlib.contextmanager
-def _stdout_to_stderr():
+def stdout_to_stderr():
     """Send everything written to file descriptor 1 (native libraries' banners included) to
     stderr, so that ``--json`` prints nothing but the JSON on stdout."""
     sys.stdout.flush()
@@ -58,7 +58,7 @@ def cmd_eval(args: argparse.Namespace) -> int:
 
     encoders = [e.strip() for e in args.encoders.split(",") if e.strip()]
     t0 = time.perf_counter()
-    with _stdout_to_stderr() if args.json else contextlib.nullcontext():
+    with stdout_to_stderr() if args.json else contextlib.nullcontext():
         res = run_eval(
             args.tasks,
             encoders=encoders,
