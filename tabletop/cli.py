@@ -275,9 +275,14 @@ def cmd_check_encoders(args: argparse.Namespace) -> int:
         from tabletop.train.vision import evaluate_vision
     except ImportError:
         evaluate_vision = None
-    if evaluate_vision is not None:
-        out.update({k: v for k, v in evaluate_vision().items() if k.startswith("vision_")})
-    a = evaluate_audio()
+    import contextlib
+
+    from tabletop.eval.cli import stdout_to_stderr
+
+    with stdout_to_stderr() if args.json else contextlib.nullcontext():
+        if evaluate_vision is not None:
+            out.update({k: v for k, v in evaluate_vision().items() if k.startswith("vision_")})
+        a = evaluate_audio()
     out.update({k: v for k, v in a.items() if k.startswith("audio_")})
     out["encoders"] = "embedded default (learned; held-out data)"
     if args.json:
