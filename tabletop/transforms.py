@@ -11,6 +11,7 @@ import numpy as np
 from tabletop.errors import ConfigError
 
 __all__ = [
+    "aabb_distance",
     "as_transform",
     "invert",
     "make_transform",
@@ -108,3 +109,9 @@ def rotation_about(axis: str, angle: float) -> np.ndarray:
     if axis == "z":
         return np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]], dtype=np.float64)
     raise ConfigError(f"unknown axis {axis!r}; valid: 'x', 'y', 'z'")
+
+
+def aabb_distance(p: object, lo: object, hi: object) -> float:
+    """Euclidean distance [m] from point ``p`` to the axis-aligned box ``[lo, hi]`` (0 inside)."""
+    p = np.asarray(p, dtype=np.float64)
+    return float(np.linalg.norm(np.maximum(np.subtract(lo, p), 0) + np.maximum(p - hi, 0)))

@@ -19,6 +19,7 @@ import numpy as np
 
 from tabletop.errors import SimulationError
 from tabletop.mapping.heatmaps import fuse
+from tabletop.transforms import aabb_distance
 
 __all__ = [
     "SUCCESS_M",
@@ -66,16 +67,10 @@ class ImageGoalConfig:
     """A goal camera is at least this far [m] from every camera pose of the recording."""
 
 
-def _box_dist(p, lo, hi) -> float:
-    return float(
-        np.linalg.norm(np.maximum(np.subtract(lo, p), 0) + np.maximum(np.subtract(p, hi), 0))
-    )
-
-
 def _disambiguated(point, dups: list[dict], min_margin: float) -> dict | None:
     """The duplicate nearest ``point`` if it is at least ``min_margin`` [m] nearer than the
     others, else None."""
-    d = [_box_dist(point, o["aabb_min"], o["aabb_max"]) for o in dups]
+    d = [aabb_distance(point, o["aabb_min"], o["aabb_max"]) for o in dups]
     order = np.argsort(d)
     return dups[order[0]] if d[order[1]] - d[order[0]] >= min_margin else None
 
@@ -168,7 +163,7 @@ def image_goals(
         for _ in range(100):
             a, r = rng.uniform(0, 2 * np.pi), rng.uniform(lo_m, hi_m)
             p = np.array([*np.add(o["center"][:2], r * np.array([np.cos(a), np.sin(a)])), 0.0])
-            free = all(_box_dist(p, b["aabb_min"], b["aabb_max"]) > 0.01 for b in objs)
+            free = all(aabb_distance(p, b["aabb_min"], b["aabb_max"]) > 0.01 for b in objs)
             t = ground_truth["table"]
             on_table = t["x"][0] + 0.03 < p[0] < t["x"][1] - 0.03 and t["y"][0] + 0.03 < p[1] < (
                 t["y"][1] - 0.03
@@ -228,7 +223,7 @@ def evaluate_map_goals(
     out: dict = {}
     for g in goals:
         target = _target(m, g)
-        errs = [_box_dist(target, lo, hi) for lo, hi in g.truth_boxes]
+        errs = [aabb_distance(target, lo, hi) for lo, hi in g.truth_boxes]
         errs += [float(np.linalg.norm(np.subtract(target, p))) for p in g.truth_points]
         err = min(errs)
         r = out.setdefault(g.kind, {"goals": 0, "successes": 0, "errors": []})

@@ -20,6 +20,7 @@ import numpy as np
 
 from tabletop.eval.tasks import FORMAT_NAME, FORMAT_VERSION, Truth, parse_tasks
 from tabletop.eval.truth import resolve_truth, sound_occurrences
+from tabletop.transforms import aabb_distance
 
 __all__ = ["DEFAULT_SUITES", "generate_suite", "to_toml", "write_default_suites"]
 
@@ -101,8 +102,7 @@ def to_toml(doc: dict, header: str = "") -> str:
 
 # ---------------------------------------------------------------------------- goal drawing
 def _box_dist(p, o) -> float:
-    lo, hi = np.array(o["aabb_min"]), np.array(o["aabb_max"])
-    return float(np.linalg.norm(np.maximum(lo - p, 0) + np.maximum(p - hi, 0)))
+    return aabb_distance(p, o["aabb_min"], o["aabb_max"])
 
 
 def _xy_clear(p, objects, exclude=(), margin: float = 0.03) -> bool:

@@ -24,6 +24,7 @@ import numpy as np
 
 from tabletop.errors import AssetError, ConfigError
 from tabletop.paths import DATA_DIR
+from tabletop.transforms import aabb_distance
 
 __all__ = [
     "CALIBRATION_DIR",
@@ -171,11 +172,6 @@ def expected_calibration_error(confidence, correct, bins: int = 10) -> float:
 SUCCESS_M = 0.10
 
 
-def _box_dist(p, lo, hi) -> float:
-    p = np.asarray(p, dtype=np.float64)
-    return float(np.linalg.norm(np.maximum(np.subtract(lo, p), 0) + np.maximum(p - hi, 0)))
-
-
 def calibration_samples(m, ground_truth: dict) -> list[dict]:
     """Labelled queries of one map: ``{"modality", "query", "margin", "correct"}`` each.
 
@@ -204,7 +200,7 @@ def calibration_samples(m, ground_truth: dict) -> list[dict]:
         by_query.setdefault(OBJECT_KINDS[o["kind"]].label, []).append(o)
     for q, os_ in sorted(by_query.items()):
         boxes = [(o["aabb_min"], o["aabb_max"]) for o in os_]
-        add("object", q, m.object_heatmap(q), lambda p, b=boxes: [_box_dist(p, *x) for x in b])
+        add("object", q, m.object_heatmap(q), lambda p, b=boxes: [aabb_distance(p, *x) for x in b])
     present = {o["kind"] for o in objs}
     for k in sorted(set(OBJECT_KINDS) - present):
         add("object", OBJECT_KINDS[k].label, m.object_heatmap(OBJECT_KINDS[k].label), None)
