@@ -40,6 +40,7 @@ import cv2
 import numpy as np
 
 from tabletop.errors import ConfigError
+from tabletop.mapping.encoders.base import torch_threads
 from tabletop.mapping.persistence import MapFormatError
 
 __all__ = [
@@ -233,20 +234,8 @@ class _XFeat:
         # does not ship.
         self._lg = LighterGlue()
 
-    @contextlib.contextmanager
-    def _one_thread(self):
-        """These small networks run on one thread: on two busy cores, two threads took 6x as
-        long (XFeat 30 vs 172 ms per 320x240 image, LighterGlue 77 vs 338 ms per pair)."""
-        n = self._torch.get_num_threads()
-        self._torch.set_num_threads(1)
-        try:
-            with self._torch.inference_mode():
-                yield
-        finally:
-            self._torch.set_num_threads(n)
-
     def extract(self, rgb: np.ndarray, max_keypoints: int) -> tuple[np.ndarray, np.ndarray]:
-        with self._one_thread():
+        with torch_threads(1):  # two threads on busy cores: ~6x slower
             out = self._xf.detectAndCompute(rgb, top_k=max_keypoints)[0]
         return (
             out["keypoints"].cpu().numpy().astype(np.float32),
@@ -265,7 +254,7 @@ class _XFeat:
             "image_size0": torch.tensor(q.size, dtype=torch.float32)[None],
             "image_size1": torch.tensor(r.size, dtype=torch.float32)[None],
         }
-        with self._one_thread():
+        with torch_threads(1):  # two threads on busy cores: ~6x slower
             res = self._lg(data, min_conf=config.lighterglue_min_confidence)
         return res["matches"][0].cpu().numpy().astype(np.int64).reshape(-1, 2)
 
