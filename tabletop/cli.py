@@ -351,6 +351,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
     """The main job: scan the default scene, map it with the embedded default encoders, run
     the demo suite (a few goals of every type) with the simulated arm, print the table and
     write the report."""
+    from tabletop.eval.cli import print_result
     from tabletop.eval.runner import run_eval
 
     out = Path(args.out)
@@ -368,13 +369,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
     res = run_eval("demo", encoders=encoders, out_dir=out, cache_dir=out / "cache")
     wall = time.perf_counter() - t0
     print()
-    print(res.table_markdown())
-    row = res.in_a_row_markdown()
-    if row:
-        print("\n" + row)
-    print(f"\n{sum(len(r.goals) for r in res.runs)} goals in {wall:.0f} s (scan, map, reaches)")
-    if res.report_path is not None:
-        print(f"report: {res.report_path}")
+    print_result(res, wall, " (scan, map, reaches)")
     return 0 if all(r.available for r in res.runs) else 1
 
 

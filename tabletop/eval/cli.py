@@ -9,7 +9,7 @@ import os
 import sys
 import time
 
-__all__ = ["ProgressBars", "add_commands"]
+__all__ = ["ProgressBars", "add_commands", "print_result", "stdout_to_stderr"]
 
 
 class ProgressBars:
@@ -72,14 +72,19 @@ def cmd_eval(args: argparse.Namespace) -> int:
         d["wall_s"] = round(wall, 1)
         print(json.dumps(d if args.goals else _without_goals(d), indent=1, default=float))
         return 0
+    print_result(res, wall)
+    return 0
+
+
+def print_result(res, wall: float, what: str = "") -> None:
+    """The table, the goals-in-a-row table, the goal count and wall time, the report path."""
     print(res.table_markdown())
     row = res.in_a_row_markdown()
     if row:
         print("\n" + row)
-    print(f"\n{sum(len(r.goals) for r in res.runs)} goals in {wall:.0f} s")
+    print(f"\n{sum(len(r.goals) for r in res.runs)} goals in {wall:.0f} s{what}")
     if res.report_path is not None:
         print(f"report: {res.report_path}")
-    return 0
 
 
 def _without_goals(d: dict) -> dict:
