@@ -109,3 +109,21 @@ def test_operating_point_keeps_most_right_answers(tmp_path):
     assert cal.found("object", 0.0, confidence=0.6, min_confidence=0.5)
     back = load_calibration("default", cal.save(tmp_path / "c.json"))
     assert back.thresholds == cal.thresholds
+
+
+def test_image_gets_a_confidence_but_its_module_decides_found():
+    rng = np.random.default_rng(4)
+    s = [
+        {"modality": "image", "margin": m, "correct": bool(m > 0.3), "found": bool(m > 0.35)}
+        for m in rng.uniform(-0.2, 0.9, 300)
+    ]
+    cal = fit_calibration("default", s[:150], s[150:])
+    assert "image" in cal.models and "image" not in cal.thresholds
+    assert cal.confidence("image", 0.8) > 0.9 > 0.1 > cal.confidence("image", 0.0)
+    r = cal.report["image"]
+    # kept / refused come from the module's own decision: found above 0.35, right above 0.3
+    test = s[150:]
+    right = [x for x in test if x["correct"]]
+    assert r["threshold_margin"] is None
+    assert r["right_kept_test"] == pytest.approx(np.mean([x["found"] for x in right]))
+    assert r["right_kept_test"] < 1.0 and r["wrong_refused_test"] == 1.0

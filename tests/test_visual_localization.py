@@ -11,6 +11,7 @@ from tabletop.errors import ConfigError
 from tabletop.eval.map_goals import ImageGoalConfig, image_goals
 from tabletop.mapping.avlmap import AVLMap, MapConfig
 from tabletop.mapping.visual_localization import (
+    PhotometricCheck,
     VisualDatabaseError,
     VisualLocalizationConfig,
     _unturn,
@@ -158,6 +159,60 @@ def test_broad_image_heatmap_and_failure_is_not_found_not_an_exception(avlmap, q
     assert not h.found and "blank image" in h.reason and not h.values.any()
     with pytest.raises(ConfigError, match="pass its intrinsics K"):
         avlmap.image_heatmap(np.full((480, 640, 3), 90, np.uint8))
+
+
+def shifted(T: np.ndarray, dx: float, dy: float) -> np.ndarray:
+    out = T.copy()
+    out[:2, 3] += (dx, dy)
+    return out
+
+
+def test_the_map_seen_from_the_true_pose_reproduces_the_image(avlmap, queries):
+    check, K = avlmap.photometric_check(), avlmap.visual.K
+    assert len(check) == len(avlmap.voxels.indices)
+    cfg = avlmap.config.visual
+    for g, label in queries:
+        cov, agree, kappa = check.score(g.T_world_cam, K, g.image, cfg)
+        assert cov > 0.5 and agree >= cfg.min_agreement and kappa >= cfg.min_kappa, label
+        # 8 cm to the side, the same picture no longer agrees with the map beyond chance
+        _, agree_off, kappa_off = check.score(shifted(g.T_world_cam, 0.08, 0.0), K, g.image, cfg)
+        assert kappa_off < cfg.min_kappa < kappa and agree_off < agree, label
+    # a camera looking away from the map sees none of it
+    up = np.eye(4)
+    up[2, 3] = 1.0  # 1 m above the table, optical axis (+z) pointing up
+    assert check.score(up, K, queries[0][0].image, cfg) == (0.0, 0.0, 0.0)
+    with pytest.raises(ConfigError, match=r"\(n, 3\) indices"):
+        PhotometricCheck(avlmap.grid, np.zeros((4, 2), int), np.zeros((4, 3), np.uint8))
+
+
+def test_the_check_refuses_a_pose_the_matches_support_but_the_map_does_not(avlmap, queries):
+    from tabletop.mapping.visual_localization import _checked
+
+    g = queries[0][0]
+    cfg, K, check = avlmap.config.visual, avlmap.visual.K, avlmap.photometric_check()
+    cand = {"T": shifted(g.T_world_cam, -0.1, 0.06), "inliers": 40, "reason": ""}
+    out = _checked(cand, check, g.image, K, cfg)
+    assert out["T"] is None and "40 inliers" in out["reason"] and out["kappa"] < cfg.min_kappa
+    ok = _checked({**cand, "T": g.T_world_cam}, check, g.image, K, cfg)
+    assert ok["T"] is not None and ok["agreement"] >= cfg.min_agreement
+    # localisation through the map reports the check's figures; the confidence calibrates kappa
+    loc, h = avlmap.localize(g.image), avlmap.image_heatmap(g.image)
+    assert loc.ok and loc.agreement >= cfg.min_agreement and loc.kappa >= cfg.min_kappa
+    assert h.evidence == loc.kappa and h.confidence == avlmap.calibration.confidence(
+        "image", loc.kappa
+    )
+    # without the check only the inlier rule decides, and no check figures are reported
+    plain = localize_image(avlmap.visual, g.image)
+    assert plain.ok and plain.agreement is None and plain.inliers >= cfg.min_inliers
+
+
+def test_check_settings_are_validated():
+    with pytest.raises(ConfigError, match=r"verify_min_inliers must be in \[4, min_inliers=15\]"):
+        VisualLocalizationConfig(verify_min_inliers=20)
+    with pytest.raises(ConfigError, match="min_kappa must be in"):
+        VisualLocalizationConfig(min_kappa=1.5)
+    with pytest.raises(ConfigError, match="colour_tolerance"):
+        VisualLocalizationConfig(colour_tolerance=0)
 
 
 def test_online_and_batch_reference_frames_agree(avlmap, rec):

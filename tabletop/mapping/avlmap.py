@@ -31,6 +31,7 @@ from tabletop.mapping.heatmaps import (
     scored_points_heatmap_xy,
 )
 from tabletop.mapping.visual_localization import (
+    PhotometricCheck,
     VisualDatabase,
     VisualDatabaseError,
     VisualLocalization,
@@ -532,7 +533,16 @@ class AVLMap:
                 f"the image is {size[0]}x{size[1]} px but the map's camera "
                 f"{self.visual.image_size[0]}x{self.visual.image_size[1]}: pass its intrinsics K"
             )
-        return localize_image(self.visual, rgb, K)
+        return localize_image(self.visual, rgb, K, check=self.photometric_check())
+
+    def photometric_check(self) -> PhotometricCheck:
+        """The map's voxel colours as a :class:`PhotometricCheck` of candidate camera poses
+        (built on first use, again after frames were added)."""
+        cached = getattr(self, "_check", None)
+        if cached is None or cached[0] != self._frames_seen:
+            check = PhotometricCheck(self.grid, self.voxels.indices, self.voxels.mean_colors())
+            self._check = cached = (self._frames_seen, check)
+        return cached[1]
 
     def image_target(
         self, T_world_cam: np.ndarray, K: np.ndarray, image_size: tuple[int, int]
@@ -582,18 +592,21 @@ class AVLMap:
         surface point at the image's centre (:meth:`image_target`), and
         ``H_v(p) = max(1 - eps * d_xy(p, p_v), 0)``. A failed localisation gives ``found=False``
         with its reason; malformed input raises :class:`ConfigError`. ``K``: see
-        :meth:`localize`. ``confidence`` is the fraction of feature matches the pose explains.
+        :meth:`localize`. ``evidence`` is the pose's photometric agreement beyond chance
+        (kappa; of the refused best pose when not found, None when PnP gave no pose);
+        ``confidence`` its calibration (:mod:`tabletop.mapping.calibration`), 0 when not found.
         """
         decay = self._decay(major)
         rgb = check_rgb(rgb)
         query = f"image {rgb.shape[1]}x{rgb.shape[0]}"
         loc = self.localize(rgb, K)
         if not loc.ok:
-            return self._empty(query, "image", decay, loc.reason)
+            return replace(self._empty(query, "image", decay, loc.reason), evidence=loc.kappa)
+        conf = self._confidence("image", loc.kappa)
         K = self.visual.K if K is None else K
         target = self.image_target(loc.T_world_cam, K, (rgb.shape[1], rgb.shape[0]))
         values = scored_points_heatmap_xy(self.grid, target[None, :2], [1.0], decay)
-        return Heatmap(values, query, "image", decay, loc.inlier_ratio, True, target=target)
+        return Heatmap(values, query, "image", decay, conf, True, target=target, evidence=loc.kappa)
 
     def surface_z(self, xy: np.ndarray) -> float:
         """Height [m] of the top occupied voxel at ``xy`` (0, the table, where none)."""

@@ -2,11 +2,12 @@
 
 A query's raw evidence is the *margin* of its best match over the map's typical match
 (object: best voxel score minus the median voxel score; sound: best segment minus the median
-segment; image: PnP inliers). A confidence must mean something: of the queries answered with
-confidence 0.8, about 80 % should land within 10 cm of the truth. :func:`fit_platt` fits a
-logistic ``p = 1 / (1 + exp(-(a * margin + b)))`` (Platt scaling) to labelled queries:
-queries of things in the scene (right when the target lands within 10 cm) and queries of things
-that are not there (always wrong: the right answer is "not found").
+segment; image: the photometric agreement beyond chance, kappa, of the best camera pose). A
+confidence must mean something: of the queries answered with confidence 0.8, about 80 %
+should land within 10 cm of the truth. :func:`fit_platt` fits a logistic
+``p = 1 / (1 + exp(-(a * margin + b)))`` (Platt scaling) to labelled queries: queries of
+things in the scene (right when the target lands within 10 cm) and queries of things that
+are not there (always wrong: the right answer is "not found").
 
 Fitted parameters live per encoder set and modality in ``tabletop/data/calibration/<set>.json``
 (written by ``tabletop calibrate``, which also records the held-out reliability: expected
@@ -172,13 +173,16 @@ def expected_calibration_error(confidence, correct, bins: int = 10) -> float:
 SUCCESS_M = 0.10
 
 
-def calibration_samples(m, ground_truth: dict) -> list[dict]:
+def calibration_samples(m, ground_truth: dict, image_goals=(), foreign_images=()) -> list[dict]:
     """Labelled queries of one map: ``{"modality", "query", "margin", "correct"}`` each.
 
     Objects: every object label and every kind name present (right when the target lands
     within 10 cm of an object carrying it) and every catalog kind absent from the scene
     (always wrong). Sounds: the caption of every inserted category (right within 10 cm of a
-    place it was heard) and of sound-bank categories never inserted (always wrong).
+    place it was heard) and of sound-bank categories never inserted (always wrong). Images:
+    ``image_goals`` (:class:`~tabletop.eval.map_goals.MapGoal` of kind ``"image"``, pictures
+    of this scene: right when found and within 10 cm of the truth) and ``foreign_images``
+    ((H, W, 3) uint8 pictures of other scenes: always wrong).
     """
     from tabletop.sim.catalog import OBJECT_KINDS
     from tabletop.sim.sound_bank import SoundBank
@@ -191,7 +195,15 @@ def calibration_samples(m, ground_truth: dict) -> list[dict]:
         else:
             margin = float(h.evidence)
             ok = bool(truth) and h.values.max() > 0 and min(truth(m.get_max_pos_3d(h))) <= SUCCESS_M
-        out.append({"modality": modality, "query": query, "margin": margin, "correct": ok})
+        out.append(
+            {
+                "modality": modality,
+                "query": query,
+                "margin": margin,
+                "correct": ok,
+                "found": h.found,
+            }
+        )
 
     objs = ground_truth["objects"]
     by_query: dict[str, list] = {}
@@ -222,6 +234,24 @@ def calibration_samples(m, ground_truth: dict) -> list[dict]:
         for cat in sorted(set(bank.categories) - set(heard)):
             cap = bank.caption(cat)
             add("sound", cap, m.sound_heatmap(cap), None)
+
+    for i, g in enumerate(image_goals):
+        h = m.image_heatmap(g.image)
+        margin = float(h.evidence) if h.found else -1.0  # a refused pose: no answer at all
+        err = [aabb_distance(h.target, *b) for b in g.truth_boxes] if h.found else []
+        err += [float(np.linalg.norm(h.target - np.asarray(p))) for p in g.truth_points if h.found]
+        right = h.found and min(err) <= SUCCESS_M
+        out.append(
+            {"modality": "image", "query": f"goal {i}", "margin": margin, "correct": right}
+            | {"found": h.found}
+        )
+    for i, img in enumerate(foreign_images):
+        h = m.image_heatmap(img)
+        margin = float(h.evidence) if h.found else -1.0
+        out.append(
+            {"modality": "image", "query": f"foreign {i}", "margin": margin, "correct": False}
+            | {"found": h.found}
+        )
     return out
 
 
@@ -244,7 +274,8 @@ def fit_calibration(
         models[mod] = f
         right = np.array([s["margin"] for s in tr if s["correct"]])
         t = float(np.quantile(right, 1 - keep_right, method="lower"))
-        thresholds[mod] = t
+        if mod not in GATED:
+            thresholds[mod] = t
         if te:
             x = np.array([s["margin"] for s in te])
             y = np.array([s["correct"] for s in te], dtype=bool)
@@ -260,8 +291,19 @@ def fit_calibration(
                 "right_kept_test": float(np.mean(x[y] >= t)) if y.any() else float("nan"),
                 "wrong_refused_test": float(np.mean(x[~y] < t)) if (~y).any() else float("nan"),
             }
+            if mod in GATED:  # the module's own found / not-found decision, not a threshold
+                found = np.array([s["found"] for s in te], dtype=bool)
+                report[mod]["threshold_margin"] = None
+                report[mod]["right_kept_test"] = float(np.mean(found[y])) if y.any() else None
+                report[mod]["wrong_refused_test"] = (
+                    float(np.mean(~found[~y])) if (~y).any() else None
+                )
     return Calibration(encoder_set, models, report, thresholds)
 
+
+#: Modalities whose module decides found / not found itself (the image module's photometric
+#: check); calibration gives them a confidence but no operating point.
+GATED = ("image",)
 
 #: Generator seeds of the calibration scenes (apart from the evaluation suites' seeds).
 CALIBRATION_SEEDS = tuple(range(700, 706))
@@ -272,26 +314,40 @@ def run_calibration(
     seeds=CALIBRATION_SEEDS,
     speed: float = 0.3,
     progress=None,
+    images: bool = True,
 ) -> Calibration:
     """Scan a generated scene per seed, build its map with ``encoder_set``, label queries,
-    fit on the first half of the scenes and report on the second (held-out scenes)."""
+    fit on the first half of the scenes and report on the second (held-out scenes). With
+    ``images``, each scene's image goals (rendered by a second simulator of it, at poses the
+    scan never took) and the previous scene's pictures (foreign: always wrong) are queried too.
+    """
     import tempfile
 
+    from tabletop.eval.map_goals import ImageGoalConfig, image_goals
     from tabletop.mapping.avlmap import AVLMap
     from tabletop.sim.scan import ScanConfig, run_scan
     from tabletop.sim.scene import load_scene_spec
+    from tabletop.sim.world import SimWorld
 
     seeds = list(seeds)
     if len(seeds) < 2:
         raise ConfigError("calibration needs at least 2 scene seeds (fit and held-out halves)")
-    per_scene = []
+    per_scene, previous = [], []
     with tempfile.TemporaryDirectory() as tmp:
         for seed in seeds:
             path = Path(tmp) / f"calib-{seed}.toml"
             path.write_text(f"[random]\nseed = {seed}\ncount = 9\nduplicates = 2\n")
-            rec, _ = run_scan(load_scene_spec(path), ScanConfig(seed=seed, speed=speed))
+            spec = load_scene_spec(path)
+            rec, _ = run_scan(spec, ScanConfig(seed=seed, speed=speed))
             m = AVLMap.build(rec, encoders=encoder_set)
-            per_scene.append(calibration_samples(m, rec.ground_truth))
+            goals = []
+            if images:
+                with SimWorld(spec) as world:
+                    cfg = ImageGoalConfig(seed=seed)
+                    goals = image_goals(rec.ground_truth, world, cfg, rec.T_world_cam)
+                goals = [g for g in goals if g.kind == "image"]
+            per_scene.append(calibration_samples(m, rec.ground_truth, goals, previous))
+            previous = [g.image for g in goals]
             if progress is not None:
                 progress(seed, per_scene[-1])
     half = len(per_scene) // 2
