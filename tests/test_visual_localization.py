@@ -262,3 +262,32 @@ def test_save_load_round_trip_and_corrupted_visual_arrays(avlmap, queries, tmp_p
     np.savez(tmp_path / "bad3.npz", **no_points)
     with pytest.raises(VisualDatabaseError, match="array 'points_world' is missing"):
         AVLMap.load(tmp_path / "bad3.npz")
+
+
+def test_calibration_samples_label_every_modality(avlmap, queries, rec):
+    from tabletop.mapping.calibration import calibration_samples
+
+    rng = np.random.default_rng(5)
+    foreign = np.zeros((240, 320, 3), np.uint8)  # a picture of no scene: random rectangles
+    for _ in range(60):
+        x, y = rng.integers(0, 300), rng.integers(0, 220)
+        foreign[y : y + rng.integers(5, 40), x : x + rng.integers(5, 40)] = rng.integers(0, 255, 3)
+    goals = [g for g, _ in queries]
+    s = calibration_samples(avlmap, rec.ground_truth, goals, [foreign])
+    by = {m: [x for x in s if x["modality"] == m] for m in ("object", "sound", "area", "image")}
+    assert len(by["image"]) == len(goals) + 1 and len(by["area"]) == len(rec.ground_truth["areas"])
+    # the oracle finds every present object label; absent kinds are always wrong
+    labels = {o["label"] for o in rec.ground_truth["objects"]}
+    assert all(x["correct"] for x in by["object"] if x["query"] in labels)
+    assert any(not x["correct"] for x in by["object"])
+    # pictures of the scene are found and right; the foreign one is refused: margin -1, wrong
+    assert all(x["correct"] and x["found"] and x["margin"] > 0 for x in by["image"][:-1])
+    assert by["image"][-1] == {
+        "modality": "image",
+        "query": "foreign 0",
+        "margin": -1.0,
+        "correct": False,
+        "found": False,
+    }
+    # every named table area is queried once
+    assert {x["query"] for x in by["area"]} == {a["name"] for a in rec.ground_truth["areas"]}

@@ -13,12 +13,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from tabletop.eval.tasks import TaskFileError, Truth
+from tabletop.mapping.calibration import AREA_HEIGHT_M
 from tabletop.robot.api import SpatialConfig
 
 __all__ = ["AREA_HEIGHT_M", "Region", "resolve_truth", "sound_occurrences"]
 
-#: An area's truth is its rectangle from the table top up to this height [m].
-AREA_HEIGHT_M = 0.30
 
 #: Unit directions of the side relations (robot API conventions: left = +y, in front = +x).
 _SIDES = {

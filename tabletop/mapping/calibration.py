@@ -171,6 +171,9 @@ def expected_calibration_error(confidence, correct, bins: int = 10) -> float:
 
 # --------------------------------------------------------------------------- fitting from maps
 SUCCESS_M = 0.10
+#: An area's truth is its rectangle from the table top up to this height [m] (as in the
+#: evaluation's ground truth).
+AREA_HEIGHT_M = 0.30
 
 
 def calibration_samples(m, ground_truth: dict, image_goals=(), foreign_images=()) -> list[dict]:
@@ -179,7 +182,8 @@ def calibration_samples(m, ground_truth: dict, image_goals=(), foreign_images=()
     Objects: every object label and every kind name present (right when the target lands
     within 10 cm of an object carrying it) and every catalog kind absent from the scene
     (always wrong). Sounds: the caption of every inserted category (right within 10 cm of a
-    place it was heard) and of sound-bank categories never inserted (always wrong). Images:
+    place it was heard) and of sound-bank categories never inserted (always wrong). Areas: each
+    named table area (right within 10 cm of its rectangle, up to :data:`AREA_HEIGHT_M`). Images:
     ``image_goals`` (:class:`~tabletop.eval.map_goals.MapGoal` of kind ``"image"``, pictures
     of this scene: right when found and within 10 cm of the truth) and ``foreign_images``
     ((H, W, 3) uint8 pictures of other scenes: always wrong).
@@ -234,6 +238,15 @@ def calibration_samples(m, ground_truth: dict, image_goals=(), foreign_images=()
         for cat in sorted(set(bank.categories) - set(heard)):
             cap = bank.caption(cat)
             add("sound", cap, m.sound_heatmap(cap), None)
+
+    for a in ground_truth.get("areas", []):
+        lo, hi = (a["x"][0], a["y"][0], 0.0), (a["x"][1], a["y"][1], AREA_HEIGHT_M)
+        add(
+            "area",
+            a["name"],
+            m.area_heatmap(a["name"]),
+            lambda p, b=(lo, hi): [aabb_distance(p, *b)],
+        )
 
     for i, g in enumerate(image_goals):
         h = m.image_heatmap(g.image)
@@ -302,8 +315,9 @@ def fit_calibration(
 
 
 #: Modalities whose module decides found / not found itself (the image module's photometric
-#: check); calibration gives them a confidence but no operating point.
-GATED = ("image",)
+#: check; a named table area is always there); calibration gives them a confidence but no
+#: operating point.
+GATED = ("image", "area")
 
 #: Generator seeds of the calibration scenes (apart from the evaluation suites' seeds).
 CALIBRATION_SEEDS = tuple(range(700, 706))
