@@ -240,28 +240,47 @@ def cmd_query(args: argparse.Namespace) -> int:
 
 
 def cmd_eval_map(args: argparse.Namespace) -> int:
+    import contextlib
+
+    from tabletop.eval.cli import stdout_to_stderr
     from tabletop.eval.map_goals import run_map_eval
+
+    log = sys.stderr if args.json else sys.stdout  # --json: stdout carries only the JSON
 
     def show(run):
         r = run["result"]
         print(
             f"  {run['scene']:8s} seed {run['seed']}: "
             + ", ".join(f"{k} {v['successes']}/{v['goals']}" for k, v in r.items()),
+            file=log,
             flush=True,
         )
 
     print(
         f"map goals on {args.seeds} x 2 scans (default scene and a generated one), "
-        f"{args.encoders} encoders; success = target within 10 cm of the truth"
+        f"{args.encoders} encoders; success = target within 10 cm of the truth",
+        file=log,
     )
-    res = run_map_eval(args.seeds, args.speed, args.encoders, progress=show)
+    with stdout_to_stderr() if args.json else contextlib.nullcontext():
+        res = run_map_eval(args.seeds, args.speed, args.encoders, progress=show)
     if args.json:
-        print(json.dumps({"by_type": res["by_type"], "encoders": res["encoders"]}, indent=1))
+        keys = ("by_type", "by_scene", "encoders")
+        print(json.dumps({k: res[k] for k in keys}, indent=1))
         return 0
     print(f"encoders: {res['encoders'].get('set')}")
-    print(f"{'goal type':16s} {'goals':>6s} {'success':>8s}")
+    scenes = list(res["by_scene"])
+    print(
+        f"{'goal type':16s} {'goals':>6s} {'success':>8s}" + "".join(f" {s:>12s}" for s in scenes)
+    )
     for k, v in res["by_type"].items():
-        print(f"{k:16s} {v['goals']:6d} {v['success_rate']:8.1%}")
+        per = [res["by_scene"][s].get(k) for s in scenes]
+        cells = "".join(
+            f" {'-':>12s}"
+            if c is None
+            else f" {c['successes']:>4d}/{c['goals']:<3d}{c['success_rate']:4.0%}"
+            for c in per
+        )
+        print(f"{k:16s} {v['goals']:6d} {v['success_rate']:8.1%}" + cells)
     return 0
 
 

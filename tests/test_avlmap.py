@@ -164,6 +164,12 @@ def test_map_goal_evaluation_scores_the_oracle_map(avlmap, rec):
     assert r["object"]["goals"] == len(rec.ground_truth["objects"])
     assert r["object"]["success_rate"] == 1.0
     assert r["sound"]["success_rate"] >= 0.75
+    # a sound's truth is the column above where it was inserted, up to where it was heard
+    e = rec.ground_truth["sound_events"][0]
+    s = next(g for g in goals if g.kind == "sound" and g.sound == e["caption"])
+    lo, hi = s.truth_boxes[0]
+    np.testing.assert_allclose(lo, e["table_point"])
+    np.testing.assert_allclose(hi, [*lo[:2], e["tcp_mean"][2]])
     # a goal scored against the wrong truth fails: the scoring can say no
     gt = {
         **rec.ground_truth,

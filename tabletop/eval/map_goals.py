@@ -1,14 +1,17 @@
 """Map-level goals from a recording's ground truth: where does the map put each goal?
 
 Goal types (the paper's tabletop experiment): ``object`` (an object's label, e.g. "red mug"),
-``sound`` (a caption of an inserted sound; a sound heard in two regions counts at either),
+``sound`` (a caption of an inserted sound; truth: the column above the table point where it
+was inserted, up to where the microphone heard it; a sound heard in two places counts at
+either),
 ``ambiguous`` (a duplicated kind, e.g. "mug", disambiguated by a sound heard near one of the
 duplicates: the product of the object's sharp heatmap and the sound's broad one), and with a
 simulator of the scene, ``image`` (an image the wrist camera would take over an object or a
 table point, rendered at a pose the scan never took; the truth is what the image looks at)
 and ``image_ambiguous`` (a duplicated kind disambiguated by an image of the table beside one
 duplicate: the object's sharp heatmap times the image's broad one). A goal succeeds when the
-map's target lies within 10 cm of the truth: the object's box, or the table point.
+map's target lies within 10 cm of the truth: the object's box, the sound's column, or the table
+point.
 """
 
 from __future__ import annotations
@@ -83,6 +86,14 @@ def _duplicates(objs: list[dict]) -> list[list[dict]]:
     ]
 
 
+def _heard_column(event: dict) -> tuple:
+    """A sound's truth box: the column from its table point up to where the microphone heard
+    it (a sound has a place on the table, not a height; the evaluation suites use the same
+    column, :mod:`tabletop.eval.truth`)."""
+    p = np.asarray(event["table_point"], np.float64)
+    return (p, np.array([p[0], p[1], max(float(event["tcp_mean"][2]), 0.0)]))
+
+
 def map_goals(ground_truth: dict, min_margin: float = 0.05) -> list[MapGoal]:
     """Object, sound and ambiguous goals of a recording. An ambiguous goal is kept only when the
     sound was heard at least ``min_margin`` [m] nearer one duplicate than the other."""
@@ -92,8 +103,10 @@ def map_goals(ground_truth: dict, min_margin: float = 0.05) -> list[MapGoal]:
         MapGoal("object", o["label"], None, ((o["aabb_min"], o["aabb_max"]),), ()) for o in objs
     ]
     for e in events:
-        pts = tuple(tuple(x["table_point"]) for x in events if x["category"] == e["category"])
-        goals.append(MapGoal("sound", None, e["caption"], (), pts))
+        same = [x for x in events if x["category"] == e["category"]]
+        goals.append(
+            MapGoal("sound", None, e["caption"], tuple(_heard_column(x) for x in same), ())
+        )
     for dups in _duplicates(objs):
         for e in events:
             if [x["category"] for x in events].count(e["category"]) > 1:
@@ -242,7 +255,8 @@ def run_map_eval(
     """Scan the default scene and a generated scene per seed, build maps, score the goals
     (image goals rendered by a second simulator of the same scene).
 
-    Returns {"runs": [...], "by_type": {type: {goals, successes, success_rate}}, "encoders"}.
+    Returns {"runs": [...], "by_type": {type: {goals, successes, success_rate}}, "by_scene":
+    {"default" | "random": {type: ...}}, "encoders"}.
     """
     import tempfile
     from pathlib import Path
@@ -252,7 +266,7 @@ def run_map_eval(
     from tabletop.sim.scene import load_scene_spec
     from tabletop.sim.world import SimWorld
 
-    runs, totals = [], {}
+    runs, totals, by_scene = [], {}, {}
     names = None
     for seed in range(seeds):
         for scene in ("default", "random"):
@@ -275,11 +289,14 @@ def run_map_eval(
                 )
             runs.append({"scene": scene, "seed": seed, "result": r})
             for k, v in r.items():
-                t = totals.setdefault(k, {"goals": 0, "successes": 0})
-                t["goals"] += v["goals"]
-                t["successes"] += v["successes"]
+                for t in (
+                    totals.setdefault(k, {"goals": 0, "successes": 0}),
+                    by_scene.setdefault(scene, {}).setdefault(k, {"goals": 0, "successes": 0}),
+                ):
+                    t["goals"] += v["goals"]
+                    t["successes"] += v["successes"]
             if progress is not None:
                 progress(runs[-1])
-    for t in totals.values():
+    for t in [*totals.values(), *(t for sc in by_scene.values() for t in sc.values())]:
         t["success_rate"] = t["successes"] / t["goals"]
-    return {"runs": runs, "by_type": totals, "encoders": names}
+    return {"runs": runs, "by_type": totals, "by_scene": by_scene, "encoders": names}
