@@ -291,3 +291,31 @@ def test_calibration_samples_label_every_modality(avlmap, queries, rec):
     }
     # every named table area is queried once
     assert {x["query"] for x in by["area"]} == {a["name"] for a in rec.ground_truth["areas"]}
+
+
+def test_query_command_with_an_image(avlmap, queries, rec, tmp_path, capsys):
+    import cv2
+
+    from tabletop.cli import main
+
+    path = avlmap.save(tmp_path / "map.npz")
+    g, label = queries[1]
+    cv2.imwrite(str(tmp_path / "goal.png"), g.image[:, :, ::-1])
+    assert (
+        main(
+            ["query", str(path), "--img", str(tmp_path / "goal.png"), "--out", str(tmp_path / "q")]
+        )
+        == 0
+    )
+    out = capsys.readouterr().out
+    assert "found" in out and "kappa" in out and "oracle" in out
+    line = next(x for x in out.splitlines() if "the image shows" in x)
+    x, y = (float(line.split(f"{c}=")[1].split()[0]) for c in "xy")
+    o = next(o for o in rec.ground_truth["objects"] if o["label"] == label)
+    assert np.hypot(x - o["center"][0], y - o["center"][1]) <= 0.10, line
+    assert (tmp_path / "q_top.png").is_file() and (tmp_path / "q_side.png").is_file()
+    # a blank picture is not found, with the reason, and exit status 1
+    cv2.imwrite(str(tmp_path / "blank.png"), np.full((240, 320, 3), 90, np.uint8))
+    assert main(["query", str(path), "--img", str(tmp_path / "blank.png")]) == 1
+    out = capsys.readouterr().out
+    assert "NOT FOUND (blank image" in out and "target:   none" in out

@@ -29,6 +29,7 @@ __all__ = [
     "ImageGoalConfig",
     "MapGoal",
     "evaluate_map_goals",
+    "heard_column",
     "image_goals",
     "map_goals",
 ]
@@ -86,7 +87,7 @@ def _duplicates(objs: list[dict]) -> list[list[dict]]:
     ]
 
 
-def _heard_column(event: dict) -> tuple:
+def heard_column(event: dict) -> tuple:
     """A sound's truth box: the column from its table point up to where the microphone heard
     it (a sound has a place on the table, not a height; the evaluation suites use the same
     column, :mod:`tabletop.eval.truth`)."""
@@ -104,9 +105,7 @@ def map_goals(ground_truth: dict, min_margin: float = 0.05) -> list[MapGoal]:
     ]
     for e in events:
         same = [x for x in events if x["category"] == e["category"]]
-        goals.append(
-            MapGoal("sound", None, e["caption"], tuple(_heard_column(x) for x in same), ())
-        )
+        goals.append(MapGoal("sound", None, e["caption"], tuple(heard_column(x) for x in same), ()))
     for dups in _duplicates(objs):
         for e in events:
             if [x["category"] for x in events].count(e["category"]) > 1:

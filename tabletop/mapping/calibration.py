@@ -181,13 +181,15 @@ def calibration_samples(m, ground_truth: dict, image_goals=(), foreign_images=()
 
     Objects: every object label and every kind name present (right when the target lands
     within 10 cm of an object carrying it) and every catalog kind absent from the scene
-    (always wrong). Sounds: the caption of every inserted category (right within 10 cm of a
-    place it was heard) and of sound-bank categories never inserted (always wrong). Areas: each
-    named table area (right within 10 cm of its rectangle, up to :data:`AREA_HEIGHT_M`). Images:
-    ``image_goals`` (:class:`~tabletop.eval.map_goals.MapGoal` of kind ``"image"``, pictures
-    of this scene: right when found and within 10 cm of the truth) and ``foreign_images``
-    ((H, W, 3) uint8 pictures of other scenes: always wrong).
+    (always wrong). Sounds: the caption of every inserted category (right within 10 cm of the
+    column above a place it was inserted, up to where it was heard) and of sound-bank
+    categories never inserted (always wrong). Areas: each named table area (right within
+    10 cm of its rectangle, up to :data:`AREA_HEIGHT_M`). Images: ``image_goals``
+    (:class:`~tabletop.eval.map_goals.MapGoal` of kind ``"image"``, pictures of this scene:
+    right when found and within 10 cm of the truth) and ``foreign_images`` ((H, W, 3) uint8
+    pictures of other scenes: always wrong).
     """
+    from tabletop.eval.map_goals import heard_column
     from tabletop.sim.catalog import OBJECT_KINDS
     from tabletop.sim.sound_bank import SoundBank
 
@@ -227,12 +229,12 @@ def calibration_samples(m, ground_truth: dict, image_goals=(), foreign_images=()
         for e in events:
             heard.setdefault(e["category"], []).append(e)
         for _cat, es in sorted(heard.items()):
-            pts = [np.asarray(e["table_point"]) for e in es]
+            cols = [heard_column(e) for e in es]
             add(
                 "sound",
                 es[0]["caption"],
                 m.sound_heatmap(es[0]["caption"]),
-                lambda p, pts=pts: [float(np.linalg.norm(p - x)) for x in pts],
+                lambda p, cols=cols: [aabb_distance(p, *c) for c in cols],
             )
         bank = SoundBank.default()
         for cat in sorted(set(bank.categories) - set(heard)):
