@@ -1,6 +1,8 @@
 """The AVLMap with the simulator-oracle encoders on a short scan of the default scene."""
 
+import copy
 import re
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -179,3 +181,10 @@ def test_map_goal_evaluation_scores_the_oracle_map(avlmap, rec):
         ],
     }
     assert evaluate_map_goals(avlmap, gt)["object"]["success_rate"] == 0.0
+    assert r["object"]["not_found"] == 0
+    # a query the map refuses is a failed goal even where its argmax would land right
+    strict = replace(avlmap.calibration, thresholds={"object": 10.0, "sound": 10.0})
+    m = copy.copy(avlmap)
+    m.calibration = strict
+    r = evaluate_map_goals(m, rec.ground_truth)
+    assert r["object"]["successes"] == 0 and r["object"]["not_found"] == r["object"]["goals"]

@@ -204,18 +204,21 @@ def image_goals(
     return goals
 
 
-def _target(m, g: MapGoal) -> np.ndarray:
+def _target(m, g: MapGoal) -> tuple[np.ndarray, bool]:
+    """The map's target for ``g`` and whether every part of the query was found (a part that
+    is not found stops the robot API before anything moves)."""
     if g.kind == "object":
-        return m.get_max_pos_3d(m.object_heatmap(g.obj))
-    if g.kind == "sound":
-        return m.get_max_pos_3d(m.sound_heatmap(g.sound))
-    if g.kind == "ambiguous":
-        aux = m.sound_heatmap(g.sound, major=False)
-        return m.get_max_pos_3d(fuse(m.object_heatmap(g.obj).values, aux.values))
-    if g.kind == "image":
-        return m.get_max_pos_3d(m.image_heatmap(g.image))
-    aux = m.image_heatmap(g.image, major=False)
-    return m.get_max_pos_3d(fuse(m.object_heatmap(g.obj).values, aux.values))
+        parts = [m.object_heatmap(g.obj)]
+    elif g.kind == "sound":
+        parts = [m.sound_heatmap(g.sound)]
+    elif g.kind == "ambiguous":
+        parts = [m.object_heatmap(g.obj), m.sound_heatmap(g.sound, major=False)]
+    elif g.kind == "image":
+        parts = [m.image_heatmap(g.image)]
+    else:
+        parts = [m.object_heatmap(g.obj), m.image_heatmap(g.image, major=False)]
+    target = m.get_max_pos_3d(fuse(*[h.values for h in parts]))
+    return target, all(h.found for h in parts)
 
 
 def evaluate_map_goals(
@@ -226,21 +229,23 @@ def evaluate_map_goals(
     image_config: ImageGoalConfig | None = None,
     recorded_T_world_cam: np.ndarray | None = None,
 ) -> dict:
-    """Per goal type: goals, successes, success rate, mean error [m]. With ``world`` (a
-    :class:`~tabletop.sim.world.SimWorld` of the scene), image goals too (:func:`image_goals`);
-    an image the map cannot localise is a failed goal."""
+    """Per goal type: goals, successes, not found, success rate, mean error [m]. A goal
+    succeeds when every part of its query is found and the target lies within 10 cm of the
+    truth. With ``world`` (a :class:`~tabletop.sim.world.SimWorld` of the scene), image goals
+    too (:func:`image_goals`)."""
     goals = map_goals(ground_truth)
     if world is not None:
         goals += image_goals(ground_truth, world, image_config, recorded_T_world_cam)
     out: dict = {}
     for g in goals:
-        target = _target(m, g)
+        target, found = _target(m, g)
         errs = [aabb_distance(target, lo, hi) for lo, hi in g.truth_boxes]
         errs += [float(np.linalg.norm(np.subtract(target, p))) for p in g.truth_points]
         err = min(errs)
-        r = out.setdefault(g.kind, {"goals": 0, "successes": 0, "errors": []})
+        r = out.setdefault(g.kind, {"goals": 0, "successes": 0, "not_found": 0, "errors": []})
         r["goals"] += 1
-        r["successes"] += int(err <= SUCCESS_M)
+        r["successes"] += int(found and err <= SUCCESS_M)
+        r["not_found"] += int(not found)
         r["errors"].append(err)
     for r in out.values():
         r["success_rate"] = r["successes"] / r["goals"]
@@ -254,8 +259,8 @@ def run_map_eval(
     """Scan the default scene and a generated scene per seed, build maps, score the goals
     (image goals rendered by a second simulator of the same scene).
 
-    Returns {"runs": [...], "by_type": {type: {goals, successes, success_rate}}, "by_scene":
-    {"default" | "random": {type: ...}}, "encoders"}.
+    Returns {"runs": [...], "by_type": {type: {goals, successes, not_found, success_rate}},
+    "by_scene": {"default" | "random": {type: ...}}, "encoders"}.
     """
     import tempfile
     from pathlib import Path
@@ -288,12 +293,13 @@ def run_map_eval(
                 )
             runs.append({"scene": scene, "seed": seed, "result": r})
             for k, v in r.items():
+                zero = {"goals": 0, "successes": 0, "not_found": 0}
                 for t in (
-                    totals.setdefault(k, {"goals": 0, "successes": 0}),
-                    by_scene.setdefault(scene, {}).setdefault(k, {"goals": 0, "successes": 0}),
+                    totals.setdefault(k, dict(zero)),
+                    by_scene.setdefault(scene, {}).setdefault(k, dict(zero)),
                 ):
-                    t["goals"] += v["goals"]
-                    t["successes"] += v["successes"]
+                    for key in zero:
+                        t[key] += v[key]
             if progress is not None:
                 progress(runs[-1])
     for t in [*totals.values(), *(t for sc in by_scene.values() for t in sc.values())]:
