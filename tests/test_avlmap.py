@@ -188,3 +188,17 @@ def test_map_goal_evaluation_scores_the_oracle_map(avlmap, rec):
     m.calibration = strict
     r = evaluate_map_goals(m, rec.ground_truth)
     assert r["object"]["successes"] == 0 and r["object"]["not_found"] == r["object"]["goals"]
+
+
+def test_a_5_mm_map_finds_every_object(rec):
+    from tabletop.mapping.grid import VoxelGrid
+
+    config = MapConfig(grid=VoxelGrid(voxel_size=0.005), pixel_step=2, frame_step=8, visual=None)
+    m = AVLMap.build(rec, config, encoders="oracle")
+    assert m.grid.shape == (200, 240, 72)
+    coarse = {tuple(c) for c in np.floor(m.voxels.centers / 0.01).astype(int)}
+    assert m.voxels.n > 1.5 * len(coarse)  # finer than 1 cm where the scan saw surfaces
+    for obj in rec.ground_truth["objects"]:
+        p = m.get_max_pos_3d(m.object_heatmap(obj["label"]))
+        lo, hi = np.array(obj["aabb_min"]), np.array(obj["aabb_max"])
+        assert np.linalg.norm(np.maximum(lo - p, 0) + np.maximum(p - hi, 0)) <= 0.02, obj["label"]
