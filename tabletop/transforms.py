@@ -15,6 +15,7 @@ __all__ = [
     "as_transform",
     "invert",
     "make_transform",
+    "pixel_rays",
     "quat_from_matrix",
     "quat_to_matrix",
     "rotation_about",
@@ -115,3 +116,13 @@ def aabb_distance(p: object, lo: object, hi: object) -> float:
     """Euclidean distance [m] from point ``p`` to the axis-aligned box ``[lo, hi]`` (0 inside)."""
     p = np.asarray(p, dtype=np.float64)
     return float(np.linalg.norm(np.maximum(np.subtract(lo, p), 0) + np.maximum(p - hi, 0)))
+
+
+def pixel_rays(K: np.ndarray, T_world_cam: np.ndarray, u: object, v: object) -> np.ndarray:
+    """(N, 3) unit world-frame directions of the rays through pixels ``(u, v)`` [px] of a
+    pinhole camera with intrinsics ``K`` (3, 3) at ``T_world_cam`` (OpenCV optical frame)."""
+    K = np.asarray(K, np.float64)
+    u, v = np.ravel(u).astype(np.float64), np.ravel(v).astype(np.float64)
+    d = np.stack([(u - K[0, 2]) / K[0, 0], (v - K[1, 2]) / K[1, 1], np.ones(len(u))], axis=1)
+    d = d @ np.asarray(T_world_cam, np.float64)[:3, :3].T
+    return d / np.linalg.norm(d, axis=1, keepdims=True)

@@ -87,3 +87,16 @@ def test_state_round_trip_and_validation():
         VoxelMap.from_state(GRID, 4, bad)
     with pytest.raises(ConfigError, match=r"features must be \(2, 4\)"):
         m.integrate(np.zeros((2, 3)), np.zeros((2, 5), np.float32))
+
+
+def test_march_stops_at_the_first_occupied_voxel_within_reach():
+    occ = np.zeros(GRID.shape, bool)
+    occ[10, 10, 2] = True  # the voxel [0.10, 0.11) x [0.10, 0.11) x [0.02, 0.03)
+    origin = np.array([0.105, 0.105, 0.095])
+    down = np.array([[0.0, 0.0, -1.0], [1.0, 0.0, 0.0]])
+    hit, point = GRID.march(origin, down, occ, 0.2)
+    assert hit.tolist() == [True, False]
+    assert GRID.world_to_index(point[:1])[0][0].tolist() == [10, 10, 2]  # a sample inside it
+    assert point[0, 2] > 0.02 + GRID.voxel_size / 4  # the first such sample: from above
+    hit, _ = GRID.march(origin, down, occ, [0.05, 0.2])  # per-ray reach: stops short
+    assert not hit.any()

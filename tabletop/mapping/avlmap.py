@@ -41,6 +41,7 @@ from tabletop.mapping.visual_localization import (
 )
 from tabletop.mapping.voxel_map import VoxelMap, frame_points
 from tabletop.sim.catalog import OBJECT_KINDS
+from tabletop.transforms import pixel_rays
 
 __all__ = ["DEFAULT_CATEGORIES", "OBJECT_CATEGORIES", "AVLMap", "Heatmap", "MapConfig", "MapStats"]
 
@@ -184,6 +185,7 @@ class AVLMap:
         self.visual = None if config.visual is None else VisualDatabase(config.visual)
         """The visual localization module's reference frames (None: no image goals)."""
         self._frames_seen = 0
+        self._check: tuple[int, PhotometricCheck] | None = None  # (frames seen, check)
         self.encoder_s = 0.0
         self.fusion_s = 0.0
         self.visual_s = 0.0
@@ -538,11 +540,10 @@ class AVLMap:
     def photometric_check(self) -> PhotometricCheck:
         """The map's voxel colours as a :class:`PhotometricCheck` of candidate camera poses
         (built on first use, again after frames were added)."""
-        cached = getattr(self, "_check", None)
-        if cached is None or cached[0] != self._frames_seen:
+        if self._check is None or self._check[0] != self._frames_seen:
             check = PhotometricCheck(self.grid, self.voxels.indices, self.voxels.mean_colors())
-            self._check = cached = (self._frames_seen, check)
-        return cached[1]
+            self._check = (self._frames_seen, check)
+        return self._check[1]
 
     def image_target(
         self, T_world_cam: np.ndarray, K: np.ndarray, image_size: tuple[int, int]
@@ -555,32 +556,21 @@ class AVLMap:
         the target is their per-axis median. A median of several rays is not swayed by one ray
         that grazes an object's edge.
         """
-        K = np.asarray(K, np.float64)
         w, h = image_size
         f = self.config.image_target_px / 2
         u, v = np.meshgrid(
             np.linspace(0.5 - f, 0.5 + f, 5) * w, np.linspace(0.5 - f, 0.5 + f, 5) * h
         )
-        rays = np.stack([(u.ravel() - K[0, 2]) / K[0, 0], (v.ravel() - K[1, 2]) / K[1, 1]], 1)
-        rays = np.concatenate([rays, np.ones((len(rays), 1))], axis=1) @ T_world_cam[:3, :3].T
-        rays /= np.linalg.norm(rays, axis=1, keepdims=True)
-        c = T_world_cam[:3, 3]
-        # March to the table plane (2 m at most) in half-voxel steps.
+        rays = pixel_rays(K, T_world_cam, u, v)
+        c = np.asarray(T_world_cam, np.float64)[:3, 3]
+        # March to the table plane (2 m at most).
         s_max = np.where(rays[:, 2] < -1e-6, -c[2] / np.minimum(rays[:, 2], -1e-6), 2.0)
-        steps = np.arange(0.0, float(min(s_max.max(), 2.0)), self.grid.voxel_size / 2)
-        pts = c + steps[None, :, None] * rays[:, None, :]  # (R, S, 3)
-        idx, inside = self.grid.world_to_index(pts.reshape(-1, 3))
-        occ = np.zeros(len(idx), bool)
-        occ[inside] = self.voxels.occupancy()[tuple(idx[inside].T)]
-        occ = occ.reshape(len(rays), len(steps)) & (steps[None, :] <= s_max[:, None])
-        first = np.where(occ.any(axis=1), occ.argmax(axis=1), -1)
-        hits = [pts[r, first[r]] for r in range(len(rays)) if first[r] >= 0]
-        hits += [
-            c + s_max[r] * rays[r] for r in range(len(rays)) if first[r] < 0 and s_max[r] < 2.0
-        ]
-        if not hits:
+        hit, first = self.grid.march(c, rays, self.voxels.occupancy(), np.minimum(s_max, 2.0))
+        table = ~hit & (s_max < 2.0)
+        hits = np.concatenate([first[hit], c + s_max[table, None] * rays[table]])
+        if not len(hits):
             return c + s_max[len(rays) // 2] * rays[len(rays) // 2]
-        return np.median(np.array(hits), axis=0)
+        return np.median(hits, axis=0)
 
     def image_heatmap(
         self, rgb: np.ndarray, major: bool = True, K: np.ndarray | None = None

@@ -66,5 +66,25 @@ class VoxelGrid:
             self.lower[a] + (np.arange(n) + 0.5) * self.voxel_size for a, n in enumerate(self.shape)
         )
 
+    def march(
+        self, origin: np.ndarray, rays: np.ndarray, occupied: np.ndarray, max_dist
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """First occupied voxel along each ray: ``rays`` (R, 3) unit directions from
+        ``origin`` (3,) [m] are sampled in half-voxel steps up to ``max_dist`` [m] (a scalar or
+        one per ray) and looked up in ``occupied`` (a dense boolean array of the grid's shape).
+        Returns ``hit`` (R,) bool and ``point`` (R, 3) [m], the first occupied sample of each
+        ray (meaningless where not ``hit``)."""
+        rays = np.asarray(rays, np.float64)
+        max_dist = np.broadcast_to(np.asarray(max_dist, np.float64), (len(rays),))
+        steps = np.arange(0.0, float(max_dist.max(initial=0.0)), self.voxel_size / 2)
+        if not len(steps):
+            return np.zeros(len(rays), bool), np.zeros((len(rays), 3))
+        pts = np.asarray(origin, np.float64) + steps[None, :, None] * rays[:, None, :]
+        idx, inside = self.world_to_index(pts.reshape(-1, 3))
+        occ = np.zeros(len(idx), bool)
+        occ[inside] = occupied[tuple(idx[inside].T)]
+        occ = occ.reshape(len(rays), len(steps)) & (steps[None, :] <= max_dist[:, None])
+        return occ.any(axis=1), pts[np.arange(len(rays)), occ.argmax(axis=1)]
+
     def to_dict(self) -> dict:
         return {"lower": list(self.lower), "upper": list(self.upper), "voxel_size": self.voxel_size}
