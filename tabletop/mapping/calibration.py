@@ -175,6 +175,11 @@ SUCCESS_M = 0.10
 #: evaluation's ground truth).
 AREA_HEIGHT_M = 0.30
 
+#: Modalities whose module decides found / not found itself (the image module's photometric
+#: check; a named table area is always there); calibration gives them a confidence but no
+#: operating point.
+GATED = ("image", "area")
+
 
 def calibration_samples(m, ground_truth: dict, image_goals=(), foreign_images=()) -> list[dict]:
     """Labelled queries of one map: ``{"modality", "query", "margin", "correct"}`` each.
@@ -250,23 +255,26 @@ def calibration_samples(m, ground_truth: dict, image_goals=(), foreign_images=()
             lambda p, b=(lo, hi): [aabb_distance(p, *b)],
         )
 
-    for i, g in enumerate(image_goals):
-        h = m.image_heatmap(g.image)
-        margin = float(h.evidence) if h.found else -1.0  # a refused pose: no answer at all
-        err = [aabb_distance(h.target, *b) for b in g.truth_boxes] if h.found else []
-        err += [float(np.linalg.norm(h.target - np.asarray(p))) for p in g.truth_points if h.found]
-        right = h.found and min(err) <= SUCCESS_M
+    def add_image(query, h, truth) -> None:
+        # a refused pose is no answer at all: the weakest evidence there is
+        margin = float(h.evidence) if h.found else -1.0
+        right = h.found and truth is not None and min(truth(h.target)) <= SUCCESS_M
         out.append(
-            {"modality": "image", "query": f"goal {i}", "margin": margin, "correct": right}
+            {"modality": "image", "query": query, "margin": margin, "correct": right}
             | {"found": h.found}
+        )
+
+    for i, g in enumerate(image_goals):
+        add_image(
+            f"goal {i}",
+            m.image_heatmap(g.image),
+            lambda p, g=g: (
+                [aabb_distance(p, *b) for b in g.truth_boxes]
+                + [float(np.linalg.norm(p - np.asarray(x))) for x in g.truth_points]
+            ),
         )
     for i, img in enumerate(foreign_images):
-        h = m.image_heatmap(img)
-        margin = float(h.evidence) if h.found else -1.0
-        out.append(
-            {"modality": "image", "query": f"foreign {i}", "margin": margin, "correct": False}
-            | {"found": h.found}
-        )
+        add_image(f"foreign {i}", m.image_heatmap(img), None)
     return out
 
 
@@ -295,6 +303,11 @@ def fit_calibration(
             x = np.array([s["margin"] for s in te])
             y = np.array([s["correct"] for s in te], dtype=bool)
             p = np.asarray(f(x))
+            if mod in GATED:  # the module's own found / not-found decision, not a threshold
+                kept = np.array([s["found"] for s in te], dtype=bool)
+                empty = None
+            else:
+                kept, empty = x >= t, float("nan")
             report[mod] = {
                 "train_samples": len(tr),
                 "test_samples": len(te),
@@ -302,24 +315,12 @@ def fit_calibration(
                 "ece_test": expected_calibration_error(p, y),
                 "ece_test_uncalibrated": expected_calibration_error(UNCALIBRATED(x), y),
                 "decision_accuracy_test": float(np.mean((p >= 0.5) == y)),
-                "threshold_margin": t,
-                "right_kept_test": float(np.mean(x[y] >= t)) if y.any() else float("nan"),
-                "wrong_refused_test": float(np.mean(x[~y] < t)) if (~y).any() else float("nan"),
+                "threshold_margin": None if mod in GATED else t,
+                "right_kept_test": float(np.mean(kept[y])) if y.any() else empty,
+                "wrong_refused_test": float(np.mean(~kept[~y])) if (~y).any() else empty,
             }
-            if mod in GATED:  # the module's own found / not-found decision, not a threshold
-                found = np.array([s["found"] for s in te], dtype=bool)
-                report[mod]["threshold_margin"] = None
-                report[mod]["right_kept_test"] = float(np.mean(found[y])) if y.any() else None
-                report[mod]["wrong_refused_test"] = (
-                    float(np.mean(~found[~y])) if (~y).any() else None
-                )
     return Calibration(encoder_set, models, report, thresholds)
 
-
-#: Modalities whose module decides found / not found itself (the image module's photometric
-#: check; a named table area is always there); calibration gives them a confidence but no
-#: operating point.
-GATED = ("image", "area")
 
 #: Generator seeds of the calibration scenes (apart from the evaluation suites' seeds).
 CALIBRATION_SEEDS = tuple(range(700, 706))
