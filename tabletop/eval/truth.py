@@ -12,6 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from tabletop.eval.map_goals import heard_column
 from tabletop.eval.tasks import TaskFileError, Truth
 from tabletop.mapping.calibration import AREA_HEIGHT_M
 from tabletop.robot.api import SpatialConfig
@@ -162,11 +163,7 @@ def resolve_truth(t: Truth, ground_truth: dict, where: str = "truth") -> Region:
         o = _object(gt, t.object, where)
         return _region([[o["aabb_min"], o["aabb_max"]]], f"box of {t.object}")
     if t.kind == "sound":
-        boxes = []
-        for e in _sound_events(gt, t, where):
-            p = np.array(e["table_point"], np.float64)
-            top = max(float(e["tcp_mean"][2]), 0.0)
-            boxes.append([p, [p[0], p[1], top]])
+        boxes = [heard_column(e) for e in _sound_events(gt, t, where)]
         return _region(boxes, f"where {t.sound!r} was heard ({len(boxes)} place(s))")
     if t.kind == "area":
         a = _area(gt, t.area, where)
