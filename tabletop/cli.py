@@ -397,8 +397,13 @@ def cmd_demo(args: argparse.Namespace) -> int:
 def cmd_calibrate(args: argparse.Namespace) -> int:
     """Fit the confidence calibration of an encoder set on seeded scenes (first half) and
     report it on the others; writes tabletop/data/calibration/<set>.json (or --out)."""
-    from tabletop.mapping.calibration import CALIBRATION_SEEDS, run_calibration
+    from tabletop.mapping.calibration import CALIBRATION_SEEDS, MODALITIES, run_calibration
 
+    keep_prior = [m.strip() for m in args.keep_prior.split(",") if m.strip()]
+    bad = sorted(set(keep_prior) - set(MODALITIES))
+    if bad:  # before a quarter of an hour of scanning, not after
+        print(f"tabletop calibrate: --keep-prior {bad}: valid {list(MODALITIES)}", file=sys.stderr)
+        return 2
     seeds = list(CALIBRATION_SEEDS)[: args.scenes] if args.scenes else list(CALIBRATION_SEEDS)
     print(f"calibrating {args.encoders!r} on scenes {seeds} ...", file=sys.stderr)
     cal = run_calibration(
@@ -406,6 +411,8 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
         seeds,
         progress=lambda seed, s: print(f"  scene {seed}: {len(s)} queries", file=sys.stderr),
     )
+    if keep_prior:
+        cal = cal.keep_prior(keep_prior)
     path = cal.save(args.out)
     print(json.dumps(cal.to_json(), indent=1))
     print(f"written {path}", file=sys.stderr)
@@ -585,6 +592,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--encoders", default="default", help="encoder set (default: default)")
     p.add_argument("--scenes", type=int, default=0, help="use the first N calibration scenes")
     p.add_argument("--out", default=None, help="file to write (default: the shipped location)")
+    p.add_argument(
+        "--keep-prior",
+        default="",
+        help="modalities that keep the prior (comma-separated; their fits go to the report)",
+    )
     p.set_defaults(func=cmd_calibrate)
 
     p = sub.add_parser("bench", help="performance figures of every part, in one run")

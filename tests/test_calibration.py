@@ -127,3 +127,27 @@ def test_image_gets_a_confidence_but_its_module_decides_found():
     assert r["threshold_margin"] is None
     assert r["right_kept_test"] == pytest.approx(np.mean([x["found"] for x in right]))
     assert r["right_kept_test"] < 1.0 and r["wrong_refused_test"] == 1.0
+
+
+def test_keep_prior_sets_fits_aside(tmp_path, capsys):
+    cal = Calibration(
+        "oracle",
+        {"object": Platt(8.0, -1.5), "image": Platt(9.0, -3.0)},
+        {"object": {"ece_test": 0.03}},
+        {"object": 0.4},
+    )
+    kept = cal.keep_prior(["object"])
+    assert kept.calibrated == ("image",) and kept.thresholds == {}
+    assert kept.confidence("object", 0.2) == pytest.approx(UNCALIBRATED(0.2))
+    back = load_calibration("oracle", kept.save(tmp_path / "o.json"))
+    assert back.report["prior_kept"]["object"] == {
+        "model": {"a": 8.0, "b": -1.5},
+        "threshold": 0.4,
+        "report": {"ece_test": 0.03},
+    }
+    with pytest.raises(ConfigError, match="unknown modalities"):
+        cal.keep_prior(["smell"])
+    from tabletop.cli import main
+
+    assert main(["calibrate", "--keep-prior", "object,smell", "--out", str(tmp_path / "x")]) == 2
+    assert "valid" in capsys.readouterr().err and not (tmp_path / "x").exists()

@@ -86,6 +86,31 @@ class Calibration:
         """The modalities with fitted parameters."""
         return tuple(m for m in MODALITIES if m in self.models)
 
+    def keep_prior(self, modalities) -> Calibration:
+        """This calibration with the fits of ``modalities`` set aside: they answer with the
+        prior again, and their fits and held-out figures move to ``report["prior_kept"]``."""
+        modalities = list(modalities)
+        bad = sorted(set(modalities) - set(MODALITIES))
+        if bad:
+            raise ConfigError(f"unknown modalities {bad}; valid: {list(MODALITIES)}")
+        kept = {
+            m: {
+                "model": {"a": self.models[m].a, "b": self.models[m].b}
+                if m in self.models
+                else None,
+                "threshold": self.thresholds.get(m),
+                "report": self.report.get(m),
+            }
+            for m in modalities
+        }
+        report = {k: v for k, v in self.report.items() if k not in modalities}
+        return Calibration(
+            self.encoder_set,
+            {k: v for k, v in self.models.items() if k not in modalities},
+            report | {"prior_kept": kept},
+            {k: v for k, v in self.thresholds.items() if k not in modalities},
+        )
+
     def to_json(self) -> dict:
         return {
             "format": "tabletop-calibration",
