@@ -8,6 +8,7 @@ from __future__ import annotations
 __all__ = [
     "AssetError",
     "ConfigError",
+    "GoalNotFound",
     "RecordingError",
     "SceneError",
     "SimulationError",
@@ -37,3 +38,13 @@ class RecordingError(TabletopError, ValueError):
 
 class SimulationError(TabletopError, RuntimeError):
     """The simulator could not do what was asked (render, reach a pose, ...)."""
+
+
+class GoalNotFound(TabletopError, LookupError):
+    """A query (object, sound, image, area, or their product) matches nothing in the map, so
+    there is no target; nothing moved."""
+
+    def __init__(self, query: str, reason: str) -> None:
+        super().__init__(f"{query}: not found ({reason})")
+        self.query = query
+        self.reason = reason

@@ -13,6 +13,7 @@ from tabletop.errors import ConfigError
 __all__ = [
     "aabb_distance",
     "as_transform",
+    "backproject",
     "invert",
     "make_transform",
     "pixel_rays",
@@ -126,3 +127,16 @@ def pixel_rays(K: np.ndarray, T_world_cam: np.ndarray, u: object, v: object) -> 
     d = np.stack([(u - K[0, 2]) / K[0, 0], (v - K[1, 2]) / K[1, 1], np.ones(len(u))], axis=1)
     d = d @ np.asarray(T_world_cam, np.float64)[:3, :3].T
     return d / np.linalg.norm(d, axis=1, keepdims=True)
+
+
+def backproject(depth: np.ndarray, K: np.ndarray, mask: np.ndarray | None = None) -> np.ndarray:
+    """(N, 3) points [m] in the camera frame from valid (> 0) depth pixels (and ``mask``)."""
+    depth = np.asarray(depth)
+    valid = depth > 0
+    if mask is not None:
+        valid &= mask
+    v, u = np.nonzero(valid)
+    z = depth[v, u].astype(np.float64)
+    x = (u - K[0, 2]) * z / K[0, 0]
+    y = (v - K[1, 2]) * z / K[1, 1]
+    return np.stack([x, y, z], axis=1)

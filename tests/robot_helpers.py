@@ -3,7 +3,7 @@
 
 import functools
 
-from tabletop.mapping.avlmap import AVLMap, MapConfig
+from tabletop.mapping import AVLMap, MapConfig
 from tabletop.sim.scan import ScanConfig, run_scan
 from tabletop.sim.scene import load_scene_spec
 

@@ -1,4 +1,4 @@
-"""Tests of tabletop.sim.audio: WAV I/O, resampling, noise, clip insertion and episodes."""
+"""Tests of tabletop.audio: WAV I/O, resampling, noise, clip insertion and episodes."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from tabletop.errors import AssetError, ConfigError
-from tabletop.sim.audio import (
+from tabletop.audio import (
     EpisodeAudio,
     background_noise,
     compose_episode_audio,

@@ -5,7 +5,7 @@ import pytest
 
 from tabletop.errors import ConfigError
 from tabletop.mapping.audio_segments import NoiseGateConfig, noise_gate, segment_audio
-from tabletop.sim.audio import background_noise, insert_clip
+from tabletop.audio import background_noise, insert_clip
 
 RATE = 16000
 

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from tabletop.errors import ConfigError
-from tabletop.mapping.avlmap import AVLMap, MapConfig
+from tabletop.mapping import AVLMap, MapConfig
 from tabletop.mapping.encoders.registry import ENCODER_SETS
 from tabletop.mapping.heatmaps import fuse
 from tabletop.sim.scan import ScanConfig, run_scan
@@ -191,7 +191,7 @@ def test_map_goal_evaluation_scores_the_oracle_map(avlmap, rec):
 
 
 def test_a_5_mm_map_finds_every_object(rec):
-    from tabletop.mapping.grid import VoxelGrid
+    from tabletop.grid import VoxelGrid
 
     config = MapConfig(grid=VoxelGrid(voxel_size=0.005), pixel_step=2, frame_step=8, visual=None)
     m = AVLMap.build(rec, config, encoders="oracle")

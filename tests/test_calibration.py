@@ -6,12 +6,12 @@ import numpy as np
 import pytest
 
 from tabletop.errors import AssetError, ConfigError
+from tabletop.eval.calibration import fit_calibration
 from tabletop.mapping.calibration import (
     UNCALIBRATED,
     Calibration,
     Platt,
     expected_calibration_error,
-    fit_calibration,
     fit_platt,
     load_calibration,
 )

@@ -6,12 +6,11 @@ from tabletop.errors import ConfigError
 from tabletop.sim.camera import (
     CameraIntrinsics,
     WristCameraConfig,
-    backproject,
     depth_from_gl_buffer,
     gl_projection_matrix,
     gl_view_matrix,
 )
-from tabletop.transforms import invert, make_transform, rotation_about
+from tabletop.transforms import backproject, invert, make_transform, rotation_about
 
 
 def test_projection_matches_pybullet_fov_matrix_for_centred_principal_point():

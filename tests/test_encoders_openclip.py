@@ -101,7 +101,7 @@ def test_clear_errors(tmp_path, checkpoint):
 def test_a_map_builds_through_the_same_path(checkpoint, tmp_path):
     """The 'openclip' encoder set builds, saves and loads a map like the others (random
     weights: the map's answers mean nothing, its plumbing does)."""
-    from tabletop.mapping.avlmap import AVLMap, MapConfig
+    from tabletop.mapping import AVLMap, MapConfig
     from tabletop.mapping.encoders.registry import make_encoders
     from tabletop.sim.scan import ScanConfig, run_scan
     from tabletop.sim.scene import load_scene_spec

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from tabletop.errors import AssetError, ConfigError
-from tabletop.mapping.avlmap import AVLMap, MapConfig
+from tabletop.mapping import AVLMap, MapConfig
 from tabletop.mapping.encoders.base import (
     AudioEncoder,
     DenseImageEncoder,

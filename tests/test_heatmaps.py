@@ -4,13 +4,14 @@ import numpy as np
 import pytest
 
 from tabletop.errors import ConfigError
-from tabletop.mapping.grid import VoxelGrid
+from tabletop.grid import VoxelGrid
 from tabletop.mapping.heatmaps import (
-    argmax_world,
+    Heatmap,
     fuse,
     point_heatmap_3d,
     scored_points_heatmap_xy,
 )
+from tabletop.mapping.targets import max_position
 
 GRID = VoxelGrid(lower=(0.0, -0.2, 0.0), upper=(0.4, 0.2, 0.1), voxel_size=0.01)
 
@@ -74,16 +75,56 @@ def test_decay_is_per_metre_so_voxel_size_does_not_change_meaning():
         assert h[i, 0, 0] == pytest.approx(0.5, abs=1e-6)
 
 
+def _h(values, query="q", found=True, grid=GRID, confidence=0.9):
+    return Heatmap(grid, values, query, "object", 10.0, confidence, found)
+
+
 def test_fusion_is_the_product_and_argmax_finds_the_peak():
     a = np.zeros(GRID.shape, np.float32)
     b = np.zeros(GRID.shape, np.float32)
     a[5:10, 5:10, 2] = 1.0
     b[7, 8, 2] = 1.0
-    b[30, 30, 5] = 2.0  # hot in b alone: the product ignores it
-    f = fuse(a, b)
-    np.testing.assert_array_equal(f, a * b)
-    np.testing.assert_allclose(argmax_world(GRID, f), GRID.centers(np.array([[7, 8, 2]]))[0])
+    b[30, 30, 5] = 0.9  # hot in b alone: the product ignores it
+    f = fuse(_h(a, "a"), _h(b, "b", confidence=0.7))
+    np.testing.assert_array_equal(f.values, a * b)
+    assert f.found and f.modality == "fused" and f.confidence == pytest.approx(0.7)
+    assert [h.query for h in f.parts] == ["a", "b"]
+    assert (_h(a) * _h(b)).values.tolist() == f.values.tolist()
+    occ = np.zeros(GRID.shape, bool)
+    np.testing.assert_allclose(max_position(f, occ), GRID.centers(np.array([[7, 8, 2]]))[0])
+    other = VoxelGrid(lower=(0.0, 0.0, 0.0), upper=(0.02, 0.02, 0.02), voxel_size=0.01)
     with pytest.raises(ConfigError, match="different grids"):
-        fuse(a, np.zeros((2, 2, 2), np.float32))
+        fuse(_h(a), _h(np.zeros((2, 2, 2), np.float32), grid=other))
+    with pytest.raises(ConfigError, match="takes Heatmap values"):
+        fuse(a, b)
+
+
+def test_fused_heatmap_is_found_only_when_every_part_is_and_some_place_is_hot():
+    a = np.zeros(GRID.shape, np.float32)
+    b = np.zeros(GRID.shape, np.float32)
+    a[1, 1, 1] = 1.0
+    b[20, 20, 2] = 1.0  # disjoint from a: the product is zero everywhere
+    f = fuse(_h(a), _h(b))
+    assert not f.found and "no place in the map has heat from every part" in f.reason
+    missing = Heatmap.not_found(GRID, "giraffe", "object", 10.0, "no voxel matches")
+    g = fuse(_h(a), missing)
+    assert not g.found and "giraffe" in g.reason and "no voxel matches" in g.reason
+    assert g.confidence == 0.0
+
+
+def test_heatmap_values_are_checked_and_read_only():
+    with pytest.raises(ConfigError, match="non-finite"):
+        _h(np.full(GRID.shape, np.nan, np.float32))
+    with pytest.raises(ConfigError, match=r"in \[0, 1\]"):
+        _h(np.full(GRID.shape, 2.0, np.float32))
+    with pytest.raises(ConfigError, match="not on the grid"):
+        _h(np.zeros((3, 3, 3), np.float32))
+    with pytest.raises(ConfigError, match="unknown modality"):
+        Heatmap(GRID, np.zeros(GRID.shape, np.float32), "q", "smell", 1.0, 0.5, True)
+    h = _h(np.zeros(GRID.shape, np.float32))
+    assert not h.values.flags.writeable
+
+
+def test_decay_must_be_positive():
     with pytest.raises(ConfigError, match="decay must be a positive rate in 1/m"):
         point_heatmap_3d(GRID, np.zeros(GRID.shape, bool), -1.0)

@@ -62,6 +62,28 @@ def test_tracing_robot_targets_equal_the_robot_apis_own(ref_map):
         t.move_north("far")
 
 
+def test_every_traced_motion_goes_to_its_declared_target(ref_map):
+    from tabletop.robot.primitives import PRIMITIVES
+
+    robot = PointRobot(ref_map, (0.3, 0.0, 0.3))
+    args = {"name": "red mug", "a": "red mug", "b": "tray", "distance_m": 0.04}
+    for p in PRIMITIVES:
+        if not p.moves or p.target is None:
+            continue
+        t = TracingRobot(robot, execute=False, start=(0.3, 0.0, 0.3))
+        values = [args[n] for n in p.params]
+        getattr(t, p.name)(*values)
+        if p.direction is not None:
+            expected = np.add((0.3, 0.0, 0.3), [0.04 * p.direction[0], 0.04 * p.direction[1], 0])
+        else:
+            expected = getattr(robot, p.target)(*values)
+        assert [m.method for m in t.motions] == [p.name]
+        np.testing.assert_allclose(t.targets[0], expected, err_msg=p.name)
+    np.testing.assert_allclose(robot.current_position(), [0.3, 0.0, 0.3])  # a dry run
+    with pytest.raises(TypeError, match="distance_m"):
+        TracingRobot(robot).move_north()
+
+
 def test_the_arm_does_not_move_for_refused_code_or_instructions(arm):
     q0 = arm.driver.read_state().q.copy()
     n0 = len(arm.history)

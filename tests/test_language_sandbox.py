@@ -16,6 +16,7 @@ from tabletop.language import (
 )
 from tabletop.language.sandbox import ROBOT_METHODS
 from tabletop.robot.api import RobotAPI
+from tabletop.robot.primitives import PRIMITIVES
 
 
 class CountingRobot(RobotAPI):
@@ -166,6 +167,79 @@ def test_allowed_code_runs_in_order_and_counts_its_bounds():
 def test_the_allowed_api_is_the_robot_api():
     assert all(callable(getattr(RobotAPI, m, None)) for m in ROBOT_METHODS)
     assert not {"close", "reset", "map", "controller", "history"} & ROBOT_METHODS
+    assert ROBOT_METHODS == {p.name for p in PRIMITIVES}  # the declaration, nothing else
+
+
+class FakeHeatmap:
+    """Stands for the heatmap class: ``*`` multiplies the values, nothing else is defined."""
+
+    def __init__(self, values):
+        self.values = np.asarray(values, np.float32)
+
+    def __mul__(self, other):
+        if not isinstance(other, FakeHeatmap):
+            return NotImplemented
+        return FakeHeatmap(self.values * other.values)
+
+
+class MapRobot(CountingRobot):
+    """get_major_map / get_map answer heatmaps of the class under test."""
+
+    def __init__(self, make):
+        super().__init__()
+        self.make = make
+
+    def get_major_map(self, obj=None, sound=None, img=None, area=None, *, primary=None):
+        return self.make([0.2, 1.0, 0.5])
+
+    def get_map(self, obj=None, sound=None, img=None, area=None):
+        return self.make([1.0, 0.5, 0.0])
+
+
+def test_heatmaps_multiply_in_the_sandbox_and_nothing_else(monkeypatch):
+    from tabletop.language import sandbox
+
+    monkeypatch.setattr(sandbox, "HEATMAP_CLASS", f"{__name__}.FakeHeatmap")
+    robot = MapRobot(FakeHeatmap)
+    code = 'a = robot.get_major_map(obj="mug")\nb = robot.get_map(sound="dog")\nf = a * b\n'
+    run = run_code(code + "robot.move_north(0.01)\n", robot)
+    assert len(run.calls) == 3 and len(robot.moves) == 1
+    for bad, word in [
+        ("g = a + b", "unsupported operand"),  # the class defines no +
+        ("g = a * 'mug'", "arithmetic on str"),
+        ("g = -a", "unary minus on FakeHeatmap"),
+        ("g = a[0]", "cannot be indexed"),
+    ]:
+        with pytest.raises(SandboxError, match=word):
+            run_code(code + bad, robot)
+    monkeypatch.setattr(sandbox, "HEATMAP_CLASS", "tabletop.mapping.heatmaps.Nothing")
+    with pytest.raises(SandboxError, match="arithmetic on FakeHeatmap is not allowed"):
+        run_code(code, robot)
+
+
+def test_the_map_heatmap_class_multiplies_in_the_sandbox():
+    from tabletop.mapping import heatmaps
+
+    if not hasattr(heatmaps, "Heatmap"):  # the class moves there with the query layer
+        pytest.skip("tabletop.mapping.heatmaps.Heatmap does not exist yet")
+    from tabletop.grid import VoxelGrid
+
+    grid = VoxelGrid(voxel_size=0.1)
+
+    def make(row):
+        values = np.zeros(grid.shape, np.float32)
+        values[0, 0, :3] = row
+        return heatmaps.Heatmap(grid, values, "q", "object", 10.0, 1.0, True)
+
+    class Robot(MapRobot):
+        def get_max_pos_3d(self, heatmap):
+            return heatmap  # hands the fused value back for the check below
+
+    code = 'a = robot.get_major_map(obj="mug")\nb = robot.get_map(sound="dog")\n'
+    run = run_code(code + "f = robot.get_max_pos_3d(a * b)\n", Robot(make))
+    fused = run.calls[-1].result
+    assert isinstance(fused, heatmaps.Heatmap)
+    np.testing.assert_allclose(fused.values[0, 0, :3], [0.2, 0.5, 0.0])
 
 
 @pytest.mark.parametrize(

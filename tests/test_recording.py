@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from tabletop.errors import RecordingError
-from tabletop.sim.recording import Recording, Segment, load_recording, save_recording
+from tabletop.recording import Recording, Segment, load_recording, save_recording
 
 
 def make_recording(n=5, h=240, w=320, seed=0, with_extras=True):

@@ -5,7 +5,7 @@ import pytest
 from robot_helpers import scan_and_map
 
 from tabletop.errors import ConfigError
-from tabletop.mapping.grid import VoxelGrid
+from tabletop.grid import VoxelGrid
 from tabletop.robot import (
     ARM,
     MOBILE_BASE,

@@ -8,13 +8,12 @@ import pytest
 from helpers import assert_on_table
 
 from tabletop.errors import ConfigError
-from tabletop.sim.camera import backproject
+from tabletop.recording import load_recording, save_recording
 from tabletop.sim.noise import NoiseConfig, apply_noise
-from tabletop.sim.recording import load_recording, save_recording
 from tabletop.sim.scan import ScanConfig, plan_scan, run_scan
 from tabletop.sim.scene import load_scene_spec
 from tabletop.sim.world import INSTANCE_TABLE
-from tabletop.transforms import transform_points
+from tabletop.transforms import backproject, transform_points
 
 # A faster sweep than the default keeps the test short; the path is the same shape.
 FAST = dict(speed=0.45, episodes=3, episode_s=2.5, repeat_sounds=1)

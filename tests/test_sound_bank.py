@@ -1,8 +1,7 @@
-"""Tests of tabletop.sim.sound_bank: the shipped bank, its records, and the ESC-50 loader."""
+"""Tests of tabletop.sim.sound_bank: the shipped bank, its records and its caption table."""
 
 from __future__ import annotations
 
-import csv
 import hashlib
 import json
 import shutil
@@ -12,16 +11,16 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from tabletop.audio import resample
 from tabletop.errors import AssetError, ConfigError
-from tabletop.sim.audio import resample, write_wav
 from tabletop.sim.sound_bank import (
     CAPTIONS,
+    CAPTIONS_PATH,
     DEFAULT_BANK_DIR,
-    ESC50_COLUMNS,
     SoundBank,
     SoundClip,
+    _load_captions,
     caption_for,
-    load_esc50,
 )
 
 MANIFEST = DEFAULT_BANK_DIR / "manifest.json"
@@ -197,21 +196,15 @@ def test_errors_name_the_valid_options(bank):
         bank.get("dog-scratch-dog9")
 
 
-def test_format_table_and_summary(bank):
-    text = bank.format_table()
+def test_summary(bank):
     s = bank.summary()
     assert s["n_clips"] == len(bank) == s["n_train"] + s["n_heldout"]
     assert sum(s["licences"].values()) == len(bank)
     assert json.loads(json.dumps(s)) == s
-    for cat in bank.categories:
-        row = s["categories"][cat]
-        assert any(
-            line.split()[:3] == [cat, str(row["train"]), str(row["heldout"])]
-            for line in text.splitlines()
-        ), cat
-    for lic in s["licences"]:
-        assert lic in text
-    assert f"{len(bank)} clips in {len(bank.categories)} categories" in text
+    assert list(s["categories"]) == bank.categories
+    for cat, row in s["categories"].items():
+        assert row["train"] + row["heldout"] == len(bank.clips(category=cat))
+        assert row["caption"] == bank.caption(cat)
 
 
 def test_sound_clip_validates():
@@ -262,92 +255,23 @@ def test_a_copied_bank_loads_from_its_manifest(tmp_path, bank):
     np.testing.assert_array_equal(a.load(), b.load())
 
 
-# --------------------------------------------------------------------------- ESC-50 loader
-ESC_RATE = 44100
-
-
-def _make_esc50(root: Path, rows: list[tuple[str, int, str, float]]) -> Path:
-    """An ESC-50-format directory: one 1 s 44.1 kHz sine per row (filename, fold, cat, Hz)."""
-    (root / "audio").mkdir(parents=True)
-    (root / "meta").mkdir()
-    t = np.arange(ESC_RATE) / ESC_RATE
-    targets = {}
-    with (root / "meta" / "esc50.csv").open("w", newline="") as f:
-        w = csv.writer(f)
-        w.writerow(ESC50_COLUMNS)
-        for name, fold, cat, hz in rows:
-            target = targets.setdefault(cat, len(targets))
-            w.writerow([name, fold, target, cat, "False", name.split("-")[1], name.split("-")[2]])
-            write_wav(root / "audio" / name, 0.5 * np.sin(2 * np.pi * hz * t), ESC_RATE)
-    return root
-
-
-@pytest.fixture
-def esc50_dir(tmp_path) -> Path:
-    rows = []
-    for fold in range(1, 6):
-        rows.append((f"{fold}-1000{fold}-A-0.wav", fold, "dog", 500.0))
-        rows.append((f"{fold}-2000{fold}-A-1.wav", fold, "clock_alarm", 2000.0))
-    return _make_esc50(tmp_path / "ESC-50-master", rows)
-
-
-def test_load_esc50(esc50_dir):
-    esc = load_esc50(esc50_dir)
-    assert esc.categories == ["clock_alarm", "dog"]
-    assert esc.sample_rate == 16000 and len(esc) == 10
-    held = esc.clips(split="heldout")
-    assert sorted(c.source_path for c in held) == ["5-10005-A-0.wav", "5-20005-A-1.wav"]
-    assert esc.caption("clock_alarm") == CAPTIONS["clock_alarm"]
-    clip = esc.get("esc50-1-20001-A-1")
-    assert clip.licence == "NOASSERTION" and clip.source == "ESC-50"
-    x = clip.load()
-    assert x.dtype == np.float32 and len(x) == 16000 == round(clip.duration_s * 16000)
-    spectrum = np.abs(np.fft.rfft(x * np.hanning(len(x))))
-    assert np.argmax(spectrum) == pytest.approx(2000, abs=1)  # 1 Hz bins: the sine survives
-    assert np.max(np.abs(x[200:-200])) == pytest.approx(0.5, abs=0.01)
-
-
-def test_load_esc50_options(esc50_dir):
-    esc = load_esc50(
-        esc50_dir, heldout_folds=(1, 2), sample_rate=8000, max_duration_s=0.5, categories=["dog"]
-    )
-    assert esc.categories == ["dog"]
-    assert len(esc.clips(split="heldout")) == 2
-    clip = esc.clips()[0]
-    assert clip.sample_rate == 8000 and clip.duration_s == 0.5
-    assert len(clip.load()) == 4000
-    with pytest.raises(ConfigError, match=r"categories \['unicorn'\] are not in .*available"):
-        load_esc50(esc50_dir, categories=["unicorn"])
-    with pytest.raises(ConfigError, match="heldout_folds must be among ESC-50's folds 1..5"):
-        load_esc50(esc50_dir, heldout_folds=(6,))
-
-
-def test_load_esc50_errors_name_what_is_missing(tmp_path, esc50_dir):
-    with pytest.raises(AssetError, match="ESC-50 directory not found"):
-        load_esc50(tmp_path / "nowhere")
-    (esc50_dir / "audio" / "3-10003-A-0.wav").unlink()
-    with pytest.raises(AssetError, match=r"1 clip\(s\) listed .* missing .*: 3-10003-A-0\.wav"):
-        load_esc50(esc50_dir)
-
-    meta = esc50_dir / "meta" / "esc50.csv"
-    rows = list(csv.reader(meta.open()))
-    drop = rows[0].index("fold")
-    with meta.open("w", newline="") as f:
-        csv.writer(f).writerows([r[:drop] + r[drop + 1 :] for r in rows])
-    with pytest.raises(AssetError, match=r"lacks column\(s\) \['fold'\]; an ESC-50 CSV has"):
-        load_esc50(esc50_dir)
-
-    meta.unlink()
-    with pytest.raises(AssetError, match=r"meta/esc50\.csv"):
-        load_esc50(esc50_dir)
-
-
-def test_load_esc50_rejects_bad_rows(tmp_path):
-    root = _make_esc50(tmp_path / "e", [("1-1-A-0.wav", 7, "dog", 300.0)])
-    with pytest.raises(AssetError, match=r"esc50\.csv:2: fold must be 1\.\.5, got '7'"):
-        load_esc50(root)
-
-
 def test_caption_for_unknown_categories():
     assert caption_for("dog") == "the sound of a dog barking"
     assert caption_for("coffee_machine") == "the sound of coffee machine"
+
+
+def test_caption_table_is_the_data_file_read_once_and_read_only(tmp_path):
+    assert CAPTIONS_PATH.parent == DEFAULT_BANK_DIR and CAPTIONS_PATH.suffix == ".toml"
+    assert len(CAPTIONS) >= 50 + 25  # all of ESC-50's categories and the shipped bank's extras
+    assert all(c.startswith("the sound of ") for c in CAPTIONS.values())
+    assert CAPTIONS["clock_alarm"] == "the sound of an alarm clock ringing"
+    with pytest.raises(TypeError):
+        CAPTIONS["dog"] = "woof"  # type: ignore[index]
+    assert set(SoundBank.default().categories) <= set(CAPTIONS)
+    bad = tmp_path / "captions.toml"
+    bad.write_text('dog = "the sound of a dog"\n"Big Cat" = "the sound of a big cat"\n')
+    with pytest.raises(AssetError, match=r"\['Big Cat'\] are not"):
+        _load_captions(bad)
+    bad.write_text("dog = \n")
+    with pytest.raises(AssetError, match="unreadable"):
+        _load_captions(bad)

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from tabletop.errors import ConfigError
-from tabletop.mapping.grid import VoxelGrid
+from tabletop.grid import VoxelGrid
 from tabletop.mapping.voxel_map import VoxelMap
 
 GRID = VoxelGrid(lower=(0.0, 0.0, 0.0), upper=(0.2, 0.2, 0.1), voxel_size=0.01)

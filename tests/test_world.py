@@ -5,10 +5,9 @@ import pytest
 from helpers import assert_on_table
 
 from tabletop.errors import ConfigError
-from tabletop.sim.camera import backproject
 from tabletop.sim.scene import load_scene_spec
 from tabletop.sim.world import HOME_Q, INSTANCE_TABLE, SimWorld
-from tabletop.transforms import transform_points
+from tabletop.transforms import backproject, transform_points
 
 # Arm configurations that look at the table from different heights and angles.
 VIEW_QS = [

@@ -35,7 +35,7 @@ from pathlib import Path
 
 import numpy as np
 
-from tabletop.sim.audio import loudest_window, resample, write_wav
+from tabletop.audio import loudest_window, resample, write_wav
 from tabletop.sim.sound_bank import MANIFEST_FORMAT, MANIFEST_VERSION, caption_for
 
 log = logging.getLogger("build_sound_bank")

@@ -5,7 +5,7 @@ photometric check's thresholds (``VisualLocalizationConfig.min_agreement``, ``mi
 For the scans of ``tabletop eval-map --seeds N`` (oracle encoders), every image and
 image-ambiguous goal is matched at each quarter turn with the best 3 and the best 6 reference
 frames; each candidate pose with >= ``verify_min_inliers`` inliers is scored by the map's
-:class:`~tabletop.mapping.visual_localization.PhotometricCheck`, and so is the goal camera's
+:class:`~tabletop.mapping.visual.PhotometricCheck`, and so is the goal camera's
 true pose. A candidate is *right* when its image target lies within 5 cm of the true pose's.
 Printed: the check's figures at the true poses, how far wrong candidates reach, and what the
 selection rule (best agreement passing both thresholds, 3 frames before 6) gives per goal.
@@ -24,8 +24,8 @@ from pathlib import Path
 import numpy as np
 
 from tabletop.eval.map_goals import ImageGoalConfig, image_goals
-from tabletop.mapping import visual_localization as vl
-from tabletop.mapping.avlmap import AVLMap
+from tabletop.eval.harness import build_map
+from tabletop.mapping.visual import localize as vl
 from tabletop.sim.scan import ScanConfig, run_scan
 from tabletop.sim.scene import load_scene_spec
 from tabletop.sim.world import SimWorld
@@ -40,7 +40,7 @@ def scan_goals(seed: int, scene: str) -> tuple[AVLMap, list]:
         path.write_text(f"[random]\nseed = {seed + 10}\ncount = 9\nduplicates = 2\n")
         spec = load_scene_spec(path)
     rec, _ = run_scan(spec, ScanConfig(seed=seed, speed=0.3, episodes=6))
-    m = AVLMap.build(rec, encoders="oracle")
+    m = build_map(rec, "oracle")
     with SimWorld(spec) as world:
         goals = image_goals(rec.ground_truth, world, ImageGoalConfig(seed=seed), rec.T_world_cam)
     return m, goals

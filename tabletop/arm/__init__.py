@@ -39,6 +39,7 @@ from tabletop.arm.obstacles import (
 )
 from tabletop.arm.panda_py_driver import PandaPyDriver
 from tabletop.arm.reach import ReachConfig, ReachController, ReachReason, ReachResult
+from tabletop.arm.self_filter import RobotSelfFilter
 from tabletop.arm.success import SUCCESS_RADIUS_M, ReachSuccess, distance_to_box, reach_success
 from tabletop.arm.workspace import Workspace
 
@@ -74,6 +75,7 @@ __all__ = [
     "ReachReason",
     "ReachResult",
     "ReachSuccess",
+    "RobotSelfFilter",
     "SafetyError",
     "Workspace",
     "as_arm_q",

@@ -20,12 +20,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from tabletop.arm.success import SUCCESS_RADIUS_M
 from tabletop.errors import SimulationError
 from tabletop.mapping.heatmaps import fuse
 from tabletop.transforms import aabb_distance
 
 __all__ = [
-    "SUCCESS_M",
     "ImageGoalConfig",
     "MapGoal",
     "evaluate_map_goals",
@@ -34,7 +34,6 @@ __all__ = [
     "map_goals",
 ]
 
-SUCCESS_M = 0.10
 
 
 @dataclass(frozen=True)
@@ -217,8 +216,10 @@ def _target(m, g: MapGoal) -> tuple[np.ndarray, bool]:
         parts = [m.image_heatmap(g.image)]
     else:
         parts = [m.object_heatmap(g.obj), m.image_heatmap(g.image, major=False)]
-    target = m.get_max_pos_3d(fuse(*[h.values for h in parts]))
-    return target, all(h.found for h in parts)
+    fused = fuse(*parts)
+    if not fused.found:
+        return None, False
+    return m.get_max_pos_3d(fused), True
 
 
 def evaluate_map_goals(
@@ -239,17 +240,19 @@ def evaluate_map_goals(
     out: dict = {}
     for g in goals:
         target, found = _target(m, g)
-        errs = [aabb_distance(target, lo, hi) for lo, hi in g.truth_boxes]
-        errs += [float(np.linalg.norm(np.subtract(target, p))) for p in g.truth_points]
-        err = min(errs)
         r = out.setdefault(g.kind, {"goals": 0, "successes": 0, "not_found": 0, "errors": []})
         r["goals"] += 1
-        r["successes"] += int(found and err <= SUCCESS_M)
         r["not_found"] += int(not found)
-        r["errors"].append(err)
+        if found:
+            errs = [aabb_distance(target, lo, hi) for lo, hi in g.truth_boxes]
+            errs += [float(np.linalg.norm(np.subtract(target, p))) for p in g.truth_points]
+            err = min(errs)
+            r["successes"] += int(err <= SUCCESS_RADIUS_M)
+            r["errors"].append(err)
     for r in out.values():
         r["success_rate"] = r["successes"] / r["goals"]
-        r["mean_error_m"] = float(np.mean(r.pop("errors")))
+        errors = r.pop("errors")
+        r["mean_error_m"] = float(np.mean(errors)) if errors else None
     return out
 
 
@@ -265,7 +268,7 @@ def run_map_eval(
     import tempfile
     from pathlib import Path
 
-    from tabletop.mapping.avlmap import AVLMap
+    from tabletop.eval.harness import build_map
     from tabletop.sim.scan import ScanConfig, run_scan
     from tabletop.sim.scene import load_scene_spec
     from tabletop.sim.world import SimWorld
@@ -281,7 +284,7 @@ def run_map_eval(
                 path.write_text(f"[random]\nseed = {seed + 10}\ncount = 9\nduplicates = 2\n")
                 spec = load_scene_spec(path)
             rec, _ = run_scan(spec, ScanConfig(seed=seed, speed=speed, episodes=6))
-            m = AVLMap.build(rec, encoders=encoders)
+            m = build_map(rec, encoders)
             names = m.encoder_names
             with SimWorld(spec) as world:
                 r = evaluate_map_goals(

@@ -15,8 +15,6 @@ fingerprint of the simulator and mapping source, so editing either invalidates o
 
 from __future__ import annotations
 
-import hashlib
-import json
 import logging
 import time
 from collections.abc import Callable, Iterable, Sequence
@@ -24,26 +22,28 @@ from pathlib import Path
 
 import numpy as np
 
-from tabletop.errors import ConfigError, TabletopError
+from tabletop.arm.success import SUCCESS_RADIUS_M
+from tabletop.errors import ConfigError, GoalNotFound, TabletopError
+from tabletop.eval.harness import (
+    DEFAULT_CACHE_DIR,
+    cached_map,
+    cached_recording,
+    recording_key,
+    scan_recording,
+)
 from tabletop.eval.results import EncoderRun, GoalResult, TaskRun
 from tabletop.eval.tasks import Goal, Landmark, TaskFile, TaskFileError, load_tasks
-from tabletop.eval.truth import Region, relation_point, resolve_truth
+from tabletop.eval.truth import Region, resolve_truth
 
 __all__ = [
     "DEFAULT_CACHE_DIR",
     "collect_task_files",
     "evaluate_task_file",
-    "hover_point",
     "run_eval",
     "scan_recording",
 ]
 
 log = logging.getLogger(__name__)
-
-DEFAULT_CACHE_DIR = Path("out/eval-cache")
-#: A query goal's target is approached from above: ``above_gap`` over the highest map surface
-#: within this radius [m] (about a gripper's half span).
-HOVER_RADIUS_M = 0.05
 
 Progress = Callable[[str, int, int], None]
 """``progress(stage, done, total)``: stage is "scan <name>", "map <name>" or "goals <name>"."""
@@ -85,97 +85,6 @@ def collect_task_files(items: str | Path | TaskFile | Iterable) -> list[TaskFile
     if not out:
         raise TaskFileError("no task files given")
     return out
-
-
-# ---------------------------------------------------------------------------- cache
-def _fingerprint(*packages: str) -> str:
-    """Hash of the Python source (and shipped weights/manifests) a cached artefact depends on."""
-    from tabletop.paths import DATA_DIR, PACKAGE_DIR
-
-    h = hashlib.sha1()
-    for pkg in packages:
-        for f in sorted((PACKAGE_DIR / pkg).rglob("*.py")):
-            h.update(f.name.encode())
-            h.update(f.read_bytes())
-    if "mapping" in packages:
-        for f in sorted((DATA_DIR / "weights").rglob("*")):
-            if f.is_file():
-                h.update(f"{f.name}:{f.stat().st_size}".encode())
-    return h.hexdigest()[:10]
-
-
-def _key(obj) -> str:
-    return hashlib.sha1(json.dumps(obj, sort_keys=True, default=str).encode()).hexdigest()[:12]
-
-
-def _rec_key(spec, scan: dict) -> str:
-    return _key({"scene": spec.to_dict(), "scan": scan, "sim": _fingerprint("sim")})
-
-
-def _recording(name: str, scan: dict, spec, cache: Path | None, progress: Progress | None):
-    """(recording, scan seconds, cached?) for a scene and scan settings (``ScanConfig``
-    fields), through the cache."""
-    from tabletop.sim.recording import load_recording, save_recording
-    from tabletop.sim.scan import ScanConfig, run_scan
-
-    path = cache / f"rec-{spec.name}-{_rec_key(spec, scan)}" if cache else None
-    if path is not None and path.is_dir():
-        try:
-            return load_recording(path), 0.0, True
-        except TabletopError as e:
-            log.warning("cached recording %s is unusable (%s); scanning again", path, e)
-    t0 = time.perf_counter()
-    cb = (lambda d, n: progress(f"scan {name}", d, n)) if progress else None
-    rec, _ = run_scan(spec, ScanConfig(**scan), progress=cb)
-    scan_s = time.perf_counter() - t0
-    if path is not None:
-        cache.mkdir(parents=True, exist_ok=True)
-        save_recording(rec, path, overwrite=True)
-    return rec, scan_s, False
-
-
-def scan_recording(scene: dict, scan: dict, cache_dir: str | Path | None = DEFAULT_CACHE_DIR):
-    """(recording, cached?) of a task file's ``[scene]`` and ``[scan]`` sections, scanned or
-    taken from the cache (what the suite generator reads the ground truth from)."""
-    from tabletop.eval.tasks import _check_scan, scene_ref
-
-    _check_scan(scan)
-    spec = scene_ref(scene).load()
-    cache = Path(cache_dir) if cache_dir is not None else None
-    rec, _, cached = _recording(spec.name, dict(scan), spec, cache, None)
-    return rec, cached
-
-
-def _map_config(tf: TaskFile):
-    from tabletop.mapping.avlmap import MapConfig
-    from tabletop.mapping.grid import VoxelGrid
-
-    kw = dict(tf.map)
-    grid = VoxelGrid(voxel_size=float(kw.pop("voxel_size", 0.01)))
-    try:
-        return MapConfig(grid=grid, **kw)
-    except TypeError as e:
-        raise TaskFileError(f"{tf.path or tf.name} [map]: {e}") from None
-
-
-def _map(tf: TaskFile, rec, encoders: str, cache: Path | None, rec_key: str, progress):
-    """(AVLMap, map seconds, cached?)."""
-    from tabletop.mapping.avlmap import AVLMap
-
-    key = _key({"rec": rec_key, "map": tf.map, "mapping": _fingerprint("mapping")})
-    path = cache / f"map-{encoders}-{key}.npz" if cache else None
-    if path is not None and path.is_file():
-        try:
-            return AVLMap.load(path), 0.0, True
-        except TabletopError as e:
-            log.warning("cached map %s is unusable (%s); building again", path, e)
-    t0 = time.perf_counter()
-    cb = (lambda d, n: progress(f"map {tf.name}", d, n)) if progress else None
-    m = AVLMap.build(rec, _map_config(tf), encoders=encoders, progress=cb)
-    map_s = time.perf_counter() - t0
-    if path is not None:
-        m.save(path)
-    return m, map_s, False
 
 
 # ---------------------------------------------------------------------------- instructions
@@ -227,8 +136,16 @@ def _parts(ctx: _Context, goal_id: str, lm: Landmark) -> dict:
     return {k: ctx.image(goal_id, v) if k == "img" else v for k, v in lm.parts}
 
 
-def _query_target(ctx: _Context, goal: Goal, lm: Landmark, tag: str = "") -> np.ndarray:
-    """The argmax of the landmark's (fused) major map, through the robot API."""
+def _landmark(ctx: _Context, goal: Goal, lm: Landmark, tag: str):
+    """A spatial relation's landmark for the robot API: an object name, or the (fused) major
+    map of a query landmark."""
+    if len(lm.parts) == 1 and lm.primary == "obj":
+        return lm.as_dict["obj"]
+    return _query_heatmap(ctx, goal, lm, tag)
+
+
+def _query_heatmap(ctx: _Context, goal: Goal, lm: Landmark, tag: str = ""):
+    """The landmark's (fused) major map, through the robot API (kept for the report)."""
     robot = ctx.robot
     heat = robot.get_major_map(**_parts(ctx, goal.id, lm), primary=lm.primary)
     if goal.id in ctx.keep_heatmaps:
@@ -237,55 +154,45 @@ def _query_target(ctx: _Context, goal: Goal, lm: Landmark, tag: str = "") -> np.
             role = "primary" if k == lm.primary else "auxiliary"
             ctx.heatmaps.setdefault(goal.id, []).append((f"{tag}{role} {k}", h.values))
         if len(lm.parts) > 1:
-            ctx.heatmaps[goal.id].append((f"{tag}fused", heat))
-    return robot.get_max_pos_3d(heat)
+            ctx.heatmaps[goal.id].append((f"{tag}fused", heat.values))
+    return heat
 
 
-def hover_point(avlmap, target, gap: float, radius: float = HOVER_RADIUS_M) -> np.ndarray:
-    """(3,) [m]: ``target`` raised to ``gap`` above the highest surface the map has within
-    ``radius`` of it (horizontally), so a top-down gripper approaches a goal on or in an
-    object (a mug's cavity, the table beside a tall object) from above instead of being driven
-    into it."""
-    p = np.array(target, np.float64)
-    g = avlmap.grid
-    xs, ys, zs = g.axes()
-    near = (xs[:, None] - p[0]) ** 2 + (ys[None, :] - p[1]) ** 2 <= radius**2
-    cols = avlmap.voxels.occupancy()[near]  # (K, nz)
-    top = 0.0
-    if cols.size and cols.any():
-        top = float(zs[np.nonzero(cols.any(axis=0))[0].max()] + g.voxel_size / 2)
-    p[2] = max(p[2], top + gap)
-    return p
+#: A spatial goal's relation -> the robot API's motion primitive.
+_RELATION_MOVES = {
+    "between": "move_in_between",
+    "left_of": "move_to_left",
+    "right_of": "move_to_right",
+    "in_front_of": "move_in_front_of",
+    "behind": "move_behind",
+    "above": "move_to_object",
+}
+#: ... and the target primitive it moves to.
+_RELATION_TARGETS = {
+    "between": "between",
+    "left_of": "left_of",
+    "right_of": "right_of",
+    "in_front_of": "in_front_of",
+    "behind": "behind",
+    "above": "above",
+}
 
 
-def _spatial_target(ctx: _Context, goal: Goal) -> np.ndarray:
+def _move(ctx: _Context, goal: Goal):
+    """(target, reach result) of a query or spatial goal, through the public robot API only:
+    ``move_to(get_max_pos_3d(get_major_map(...)))``, or a spatial primitive whose landmarks are
+    object names or query heatmaps."""
     robot = ctx.robot
-    marks = goal.landmarks
-    plain = [len(m.parts) == 1 and m.primary == "obj" for m in marks]
-    if all(plain):  # the robot API's own primitives
-        names = [m.as_dict["obj"] for m in marks]
-        fn = {
-            "between": robot.between,
-            "left_of": robot.left_of,
-            "right_of": robot.right_of,
-            "in_front_of": robot.in_front_of,
-            "behind": robot.behind,
-            "above": robot.above,
-        }[goal.relation]
-        return fn(*names)
-    anchors = []
-    for i, (m, is_obj) in enumerate(zip(marks, plain, strict=True)):
-        if is_obj:
-            p = robot.get_pos(m.as_dict["obj"])
-        else:  # a found place: level with the highest surface there (an object's top)
-            p = _query_target(ctx, goal, m, tag=f"landmark {i + 1} ")
-            p = hover_point(ctx.map, p, 0.0)
-        anchors.append((np.asarray(p, np.float64), np.zeros(3)))
-    return relation_point(goal.relation, anchors, robot.spatial)
+    if not goal.landmarks:
+        target = robot.get_max_pos_3d(_query_heatmap(ctx, goal, goal.query))
+        return target, robot.move_to(target)
+    marks = [_landmark(ctx, goal, m, f"landmark {i + 1} ") for i, m in enumerate(goal.landmarks)]
+    target = getattr(robot, _RELATION_TARGETS[goal.relation])(*marks)
+    return target, getattr(robot, _RELATION_MOVES[goal.relation])(*marks)
 
 
 def _run_goal(ctx: _Context, goal: Goal, sequence: str, region: Region, parser) -> GoalResult:
-    from tabletop.robot.api import GoalNotFound, ImageGoalUnavailable
+    from tabletop.robot.api import ImageGoalUnavailable
 
     robot = ctx.robot
     base = dict(
@@ -301,9 +208,7 @@ def _run_goal(ctx: _Context, goal: Goal, sequence: str, region: Region, parser) 
             return GoalResult(**base, status="unavailable", reason=parser[1])
         return _run_code(ctx, goal, base, parser[0], region, t0)
     try:
-        target = (
-            _spatial_target(ctx, goal) if goal.landmarks else _query_target(ctx, goal, goal.query)
-        )
+        target, res = _move(ctx, goal)
     except ImageGoalUnavailable as e:
         return GoalResult(**base, status="unavailable", reason=f"image goals unavailable: {e}")
     except TabletopError as e:  # not found, or a query the map or the API refuses
@@ -317,10 +222,6 @@ def _run_goal(ctx: _Context, goal: Goal, sequence: str, region: Region, parser) 
             time_s=time.perf_counter() - t0,
         )
     target = np.asarray(target, np.float64)
-    if goal.query is not None:
-        res = robot.move_to(hover_point(ctx.map, target, robot.spatial.above_gap))
-    else:
-        res = robot.move_to(target)
     tcp = np.asarray(res.final_tcp, np.float64)
     err = region.distance(tcp)
     return GoalResult(
@@ -331,7 +232,7 @@ def _run_goal(ctx: _Context, goal: Goal, sequence: str, region: Region, parser) 
         target_error_m=region.distance(target),
         tcp=tuple(tcp),
         error_m=err,
-        success=err <= 0.10,
+        success=err <= SUCCESS_RADIUS_M,
         reach=res.reason.value,
         contacts=int(robot.contacts[-1]),
         time_s=time.perf_counter() - t0,
@@ -341,7 +242,6 @@ def _run_goal(ctx: _Context, goal: Goal, sequence: str, region: Region, parser) 
 def _run_code(ctx: _Context, goal: Goal, base: dict, parser, region: Region, t0: float):
     """Parse an instruction, run its code in the sandbox against the robot, score the TCP
     after the last motion. A parse error or rejected code is a failure (nothing moves)."""
-    from tabletop.robot.api import GoalNotFound
 
     to_code, run_instruction = parser
     robot = ctx.robot
@@ -375,7 +275,7 @@ def _run_code(ctx: _Context, goal: Goal, base: dict, parser, region: Region, t0:
         target_error_m=None if target is None else region.distance(target),
         tcp=tuple(tcp),
         error_m=err,
-        success=err <= 0.10,
+        success=err <= SUCCESS_RADIUS_M,
         reach="" if res is None else res.reason.value,
         contacts=int(sum(robot.contacts[moves_before:])),
         time_s=time.perf_counter() - t0,
@@ -407,9 +307,16 @@ def evaluate_task_file(
     cache = Path(cache_dir) if cache_dir is not None else None
     if cache is not None:
         cache.mkdir(parents=True, exist_ok=True)
-    rec, scan_s, rec_cached = _recording(tf.name, tf.scan, spec, cache, progress)
-    rec_key = _rec_key(spec, tf.scan)
-    m, map_s, map_cached = _map(tf, rec, encoders, cache, rec_key, progress)
+    rec, scan_s, rec_cached = cached_recording(tf.name, tf.scan, spec, cache, progress)
+    rec_key = recording_key(spec, tf.scan)
+    try:
+        m, map_s, map_cached = cached_map(
+            tf.name, dict(tf.map), rec, encoders, cache, rec_key, progress
+        )
+    except TabletopError as e:
+        if str(e).startswith(f"{tf.name} [map]"):
+            raise TaskFileError(f"{tf.path or tf.name} [map]: {e}") from None
+        raise
     # Resolve every truth before anything moves: a wrong reference is a task-file error.
     where = str(tf.path or tf.name)
     regions = {
@@ -473,11 +380,12 @@ def run_eval(
     tasks,
     encoders: str | Sequence[str] = "oracle",
     out_dir: str | Path | None = None,
-    progress: bool | Progress = True,
+    progress: Progress | None = None,
     cache_dir: str | Path | None = DEFAULT_CACHE_DIR,
 ):
     """Evaluate task files (paths, directories, shipped names or :class:`TaskFile`s) with one
-    or more encoder sets; write the report into ``out_dir`` when given.
+    or more encoder sets; write the report into ``out_dir`` when given. ``progress`` is called
+    as ``progress(stage, done, total)`` (see :data:`Progress`); None reports nothing.
 
     An encoder set that cannot be built here is a row marked unavailable with the reason (no
     scan is wasted on it). Returns an :class:`~tabletop.eval.report.EvalResult`.
@@ -488,35 +396,23 @@ def run_eval(
     names = [encoders] if isinstance(encoders, str) else list(encoders)
     if not names:
         raise ConfigError("give at least one encoder set")
-    cb: Progress | None
-    bar = None
-    if progress is True:
-        from tabletop.eval.cli import ProgressBars
-
-        bar = ProgressBars()
-        cb = bar
-    else:
-        cb = progress or None
+    cb: Progress | None = progress or None
     out = Path(out_dir) if out_dir is not None else None
     runs = []
-    try:
-        for name in names:
-            t0 = time.perf_counter()
-            reason = _check_encoder_set(name)
-            if reason:
-                runs.append(EncoderRun(name, {}, False, reason))
-                continue
-            er = EncoderRun(name, {}, True)
-            for tf in files:
-                fig = out / "figures" / name / _slug(tf.name) if out is not None else None
-                tr = evaluate_task_file(tf, name, cache_dir=cache_dir, figures_dir=fig, progress=cb)
-                er.tasks.append(tr)
-            er.encoder_names = dict(er.tasks[0].encoder_names)
-            er.wall_s = time.perf_counter() - t0
-            runs.append(er)
-    finally:
-        if bar is not None:
-            bar.close()
+    for name in names:
+        t0 = time.perf_counter()
+        reason = _check_encoder_set(name)
+        if reason:
+            runs.append(EncoderRun(name, {}, False, reason))
+            continue
+        er = EncoderRun(name, {}, True)
+        for tf in files:
+            fig = out / "figures" / name / _slug(tf.name) if out is not None else None
+            tr = evaluate_task_file(tf, name, cache_dir=cache_dir, figures_dir=fig, progress=cb)
+            er.tasks.append(tr)
+        er.encoder_names = dict(er.tasks[0].encoder_names)
+        er.wall_s = time.perf_counter() - t0
+        runs.append(er)
     result = EvalResult([str(f.path or f.name) for f in files], runs, out)
     if out is not None:
         result.write(out)

@@ -458,10 +458,12 @@ def write_default_suites(out_dir: Path, cache_dir="out/eval-cache", only=None) -
 
 
 def main(argv=None) -> int:
-    from tabletop.eval.tasks import _tasks_dir
-
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--out", default=str(_tasks_dir()), help="tasks directory")
+    ap.add_argument(
+        "--out",
+        default="out/tasks",
+        help="tasks directory (default: out/tasks); the shipped suites: tabletop/data/tasks",
+    )
     ap.add_argument("--cache-dir", default="out/eval-cache")
     ap.add_argument("--only", nargs="*", help="suite stems to write (default: all)")
     args = ap.parse_args(argv)

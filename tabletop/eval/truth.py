@@ -12,9 +12,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from tabletop.eval.calibration import AREA_HEIGHT_M
 from tabletop.eval.map_goals import heard_column
 from tabletop.eval.tasks import TaskFileError, Truth
-from tabletop.mapping.calibration import AREA_HEIGHT_M
 from tabletop.robot.api import SpatialConfig
 
 __all__ = ["AREA_HEIGHT_M", "Region", "resolve_truth", "sound_occurrences"]

@@ -1,5 +1,6 @@
-"""Language to robot code: the offline instruction parser, an LLM backend, and the sandbox
-that runs the code against the robot API.
+"""Language to robot code: the offline instruction parser (grammar in ``parser``, plan values
+in ``plan``, code generation in ``codegen``), an LLM backend, and the sandbox that runs the code
+against the robot API.
 
 Typical use::
 
@@ -10,6 +11,7 @@ Typical use::
     run.targets                                        # (K, 3) [m], nothing moved
 """
 
+from tabletop.language.codegen import instruction_to_code, plan_to_code
 from tabletop.language.errors import (
     CodeRejected,
     LanguageError,
@@ -18,7 +20,18 @@ from tabletop.language.errors import (
     SandboxError,
     SandboxLimit,
 )
-from tabletop.language.parser import instruction_to_code, parse_instruction, plan_to_code
+from tabletop.language.parser import parse_instruction
+from tabletop.language.plan import (
+    Above,
+    BackAndForth,
+    Between,
+    Compass,
+    Goal,
+    GoTo,
+    Part,
+    Side,
+    Step,
+)
 from tabletop.language.run import (
     BACKENDS,
     InstructionRun,
@@ -42,18 +55,27 @@ __all__ = [
     "BACKENDS",
     "ROBOT_METHODS",
     "ROBOT_MOVES",
+    "Above",
+    "BackAndForth",
+    "Between",
     "CallRecord",
     "CheckedCode",
     "CodeRejected",
+    "Compass",
+    "GoTo",
+    "Goal",
     "InstructionRun",
     "LLMError",
     "LanguageError",
     "Motion",
     "ParseError",
+    "Part",
     "SandboxConfig",
     "SandboxError",
     "SandboxLimit",
     "SandboxRun",
+    "Side",
+    "Step",
     "TracingRobot",
     "check_code",
     "generate_code",

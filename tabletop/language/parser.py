@@ -1,13 +1,12 @@
-"""The offline instruction parser: a table-top instruction in English becomes robot code.
+"""The offline instruction parser: a table-top instruction in English becomes a plan.
 
 No model is involved: a small grammar over the instruction families of the paper's prompts
 (object, sound, image and area goals; "X near Y" for any two modalities; "between A and B";
 left/right/front/behind of an object; compass moves; sequences with "then"; repetition with
-"twice" or "3 times"; back and forth between two goals). The code it writes is the code a
-prompted LLM writes against :class:`tabletop.robot.RobotAPI` (``robot.get_major_map(...)``,
-``robot.get_max_pos_3d(...)``, ``robot.move_to(...)``, ...), and it goes through the same
-sandbox. Anything outside the grammar raises :class:`ParseError` naming the part it did not
-understand; the parser never guesses.
+"twice" or "3 times"; back and forth between two goals). The plan (:mod:`tabletop.language.plan`)
+becomes robot code in :mod:`tabletop.language.codegen`, the code a prompted LLM writes against
+:class:`tabletop.robot.RobotAPI`, and goes through the same sandbox. Anything outside the grammar
+raises :class:`ParseError` naming the part it did not understand; the parser never guesses.
 
 Typical use::
 
@@ -20,98 +19,30 @@ Typical use::
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass
 
 from tabletop.language.errors import ParseError
+from tabletop.language.plan import (
+    Above,
+    BackAndForth,
+    Between,
+    Compass,
+    Goal,
+    GoTo,
+    Part,
+    Side,
+    Step,
+)
 
 __all__ = [
     "MAX_DISTANCE_M",
     "MAX_REPEAT",
-    "Above",
-    "BackAndForth",
-    "Between",
-    "Compass",
-    "GoTo",
-    "Goal",
-    "Part",
-    "Side",
-    "Step",
-    "instruction_to_code",
     "parse_instruction",
-    "plan_to_code",
 ]
 
 MAX_REPEAT = 20
 """Most repetitions of one step ("20 times")."""
 MAX_DISTANCE_M = 1.0
 """Longest compass move [m]: the table is about a metre across."""
-
-KINDS = ("obj", "sound", "img", "area")
-
-
-# ---------------------------------------------------------------------- the plan (values)
-@dataclass(frozen=True)
-class Part:
-    """One goal in one modality: ``kind`` in obj, sound, img, area; ``text`` is the object,
-    sound or area description, or the image path."""
-
-    kind: str
-    text: str
-
-
-@dataclass(frozen=True)
-class Goal:
-    """A target: the ``primary`` part (sharp map) constrained by ``near`` parts (broad maps)."""
-
-    primary: Part
-    near: tuple[Part, ...] = ()
-
-
-@dataclass(frozen=True)
-class GoTo:
-    goal: Goal
-
-
-@dataclass(frozen=True)
-class Between:
-    a: Goal
-    b: Goal
-
-
-@dataclass(frozen=True)
-class Side:
-    """``side`` in left, right, front, behind of the object ``landmark``."""
-
-    side: str
-    landmark: str
-
-
-@dataclass(frozen=True)
-class Above:
-    landmark: str
-
-
-@dataclass(frozen=True)
-class Compass:
-    """``direction`` in north, south, east, west; ``distance_m`` [m] from the current point."""
-
-    direction: str
-    distance_m: float
-
-
-@dataclass(frozen=True)
-class BackAndForth:
-    a: Goal
-    b: Goal
-
-
-@dataclass(frozen=True)
-class Step:
-    """One clause of the instruction, done ``times`` times."""
-
-    action: GoTo | Between | Side | Above | Compass | BackAndForth
-    times: int
-    text: str
 
 
 # ---------------------------------------------------------------------- vocabulary
@@ -507,120 +438,3 @@ def _a(noun: str) -> str:
 def parse_instruction(instruction: str) -> tuple[Step, ...]:
     """The steps of ``instruction``; :class:`ParseError` names what was not understood."""
     return _Parser(instruction).parse()
-
-
-# ---------------------------------------------------------------------- code generation
-class _Names:
-    """Variable names in the paper's style (obj_map, sound_map, pos1, ...), numbered on reuse."""
-
-    def __init__(self) -> None:
-        self.used: dict[str, int] = {}
-
-    def __call__(self, base: str) -> str:
-        n = self.used.get(base, 0) + 1
-        self.used[base] = n
-        return base if n == 1 else f"{base}_{n}"
-
-
-def _q(text: str) -> str:
-    return '"' + text.replace("\\", "\\\\").replace('"', '\\"') + '"'
-
-
-def _arg(part: Part, lines: list[str], names: _Names) -> str:
-    if part.kind != "img":
-        return f"{part.kind}={_q(part.text)}"
-    var = names("img")
-    lines.append(f"{var} = robot.load_image({_q(part.text)})")
-    return f"img={var}"
-
-
-def _goal_map(goal: Goal, lines: list[str], names: _Names) -> str:
-    """Append the lines that build the goal's heatmap; return its variable."""
-    arg = _arg(goal.primary, lines, names)
-    main = names(f"{goal.primary.kind}_map")
-    lines.append(f"{main} = robot.get_major_map({arg})")
-    if not goal.near:
-        return main
-    factors = [main]
-    for part in goal.near:
-        arg = _arg(part, lines, names)
-        var = names(f"{part.kind}_map")
-        lines.append(f"{var} = robot.get_map({arg})")
-        factors.append(var)
-    fused = names("fuse_map")
-    lines.append(f"{fused} = {' * '.join(factors)}")
-    return fused
-
-
-def _is_plain_object(goal: Goal) -> bool:
-    return goal.primary.kind == "obj" and not goal.near
-
-
-def _point(goal: Goal, lines: list[str], names: _Names, var: str) -> None:
-    """Lines that put the goal's target point into ``var``."""
-    if _is_plain_object(goal):
-        lines.append(f"{var} = robot.above({_q(goal.primary.text)})")
-        return
-    heat = _goal_map(goal, lines, names)
-    lines.append(f"{var} = robot.get_max_pos_3d({heat})")
-
-
-_SIDE_CALLS = {
-    "left": "move_to_left",
-    "right": "move_to_right",
-    "front": "move_in_front_of",
-    "behind": "move_behind",
-}
-
-
-def _step_code(step: Step, names: _Names) -> list[str]:
-    a = step.action
-    setup: list[str] = []
-    moves: list[str]
-    if isinstance(a, GoTo):
-        if _is_plain_object(a.goal):
-            moves = [f"robot.move_to_object({_q(a.goal.primary.text)})"]
-        else:
-            heat = _goal_map(a.goal, setup, names)
-            pos = names("pos")
-            setup.append(f"{pos} = robot.get_max_pos_3d({heat})")
-            moves = [f"robot.move_to({pos})"]
-    elif isinstance(a, Between):
-        ha = _goal_map(a.a, setup, names)
-        hb = _goal_map(a.b, setup, names)
-        p1, p2, pos = names("pos1"), names("pos2"), names("pos")
-        setup += [
-            f"{p1} = robot.get_max_pos_3d({ha})",
-            f"{p2} = robot.get_max_pos_3d({hb})",
-            f"{pos} = ({p1} + {p2}) / 2",
-        ]
-        moves = [f"robot.move_to({pos})"]
-    elif isinstance(a, Side):
-        moves = [f"robot.{_SIDE_CALLS[a.side]}({_q(a.landmark)})"]
-    elif isinstance(a, Above):
-        moves = [f"robot.move_to_object({_q(a.landmark)})"]
-    elif isinstance(a, Compass):
-        moves = [f"robot.move_{a.direction}({a.distance_m!r})"]
-    else:  # BackAndForth
-        p1, p2 = names("pos1"), names("pos2")
-        _point(a.a, setup, names, p1)
-        _point(a.b, setup, names, p2)
-        moves = [f"robot.move_to({p1})", f"robot.move_to({p2})"]
-    if step.times == 1:
-        return setup + moves
-    return [*setup, f"for _ in range({step.times}):", *("    " + m for m in moves)]
-
-
-def plan_to_code(steps: tuple[Step, ...]) -> str:
-    """Python against the robot API, one commented block per step (the sandbox's input)."""
-    names = _Names()
-    out: list[str] = []
-    for step in steps:
-        out.append("# " + re.sub(r"\s+", " ", step.text).strip())
-        out += _step_code(step, names)
-    return "\n".join(out) + "\n"
-
-
-def instruction_to_code(instruction: str) -> str:
-    """Parse ``instruction`` and write its robot code (:class:`ParseError` if not understood)."""
-    return plan_to_code(parse_instruction(instruction))

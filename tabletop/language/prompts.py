@@ -7,34 +7,37 @@ has to carry the pattern over rather than copy an answer.
 
 from __future__ import annotations
 
-__all__ = ["EXAMPLES", "SYSTEM_PROMPT", "prompt_messages", "prompt_text"]
+from tabletop.robot.primitives import PRIMITIVES
 
-SYSTEM_PROMPT = """\
+__all__ = ["EXAMPLES", "SYSTEM_PROMPT", "api_list", "prompt_messages", "prompt_text"]
+
+_PREAMBLE = """\
 You write Python for a robot arm above a table. The arm has a map of the table built from its
 wrist camera and microphone. Answer with code only: no explanations, no imports, no functions,
 no if or while. Use only the object `robot`, numbers, strings, variables, + - * /, tuples and
 lists, and `for _ in range(n)` loops. Positions are 3D points in metres in the robot's base
 frame: north = +x (away from the robot), west = left = +y, east = right = -y, z up.
+"""
 
-robot.load_image(path)                  -> an image array read from a file
-robot.get_major_map(obj=, sound=, img=, area=)  -> a sharp heatmap: where exactly the goal is
-robot.get_map(obj=, sound=, img=, area=)        -> a broad heatmap: the region near the goal
-robot.get_max_pos_3d(heatmap)           -> the 3D point of highest heat
-robot.get_pos(name)                     -> the centre of an object
-robot.above(name)                       -> the point just above an object
-robot.current_position()                -> where the gripper is now
-robot.move_to(pos)                      -> move the gripper to a 3D point
-robot.move_to_object(name)              -> move just above an object
-robot.move_to_left(name) / robot.move_to_right(name)        -> beside an object (+y / -y)
-robot.move_in_front_of(name) / robot.move_behind(name)      -> beside an object (+x / -x)
-robot.move_north(m) / move_south(m) / move_east(m) / move_west(m) -> move m metres
-
+_CONVENTIONS = """\
 obj= is an object description, sound= a sound description, area= a region of the table
 ("left side of the table", "center of the table", "tray area"), img= an image from
 robot.load_image. Multiply heatmaps to combine them: the goal the robot should reach gets
 get_major_map, every goal that only narrows it down ("near", "next to", "where you heard")
-gets get_map. "Between A and B" is the average of the two goals' points.
+gets get_map. A landmark (name, a, b) is an object description or a heatmap: "between A and
+B" is robot.move_in_between(A, B) with an object's name, or the goal's heatmap for any other
+goal.
 """
+
+
+def api_list() -> str:
+    """The prompt's API list, one line per declared primitive (:data:`PRIMITIVES`)."""
+    width = 40
+    return "".join(f"{p.call:<{width - 1}} -> {p.summary}\n" for p in PRIMITIVES)
+
+
+SYSTEM_PROMPT = f"{_PREAMBLE}\n{api_list()}\n{_CONVENTIONS}"
+"""The system message: the rules, the API list generated from the declaration, conventions."""
 
 #: (instruction, code) pairs, in the order they are shown to the model.
 EXAMPLES: tuple[tuple[str, str], ...] = (
@@ -71,21 +74,14 @@ EXAMPLES: tuple[tuple[str, str], ...] = (
         'img = robot.load_image("./views/shelf.png")\n'
         'sound_map = robot.get_major_map(sound="bird singing")\n'
         "img_map = robot.get_major_map(img=img)\n"
-        "pos1 = robot.get_max_pos_3d(sound_map)\n"
-        "pos2 = robot.get_max_pos_3d(img_map)\n"
-        "pos = (pos1 + pos2) / 2\n"
-        "robot.move_to(pos)",
+        "robot.move_in_between(sound_map, img_map)",
     ),
     (
         "go in between the spoon and the fork near the right side of the table",
-        'obj_map_1 = robot.get_major_map(obj="spoon")\n'
-        'obj_map_2 = robot.get_major_map(obj="fork")\n'
+        'obj_map = robot.get_major_map(obj="fork")\n'
         'area_map = robot.get_map(area="right side of the table")\n'
-        "fuse_map = obj_map_2 * area_map\n"
-        "pos1 = robot.get_max_pos_3d(obj_map_1)\n"
-        "pos2 = robot.get_max_pos_3d(fuse_map)\n"
-        "pos = (pos1 + pos2) / 2\n"
-        "robot.move_to(pos)",
+        "fuse_map = obj_map * area_map\n"
+        'robot.move_in_between("spoon", fuse_map)',
     ),
     (
         "move to the picture /data/goal_3.jpg",

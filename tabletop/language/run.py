@@ -1,13 +1,15 @@
 """Instruction -> code -> sandboxed run against a robot, with every motion's target recorded.
 
-:class:`TracingRobot` is the robot the generated code sees: the robot API's queries go to the
-wrapped robot; every motion is turned into its target point first (the same targets the robot
-API computes), recorded, and then sent to the wrapped robot's ``move_to`` — or, in a dry run,
-not sent (the traced position moves to the target, so relative moves still add up).
+:class:`TracingRobot` is the robot the generated code sees, with one method per declared
+primitive (:mod:`tabletop.robot.primitives`): the robot API's queries go to the wrapped robot;
+every motion is turned into its target point first (through the robot API's own target
+primitive), recorded, and then sent to the wrapped robot's ``move_to`` — or, in a dry run, not
+sent (the traced position moves to the target, so relative moves still add up).
 """
 
 from __future__ import annotations
 
+import inspect
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -16,6 +18,7 @@ import numpy as np
 
 from tabletop.errors import ConfigError
 from tabletop.language.sandbox import SandboxConfig, SandboxRun, check_code, run_code
+from tabletop.robot.primitives import PRIMITIVES, Primitive
 
 __all__ = [
     "BACKENDS",
@@ -42,6 +45,14 @@ class Motion:
 class TracingRobot:
     """The robot API seen by generated code, recording each motion's target.
 
+    Its methods are generated from the declaration (:data:`tabletop.robot.primitives.PRIMITIVES`):
+    a query or target primitive goes to the wrapped robot; a motion primitive computes its
+    target through its target primitive (``move_to_left(x)`` -> ``left_of(x)``, ``move_north(d)``
+    -> ``offset(d, 0)``, ``move_to(p)`` -> ``p``), records it, then sends it to the wrapped
+    robot's ``move_to`` (or not, in a dry run). Three primitives are the tracer's own
+    (:data:`OWN`): ``current_position`` and ``offset`` answer from the traced position (in a dry
+    run the robot never moves), ``load_image`` reads relative paths from ``image_dir``.
+
     Args:
         robot: a :class:`tabletop.robot.RobotAPI` (SimArm, MobileBase, ...).
         execute: send motions to ``robot`` (False: a dry run; nothing moves).
@@ -51,6 +62,9 @@ class TracingRobot:
             (the target), and once more with the result after a real motion.
         start: the traced start point of a dry run (3,) [m] (default: the robot's position).
     """
+
+    OWN = ("current_position", "offset", "load_image")
+    """Primitives the tracer answers itself instead of forwarding them to the robot."""
 
     def __init__(
         self,
@@ -74,17 +88,14 @@ class TracingRobot:
         """(K, 3) [m] the targets of every motion so far, in order."""
         return np.array([m.target for m in self.motions], dtype=np.float64).reshape(-1, 3)
 
-    # ---------------------------------------------------------------- motions
-    def move_to(self, pos):
-        p = np.array(pos, dtype=np.float64)
-        if p.shape != (3,) or not np.all(np.isfinite(p)):
-            raise ConfigError(
-                f"move_to needs a finite 3-vector [m], got {np.asarray(pos).tolist()}"
-            )
-        return self._move("move_to", p)
-
-    def _move(self, method: str, target: np.ndarray):
-        target = np.array(target, dtype=np.float64)
+    def _move(self, method: str, target) -> object:
+        try:
+            p = np.array(target, dtype=np.float64)
+        except (TypeError, ValueError):
+            p = None
+        if p is None or p.shape != (3,) or not np.all(np.isfinite(p)):
+            raise ConfigError(f"{method} needs a finite 3-vector [m], got {target!r}")
+        target = p
         if self.on_motion is not None:
             self.on_motion(Motion(method, target.copy()))
         result = None
@@ -99,83 +110,72 @@ class TracingRobot:
             self.on_motion(motion)
         return result
 
-    def move_to_object(self, name):
-        return self._move("move_to_object", self.robot.above(name))
-
-    def move_to_left(self, name):
-        return self._move("move_to_left", self.robot.left_of(name))
-
-    def move_to_right(self, name):
-        return self._move("move_to_right", self.robot.right_of(name))
-
-    def move_in_front_of(self, name):
-        return self._move("move_in_front_of", self.robot.in_front_of(name))
-
-    def move_behind(self, name):
-        return self._move("move_behind", self.robot.behind(name))
-
-    def move_in_between(self, a, b):
-        return self._move("move_in_between", self.robot.between(a, b))
-
-    def _offset(self, dx, dy) -> np.ndarray:
-        for v in (dx, dy):
-            if isinstance(v, bool) or not isinstance(v, (int, float, np.number)):
-                raise ConfigError(f"a distance must be a number [m], got {v!r}")
-            if not np.isfinite(v):
-                raise ConfigError(f"a distance must be finite [m], got {v}")
-        return self._pos + np.array([dx, dy, 0.0])
-
-    def move_north(self, distance_m):
-        return self._move("move_north", self._offset(distance_m, 0.0))
-
-    def move_south(self, distance_m):
-        return self._move("move_south", self._offset(-distance_m, 0.0))
-
-    def move_west(self, distance_m):
-        return self._move("move_west", self._offset(0.0, distance_m))
-
-    def move_east(self, distance_m):
-        return self._move("move_east", self._offset(0.0, -distance_m))
-
-    # ---------------------------------------------------------------- queries
+    # ---------------------------------------------------------------- the tracer's own
     def current_position(self) -> np.ndarray:
+        """(3,) [m]: the traced position (the robot's after a real motion)."""
         return self._pos.copy()
 
+    def offset(self, dx, dy) -> np.ndarray:
+        """(3,) [m]: the traced position moved by ``dx``, ``dy`` [m]."""
+        return self._pos + np.array([_distance(dx), _distance(dy), 0.0])
+
     def load_image(self, path):
+        """The wrapped robot's ``load_image``, relative paths under ``image_dir``."""
         p = Path(path).expanduser()
         if self.image_dir is not None and not p.is_absolute():
             p = self.image_dir / p
         return self.robot.load_image(p)
 
-    def get_major_map(self, obj=None, sound=None, img=None, area=None, *, primary=None):
-        return self.robot.get_major_map(obj=obj, sound=sound, img=img, area=area, primary=primary)
 
-    def get_map(self, obj=None, sound=None, img=None, area=None):
-        return self.robot.get_map(obj=obj, sound=sound, img=img, area=area)
+def _distance(v) -> float:
+    if isinstance(v, bool) or not isinstance(v, (int, float, np.number)):
+        raise ConfigError(f"a distance must be a number [m], got {v!r}")
+    if not np.isfinite(v):
+        raise ConfigError(f"a distance must be finite [m], got {v}")
+    return float(v)
 
-    def get_max_pos_3d(self, heatmap):
-        return self.robot.get_max_pos_3d(heatmap)
 
-    def get_pos(self, name):
-        return self.robot.get_pos(name)
+def _signature(p: Primitive) -> inspect.Signature:
+    kind = inspect.Parameter.POSITIONAL_OR_KEYWORD
+    params = [inspect.Parameter("self", kind)]
+    for name in p.params:
+        default = None if p.keywords else inspect.Parameter.empty
+        params.append(inspect.Parameter(name, kind, default=default))
+    return inspect.Signature(params)
 
-    def above(self, name):
-        return self.robot.above(name)
 
-    def left_of(self, name):
-        return self.robot.left_of(name)
+def _traced(p: Primitive):
+    """The tracer's method for primitive ``p`` (see :class:`TracingRobot`)."""
+    sig = _signature(p)
+    if not p.moves:
 
-    def right_of(self, name):
-        return self.robot.right_of(name)
+        def method(self, *args, **kwargs):
+            return getattr(self.robot, p.name)(*args, **kwargs)
 
-    def in_front_of(self, name):
-        return self.robot.in_front_of(name)
+    else:
 
-    def behind(self, name):
-        return self.robot.behind(name)
+        def method(self, *args, **kwargs):
+            values = list(sig.bind(self, *args, **kwargs).arguments.values())[1:]
+            if p.target is None:  # move_to: the argument is the point
+                target = values[0]
+            elif p.direction is not None:  # a compass move: the offset along its axis
+                d = _distance(values[0])
+                target = getattr(self, p.target)(d * p.direction[0], d * p.direction[1])
+            else:
+                target = getattr(self, p.target)(*values)
+            return self._move(p.name, target)
 
-    def between(self, a, b):
-        return self.robot.between(a, b)
+    method.__name__ = p.name
+    method.__qualname__ = f"TracingRobot.{p.name}"
+    method.__doc__ = f"{p.kind}: {p.summary}" + (f" (target: {p.target})" if p.target else "")
+    method.__signature__ = sig
+    return method
+
+
+for _p in PRIMITIVES:
+    if _p.name not in TracingRobot.OWN:
+        setattr(TracingRobot, _p.name, _traced(_p))
+del _p
 
 
 @dataclass(frozen=True)
@@ -200,7 +200,7 @@ def generate_code(instruction: str, backend: str = "offline", llm_config=None) -
     The code is returned exactly as the sandbox will receive it.
     """
     if backend == "offline":
-        from tabletop.language.parser import instruction_to_code
+        from tabletop.language.codegen import instruction_to_code
 
         return instruction_to_code(instruction)
     if backend == "llm":

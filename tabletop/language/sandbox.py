@@ -2,8 +2,10 @@
 
 The code is never handed to ``exec``. :func:`check_code` parses it and refuses everything but
 
-- calls ``robot.<method>(...)`` of the robot API (:data:`ROBOT_METHODS`),
-- arithmetic ``+ - * / // %`` and unary minus on numbers and arrays,
+- calls ``robot.<method>(...)`` of the robot API (:data:`ROBOT_METHODS`, the declared
+  primitives of :mod:`tabletop.robot.primitives`),
+- arithmetic ``+ - * / // %`` and unary minus on numbers and arrays, and heatmaps (values of
+  :data:`HEATMAP_CLASS`) with the operators their class defines (``*``: fusion),
 - assignments to plain names (and tuple unpacking), ``+=`` and friends,
 - number, string, tuple and list literals, ``name[i]`` with a literal index,
 - ``for _ in range(n)`` with literal bounds (at most ``max_loop`` iterations), and ``pass``;
@@ -19,6 +21,7 @@ While running, :func:`run_code` also counts steps and checks a wall-clock limit 
 from __future__ import annotations
 
 import ast
+import sys
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -28,8 +31,10 @@ import numpy as np
 
 from tabletop.errors import ConfigError, TabletopError
 from tabletop.language.errors import CodeRejected, SandboxError, SandboxLimit
+from tabletop.robot.primitives import PRIMITIVES
 
 __all__ = [
+    "HEATMAP_CLASS",
     "ROBOT_METHODS",
     "ROBOT_MOVES",
     "CallRecord",
@@ -40,39 +45,14 @@ __all__ = [
     "run_code",
 ]
 
-#: Robot API methods that move the robot.
-ROBOT_MOVES = frozenset(
-    {
-        "move_to",
-        "move_to_object",
-        "move_to_left",
-        "move_to_right",
-        "move_in_front_of",
-        "move_behind",
-        "move_in_between",
-        "move_north",
-        "move_south",
-        "move_east",
-        "move_west",
-    }
-)
-#: Every robot API method generated code may call (queries, targets and moves).
-ROBOT_METHODS = ROBOT_MOVES | frozenset(
-    {
-        "load_image",
-        "get_major_map",
-        "get_map",
-        "get_max_pos_3d",
-        "get_pos",
-        "current_position",
-        "above",
-        "left_of",
-        "right_of",
-        "in_front_of",
-        "behind",
-        "between",
-    }
-)
+#: Robot API methods that move the robot (the declaration's motion primitives).
+ROBOT_MOVES = frozenset(p.name for p in PRIMITIVES if p.moves)
+#: Every robot API method generated code may call: the declared primitives (queries, targets
+#: and motions, :data:`tabletop.robot.primitives.PRIMITIVES`).
+ROBOT_METHODS = frozenset(p.name for p in PRIMITIVES)
+#: The heatmap class (``module.Name``): its values may be multiplied (``a * b`` fuses two
+#: heatmaps). Looked up in ``sys.modules`` only: a value of that class means it is imported.
+HEATMAP_CLASS = "tabletop.mapping.heatmaps.Heatmap"
 ROBOT_NAME = "robot"
 
 _BINOPS = {
@@ -424,6 +404,13 @@ _NUMERIC = (Real, np.number, np.ndarray)
 _MAX_INT = 2**63
 
 
+def _is_heatmap(value) -> bool:
+    """Whether ``value`` is an instance of :data:`HEATMAP_CLASS` (nothing is imported)."""
+    module, _, name = HEATMAP_CLASS.rpartition(".")
+    cls = getattr(sys.modules.get(module), name, None)
+    return isinstance(cls, type) and isinstance(value, cls)
+
+
 class _Interpreter:
     def __init__(self, robot, config: SandboxConfig, on_call) -> None:
         self.robot = robot
@@ -515,13 +502,14 @@ class _Interpreter:
         arrays = isinstance(a, np.ndarray) or isinstance(b, np.ndarray)
         for v in (a, b):
             seq_ok = arrays and isinstance(v, (tuple, list))
-            if not (isinstance(v, _NUMERIC) or seq_ok) or isinstance(v, bool):
+            ok = isinstance(v, _NUMERIC) or seq_ok or _is_heatmap(v)
+            if not ok or isinstance(v, bool):
                 raise SandboxError(
                     f"line {node.lineno}: arithmetic on {type(v).__name__} is not allowed "
-                    "(numbers and arrays only)"
+                    "(numbers, arrays and heatmaps only)"
                 )
         try:
-            with np.errstate(all="raise"):
+            with np.errstate(all="raise", under="ignore"):  # heat products may underflow to 0
                 out = _BINOPS[type(op)](a, b)
         except (ArithmeticError, ValueError, TypeError, FloatingPointError) as err:
             raise SandboxError(f"line {node.lineno}: {type(err).__name__}: {err}") from None

@@ -17,7 +17,7 @@ from __future__ import annotations
 import functools
 import zlib
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -25,7 +25,8 @@ import tomllib
 
 from tabletop.errors import ConfigError, TabletopError
 from tabletop.language.errors import LanguageError
-from tabletop.mapping.avlmap import AVLMap, Heatmap, MapConfig
+from tabletop.mapping import AVLMap, Heatmap, MapConfig
+from tabletop.mapping.audio_segments import AudioSegment
 from tabletop.robot.api import RobotAPI
 
 __all__ = [
@@ -157,8 +158,10 @@ class ReferenceMap(AVLMap):
         for name, (view, label) in self.image_views.items():
             if view.shape == rgb.shape and np.array_equal(view, rgb):
                 h = self.object_heatmap(label, major=major)
-                return Heatmap(h.values, f"image {name}", "image", h.decay, h.confidence, h.found)
-        return self._empty("image", "image", self._decay(major), "no view matches the picture")
+                return replace(h, query=f"image {name}", modality="image")
+        return Heatmap.not_found(
+            self.grid, "image", "image", self.decay(major), "no view matches the picture"
+        )
 
 
 def reference_map(suite: Suite | None = None, voxel_size: float = 0.02) -> ReferenceMap:
@@ -172,8 +175,8 @@ def reference_map(suite: Suite | None = None, voxel_size: float = 0.02) -> Refer
 
 @functools.lru_cache(maxsize=2)
 def _reference_map(suite: Suite, voxel_size: float) -> ReferenceMap:
+    from tabletop.grid import VoxelGrid
     from tabletop.mapping.encoders.minilm import MiniLMTextEncoder
-    from tabletop.mapping.grid import VoxelGrid
     from tabletop.sim.scene import load_scene_spec
 
     spec = load_scene_spec(suite.scene)
@@ -204,16 +207,16 @@ def _reference_map(suite: Suite, voxel_size: float) -> ReferenceMap:
     m.voxels.integrate(points, table, colors, feature_index=np.concatenate(idx))
     # sounds: one segment per suite sound, heard above its table point
     for s in suite.sounds:
-        m.segment_embeddings.append(text.encode_text([s.caption])[0])
-        m.segment_positions.append(np.array([s.at[0], s.at[1], 0.3]))
+        m.sounds.segments.append(AudioSegment(0.0, 0.0))
+        m.sounds.embeddings.append(text.encode_text([s.caption])[0])
+        m.sounds.positions.append(np.array([s.at[0], s.at[1], 0.3]))
     # areas: one downward view at each named area's centre
     R = np.array([[0.0, -1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])  # optical axis down
     for a in spec.areas:
         T = np.eye(4)
         T[:3, :3] = R
         T[:3, 3] = [*a.center[:2], 0.4]
-        m.frame_embeddings.append(text.encode_text([a.name])[0])
-        m.frame_poses.append(T)
+        m.areas.add(text.encode_text([a.name])[0], T)
     m._frames_seen = len(spec.areas)
     names = {o.name: o.label for o in spec.objects}
     views = {}
@@ -315,7 +318,7 @@ def evaluate_suite(
     point; ``image_dir`` holds the suite's goal images (see :func:`write_suite_images`).
     """
     if generate is None:
-        from tabletop.language.parser import instruction_to_code as generate
+        from tabletop.language.codegen import instruction_to_code as generate
     suite = suite or load_suite()
     chosen = suite.cases
     if cases is not None:

@@ -13,7 +13,7 @@ import time
 
 import numpy as np
 
-from tabletop.mapping.avlmap import AVLMap, MapConfig
+from tabletop.mapping import AVLMap, MapConfig
 from tabletop.mapping.voxel_map import frame_points
 
 __all__ = ["reference_fusion", "reference_object_heatmap", "run_map_benchmark"]

@@ -1,10 +1,12 @@
-"""Heatmaps: dense float32 arrays in [0, 1] over the workspace grid, as in the paper.
+"""Heatmaps: the query layer's value. A :class:`Heatmap` is a dense float32 array in [0, 1] over
+the map's grid, with what produced it and whether it found anything, as in the paper.
 
 Object module (3D, Euclidean):  H_o(p) = max(1 - eps * d_min(p), 0), d_min = distance from p to
 the nearest target voxel, computed with a Euclidean distance transform (not an O(N*M) loop).
 Area/audio modules (top-down):  H(p) = max(max_i (s_i - eps * d_xy(p, p_i)), 0).
 Visual module:                  H_v(p) = max(1 - eps * d_xy(p, p_v), 0).
-Fusion is the element-wise product; :func:`argmax_world` is ``get_max_pos_3d``.
+Fusion is the element-wise product (:func:`fuse`, or ``a * b``); the target of a heatmap is
+chosen by :mod:`tabletop.mapping.targets` (``get_max_pos_3d``).
 
 Decay rates ``eps`` are in 1/m, so a heatmap means the same at any voxel size. Presets, tuned for
 a tabletop: ``MAJOR_DECAY`` = 10 /m (heat reaches 0 at 10 cm: "where exactly"), and
@@ -14,20 +16,26 @@ a tabletop: ``MAJOR_DECAY`` = 10 /m (heat reaches 0 at 10 cm: "where exactly"), 
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field, replace
+
 import numpy as np
 from scipy import ndimage
 
 from tabletop.errors import ConfigError
-from tabletop.mapping.grid import VoxelGrid
+from tabletop.grid import VoxelGrid
 
 __all__ = [
     "AUX_DECAY",
     "MAJOR_DECAY",
-    "argmax_world",
+    "MODALITIES",
+    "Heatmap",
     "fuse",
     "point_heatmap_3d",
     "scored_points_heatmap_xy",
 ]
+
+#: What produced a heatmap: one of the four modules, or a product of several ("fused").
+MODALITIES = ("object", "sound", "area", "image", "fused")
 
 MAJOR_DECAY = 10.0  # [1/m]
 AUX_DECAY = 2.5  # [1/m]
@@ -88,22 +96,143 @@ def scored_points_heatmap_xy(
     return np.repeat(np.clip(best, 0, 1)[:, :, None], grid.shape[2], axis=2).astype(np.float32)
 
 
-def fuse(*heatmaps: np.ndarray) -> np.ndarray:
-    """Element-wise product of heatmaps of one grid (the paper's cross-modal reasoning)."""
+@dataclass(frozen=True, eq=False)
+class Heatmap:
+    """A query's heatmap over a grid, with what produced it (a value; its array is read-only).
+
+    ``found`` is the query's verdict: False means the map holds nothing that matches (``reason``
+    says why) and the values carry no target. ``a * b`` fuses two heatmaps (:func:`fuse`).
+    """
+
+    grid: VoxelGrid
+    values: np.ndarray  # grid.shape float32 in [0, 1], read-only
+    query: str
+    modality: str  # one of MODALITIES
+    decay: float | None  # [1/m]; None for a fused heatmap
+    confidence: float  # calibrated, in [0, 1]
+    found: bool
+    reason: str = ""
+    evidence: float | None = None
+    """The raw margin the confidence was computed from (see :mod:`tabletop.mapping.calibration`);
+    None when nothing matched at all."""
+    target: np.ndarray | None = field(default=None, repr=False)
+    """(3,) [m] world frame: the point the query names, for a module that locates one point
+    (image: the surface point the image shows at its centre); else None."""
+    parts: tuple[Heatmap, ...] = field(default=(), repr=False)
+    """The heatmaps a fused heatmap is the product of (empty for a module's heatmap)."""
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.grid, VoxelGrid):
+            raise ConfigError(f"Heatmap.grid must be a VoxelGrid, got {type(self.grid).__name__}")
+        if self.modality not in MODALITIES:
+            raise ConfigError(f"unknown modality {self.modality!r}; valid: {list(MODALITIES)}")
+        v = np.asarray(self.values)
+        if v.shape != self.grid.shape:
+            raise ConfigError(f"heatmap {v.shape} is not on the grid {self.grid.shape}")
+        if v.dtype != np.float32 or v.flags.writeable:
+            v = np.array(v, dtype=np.float32)
+        if not np.all(np.isfinite(v)):
+            raise ConfigError(f"heatmap {self.query!r} has non-finite values (NaN or inf)")
+        if v.size and (v.min() < 0 or v.max() > 1):
+            raise ConfigError(
+                f"heatmap {self.query!r} values must be in [0, 1], got "
+                f"[{float(v.min()):.3g}, {float(v.max()):.3g}]"
+            )
+        v.setflags(write=False)
+        object.__setattr__(self, "values", v)
+        if not 0.0 <= float(self.confidence) <= 1.0:
+            raise ConfigError(f"confidence must be in [0, 1], got {self.confidence}")
+        if self.target is not None:
+            t = np.array(self.target, dtype=np.float64)
+            if t.shape != (3,) or not np.all(np.isfinite(t)):
+                raise ConfigError(f"target must be a finite (3,) point [m], got {t.tolist()}")
+            t.setflags(write=False)
+            object.__setattr__(self, "target", t)
+
+    @classmethod
+    def not_found(
+        cls,
+        grid: VoxelGrid,
+        query: str,
+        modality: str,
+        decay: float | None,
+        reason: str,
+        evidence: float | None = None,
+    ) -> Heatmap:
+        """A not-found result: all zeros, confidence 0, with the reason."""
+        return cls(
+            grid,
+            np.zeros(grid.shape, np.float32),
+            query,
+            modality,
+            decay,
+            0.0,
+            False,
+            reason,
+            evidence,
+        )
+
+    @property
+    def peak(self) -> float:
+        """The largest value."""
+        return float(self.values.max(initial=0.0))
+
+    def with_values(self, values: np.ndarray, **changes) -> Heatmap:
+        """A copy with other values (and any other field changed)."""
+        return replace(self, values=values, **changes)
+
+    def __mul__(self, other: object) -> Heatmap:
+        if not isinstance(other, Heatmap):
+            return NotImplemented
+        return fuse(self, other)
+
+    def __array__(self, dtype=None, copy=None) -> np.ndarray:
+        return np.array(self.values, dtype=dtype)
+
+
+def _describe(h: Heatmap) -> str:
+    return h.query if h.modality == "fused" else f"{h.modality} {h.query!r}"
+
+
+def fuse(*heatmaps: Heatmap) -> Heatmap:
+    """The element-wise product of heatmaps of one grid (the paper's cross-modal reasoning).
+
+    The result is found when every part is found and some place has heat from every part; its
+    confidence is the smallest part's; ``parts`` lists the (flattened) factors.
+    """
     if not heatmaps:
         raise ConfigError("fuse needs at least one heatmap")
-    out = np.array(heatmaps[0], np.float32)
+    bad = [type(h).__name__ for h in heatmaps if not isinstance(h, Heatmap)]
+    if bad:
+        raise ConfigError(
+            f"fuse takes Heatmap values (from a map's queries), got {bad}; wrap an array with "
+            "Heatmap(grid, values, ...)"
+        )
+    grid = heatmaps[0].grid
     for h in heatmaps[1:]:
-        if h.shape != out.shape:
-            raise ConfigError(f"heatmaps of different grids: {out.shape} vs {h.shape}")
-        out *= h
-    return out
-
-
-def argmax_world(grid: VoxelGrid, heatmap: np.ndarray) -> np.ndarray:
-    """World point [m] (3,) of the hottest voxel (ties: the mean of the tied voxels' centres)."""
-    if heatmap.shape != grid.shape:
-        raise ConfigError(f"heatmap {heatmap.shape} is not on the grid {grid.shape}")
-    m = heatmap.max()
-    ties = np.argwhere(heatmap >= m - 1e-6 * max(m, 1e-12))
-    return grid.centers(ties).mean(axis=0)
+        if h.grid != grid:
+            raise ConfigError(f"heatmaps of different grids: {grid} vs {h.grid}")
+    parts: list[Heatmap] = []
+    for h in heatmaps:
+        parts += list(h.parts) if h.modality == "fused" and h.parts else [h]
+    out = np.array(parts[0].values, np.float32)
+    for h in parts[1:]:
+        out *= h.values
+    missing = [h for h in parts if not h.found]
+    query = " * ".join(_describe(h) for h in parts)
+    reason = ""
+    if missing:
+        reason = "; ".join(f"{_describe(h)}: {h.reason or 'not found'}" for h in missing)
+    elif not out.max(initial=0.0) > 0:
+        reason = "no place in the map has heat from every part"
+    return Heatmap(
+        grid,
+        out,
+        query,
+        "fused",
+        None,
+        min(h.confidence for h in parts) if not reason else 0.0,
+        not reason,
+        reason,
+        parts=tuple(parts),
+    )

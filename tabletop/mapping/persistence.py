@@ -1,12 +1,17 @@
-"""Saving and loading an AVLMap: one ``.npz`` file with a JSON header (``tabletop-avlmap`` v2).
+"""Saving and loading an AVLMap: one ``.npz`` file with a JSON header (``tabletop-avlmap`` v3).
 
-The header holds the format name and version, the map config (grid, fusion and query
-parameters), the encoder set's name and what is needed to re-create it (the oracle's labels and
-sound events), and the counts every array must agree with. Arrays: the voxel state (linear
-indices, feature sums, point counts, colour sums), per-frame global embeddings and camera poses,
-audio segments with their embeddings and positions, and (version 2) the visual localization
-module's reference frames (``visual_*`` arrays, described by the header's ``visual`` entry).
-Version 1 files (no visual module) still load; their maps answer image goals "not found".
+The header holds the format name and version, the map config (:meth:`MapConfig.to_dict`: every
+field, so a loaded map answers exactly as the saved one), the encoder set's name and what is
+needed to re-create it (the oracle's labels and sound events), the confidence calibration the
+map was given, and the counts every array must agree with. Arrays: the voxel state (linear
+indices, feature sums, point counts, colour sums), the area module's per-frame embeddings and
+camera poses, the audio module's segments' embeddings and positions, and the visual
+localization module's reference frames (``visual_*`` arrays, described by the header's
+``visual`` entry).
+
+Older files still load and say what they lack (:attr:`AVLMap.lacks`): version 1 has no visual
+module (image goals are not found), versions 1-2 have no saved calibration (the prior, unless
+one is passed to :func:`load_map`) and no ``image_target_px``/``area_top_score`` (defaults).
 Writing is atomic (a temporary file, then a rename); loading validates and names what is wrong.
 See ``docs/mapping.md``.
 """
@@ -14,22 +19,32 @@ See ``docs/mapping.md``.
 from __future__ import annotations
 
 import json
+import logging
 import os
 import tempfile
 import zipfile
-from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
 
-from tabletop.errors import TabletopError
+from tabletop.errors import ConfigError, TabletopError
 
-__all__ = ["MAP_FORMAT", "MAP_VERSION", "MapFormatError", "read_map_file", "save_map"]
+__all__ = [
+    "MAP_FORMAT",
+    "MAP_VERSION",
+    "READABLE_VERSIONS",
+    "MapFormatError",
+    "load_map",
+    "read_map_file",
+    "save_map",
+]
+
+log = logging.getLogger(__name__)
 
 MAP_FORMAT = "tabletop-avlmap"
-MAP_VERSION = 2
-#: Versions this code reads: 1 (no visual module) and 2.
-READABLE_VERSIONS = (1, 2)
+MAP_VERSION = 3
+#: Versions this code reads: 1 (no visual module), 2 (no saved calibration) and 3.
+READABLE_VERSIONS = (1, 2, 3)
 
 
 class MapFormatError(TabletopError, ValueError):
@@ -42,33 +57,25 @@ def save_map(m, path: str | Path, *, rebuild: dict | None = None) -> Path:
     path = Path(path)
     if path.suffix != ".npz":
         path = path.with_suffix(".npz")
+    if path.is_dir():
+        raise ConfigError(f"{path} is a directory; give a .npz file path for the map")
     path.parent.mkdir(parents=True, exist_ok=True)
-    cfg = m.config
+    sounds, areas = m.sounds, m.areas
     header = {
         "format": MAP_FORMAT,
         "version": MAP_VERSION,
-        "config": {
-            "grid": cfg.grid.to_dict(),
-            "pixel_step": cfg.pixel_step,
-            "frame_step": cfg.frame_step,
-            "categories": list(cfg.categories),
-            "major_decay": cfg.major_decay,
-            "aux_decay": cfg.aux_decay,
-            "select_margin": cfg.select_margin,
-            "min_confidence": cfg.min_confidence,
-            "gate": asdict(cfg.gate),
-            "self_filter_margin": cfg.self_filter_margin,
-        },
+        "config": m.config.to_dict(),
         "encoders": m.encoder_names,
         "encoder_set": m.encoder_set,
         "rebuild": rebuild if rebuild is not None else m.rebuild_info,
+        "calibration": m.calibration.to_json(),
         "dim": m.voxels.dim,
         "space": m.text.space,
         "n_voxels": m.voxels.n,
-        "n_frames": len(m.frame_embeddings),
-        "frames_seen": m._frames_seen,
-        "n_segments": len(m.segments),
-        "segments": [[s.start_s, s.end_s] for s in m.segments],
+        "n_frames": len(areas),
+        "frames_seen": m.frames_seen,
+        "n_segments": len(sounds),
+        "segments": [[s.start_s, s.end_s] for s in sounds.segments],
         "visual": None,
     }
     st = m.voxels.state()
@@ -78,10 +85,10 @@ def save_map(m, path: str | Path, *, rebuild: dict | None = None) -> Path:
         "voxel_feature_sums": st["feature_sums"],
         "voxel_counts": st["counts"],
         "voxel_color_sums": st["color_sums"],
-        "frame_embeddings": np.array(m.frame_embeddings, np.float32).reshape(-1, d),
-        "frame_poses": np.array(m.frame_poses, np.float64).reshape(-1, 4, 4),
-        "segment_embeddings": np.array(m.segment_embeddings, np.float32).reshape(-1, d),
-        "segment_positions": np.array(m.segment_positions, np.float64).reshape(-1, 3),
+        "frame_embeddings": np.array(areas.embeddings, np.float32).reshape(-1, d),
+        "frame_poses": np.array(areas.poses, np.float64).reshape(-1, 4, 4),
+        "segment_embeddings": np.array(sounds.embeddings, np.float32).reshape(-1, d),
+        "segment_positions": np.array(sounds.positions, np.float64).reshape(-1, 3),
     }
     if m.visual is not None:
         header["visual"], visual = m.visual.state()
@@ -115,13 +122,19 @@ def read_map_file(path: str | Path) -> tuple[dict, dict[str, np.ndarray]]:
         h = json.loads(arrays.pop("header").tobytes().decode())
     except (UnicodeDecodeError, json.JSONDecodeError) as e:
         raise MapFormatError(f"{path}: header is not valid JSON: {e}") from None
-    if h.get("format") != MAP_FORMAT:
-        raise MapFormatError(f"{path}: format {h.get('format')!r}, expected {MAP_FORMAT!r}")
+    if not isinstance(h, dict) or h.get("format") != MAP_FORMAT:
+        got = h.get("format") if isinstance(h, dict) else h
+        raise MapFormatError(f"{path}: format {got!r}, expected {MAP_FORMAT!r}")
     if h.get("version") not in READABLE_VERSIONS:
         raise MapFormatError(
             f"{path}: version {h.get('version')!r} is not supported; this tabletop reads "
             f"versions {list(READABLE_VERSIONS)}"
         )
+    counts = ("n_voxels", "dim", "n_frames", "n_segments", "frames_seen")
+    for k in counts:
+        v = h.get(k)
+        if not isinstance(v, int) or isinstance(v, bool) or v < 0:
+            raise MapFormatError(f"{path}: header field {k!r} must be a count >= 0, got {v!r}")
     expect = {
         "voxel_linear": (h["n_voxels"],),
         "voxel_feature_sums": (h["n_voxels"], h["dim"]),
@@ -139,4 +152,97 @@ def read_map_file(path: str | Path) -> tuple[dict, dict[str, np.ndarray]]:
             raise MapFormatError(
                 f"{path}: array {name!r} has shape {arrays[name].shape}, header says {shape}"
             )
+    segs = h.get("segments")
+    if not isinstance(segs, list) or len(segs) != h["n_segments"]:
+        raise MapFormatError(f"{path}: header 'segments' must list {h['n_segments']} [start, end]")
     return h, arrays
+
+
+def load_map(path: str | Path, *, calibration=None):
+    """The :class:`~tabletop.mapping.avlmap.AVLMap` saved at ``path``, its encoder set
+    re-created. ``calibration`` replaces the calibration saved with the map (a map of format
+    1-2 saved none: it gets the uncalibrated prior unless one is given)."""
+    from tabletop.mapping.audio_segments import AudioSegment
+    from tabletop.mapping.avlmap import AVLMap
+    from tabletop.mapping.calibration import Calibration
+    from tabletop.mapping.config import MapConfig
+    from tabletop.mapping.encoders.registry import make_encoders_from_rebuild
+    from tabletop.mapping.visual.database import VisualDatabase, VisualDatabaseError
+    from tabletop.mapping.voxel_map import VoxelMap
+
+    h, a = read_map_file(path)
+    lacks: list[str] = []
+    try:
+        c = dict(h["config"])
+        c["visual"] = None  # restored with the reference frames below
+        if h["version"] < 3:
+            c.pop("image_target_px", None)
+            lacks.append("the map config's image_target_px and area_top_score (defaults used)")
+        config = MapConfig.from_dict(c)
+    except (KeyError, TypeError, ConfigError) as e:
+        raise MapFormatError(f"{path}: config is invalid: {e}") from None
+    if calibration is None:
+        if h.get("calibration") is not None:
+            try:
+                calibration = Calibration.from_json(h["calibration"], f"{path}: calibration")
+            except TabletopError as e:
+                raise MapFormatError(str(e)) from None
+        else:
+            lacks.append("a saved calibration (the uncalibrated prior is used)")
+    enc = make_encoders_from_rebuild(h["encoder_set"], h["rebuild"])
+    if enc.text.space != h["space"] or enc.text.dim != h["dim"]:
+        raise MapFormatError(
+            f"{path}: built in space {h['space']!r} ({h['dim']}-d), but its encoders now "
+            f"give {enc.text.space!r} ({enc.text.dim}-d)"
+        )
+    m = AVLMap(
+        config,
+        enc.text,
+        enc.dense,
+        enc.global_image,
+        enc.audio,
+        h["encoders"],
+        h["encoder_set"],
+        h["rebuild"],
+        enc.audio_text,
+        calibration=calibration,
+    )
+    try:
+        voxels = VoxelMap.from_state(
+            config.grid,
+            h["dim"],
+            {
+                "linear": a["voxel_linear"],
+                "feature_sums": a["voxel_feature_sums"],
+                "counts": a["voxel_counts"],
+                "color_sums": a["voxel_color_sums"],
+            },
+        )
+    except ConfigError as e:
+        raise MapFormatError(f"{path}: {e}") from None
+    m.voxels.__dict__.update(voxels.__dict__)  # the modules hold this VoxelMap object
+    for e, T in zip(a["frame_embeddings"], a["frame_poses"], strict=True):
+        m.areas.add(e, T)
+    try:
+        m.sounds.segments = [AudioSegment(float(s0), float(s1)) for s0, s1 in h["segments"]]
+    except (TypeError, ValueError) as e:
+        raise MapFormatError(f"{path}: header 'segments' is malformed: {e}") from None
+    m.sounds.embeddings = list(a["segment_embeddings"])
+    m.sounds.positions = list(a["segment_positions"])
+    m._frames_seen = int(h["frames_seen"])
+    if h.get("visual") is not None:
+        visual = {k.removeprefix("visual_"): v for k, v in a.items() if k.startswith("visual_")}
+        try:
+            db = VisualDatabase.from_state(h["visual"], visual)
+        except VisualDatabaseError as e:
+            raise VisualDatabaseError(f"{path}: {e}") from None
+        m.images.database = db
+        from dataclasses import replace
+
+        m.config = replace(config, visual=db.config)
+    else:
+        lacks.append("the visual localization module (image goals are not found)")
+    m.lacks = tuple(lacks)
+    for what in lacks:
+        log.info("%s (format %s) lacks %s", path, h["version"], what)
+    return m

@@ -13,9 +13,8 @@ import numpy as np
 import scipy.sparse as sp
 
 from tabletop.errors import ConfigError
-from tabletop.mapping.grid import VoxelGrid
-from tabletop.sim.camera import backproject
-from tabletop.transforms import transform_points
+from tabletop.grid import VoxelGrid
+from tabletop.transforms import backproject, transform_points
 
 __all__ = ["VoxelMap", "frame_points"]
 
@@ -45,6 +44,8 @@ class VoxelMap:
         self._count = np.zeros(capacity, np.int64)  # points per voxel
         self._rgb = np.zeros((capacity, 3), np.float64)  # colour sums
         self.n = 0
+        self.version = 0
+        """Counts the integrations: a cache of anything derived from the voxels keys on it."""
 
     # ------------------------------------------------------------------ building
     def _grow(self, need: int) -> None:
@@ -102,6 +103,7 @@ class VoxelMap:
             self._row_of[uniq[new]] = rows[new]
             self._lin[self.n : self.n + n_new] = uniq[new]
             self.n += n_new
+        self.version += 1
         P = len(inv)
         ones = np.ones(P, np.float32)
         if features is not None:

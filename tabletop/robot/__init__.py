@@ -9,17 +9,17 @@ Typical use::
     robot.move_to_left("red mug")                       # a ReachResult
     obj_map = robot.get_major_map(obj="mug")
     sound_map = robot.get_map(sound="a trumpet playing")
-    robot.move_to(robot.get_max_pos_3d(obj_map * sound_map))
+    robot.move_to(robot.get_max_pos_3d(obj_map * sound_map))   # approached from above
 """
 
+from tabletop.errors import GoalNotFound
 from tabletop.robot.api import (
-    GoalNotFound,
     ImageGoalUnavailable,
     RobotAPI,
     RobotError,
     SpatialConfig,
 )
-from tabletop.robot.arm import SimArm
+from tabletop.robot.arm import ArmRobot, SimArm
 from tabletop.robot.mobile import BaseMoveResult, MobileBase, MobileConfig, astar
 from tabletop.robot.obstacles import (
     ARM,
@@ -33,10 +33,22 @@ from tabletop.robot.obstacles import (
     obstacle_voxels,
     occupancy_grid,
 )
+from tabletop.robot.primitives import (
+    EXCLUDED,
+    PRIMITIVES,
+    Primitive,
+    motion_to,
+    primitive,
+    signature_mismatches,
+    undeclared_methods,
+)
 
 __all__ = [
     "ARM",
+    "EXCLUDED",
     "MOBILE_BASE",
+    "PRIMITIVES",
+    "ArmRobot",
     "BaseMoveResult",
     "Embodiment",
     "GoalNotFound",
@@ -45,6 +57,7 @@ __all__ = [
     "MobileConfig",
     "ObstacleVoxels",
     "OccupancyGrid",
+    "Primitive",
     "RobotAPI",
     "RobotError",
     "SimArm",
@@ -53,6 +66,10 @@ __all__ = [
     "astar",
     "label_voxels",
     "merge_boxes",
+    "motion_to",
     "obstacle_voxels",
     "occupancy_grid",
+    "primitive",
+    "signature_mismatches",
+    "undeclared_methods",
 ]

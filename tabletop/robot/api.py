@@ -9,7 +9,10 @@ Conventions (world frame = robot base frame, metres, z up): north = +x (away fro
 across the table), south = -x, west = left = +y, east = right = -y. "In front of" an object is
 its +x side (further along the robot's forward direction), "behind" its -x side.
 
-A query part that matches nothing raises :class:`GoalNotFound` before anything moves.
+A query part that matches nothing raises :class:`GoalNotFound` before anything moves. Queries
+return :class:`~tabletop.mapping.heatmaps.Heatmap` values; ``a * b`` fuses two of them, and the
+one target selector (:mod:`tabletop.mapping.targets`) turns them into points. A spatial
+primitive's landmark is an object name or a heatmap (a place found by any query).
 """
 
 from __future__ import annotations
@@ -19,9 +22,10 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from scipy import ndimage
 
-from tabletop.errors import ConfigError, TabletopError
+from tabletop.errors import ConfigError, GoalNotFound, TabletopError
+from tabletop.mapping.heatmaps import Heatmap, fuse
+from tabletop.mapping.targets import max_position, region_box
 
 __all__ = [
     "GoalNotFound",
@@ -34,15 +38,6 @@ __all__ = [
 
 class RobotError(TabletopError):
     """Base class of the robot API's errors."""
-
-
-class GoalNotFound(RobotError, LookupError):
-    """A query (object, sound, image or area) matches nothing in the map; nothing moved."""
-
-    def __init__(self, query: str, reason: str) -> None:
-        super().__init__(f"{query}: not found ({reason})")
-        self.query = query
-        self.reason = reason
 
 
 class ImageGoalUnavailable(ConfigError):
@@ -115,22 +110,20 @@ class RobotAPI(abc.ABC):
             raise ConfigError(f"image {str(p)!r} could not be decoded (not an image file?)")
         return np.ascontiguousarray(bgr[:, :, ::-1])
 
-    def _image_heatmap(self, img, major: bool):
+    def _image_heatmap(self, img, major: bool) -> Heatmap:
         rgb = self.load_image(img) if isinstance(img, (str, Path)) else np.asarray(img)
         if rgb.ndim != 3 or rgb.shape[2] != 3 or rgb.dtype != np.uint8:
             raise ConfigError(
                 f"img must be an (H, W, 3) uint8 RGB array or a path, got {rgb.shape} {rgb.dtype}"
             )
-        fn = getattr(self.map, "image_heatmap", None)
-        if fn is None:
+        if getattr(self.map, "visual", None) is None:
             raise ImageGoalUnavailable(
-                "image goals need AVLMap.image_heatmap(rgb, major=...) from the visual "
-                "localization module (tabletop/mapping/visual_localization.py); this map has no "
-                "such method"
+                "image goals need the map's visual localization module; this map was built "
+                "without it (MapConfig.visual=None)"
             )
-        return fn(rgb, major=major)
+        return self.map.image_heatmap(rgb, major=major)
 
-    def _part(self, kind: str, value, major: bool):
+    def _part(self, kind: str, value, major: bool) -> Heatmap:
         m = self.map
         if kind == "obj":
             return m.object_heatmap(value, major=major)
@@ -140,7 +133,7 @@ class RobotAPI(abc.ABC):
             return m.area_heatmap(value, major=major)
         return self._image_heatmap(value, major)
 
-    def _heatmap(self, parts: dict, majors: dict) -> np.ndarray:
+    def _heatmap(self, parts: dict, majors: dict) -> Heatmap:
         given = {k: v for k, v in parts.items() if v is not None}
         if not given:
             raise ConfigError("give at least one of obj=, sound=, img=, area=")
@@ -150,24 +143,19 @@ class RobotAPI(abc.ABC):
         heatmaps = []
         for k, v in given.items():
             h = self._part(k, v, majors[k])
-            values = np.asarray(getattr(h, "values", h), dtype=np.float32)
-            if values.shape != self.map.grid.shape:
-                raise ConfigError(f"{k} heatmap {values.shape} is not on the map's grid")
-            if not getattr(h, "found", True):
+            if not h.found:
                 label = f"{k}={v!r}" if k != "img" else "img"
-                raise GoalNotFound(label, getattr(h, "reason", "") or "no match")
-            heatmaps.append((k, v, h, values))
-        self.last_heatmaps = tuple(h for _, _, h, _ in heatmaps)
-        out = heatmaps[0][3].copy()
-        for _, _, _, values in heatmaps[1:]:
-            out *= values
-        if not out.max() > 0:
-            desc = ", ".join(f"{k}={v!r}" if k != "img" else "img" for k, v, _, _ in heatmaps)
-            raise GoalNotFound(desc, "no place in the map has heat from every part")
+                raise GoalNotFound(label, h.reason or "no match")
+            heatmaps.append(h)
+        self.last_heatmaps = tuple(heatmaps)
+        out = fuse(*heatmaps)
+        if not out.found:
+            desc = ", ".join(f"{k}={v!r}" if k != "img" else "img" for k, v in given.items())
+            raise GoalNotFound(desc, out.reason)
         return out
 
-    def get_major_map(self, obj=None, sound=None, img=None, area=None, *, primary=None):
-        """A sharp heatmap (major decay): "where exactly". grid-shaped float32 in [0, 1].
+    def get_major_map(self, obj=None, sound=None, img=None, area=None, *, primary=None) -> Heatmap:
+        """A sharp heatmap (major decay): "where exactly". A :class:`Heatmap` on the map's grid.
 
         With several parts, the ``primary`` one (default: the first given of obj, img, sound,
         area) is sharp and the others are broad constraints (auxiliary decay), multiplied: the
@@ -186,67 +174,77 @@ class RobotAPI(abc.ABC):
             raise ConfigError(f"primary={primary!r} is not one of the given parts {given}")
         return self._heatmap(parts, {k: k == primary for k in parts})
 
-    def get_map(self, obj=None, sound=None, img=None, area=None) -> np.ndarray:
+    def get_map(self, obj=None, sound=None, img=None, area=None) -> Heatmap:
         """A broad heatmap (auxiliary decay): "near". Several parts are multiplied."""
         parts = {"obj": obj, "img": img, "sound": sound, "area": area}
         return self._heatmap(parts, dict.fromkeys(parts, False))
 
+    def _check_heatmap(self, heatmap) -> Heatmap:
+        if not isinstance(heatmap, Heatmap):
+            raise ConfigError(
+                "expected a heatmap from get_major_map / get_map (or their product), got "
+                f"{type(heatmap).__name__}"
+            )
+        if heatmap.grid != self.map.grid:
+            raise ConfigError(f"heatmap grid {heatmap.grid} is not the map's {self.map.grid}")
+        return heatmap
+
     def get_max_pos_3d(self, heatmap) -> np.ndarray:
-        """(3,) [m] base frame: the point of maximal heat (ties: see AVLMap.get_max_pos_3d)."""
-        values = np.asarray(getattr(heatmap, "values", heatmap), dtype=np.float32)
-        if values.shape != self.map.grid.shape:
-            raise ConfigError(f"heatmap {values.shape} is not on the map's grid {self.map.grid}")
-        if not values.max() > 0:
-            raise GoalNotFound("heatmap", "it is zero everywhere")
-        return np.asarray(self.map.get_max_pos_3d(values), dtype=np.float64)
+        """(3,) [m] base frame: the point of maximal heat (the one target selector,
+        :func:`tabletop.mapping.targets.max_position`).
 
-    def _object(self, name: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(centre, lower, upper) [m] of the map's best instance of ``name``."""
-        values = self.get_major_map(obj=name)
-        tied = values >= values.max() - 1e-6
-        labels, n = ndimage.label(tied, structure=np.ones((3, 3, 3)))
-        if n > 1:  # the same instance AVLMap.get_max_pos_3d picks: the heaviest tied region
-            weights = ndimage.sum(values, labels, index=np.arange(1, n + 1))
-            tied = labels == (int(np.argmax(weights)) + 1)
-        centers = self.map.grid.centers(np.argwhere(tied))
-        h = self.map.grid.voxel_size / 2
-        return centers.mean(axis=0), centers.min(axis=0) - h, centers.max(axis=0) + h
+        Raises:
+            GoalNotFound: the heatmap found nothing or is zero everywhere.
+        """
+        h = self._check_heatmap(heatmap)
+        return max_position(h, self.map.voxels.occupancy())
 
-    def get_pos(self, name: str) -> np.ndarray:
-        """(3,) [m] base frame: the centre of the map's best instance of object ``name``."""
-        return self._object(name)[0]
+    def _landmark(self, landmark) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(centre, lower, upper) [m] of a landmark: an object name (the map's best instance)
+        or a heatmap (its hottest region; a top-down place is a point level with the highest
+        surface around it)."""
+        if isinstance(landmark, str):
+            h = self.get_major_map(obj=landmark)
+        else:
+            h = self._check_heatmap(landmark)
+        return region_box(h, self.map.voxels.occupancy())
+
+    def get_pos(self, name) -> np.ndarray:
+        """(3,) [m] base frame: the centre of landmark ``name`` (an object name: the map's best
+        instance of it; or a heatmap)."""
+        return self._landmark(name)[0]
 
     # ------------------------------------------------------------------ spatial targets
-    def side_target(self, name: str, direction) -> np.ndarray:
-        """(3,) [m]: the point beside object ``name`` along the horizontal ``direction`` (a
-        unit axis), ``side_offset`` from its centre and at least ``side_gap`` beyond its extent,
-        level with its top."""
+    def side_target(self, name, direction) -> np.ndarray:
+        """(3,) [m]: the point beside landmark ``name`` (an object name or a heatmap) along the
+        horizontal ``direction`` (a unit axis), ``side_offset`` from its centre and at least
+        ``side_gap`` beyond its extent, level with its top."""
         d = np.asarray(direction, np.float64)
-        c, lo, hi = self._object(name)
+        c, lo, hi = self._landmark(name)
         half = float(np.abs(d[:2]) @ ((hi - lo)[:2] / 2))
         dist = max(self.spatial.side_offset, half + self.spatial.side_gap)
         p = c + dist * d
         p[2] = hi[2]  # level with the object's top: a gripper beside it clears its neighbours
         return p
 
-    def above(self, name: str) -> np.ndarray:
+    def above(self, name) -> np.ndarray:
         """(3,) [m]: ``above_gap`` above the top of object ``name``, over its centre."""
-        c, _, hi = self._object(name)
+        c, _, hi = self._landmark(name)
         return np.array([c[0], c[1], hi[2] + self.spatial.above_gap])
 
-    def left_of(self, name: str) -> np.ndarray:
+    def left_of(self, name) -> np.ndarray:
         return self.side_target(name, (0.0, 1.0, 0.0))
 
-    def right_of(self, name: str) -> np.ndarray:
+    def right_of(self, name) -> np.ndarray:
         return self.side_target(name, (0.0, -1.0, 0.0))
 
-    def in_front_of(self, name: str) -> np.ndarray:
+    def in_front_of(self, name) -> np.ndarray:
         return self.side_target(name, (1.0, 0.0, 0.0))
 
-    def behind(self, name: str) -> np.ndarray:
+    def behind(self, name) -> np.ndarray:
         return self.side_target(name, (-1.0, 0.0, 0.0))
 
-    def between(self, a: str, b: str) -> np.ndarray:
+    def between(self, a, b) -> np.ndarray:
         return (self.get_pos(a) + self.get_pos(b)) / 2
 
     def offset(self, dx: float, dy: float) -> np.ndarray:
@@ -256,27 +254,27 @@ class RobotAPI(abc.ABC):
         return self.current_position() + np.array([dx, dy, 0.0])
 
     # ------------------------------------------------------------------ spatial primitives
-    def move_to_object(self, name: str):
+    def move_to_object(self, name):
         """Move to object ``name``: to ``above_gap`` over its top (a base stops beside it)."""
         return self.move_to(self.above(name))
 
-    def move_to_left(self, name: str):
+    def move_to_left(self, name):
         """Move to the left (+y) of object ``name``."""
         return self.move_to(self.left_of(name))
 
-    def move_to_right(self, name: str):
+    def move_to_right(self, name):
         """Move to the right (-y) of object ``name``."""
         return self.move_to(self.right_of(name))
 
-    def move_in_front_of(self, name: str):
+    def move_in_front_of(self, name):
         """Move in front of (+x, away from the robot) object ``name``."""
         return self.move_to(self.in_front_of(name))
 
-    def move_behind(self, name: str):
+    def move_behind(self, name):
         """Move behind (-x, towards the robot) object ``name``."""
         return self.move_to(self.behind(name))
 
-    def move_in_between(self, a: str, b: str):
+    def move_in_between(self, a, b):
         """Move to the midpoint of objects ``a`` and ``b``."""
         return self.move_to(self.between(a, b))
 

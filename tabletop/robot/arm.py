@@ -1,24 +1,31 @@
-"""The Panda in simulation behind the robot API: the map's obstacles, the reach controller.
+"""An arm behind the robot API: the map's obstacles, the reach controller, any arm driver.
 
-:class:`SimArm` builds a PyBullet :class:`~tabletop.sim.world.SimWorld` of the scene, drives its
-Panda with the :class:`~tabletop.arm.reach.ReachController` over a
-:class:`~tabletop.arm.driver.PyBulletDriver`, and gives the controller the obstacles the MAP
-says are there (:func:`tabletop.robot.obstacles.arm_obstacles`), not the simulator's ground
-truth. The simulator only checks the outcome: PyBullet contact points between the robot and the
-table or objects are counted after every control step.
+:class:`ArmRobot` drives any :class:`~tabletop.arm.driver.ArmDriver` (the simulator's, or a
+real Panda's: :class:`~tabletop.arm.panda_py_driver.PandaPyDriver`) with the
+:class:`~tabletop.arm.reach.ReachController`, on the obstacles the map says are there. Its
+``move_to`` approaches a target from above: the TCP goes to the target raised to ``above_gap``
+over the highest map surface within the gripper's radius
+(:func:`tabletop.mapping.targets.approach_point`), so ``move_to(get_max_pos_3d(...))`` reaches
+a goal on or in an object without driving into it.
+
+:class:`SimArm` is an :class:`ArmRobot` on a PyBullet world of the scene; the obstacles still come
+from the MAP (:func:`tabletop.robot.obstacles.arm_obstacles`), not the simulator's ground truth.
+The simulator only checks the outcome: PyBullet contact points between the robot and the table
+or objects are counted after every control step.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from tabletop.arm.driver import PyBulletDriver
+from tabletop.arm.driver import ArmDriver, PyBulletDriver
 from tabletop.arm.model import HOME_Q, PandaModel
 from tabletop.arm.reach import ReachConfig, ReachController, ReachResult
+from tabletop.mapping.targets import APPROACH_RADIUS_M, approach_point
 from tabletop.robot.api import RobotAPI, SpatialConfig, _point
 from tabletop.robot.obstacles import ARM, Embodiment, arm_obstacles
 
-__all__ = ["SimArm"]
+__all__ = ["ArmRobot", "SimArm"]
 
 
 class _ContactCountingDriver(PyBulletDriver):
@@ -45,25 +52,28 @@ class _ContactCountingDriver(PyBulletDriver):
         self._count()
 
 
-class SimArm(RobotAPI):
-    """The simulated Panda, moving on the map's obstacles.
+class ArmRobot(RobotAPI):
+    """A Panda on any arm driver, moving on the map's obstacles.
 
     Args:
         avlmap: the map (queries and obstacles).
-        spec: the scene to simulate (a :class:`~tabletop.sim.scene.SceneSpec` or a scene name);
-            it should be the scene the map was built from.
+        driver: the arm's driver (simulated or real).
+        model: the arm's kinematic model (the Panda's by default).
         embodiment: the arm's obstacle concepts.
         keep_out: heatmaps whose heat >= ``keep_out_threshold`` the arm must stay out of.
         keep_out_threshold: heat in (0, 1].
         reach_config: the reach controller's parameters.
-        spatial: offsets of the spatial primitives.
+        spatial: offsets of the spatial primitives (``above_gap`` is also the approach
+            clearance of ``move_to``).
         max_boxes: at most this many obstacle boxes (the voxels are coarsened to fit).
+        approach_radius: horizontal radius [m] of the surface ``move_to`` clears.
     """
 
     def __init__(
         self,
         avlmap,
-        spec="default",
+        driver: ArmDriver,
+        model: PandaModel | None = None,
         *,
         embodiment: Embodiment = ARM,
         keep_out=(),
@@ -71,42 +81,79 @@ class SimArm(RobotAPI):
         reach_config: ReachConfig | None = None,
         spatial: SpatialConfig | None = None,
         max_boxes: int = 2000,
+        approach_radius: float = APPROACH_RADIUS_M,
     ) -> None:
-        from tabletop.sim.scene import SceneSpec, load_scene_spec
-        from tabletop.sim.world import SimWorld
-
         super().__init__(avlmap, spatial)
-        if not isinstance(spec, SceneSpec):
-            spec = load_scene_spec(spec)
+        self.model = model or PandaModel()
+        self.driver = driver
+        self.approach_radius = float(approach_radius)
         self.obstacles = tuple(
             arm_obstacles(avlmap, embodiment, keep_out, keep_out_threshold, max_boxes)
-        )
-        self.world = SimWorld(spec, renderer="tiny")
-        self.model = PandaModel()
-        self.driver = _ContactCountingDriver(
-            self.world._client,
-            self.world.robot_id,
-            [self.world.table_id, *self.world.object_ids.values()],
-            finger_opening=self.model.finger_opening,
         )
         self.controller = ReachController(self.model, self.driver, self.obstacles, reach_config)
         self.history: list[ReachResult] = []
         """Every move's result, in order."""
-        self.contacts: list[int] = []
-        """PyBullet contact points (robot vs table/objects) counted during each move."""
+
+    def approach(self, pos) -> np.ndarray:
+        """(3,) [m]: where ``move_to(pos)`` sends the TCP: ``pos`` raised to ``above_gap`` over
+        the highest map surface within ``approach_radius``."""
+        return approach_point(
+            self.map.grid,
+            self.map.voxels.occupancy(),
+            _point(pos),
+            self.spatial.above_gap,
+            self.approach_radius,
+        )
 
     def move_to(self, pos) -> ReachResult:
-        """Reach ``pos`` (3,) [m] base frame with the TCP; failures are reasons in the result."""
-        p = _point(pos)
-        before = self.driver.contacts
-        result = self.controller.move_to(p)
+        """Reach ``pos`` (3,) [m] base frame with the TCP, approached from above
+        (:meth:`approach`); failures are reasons in the result."""
+        result = self.controller.move_to(self.approach(pos))
         self.history.append(result)
-        self.contacts.append(self.driver.contacts - before)
         return result
 
     def current_position(self) -> np.ndarray:
         """(3,) [m] base frame: the TCP (``panda_grasptarget``), from the measured joints."""
         return self.model.fk(self.driver.read_state().q)[:3, 3].copy()
+
+
+class SimArm(ArmRobot):
+    """The simulated Panda (an :class:`ArmRobot` on a PyBullet driver that counts contacts).
+
+    Args:
+        avlmap: the map (queries and obstacles).
+        spec: the scene to simulate (a :class:`~tabletop.sim.scene.SceneSpec` or a scene name);
+            it should be the scene the map was built from.
+        **kwargs: the :class:`ArmRobot` options (embodiment, keep_out, reach_config, ...).
+    """
+
+    def __init__(self, avlmap, spec="default", **kwargs) -> None:
+        from tabletop.sim.scene import SceneSpec, load_scene_spec
+        from tabletop.sim.world import SimWorld
+
+        if not isinstance(spec, SceneSpec):
+            spec = load_scene_spec(spec)
+        self.world = SimWorld(spec, renderer="tiny")
+        model = PandaModel()
+        driver = _ContactCountingDriver(
+            self.world._client,
+            self.world.robot_id,
+            [self.world.table_id, *self.world.object_ids.values()],
+            finger_opening=model.finger_opening,
+        )
+        try:
+            super().__init__(avlmap, driver, model, **kwargs)
+        except BaseException:
+            self.world.close()
+            raise
+        self.contacts: list[int] = []
+        """PyBullet contact points (robot vs table/objects) counted during each move."""
+
+    def move_to(self, pos) -> ReachResult:
+        before = self.driver.contacts
+        result = super().move_to(pos)
+        self.contacts.append(self.driver.contacts - before)
+        return result
 
     def reset(self, q=HOME_Q) -> None:
         """Put the arm at ``q`` (7,) [rad] kinematically (home by default)."""

@@ -21,15 +21,14 @@ World frame = robot base frame; metres.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy import ndimage
 
 from tabletop.arm.obstacles import TABLE_THICKNESS, Box
 from tabletop.errors import ConfigError
-from tabletop.mapping.avlmap import OBJECT_CATEGORIES
-from tabletop.mapping.grid import VoxelGrid
+from tabletop.grid import VoxelGrid
 
 __all__ = [
     "ARM",
@@ -43,8 +42,6 @@ __all__ = [
     "obstacle_voxels",
     "occupancy_grid",
 ]
-
-_OBJECTS = OBJECT_CATEGORIES
 
 
 @dataclass(frozen=True)
@@ -68,6 +65,9 @@ class Embodiment:
     """Fill each obstacle column down to this height [m] (the table top); None: no filling."""
     unknown_is_obstacle: bool = True
     """Voxels with no feature (all-zero mean) count as obstacles."""
+    map_objects: bool = True
+    """Every object name of the map's vocabulary (``MapConfig.objects``) blocks this robot too,
+    ahead of ``obstacles``."""
 
     def __post_init__(self) -> None:
         if not self.obstacles and not self.slabs:
@@ -83,11 +83,20 @@ class Embodiment:
     def concepts(self) -> tuple[str, ...]:
         return self.obstacles + self.slabs + self.free
 
+    def for_map(self, avlmap) -> Embodiment:
+        """This embodiment with the map's object vocabulary among its obstacles (when
+        ``map_objects``), ready to label that map's voxels."""
+        if not self.map_objects:
+            return self
+        taken = set(self.obstacles + self.slabs + self.free)
+        objects = tuple(dict.fromkeys(o for o in avlmap.config.objects if o not in taken))
+        return replace(self, obstacles=(*objects, *self.obstacles), map_objects=False)
+
 
 #: The Panda on the table: every object and the table itself are obstacles.
 ARM = Embodiment(
     name="panda arm",
-    obstacles=(*_OBJECTS, "other"),
+    obstacles=("other",),
     free=("floor", "robot arm"),
     slabs=("table",),
 )
@@ -95,7 +104,7 @@ ARM = Embodiment(
 #: A small base driving on the table top: objects block it, the table is where it drives.
 MOBILE_BASE = Embodiment(
     name="table-top mobile base",
-    obstacles=(*_OBJECTS, "robot arm", "other"),
+    obstacles=("robot arm", "other"),
     free=("table", "floor"),
     z_range=(0.003, 0.25),
 )
@@ -154,6 +163,7 @@ def obstacle_voxels(
     if not 0.0 < threshold <= 1.0:
         raise ConfigError(f"keep-out threshold must be in (0, 1], got {threshold}")
     grid = avlmap.grid
+    embodiment = embodiment.for_map(avlmap)
     concepts = embodiment.concepts
     labels = label_voxels(avlmap, concepts)
     idx = avlmap.voxels.indices
@@ -276,6 +286,7 @@ def arm_obstacles(
 ) -> list[Box]:
     """The arm's obstacles from the map: one slab per surface concept (the table), then the
     merged boxes of the obstacle voxels (objects, keep-out regions)."""
+    embodiment = embodiment.for_map(avlmap)
     ov = obstacle_voxels(avlmap, embodiment, keep_out, threshold)
     out: list[Box] = []
     if embodiment.slabs:
@@ -335,6 +346,7 @@ def occupancy_grid(
     threshold: float = 0.5,
 ) -> OccupancyGrid:
     """The embodiment's 2D obstacle grid: its obstacle voxels (height band) seen from above."""
+    embodiment = embodiment.for_map(avlmap)
     ov = obstacle_voxels(avlmap, embodiment, keep_out, threshold)
     g = avlmap.grid
     return OccupancyGrid(ov.mask.any(axis=2), (g.lower[0], g.lower[1]), g.voxel_size)

@@ -1,10 +1,11 @@
 """Simulation: tabletop scenes, the Panda with its wrist RGB-D camera, teleop-style scans with
 inserted audio, the sound bank, and recordings on disk."""
 
-from tabletop.sim.camera import CameraIntrinsics, WristCameraConfig, backproject
+from tabletop.sim.camera import CameraIntrinsics, WristCameraConfig
 from tabletop.sim.catalog import COLORS, OBJECT_KINDS, ObjectKind
+from tabletop.sim.esc50 import load_esc50
 from tabletop.sim.noise import NoiseConfig, apply_noise
-from tabletop.sim.recording import (
+from tabletop.recording import (
     FORMAT_VERSION,
     Frame,
     Recording,
@@ -22,7 +23,7 @@ from tabletop.sim.scene import (
     list_default_scenes,
     load_scene_spec,
 )
-from tabletop.sim.sound_bank import SoundBank, SoundClip, load_esc50
+from tabletop.sim.sound_bank import SoundBank, SoundClip
 from tabletop.sim.world import CameraImage, SimWorld
 
 __all__ = [
@@ -48,7 +49,6 @@ __all__ = [
     "TableSpec",
     "WristCameraConfig",
     "apply_noise",
-    "backproject",
     "list_default_scenes",
     "load_esc50",
     "load_recording",

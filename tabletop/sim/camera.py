@@ -18,7 +18,6 @@ from tabletop.transforms import as_transform, invert, make_transform, rotation_a
 __all__ = [
     "CameraIntrinsics",
     "WristCameraConfig",
-    "backproject",
     "default_T_hand_cam",
     "depth_from_gl_buffer",
     "gl_projection_matrix",
@@ -154,16 +153,3 @@ def depth_from_gl_buffer(buffer: np.ndarray, near: float, far: float) -> np.ndar
     z = far * near / (far - (far - near) * d)
     z[(d >= 1.0) | (z < near) | (z > far)] = 0.0
     return z
-
-
-def backproject(depth: np.ndarray, K: np.ndarray, mask: np.ndarray | None = None) -> np.ndarray:
-    """(N, 3) points [m] in the camera frame from valid (> 0) depth pixels (and ``mask``)."""
-    depth = np.asarray(depth)
-    valid = depth > 0
-    if mask is not None:
-        valid &= mask
-    v, u = np.nonzero(valid)
-    z = depth[v, u].astype(np.float64)
-    x = (u - K[0, 2]) * z / K[0, 0]
-    y = (v - K[1, 2]) * z / K[1, 1]
-    return np.stack([x, y, z], axis=1)

@@ -12,7 +12,7 @@ from dataclasses import dataclass, fields
 import numpy as np
 
 from tabletop.errors import ConfigError
-from tabletop.sim.recording import Recording, Segment
+from tabletop.recording import Recording, Segment
 from tabletop.transforms import make_transform
 
 __all__ = ["NoiseConfig", "apply_noise"]

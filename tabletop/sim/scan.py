@@ -23,7 +23,7 @@ from tabletop.arm.model import TCP_FRAME
 from tabletop.errors import ConfigError, SimulationError
 from tabletop.sim.camera import WristCameraConfig
 from tabletop.sim.noise import NoiseConfig, apply_noise
-from tabletop.sim.recording import Recording, Segment
+from tabletop.recording import Recording, Segment
 from tabletop.sim.scene import SceneSpec
 from tabletop.sim.teleop import (
     Keyframe,
@@ -302,6 +302,7 @@ def run_scan(
         T_world_hand=T_world_hand,
         K=K,
         T_hand_cam=T_hand_cam,
+        T_hand_mic=T_hand_tcp(),  # the microphone rides at the tool centre point
         depth_resolution=config.camera.depth_resolution,
         audio=audio,
         audio_rate=audio_rate,

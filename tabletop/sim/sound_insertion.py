@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from tabletop.errors import ConfigError
-from tabletop.sim.recording import Segment
+from tabletop.recording import Segment
 
 __all__ = ["MIN_EVENT_S", "insert_sounds"]
 
@@ -60,7 +60,7 @@ def insert_sounds(
     ``timestamps`` (N,) [s] and ``tcp_world`` (N, 3) [m] are the scan's true TCP path; the
     ``episode`` segments say where sounds may go; ``config`` is the scan's ``ScanConfig``.
     """
-    from tabletop.sim.audio import background_noise, insert_clip
+    from tabletop.audio import background_noise, insert_clip
     from tabletop.sim.sound_bank import SoundBank
 
     bank = bank or SoundBank.default()

@@ -2,7 +2,7 @@
 
 CLAP/wav2clip-style training into MiniLM's text space: every training clip of the sound bank is
 turned, on the fly, into a segment like the ones a scan's noise gate cuts (a random crop of the
-clip, speed-perturbed, at a random gain, inserted into :func:`~tabletop.sim.audio.background_noise`
+clip, speed-perturbed, at a random gain, inserted into :func:`~tabletop.audio.background_noise`
 at a random SNR around the scans' 15 dB, with noise before and after it). The network's 384-d
 embedding is contrasted (softmax cross-entropy with a learned temperature) against MiniLM
 embeddings of one phrasing per category, drawn each step from the category's caption and its
@@ -322,13 +322,13 @@ def make_segment(
     ``clip`` (C,) float at ``rate`` [Hz] is sped up by ``speed``, cropped at random to at most
     ``length_s`` seconds, and added at a random place (or ``margin_s`` seconds from the start)
     to background noise at ``snr_db`` over the clip's span, by the rule of
-    :func:`~tabletop.sim.audio.insert_clip` (the whole segment is scaled down if it would leave
+    :func:`~tabletop.audio.insert_clip` (the whole segment is scaled down if it would leave
     [-1, 1]). The background is a random slice of ``noise`` (a long
-    :func:`~tabletop.sim.audio.background_noise` track, as a scan has) or, if None, a fresh
+    :func:`~tabletop.audio.background_noise` track, as a scan has) or, if None, a fresh
     track; ``snr_db=None`` puts the clip over silence. ``gain_db`` then scales the segment,
     which is clipped to [-1, 1].
     """
-    from tabletop.sim.audio import background_noise
+    from tabletop.audio import background_noise
 
     n = max(1, round(length_s * rate))
     x = _speed(np.asarray(clip, np.float32), speed)
@@ -542,7 +542,7 @@ def train_audio(config: AudioTrainConfig | None = None) -> Path:
             len(cats),
             len(bank.clips(split="heldout")),
         )
-        from tabletop.sim.audio import background_noise
+        from tabletop.audio import background_noise
 
         noise = background_noise(60 * rate, rate, rng)  # one long room track, sliced
         text = MiniLMTextEncoder()

@@ -232,7 +232,7 @@ class MSClapEncoder:
 
     # ------------------------------------------------------------------ audio
     def _prepare(self, audio: np.ndarray, sample_rate: int) -> np.ndarray:
-        from tabletop.sim.audio import resample
+        from tabletop.audio import resample
 
         if isinstance(sample_rate, bool) or int(sample_rate) != sample_rate or sample_rate <= 0:
             raise ConfigError(f"sample_rate must be a positive integer [Hz], got {sample_rate!r}")

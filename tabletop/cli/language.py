@@ -1,4 +1,4 @@
-"""The ``tabletop parse`` and ``tabletop run`` commands (registered by :func:`add_commands`)."""
+"""``tabletop parse`` and ``tabletop run``: instructions to robot code, run on a map."""
 
 from __future__ import annotations
 

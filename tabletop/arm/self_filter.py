@@ -14,6 +14,7 @@ import xml.etree.ElementTree as ET
 
 import numpy as np
 
+from tabletop.arm.model import PandaModel
 from tabletop.paths import panda_urdf_path
 from tabletop.transforms import invert, make_transform, rotation_about
 
@@ -61,11 +62,10 @@ def _link_boxes() -> tuple[tuple[str, np.ndarray, np.ndarray], ...]:
 
 
 class RobotSelfFilter:
-    """Tests points against the Panda's link boxes at a given joint configuration."""
+    """Tests points against the Panda's link boxes at a given joint configuration (what
+    :meth:`tabletop.mapping.avlmap.AVLMap.add_frame` takes as its ``self_filter``)."""
 
     def __init__(self, margin: float = 0.01) -> None:
-        from tabletop.arm import PandaModel
-
         self.model = PandaModel()
         self.margin = float(margin)
         boxes = [b for b in _link_boxes() if b[0] in self.model.frame_names]

@@ -1,9 +1,9 @@
 """Recordings: what the wrist camera, the arm and the microphone produced, on disk and in memory.
 
-The format (``tabletop-recording`` version 1) is documented in ``docs/recording_format.md``.
-A real Panda with a wrist camera produces the same thing: RGB, metric depth, end-effector poses
-in the base frame, the calibrated hand-camera extrinsic, and a mono audio track on the frame
-clock. The simulator adds its segmentation (for the oracle encoders) and the ground truth.
+The format (``tabletop-recording`` version 2; version 1 still loads) is documented in
+``docs/recording_format.md``. A real Panda with a wrist camera produces the same thing: RGB,
+metric depth, end-effector poses in the base frame, the calibrated hand-camera extrinsic, the
+microphone's pose in the hand frame, and a mono audio track on the frame clock. The simulator adds its segmentation (for the oracle encoders) and the ground truth.
 """
 
 from __future__ import annotations
@@ -36,7 +36,18 @@ __all__ = [
 log = logging.getLogger(__name__)
 
 FORMAT_NAME = "tabletop-recording"
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2
+#: Versions this code reads: 1 (no microphone pose: the scans of version 1 carried the
+#: microphone at the Panda's tool centre point) and 2.
+READABLE_VERSIONS = (1, 2)
+#: The microphone of version-1 recordings: at the Panda's tool centre point, 0.105 m along the
+#: hand frame's z axis (``panda_grasptarget`` in the URDF).
+V1_T_HAND_MIC = (
+    (1.0, 0.0, 0.0, 0.0),
+    (0.0, 1.0, 0.0, 0.0),
+    (0.0, 0.0, 1.0, 0.105),
+    (0.0, 0.0, 0.0, 1.0),
+)
 _HEADER = "recording.json"
 _POSES = "poses.npz"
 _AUDIO = "audio.npy"
@@ -77,6 +88,9 @@ class Recording:
     T_world_hand: np.ndarray  # (N, 4, 4) float64, end-effector pose, base frame [m]
     K: np.ndarray  # (3, 3) float64 [px]
     T_hand_cam: np.ndarray  # (4, 4) float64, calibrated camera extrinsic [m]
+    T_hand_mic: np.ndarray = V1_T_HAND_MIC  # type: ignore[assignment]
+    """(4, 4) float64 [m]: the microphone's pose in the hand frame (where a sound was heard
+    from). The simulated scans carry it at the tool centre point."""
     depth_resolution: float = 1e-4
     """Depth quantum [m]; depth values are integer multiples of it (stored as uint16)."""
     audio: np.ndarray | None = None  # (S,) float32 mono in [-1, 1], sample 0 at t = 0 s
@@ -126,6 +140,11 @@ class Recording:
             raise RecordingError(f"T_hand_cam must be (4, 4), got {T.shape}")
         T.setflags(write=False)
         object.__setattr__(self, "T_hand_cam", T)
+        T = np.array(self.T_hand_mic, dtype=np.float64)
+        if T.shape != (4, 4) or not np.all(np.isfinite(T)):
+            raise RecordingError(f"T_hand_mic must be a finite (4, 4) transform, got {T.shape}")
+        T.setflags(write=False)
+        object.__setattr__(self, "T_hand_mic", T)
         if np.any(self.depth < 0) or not np.all(np.isfinite(self.depth)):
             raise RecordingError("depth must be finite and >= 0 (0 = invalid)")
         if self.segmentation is not None:
@@ -157,6 +176,11 @@ class Recording:
     def T_world_cam(self) -> np.ndarray:
         """(N, 4, 4) camera poses, ``T_world_hand @ T_hand_cam``."""
         return self.T_world_hand @ self.T_hand_cam
+
+    @property
+    def T_world_mic(self) -> np.ndarray:
+        """(N, 4, 4) microphone poses, ``T_world_hand @ T_hand_mic``."""
+        return self.T_world_hand @ self.T_hand_mic
 
     def frame(self, i: int) -> Frame:
         if not -len(self) <= i < len(self):
@@ -269,6 +293,7 @@ def _write_into(rec: Recording, out: Path, workers: int) -> None:
         "height": rec.image_size[1],
         "K": rec.K.tolist(),
         "T_hand_cam": rec.T_hand_cam.tolist(),
+        "T_hand_mic": rec.T_hand_mic.tolist(),
         "ee_frame": "panda_hand",
         "depth_resolution": rec.depth_resolution,
         "has_segmentation": rec.segmentation is not None,
@@ -307,10 +332,10 @@ def load_recording(path: str | Path, *, workers: int = 2) -> Recording:
         raise RecordingError(f"{header_path} is not valid JSON (truncated?): {e}") from None
     if h.get("format") != FORMAT_NAME:
         raise RecordingError(f"{header_path}: format is {h.get('format')!r}, not {FORMAT_NAME!r}")
-    if h.get("version") != FORMAT_VERSION:
+    if h.get("version") not in READABLE_VERSIONS:
         raise RecordingError(
             f"{header_path}: version {h.get('version')!r} is not supported; "
-            f"this tabletop reads version {FORMAT_VERSION}"
+            f"this tabletop reads versions {list(READABLE_VERSIONS)}"
         )
     required = ["n_frames", "width", "height", "K", "T_hand_cam", "depth_resolution", "files"]
     missing = [k for k in required if k not in h]
@@ -378,6 +403,7 @@ def load_recording(path: str | Path, *, workers: int = 2) -> Recording:
             T_world_hand=poses["T_world_hand"],
             K=np.array(h["K"]),
             T_hand_cam=np.array(h["T_hand_cam"]),
+            T_hand_mic=np.array(h.get("T_hand_mic", V1_T_HAND_MIC)),
             depth_resolution=scale,
             audio=audio,
             audio_rate=audio_rate,

@@ -1,0 +1,113 @@
+"""``tabletop bench``: performance figures of the scan, the map and the arm, in one run."""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import json
+import os
+import platform
+import sys
+
+from tabletop.cli.output import stdout_to_stderr
+
+__all__ = ["add_commands", "cmd_bench"]
+
+
+def _machine() -> dict:
+    return {
+        "python": platform.python_version(),
+        "platform": platform.platform(),
+        "cpus": os.cpu_count(),
+        "processor": platform.processor() or platform.machine(),
+    }
+
+
+def cmd_bench(args: argparse.Namespace) -> int:
+    # --json: native libraries' banners (the EGL plugin's) must not reach stdout
+    with stdout_to_stderr() if args.json else contextlib.nullcontext():
+        results = _bench(args)
+    if args.json:
+        print(json.dumps(results, indent=1))
+        return 0
+    _print_bench(results)
+    return 0
+
+
+def _bench(args: argparse.Namespace) -> dict:
+    from tabletop.arm.bench import run_arm_benchmark
+    from tabletop.sim.scan import ScanConfig, run_scan
+    from tabletop.sim.scene import load_scene_spec
+
+    results: dict = {"machine": _machine()}
+    print("bench: scanning the default scene ...", file=sys.stderr)
+    spec = load_scene_spec("default")
+    rec, stats = run_scan(spec, ScanConfig(seed=0, episodes=2, repeat_sounds=0))
+    results.update(
+        {
+            "scan_frames": len(rec),
+            "scan_fps": round(stats.fps, 2),
+            "scan_render_fps": round(len(rec) / stats.render_s, 2),
+            "scan_image_size": list(rec.image_size),
+            "renderer": rec.meta["renderer"],
+        }
+    )
+    print("bench: map (oracle encoders) and its references ...", file=sys.stderr)
+    from tabletop.mapping.bench import run_map_benchmark
+
+    results.update(run_map_benchmark(rec))
+    print(f"bench: arm, {args.arm_targets} seeded reach targets ...", file=sys.stderr)
+    arm = run_arm_benchmark(n_targets=args.arm_targets, seed=0)
+    results.update(
+        {f"reach_{k}" if k in ("n_targets", "reachable", "seed") else k: v for k, v in arm.items()}
+    )
+    return results
+
+
+def _print_bench(results: dict) -> None:
+    m = results["machine"]
+    r = results
+    print(f"machine: {m['cpus']} cpus, {m['platform']}, python {m['python']}")
+    print(
+        f"scan:  {r['scan_frames']} frames at {r['scan_image_size'][0]}x{r['scan_image_size'][1]}: "
+        f"{r['scan_fps']} frames/s end to end (IK, clearance checks, rendering), "
+        f"{r['scan_render_fps']} frames/s rendering alone ({r['renderer']})"
+    )
+    print(
+        f"encoders: {r['encoder']} {r['encoder_fps']} frames/s (dense + global, one pass); "
+        f"audio {r['audio_encoder_ms_per_1s']} ms per 1 s segment; oracle "
+        f"{r['oracle_encoder_fps']} frames/s"
+    )
+    print(
+        f"map:   fusion {r['fusion_fps']} frames/s at 1 cm without the encoder "
+        f"(x{r['fusion_speedup']} the per-point loop reference, {r['fusion_reference_fps']} "
+        f"frames/s); object query {r['query_ms']} ms (x{r['query_speedup']} the O(N*M) loop, "
+        f"{r['query_reference_ms']} ms; max difference {r['query_reference_max_abs_diff']:.1e}); "
+        f"map {r['map_mb']} MB"
+    )
+    print(
+        f"arm:   {r['reach_n_targets']} targets, {r['reach_reachable']} reachable: "
+        f"{r['reach_within_1cm']:.1%} within 1 cm, objects within 10 cm "
+        f"{r['object_within_10cm']:.1%}, contacts {r['contacts']}, "
+        f"probes with the right reason {r['probes_right_reason']}"
+    )
+    print(f"       reasons {r['reasons']}")
+    print(
+        f"       mink IK step {r['ik_step_ms_median']:.3f} ms median "
+        f"({r['ik_step_ms_p95']:.3f} p95); collision check "
+        f"{r['collision_check_ms_median']:.3f} ms ({r['collision_check_ms_p95']:.3f} p95); "
+        f"together {r['ik_plus_collision_ms_median']:.3f} ms"
+    )
+    print(
+        f"       DLS reference {r['dls_iter_ms_median']:.3f} ms per iteration "
+        f"(mink step / DLS iteration = {r['mink_over_dls_ratio']:.2f}); a whole reach "
+        f"{r['reach_s_median']:.2f} s median ({r['reach_s_p95']:.2f} p95)"
+    )
+
+
+def add_commands(sub) -> None:
+    """Register ``bench`` on the ``tabletop`` sub-command parser."""
+    p = sub.add_parser("bench", help="performance figures of every part, in one run")
+    p.add_argument("--json", action="store_true", help="machine-readable output")
+    p.add_argument("--arm-targets", type=int, default=200, help="reach targets (default 200)")
+    p.set_defaults(func=cmd_bench)

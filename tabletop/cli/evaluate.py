@@ -1,0 +1,241 @@
+"""``tabletop eval``, ``tabletop eval-map``, ``tabletop demo`` and ``tabletop calibrate``: goal
+suites end to end, map goals alone, the demo, and the query confidence's calibration."""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import json
+import sys
+import time
+from pathlib import Path
+
+from tabletop.cli.output import stdout_to_stderr
+from tabletop.cli.progress import ProgressBars
+
+__all__ = [
+    "add_commands",
+    "cmd_calibrate",
+    "cmd_demo",
+    "cmd_eval",
+    "cmd_eval_map",
+    "print_result",
+]
+
+CALIBRATION_OUT_DIR = Path("out/calibration")
+"""Where ``tabletop calibrate`` writes ``<set>.json`` unless given ``--out``."""
+
+
+# ---------------------------------------------------------------------- eval
+def cmd_eval(args: argparse.Namespace) -> int:
+    from tabletop.eval.runner import run_eval
+
+    encoders = [e.strip() for e in args.encoders.split(",") if e.strip()]
+    t0 = time.perf_counter()
+    with contextlib.ExitStack() as stack:
+        if args.json:  # stdout carries only the JSON, and no progress is shown
+            stack.enter_context(stdout_to_stderr())
+            bars = None
+        else:
+            bars = stack.enter_context(ProgressBars())
+        res = run_eval(
+            args.tasks,
+            encoders=encoders,
+            out_dir=args.out,
+            progress=bars,
+            cache_dir=None if args.no_cache else args.cache_dir,
+        )
+    wall = time.perf_counter() - t0
+    if args.json:
+        d = res.to_json()
+        d["wall_s"] = round(wall, 1)
+        print(json.dumps(d if args.goals else _without_goals(d), indent=1, default=float))
+        return 0
+    print_result(res, wall)
+    return 0
+
+
+def print_result(res, wall: float, what: str = "") -> None:
+    """The table, the goals-in-a-row table, the goal count and wall time, the report path."""
+    print(res.table_markdown())
+    row = res.in_a_row_markdown()
+    if row:
+        print("\n" + row)
+    print(f"\n{sum(len(r.goals) for r in res.runs)} goals in {wall:.0f} s{what}")
+    if res.report_path is not None:
+        print(f"report: {res.report_path}")
+
+
+def _without_goals(d: dict) -> dict:
+    d = dict(d)
+    d["rows"] = [
+        {**r, "tasks": [{k: v for k, v in t.items() if k != "goals"} for t in r["tasks"]]}
+        for r in d["rows"]
+    ]
+    return d
+
+
+# ---------------------------------------------------------------------- eval-map
+def cmd_eval_map(args: argparse.Namespace) -> int:
+    from tabletop.eval.map_goals import run_map_eval
+
+    log = sys.stderr if args.json else sys.stdout  # --json: stdout carries only the JSON
+
+    def show(run):
+        r = run["result"]
+        print(
+            f"  {run['scene']:8s} seed {run['seed']}: "
+            + ", ".join(f"{k} {v['successes']}/{v['goals']}" for k, v in r.items()),
+            file=log,
+            flush=True,
+        )
+
+    print(
+        f"map goals on {args.seeds} x 2 scans (default scene and a generated one), "
+        f"{args.encoders} encoders; success = target within 10 cm of the truth",
+        file=log,
+    )
+    with stdout_to_stderr() if args.json else contextlib.nullcontext():
+        res = run_map_eval(args.seeds, args.speed, args.encoders, progress=show)
+    if args.json:
+        keys = ("by_type", "by_scene", "encoders")
+        print(json.dumps({k: res[k] for k in keys}, indent=1))
+        return 0
+    print(f"encoders: {res['encoders'].get('set')}")
+    scenes = list(res["by_scene"])
+    print(
+        f"{'goal type':16s} {'goals':>6s} {'success':>8s}" + "".join(f" {s:>12s}" for s in scenes)
+    )
+    for k, v in res["by_type"].items():
+        per = [res["by_scene"][s].get(k) for s in scenes]
+        cells = "".join(
+            f" {'-':>12s}"
+            if c is None
+            else f" {c['successes']:>4d}/{c['goals']:<3d}{c['success_rate']:4.0%}"
+            for c in per
+        )
+        print(f"{k:16s} {v['goals']:6d} {v['success_rate']:8.1%}" + cells)
+    return 0
+
+
+# ---------------------------------------------------------------------- demo
+def cmd_demo(args: argparse.Namespace) -> int:
+    """The main job: scan the default scene, map it with the embedded default encoders, run
+    the demo suite (a few goals of every type) with the simulated arm, print the table and
+    write the report."""
+    from tabletop.eval.runner import run_eval
+
+    out = Path(args.out)
+    encoders = [e.strip() for e in args.encoders.split(",") if e.strip()]
+    print(
+        "tabletop demo: default scene -> teleop scan with inserted sounds -> AVLMap with the "
+        f"encoders {encoders} -> the demo suite (object, sound, image, area, ambiguous, "
+        "spatial, multimodal spatial and instruction goals) reached by the simulated Panda.\n"
+        "'default' = the embedded learned encoders (MiniLM text, the small LSeg-style image "
+        "network, the mel-CNN audio encoder); 'oracle' = the simulator's ground truth, an upper "
+        "bound.\n",
+        flush=True,
+    )
+    t0 = time.perf_counter()
+    with ProgressBars() as bars:
+        res = run_eval(
+            "demo", encoders=encoders, out_dir=out, cache_dir=out / "cache", progress=bars
+        )
+    wall = time.perf_counter() - t0
+    print()
+    print_result(res, wall, " (scan, map, reaches)")
+    return 0 if all(r.available for r in res.runs) else 1
+
+
+# ---------------------------------------------------------------------- calibrate
+def cmd_calibrate(args: argparse.Namespace) -> int:
+    """Fit the confidence calibration of an encoder set on seeded scenes (first half) and
+    report it on the others; writes out/calibration/<set>.json (or --out)."""
+    from tabletop.eval.calibration import CALIBRATION_SEEDS, run_calibration
+    from tabletop.mapping.calibration import MODALITIES
+
+    keep_prior = [m.strip() for m in args.keep_prior.split(",") if m.strip()]
+    bad = sorted(set(keep_prior) - set(MODALITIES))
+    if bad:  # before a quarter of an hour of scanning, not after
+        print(f"tabletop calibrate: --keep-prior {bad}: valid {list(MODALITIES)}", file=sys.stderr)
+        return 2
+    seeds = list(CALIBRATION_SEEDS)[: args.scenes] if args.scenes else list(CALIBRATION_SEEDS)
+    print(f"calibrating {args.encoders!r} on scenes {seeds} ...", file=sys.stderr)
+    cal = run_calibration(
+        args.encoders,
+        seeds,
+        progress=lambda seed, s: print(f"  scene {seed}: {len(s)} queries", file=sys.stderr),
+    )
+    if keep_prior:
+        cal = cal.keep_prior(keep_prior)
+    out = args.out if args.out is not None else CALIBRATION_OUT_DIR / f"{args.encoders}.json"
+    path = cal.save(out)
+    print(json.dumps(cal.to_json(), indent=1))
+    print(f"written {path}", file=sys.stderr)
+    return 0
+
+
+# ---------------------------------------------------------------------- registration
+def add_commands(sub) -> None:
+    """Register ``eval``, ``eval-map``, ``demo`` and ``calibrate`` on the ``tabletop``
+    sub-command parser."""
+    p = sub.add_parser(
+        "eval",
+        help="run goal-reaching task files (scan, map, query, reach) and report per goal type",
+    )
+    p.add_argument(
+        "tasks",
+        nargs="+",
+        help="task files (.toml/.json), directories of them, or shipped names: 'default' (the "
+        "default suites), 'demo'",
+    )
+    p.add_argument(
+        "--encoders",
+        default="oracle",
+        help="encoder set(s), comma-separated, as the map's registry names them: oracle "
+        "(simulator upper bound), default (embedded learned), ...; e.g. oracle,default for "
+        "both rows (default: oracle)",
+    )
+    p.add_argument("--out", default="out/eval", help="report directory (default: out/eval)")
+    p.add_argument("--json", action="store_true", help="print the machine-readable summary")
+    p.add_argument("--goals", action="store_true", help="with --json: include every goal")
+    p.add_argument(
+        "--cache-dir",
+        default="out/eval-cache",
+        help="recordings and maps reused across runs (default: out/eval-cache)",
+    )
+    p.add_argument("--no-cache", action="store_true", help="scan and map afresh, keep nothing")
+    p.set_defaults(func=cmd_eval)
+
+    p = sub.add_parser("eval-map", help="score map goals: object, sound, ambiguous, image")
+    p.add_argument("--seeds", type=int, default=3, help="seeds per scene (default 3)")
+    p.add_argument("--speed", type=float, default=0.3, help="scan speed [m/s]")
+    p.add_argument("--encoders", default="oracle", choices=["oracle", "default"])
+    p.add_argument("--json", action="store_true")
+    p.set_defaults(func=cmd_eval_map)
+
+    p = sub.add_parser("demo", help="the end-to-end demo on the embedded defaults")
+    p.add_argument("--out", default="out/demo", help="output directory (default: out/demo)")
+    p.add_argument(
+        "--encoders",
+        default="default",
+        help="encoder sets, comma-separated: default, oracle (default: default)",
+    )
+    p.set_defaults(func=cmd_demo)
+
+    p = sub.add_parser("calibrate", help="fit query confidence of an encoder set on seeded scenes")
+    p.add_argument("--encoders", default="default", help="encoder set (default: default)")
+    p.add_argument("--scenes", type=int, default=0, help="use the first N calibration scenes")
+    p.add_argument(
+        "--out",
+        default=None,
+        metavar="FILE",
+        help=f"file to write (default: {CALIBRATION_OUT_DIR}/SET.json). Queries read the "
+        "shipped file: to update it, pass --out tabletop/data/calibration/SET.json",
+    )
+    p.add_argument(
+        "--keep-prior",
+        default="",
+        help="modalities that keep the prior (comma-separated; their fits go to the report)",
+    )
+    p.set_defaults(func=cmd_calibrate)

@@ -1,0 +1,132 @@
+"""``tabletop build-map`` and ``tabletop query``: fuse a recording into an AVLMap, query it."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+
+from tabletop.cli.progress import ProgressBars
+
+__all__ = ["add_commands", "cmd_build_map", "cmd_query"]
+
+
+def cmd_build_map(args: argparse.Namespace) -> int:
+    from tabletop.eval.harness import build_map, map_config
+    from tabletop.recording import load_recording
+
+    print(f"loading {args.recording} ...", file=sys.stderr)
+    rec = load_recording(args.recording)
+    config = map_config(voxel_size=args.voxel_size, pixel_step=args.pixel_step)
+    t0 = time.perf_counter()
+    with ProgressBars() as bars:
+        m = build_map(
+            rec, args.encoders, config, progress=bars.stage(f"map ({args.encoders} encoders)")
+        )
+    wall = time.perf_counter() - t0
+    path = m.save(args.out)
+    st = m.stats
+    print(f"encoders:  {m.encoder_names.get('set', args.encoders)}")
+    print(f"frames:    {st.frames} ({st.fused_frames} fused), {wall:.1f} s in all")
+    print(f"encoder:   {st.frames / max(st.encoder_s, 1e-9):.1f} frames/s")
+    print(f"fusion:    {st.fused_frames / max(st.fusion_s, 1e-9):.1f} frames/s (encoder excluded)")
+    print(
+        f"map:       {st.voxels} occupied voxels at {config.grid.voxel_size * 100:g} cm, "
+        f"{m.voxels.nbytes / 1e6:.1f} MB; {st.audio_segments} audio segments"
+    )
+    if m.visual is not None:
+        print(
+            f"visual:    {st.reference_frames} reference frames ({m.visual.config.matcher} "
+            f"features, {st.visual_s:.1f} s)"
+        )
+    print(f"written:   {path}")
+    return 0
+
+
+def cmd_query(args: argparse.Namespace) -> int:
+    from tabletop.mapping import AVLMap, fuse
+    from tabletop.mapping.render import write_heatmap_views
+    from tabletop.robot.api import RobotAPI
+
+    m = AVLMap.load(args.map)
+    parts = []
+    for kind, major in (
+        ("obj", True),
+        ("sound", True),
+        ("area", True),
+        ("img", True),
+        ("near_obj", False),
+        ("near_sound", False),
+        ("near_area", False),
+        ("near_img", False),
+    ):
+        q = getattr(args, kind)
+        if q is None:
+            continue
+        modality = kind.removeprefix("near_")
+        if modality == "img":
+            parts.append(m.image_heatmap(RobotAPI.load_image(q), major=major))
+            continue
+        fn = {"obj": m.object_heatmap, "sound": m.sound_heatmap, "area": m.area_heatmap}[modality]
+        parts.append(fn(q, major=major))
+    if not parts:
+        print("tabletop query: give at least one of --obj, --sound, --area, --img", file=sys.stderr)
+        return 2
+    t0 = time.perf_counter()
+    fused = fuse(*parts)
+    target = m.get_max_pos_3d(fused) if fused.found else None
+    dt = time.perf_counter() - t0
+    print(f"encoders: {m.encoder_names.get('set', m.encoder_set)}")
+    for h in parts:
+        status = "found" if h.found else f"NOT FOUND ({h.reason})"
+        print(
+            f"  {h.modality:6s} {h.query!r:40s} decay {h.decay:g}/m  "
+            f"confidence {h.confidence:.2f}  {status}"
+        )
+        if h.modality == "image" and h.found:
+            print(
+                f"         the image shows x={h.target[0]:.3f} y={h.target[1]:.3f} "
+                f"z={h.target[2]:.3f} m (world frame); its pose agrees with the map's "
+                f"colours beyond chance by kappa {h.evidence:.2f}"
+            )
+    if target is None:
+        print(f"target:   none, not found ({fused.reason})")
+        return 1
+    print(
+        f"target:   x={target[0]:.3f} y={target[1]:.3f} z={target[2]:.3f} m (world frame)"
+        f"   fusion+argmax {dt * 1000:.1f} ms"
+    )
+    if args.out:
+        for p in write_heatmap_views(m, fused.values, args.out, target):
+            print(f"picture:  {p}")
+    return 0
+
+
+# ---------------------------------------------------------------------- registration
+def add_commands(sub) -> None:
+    """Register ``build-map`` and ``query`` on the ``tabletop`` sub-command parser."""
+    p = sub.add_parser("build-map", help="fuse a recording into an AVLMap")
+    p.add_argument("recording", help="recording directory (tabletop scan --out ...)")
+    p.add_argument("--out", required=True, help="map file (.npz)")
+    p.add_argument(
+        "--encoders",
+        default="oracle",
+        choices=["oracle", "default"],
+        help="encoder set (oracle = simulator upper bound)",
+    )
+    p.add_argument("--voxel-size", type=float, default=0.01, help="voxel size [m] (0.01, 0.005)")
+    p.add_argument("--pixel-step", type=int, default=3, help="fuse every n-th pixel row/column")
+    p.set_defaults(func=cmd_build_map)
+
+    p = sub.add_parser("query", help="query a map; print the target and write heatmap pictures")
+    p.add_argument("map", help="map file (.npz)")
+    p.add_argument("--obj", help="object description (primary, sharp heatmap)")
+    p.add_argument("--sound", help="sound description (primary)")
+    p.add_argument("--area", help="area description (primary)")
+    p.add_argument("--img", help="image of the table (PNG/JPEG from the wrist camera; primary)")
+    p.add_argument("--near-obj", help="object the target is near (auxiliary, broad)")
+    p.add_argument("--near-sound", help="sound the target is near (auxiliary)")
+    p.add_argument("--near-area", help="area the target is in (auxiliary)")
+    p.add_argument("--near-img", help="image of a place the target is near (auxiliary)")
+    p.add_argument("--out", help="picture prefix: writes PREFIX_top.png and PREFIX_side.png")
+    p.set_defaults(func=cmd_query)

@@ -1,0 +1,237 @@
+"""Fitting the maps' query confidence on seeded scenes (``tabletop calibrate``): labelled
+queries of every modality from simulated scans, a Platt fit per modality on the fit scenes, an
+operating point, and the reliability on held-out scenes.
+
+The calibration value and its math live in :mod:`tabletop.mapping.calibration`; this is the
+experiment that produces it, so it may use the simulator and the evaluation's goals.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+from tabletop.arm.success import SUCCESS_RADIUS_M
+from tabletop.errors import ConfigError
+from tabletop.mapping.calibration import (
+    MODALITIES,
+    UNCALIBRATED,
+    Calibration,
+    expected_calibration_error,
+    fit_platt,
+)
+from tabletop.transforms import aabb_distance
+
+# --------------------------------------------------------------------------- fitting from maps
+
+#: An area's truth is its rectangle from the table top up to this height [m] (as in the
+#: evaluation's ground truth).
+AREA_HEIGHT_M = 0.30
+
+#: Modalities whose module decides found / not found itself (the image module's photometric
+#: check; a named table area is always there); calibration gives them a confidence but no
+#: operating point.
+GATED = ("image", "area")
+
+
+def calibration_samples(m, ground_truth: dict, image_goals=(), foreign_images=()) -> list[dict]:
+    """Labelled queries of one map: ``{"modality", "query", "margin", "correct"}`` each.
+
+    Objects: every object label and every kind name present (right when the target lands
+    within 10 cm of an object carrying it) and every catalog kind absent from the scene
+    (always wrong). Sounds: the caption of every inserted category (right within 10 cm of the
+    column above a place it was inserted, up to where it was heard) and of sound-bank
+    categories never inserted (always wrong). Areas: each named table area (right within
+    10 cm of its rectangle, up to :data:`AREA_HEIGHT_M`). Images: ``image_goals``
+    (:class:`~tabletop.eval.map_goals.MapGoal` of kind ``"image"``, pictures of this scene:
+    right when found and within 10 cm of the truth) and ``foreign_images`` ((H, W, 3) uint8
+    pictures of other scenes: always wrong).
+    """
+    from tabletop.eval.map_goals import heard_column
+    from tabletop.sim.catalog import OBJECT_KINDS
+    from tabletop.sim.sound_bank import SoundBank
+
+    out = []
+
+    def add(modality, query, h, truth):
+        if not h.found and h.evidence is None:
+            margin, ok = -1.0, False  # nothing matched at all: the weakest evidence there is
+        else:
+            margin = float(h.evidence)
+            # The label is where the target would be were the query accepted: the calibration
+            # decides acceptance, so it must see the refused queries' targets too.
+            ok = (
+                bool(truth)
+                and h.peak > 0
+                and min(truth(m.get_max_pos_3d(replace(h, found=True)))) <= SUCCESS_RADIUS_M
+            )
+        out.append(
+            {
+                "modality": modality,
+                "query": query,
+                "margin": margin,
+                "correct": ok,
+                "found": h.found,
+            }
+        )
+
+    objs = ground_truth["objects"]
+    by_query: dict[str, list] = {}
+    for o in objs:
+        by_query.setdefault(o["label"], []).append(o)
+        by_query.setdefault(OBJECT_KINDS[o["kind"]].label, []).append(o)
+    for q, os_ in sorted(by_query.items()):
+        boxes = [(o["aabb_min"], o["aabb_max"]) for o in os_]
+        add("object", q, m.object_heatmap(q), lambda p, b=boxes: [aabb_distance(p, *x) for x in b])
+    present = {o["kind"] for o in objs}
+    for k in sorted(set(OBJECT_KINDS) - present):
+        add("object", OBJECT_KINDS[k].label, m.object_heatmap(OBJECT_KINDS[k].label), None)
+
+    events = ground_truth.get("sound_events", [])
+    if events:
+        heard: dict[str, list] = {}
+        for e in events:
+            heard.setdefault(e["category"], []).append(e)
+        for _cat, es in sorted(heard.items()):
+            cols = [heard_column(e) for e in es]
+            add(
+                "sound",
+                es[0]["caption"],
+                m.sound_heatmap(es[0]["caption"]),
+                lambda p, cols=cols: [aabb_distance(p, *c) for c in cols],
+            )
+        bank = SoundBank.default()
+        for cat in sorted(set(bank.categories) - set(heard)):
+            cap = bank.caption(cat)
+            add("sound", cap, m.sound_heatmap(cap), None)
+
+    for a in ground_truth.get("areas", []):
+        lo, hi = (a["x"][0], a["y"][0], 0.0), (a["x"][1], a["y"][1], AREA_HEIGHT_M)
+        add(
+            "area",
+            a["name"],
+            m.area_heatmap(a["name"]),
+            lambda p, b=(lo, hi): [aabb_distance(p, *b)],
+        )
+
+    def add_image(query, h, truth) -> None:
+        # a refused pose is no answer at all: the weakest evidence there is
+        margin = float(h.evidence) if h.found else -1.0
+        right = h.found and truth is not None and min(truth(h.target)) <= SUCCESS_RADIUS_M
+        out.append(
+            {"modality": "image", "query": query, "margin": margin, "correct": right}
+            | {"found": h.found}
+        )
+
+    for i, g in enumerate(image_goals):
+        add_image(
+            f"goal {i}",
+            m.image_heatmap(g.image),
+            lambda p, g=g: (
+                [aabb_distance(p, *b) for b in g.truth_boxes]
+                + [float(np.linalg.norm(p - np.asarray(x))) for x in g.truth_points]
+            ),
+        )
+    for i, img in enumerate(foreign_images):
+        add_image(f"foreign {i}", m.image_heatmap(img), None)
+    return out
+
+
+def fit_calibration(
+    encoder_set: str, train: list[dict], test: list[dict], keep_right: float = 0.95
+) -> Calibration:
+    """Platt parameters per modality fitted on ``train``, and an operating point: the margin
+    threshold that keeps ``keep_right`` of the right answers of ``train`` reported as found
+    (a query of something present is rarely refused; what a weak encoder cannot tell apart
+    is then reported with a low confidence instead). The report holds ``test`` figures:
+    samples, expected calibration error (fitted and uncalibrated prior), share of right
+    answers kept and of wrong ones refused at the operating point."""
+    models, report, thresholds = {}, {}, {}
+    for mod in MODALITIES:
+        tr = [s for s in train if s["modality"] == mod]
+        te = [s for s in test if s["modality"] == mod]
+        if not tr or len({s["correct"] for s in tr}) < 2:
+            continue
+        f = fit_platt([s["margin"] for s in tr], [s["correct"] for s in tr])
+        models[mod] = f
+        right = np.array([s["margin"] for s in tr if s["correct"]])
+        t = float(np.quantile(right, 1 - keep_right, method="lower"))
+        if mod not in GATED:
+            thresholds[mod] = t
+        if te:
+            x = np.array([s["margin"] for s in te])
+            y = np.array([s["correct"] for s in te], dtype=bool)
+            p = np.asarray(f(x))
+            if mod in GATED:  # the module's own found / not-found decision, not a threshold
+                kept = np.array([s["found"] for s in te], dtype=bool)
+                empty = None
+            else:
+                kept, empty = x >= t, float("nan")
+            report[mod] = {
+                "train_samples": len(tr),
+                "test_samples": len(te),
+                "test_right": int(y.sum()),
+                "ece_test": expected_calibration_error(p, y),
+                "ece_test_uncalibrated": expected_calibration_error(UNCALIBRATED(x), y),
+                "decision_accuracy_test": float(np.mean((p >= 0.5) == y)),
+                "threshold_margin": None if mod in GATED else t,
+                "right_kept_test": float(np.mean(kept[y])) if y.any() else empty,
+                "wrong_refused_test": float(np.mean(~kept[~y])) if (~y).any() else empty,
+            }
+    return Calibration(encoder_set, models, report, thresholds)
+
+
+#: Generator seeds of the calibration scenes (apart from the evaluation suites' seeds).
+CALIBRATION_SEEDS = tuple(range(700, 706))
+
+
+def run_calibration(
+    encoder_set: str = "default",
+    seeds=CALIBRATION_SEEDS,
+    speed: float = 0.3,
+    progress=None,
+    images: bool = True,
+) -> Calibration:
+    """Scan a generated scene per seed, build its map with ``encoder_set``, label queries,
+    fit on the first half of the scenes and report on the second (held-out scenes). With
+    ``images``, each scene's image goals (rendered by a second simulator of it, at poses the
+    scan never took) and the previous scene's pictures (foreign: always wrong) are queried too.
+    """
+    import tempfile
+
+    from tabletop.eval.harness import build_map
+    from tabletop.eval.map_goals import ImageGoalConfig, image_goals
+    from tabletop.sim.scan import ScanConfig, run_scan
+    from tabletop.sim.scene import load_scene_spec
+    from tabletop.sim.world import SimWorld
+
+    seeds = list(seeds)
+    if len(seeds) < 2:
+        raise ConfigError("calibration needs at least 2 scene seeds (fit and held-out halves)")
+    per_scene, previous = [], []
+    with tempfile.TemporaryDirectory() as tmp:
+        for seed in seeds:
+            path = Path(tmp) / f"calib-{seed}.toml"
+            path.write_text(f"[random]\nseed = {seed}\ncount = 9\nduplicates = 2\n")
+            spec = load_scene_spec(path)
+            rec, _ = run_scan(spec, ScanConfig(seed=seed, speed=speed))
+            m = build_map(rec, encoder_set)
+            goals = []
+            if images:
+                with SimWorld(spec) as world:
+                    cfg = ImageGoalConfig(seed=seed)
+                    goals = image_goals(rec.ground_truth, world, cfg, rec.T_world_cam)
+                goals = [g for g in goals if g.kind == "image"]
+            per_scene.append(calibration_samples(m, rec.ground_truth, goals, previous))
+            previous = [g.image for g in goals]
+            if progress is not None:
+                progress(seed, per_scene[-1])
+    half = len(per_scene) // 2
+    train = [s for scene in per_scene[:half] for s in scene]
+    test = [s for scene in per_scene[half:] for s in scene]
+    cal = fit_calibration(encoder_set, train, test)
+    cal.report["seeds_fit"] = seeds[:half]
+    cal.report["seeds_heldout"] = seeds[half:]
+    return cal

@@ -1,0 +1,161 @@
+"""The one experiment harness: scene -> scan -> map, cached. The evaluation, the calibration,
+the map-goal scoring, the suite generator and the tools all build their recordings and maps
+here, so a map means the same wherever it was built.
+
+- :func:`map_config`: a :class:`~tabletop.mapping.MapConfig` whose vocabulary is the simulator
+  catalog's object names (what the simulated scenes hold) and the background concepts.
+- :func:`build_map`: :meth:`AVLMap.build` with the encoder set's committed calibration and the
+  Panda's self-filter, as every experiment builds its maps.
+- :func:`scan_recording` / :func:`cached_recording` / :func:`cached_map`: the same through the
+  cache (``cache_dir``, default ``out/eval-cache``): one recording per scene + scan settings
+  and one map per recording + encoder set + map settings; the keys include a fingerprint of
+  the simulator and mapping source, so editing either invalidates old entries.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import logging
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+from tabletop.errors import TabletopError
+
+__all__ = [
+    "DEFAULT_CACHE_DIR",
+    "build_map",
+    "cached_map",
+    "cached_recording",
+    "map_config",
+    "recording_key",
+    "scan_recording",
+]
+
+log = logging.getLogger(__name__)
+
+DEFAULT_CACHE_DIR = Path("out/eval-cache")
+
+Progress = Callable[[str, int, int], None]
+"""``progress(stage, done, total)``: stage is "scan <name>" or "map <name>"."""
+
+
+def map_config(**overrides):
+    """A :class:`~tabletop.mapping.MapConfig` with the simulator catalog's vocabulary (unless
+    ``categories`` is given) and ``overrides`` (MapConfig fields; ``voxel_size`` [m] sets the
+    grid's voxel size)."""
+    from tabletop.grid import VoxelGrid
+    from tabletop.mapping import BACKGROUND, MapConfig
+    from tabletop.sim.catalog import OBJECT_KINDS
+
+    kw = dict(overrides)
+    if "voxel_size" in kw:
+        kw["grid"] = VoxelGrid(voxel_size=float(kw.pop("voxel_size")))
+    kw.setdefault("categories", (*(k.label for k in OBJECT_KINDS.values()), *BACKGROUND))
+    return MapConfig(**kw)
+
+
+def build_map(recording, encoders: str, config=None, progress=None, **kwargs):
+    """The map of ``recording`` with encoder set ``encoders``, its committed calibration and the
+    Panda's self-filter (``config``: :func:`map_config` by default; ``kwargs``: the rest of
+    :meth:`AVLMap.build`'s options)."""
+    from tabletop.arm import RobotSelfFilter
+    from tabletop.mapping import AVLMap, load_calibration
+
+    config = config or map_config()
+    margin = config.self_filter_margin
+    return AVLMap.build(
+        recording,
+        config,
+        encoders=encoders,
+        progress=progress,
+        calibration=kwargs.pop("calibration", None) or load_calibration(encoders),
+        self_filter=None if margin is None else RobotSelfFilter(margin),
+        **kwargs,
+    )
+
+
+def _fingerprint(*packages: str) -> str:
+    """Hash of the Python source (and shipped weights/manifests) a cached artefact depends on."""
+    from tabletop.paths import DATA_DIR, PACKAGE_DIR
+
+    h = hashlib.sha1()
+    for pkg in packages:
+        for f in sorted((PACKAGE_DIR / pkg).rglob("*.py")):
+            h.update(f.name.encode())
+            h.update(f.read_bytes())
+    if "mapping" in packages:
+        for f in sorted((DATA_DIR / "weights").rglob("*")):
+            if f.is_file():
+                h.update(f"{f.name}:{f.stat().st_size}".encode())
+    return h.hexdigest()[:10]
+
+
+def _key(obj) -> str:
+    return hashlib.sha1(json.dumps(obj, sort_keys=True, default=str).encode()).hexdigest()[:12]
+
+
+def recording_key(spec, scan: dict) -> str:
+    return _key({"scene": spec.to_dict(), "scan": scan, "sim": _fingerprint("sim")})
+
+
+def cached_recording(name: str, scan: dict, spec, cache: Path | None, progress: Progress | None):
+    """(recording, scan seconds, cached?) for a scene and scan settings (``ScanConfig``
+    fields), through the cache."""
+    from tabletop.recording import load_recording, save_recording
+    from tabletop.sim.scan import ScanConfig, run_scan
+
+    path = cache / f"rec-{spec.name}-{recording_key(spec, scan)}" if cache else None
+    if path is not None and path.is_dir():
+        try:
+            return load_recording(path), 0.0, True
+        except TabletopError as e:
+            log.warning("cached recording %s is unusable (%s); scanning again", path, e)
+    t0 = time.perf_counter()
+    cb = (lambda d, n: progress(f"scan {name}", d, n)) if progress else None
+    rec, _ = run_scan(spec, ScanConfig(**scan), progress=cb)
+    scan_s = time.perf_counter() - t0
+    if path is not None:
+        cache.mkdir(parents=True, exist_ok=True)
+        save_recording(rec, path, overwrite=True)
+    return rec, scan_s, False
+
+
+def scan_recording(scene: dict, scan: dict, cache_dir: str | Path | None = DEFAULT_CACHE_DIR):
+    """(recording, cached?) of a task file's ``[scene]`` and ``[scan]`` sections, scanned or
+    taken from the cache (what the suite generator reads the ground truth from)."""
+    from tabletop.eval.tasks import _check_scan, scene_ref
+
+    _check_scan(scan)
+    spec = scene_ref(scene).load()
+    cache = Path(cache_dir) if cache_dir is not None else None
+    rec, _, cached = cached_recording(spec.name, dict(scan), spec, cache, None)
+    return rec, cached
+
+
+def cached_map(
+    name: str, map_settings: dict, rec, encoders: str, cache: Path | None, rec_key: str, progress
+):
+    """(AVLMap, map seconds, cached?) of a recording with the encoder set and ``map_settings``
+    (:func:`map_config` overrides), through the cache."""
+    from tabletop.mapping import AVLMap
+
+    key = _key({"rec": rec_key, "map": map_settings, "mapping": _fingerprint("mapping", "arm")})
+    path = cache / f"map-{encoders}-{key}.npz" if cache else None
+    if path is not None and path.is_file():
+        try:
+            return AVLMap.load(path), 0.0, True
+        except TabletopError as e:
+            log.warning("cached map %s is unusable (%s); building again", path, e)
+    t0 = time.perf_counter()
+    cb = (lambda d, n: progress(f"map {name}", d, n)) if progress else None
+    try:
+        config = map_config(**map_settings)
+    except (TypeError, TabletopError) as e:
+        raise TabletopError(f"{name} [map]: {e}") from None
+    m = build_map(rec, encoders, config, progress=cb)
+    map_s = time.perf_counter() - t0
+    if path is not None:
+        m.save(path)
+    return m, map_s, False

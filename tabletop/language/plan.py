@@ -1,0 +1,110 @@
+"""The plan of an instruction: the values the parser (:mod:`tabletop.language.parser`) makes and
+code generation (:mod:`tabletop.language.codegen`) reads.
+
+An instruction is a tuple of :class:`Step`; each step does one action (:data:`Action`) ``times``
+times. A :class:`Goal` is a ``primary`` :class:`Part` (the place to reach, a sharp map) narrowed
+by ``near`` parts (broad maps), each in one modality (:data:`PART_KINDS`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from tabletop.errors import ConfigError
+
+__all__ = [
+    "PART_KINDS",
+    "Above",
+    "Action",
+    "BackAndForth",
+    "Between",
+    "Compass",
+    "GoTo",
+    "Goal",
+    "Part",
+    "Side",
+    "Step",
+]
+
+#: The modalities of a goal part, named as the robot API's query keywords (obj=, sound=, ...).
+PART_KINDS = ("obj", "sound", "img", "area")
+
+
+@dataclass(frozen=True)
+class Part:
+    """One goal in one modality: ``kind`` in obj, sound, img, area; ``text`` is the object,
+    sound or area description, or the image path."""
+
+    kind: str
+    text: str
+
+    def __post_init__(self) -> None:
+        if self.kind not in PART_KINDS:
+            raise ConfigError(f"unknown goal kind {self.kind!r}; valid: {list(PART_KINDS)}")
+
+
+@dataclass(frozen=True)
+class Goal:
+    """A target: the ``primary`` part (sharp map) constrained by ``near`` parts (broad maps)."""
+
+    primary: Part
+    near: tuple[Part, ...] = ()
+
+
+@dataclass(frozen=True)
+class GoTo:
+    """Go to the goal's target (above it, for a plain object)."""
+
+    goal: Goal
+
+
+@dataclass(frozen=True)
+class Between:
+    """Go to the midpoint of two goals."""
+
+    a: Goal
+    b: Goal
+
+
+@dataclass(frozen=True)
+class Side:
+    """``side`` in left, right, front, behind of the object ``landmark``."""
+
+    side: str
+    landmark: str
+
+
+@dataclass(frozen=True)
+class Above:
+    """Go above the object ``landmark``."""
+
+    landmark: str
+
+
+@dataclass(frozen=True)
+class Compass:
+    """``direction`` in north, south, east, west; ``distance_m`` [m] from the current point."""
+
+    direction: str
+    distance_m: float
+
+
+@dataclass(frozen=True)
+class BackAndForth:
+    """Go to goal ``a``, then to ``b`` (the step's ``times`` repeats the pair)."""
+
+    a: Goal
+    b: Goal
+
+
+Action = GoTo | Between | Side | Above | Compass | BackAndForth
+"""What one step does."""
+
+
+@dataclass(frozen=True)
+class Step:
+    """One clause of the instruction, done ``times`` times."""
+
+    action: Action
+    times: int
+    text: str
