@@ -3,7 +3,8 @@
 The format (``tabletop-recording`` version 2; version 1 still loads) is documented in
 ``docs/recording_format.md``. A real Panda with a wrist camera produces the same thing: RGB,
 metric depth, end-effector poses in the base frame, the calibrated hand-camera extrinsic, the
-microphone's pose in the hand frame, and a mono audio track on the frame clock. The simulator adds its segmentation (for the oracle encoders) and the ground truth.
+microphone's pose in the hand frame, and a mono audio track on the frame clock. The simulator
+adds its segmentation (for the oracle encoders) and the ground truth.
 """
 
 from __future__ import annotations

@@ -32,8 +32,8 @@ def visual_scene():
     with a SIFT visual module keeping every 10th frame as a reference frame (about 7 cm of
     camera travel apart); SIFT keeps the map tests fast, the map code is the same for XFeat.
     """
+    from tabletop.eval.harness import build_map, map_config
     from tabletop.eval.map_goals import ImageGoalConfig, image_goals
-    from tabletop.mapping import AVLMap, MapConfig
     from tabletop.mapping.visual import VisualLocalizationConfig
     from tabletop.sim.scan import ScanConfig, run_scan
     from tabletop.sim.scene import load_scene_spec
@@ -51,5 +51,5 @@ def visual_scene():
             rec.T_world_cam,
         )
     queries = [(g, o["label"]) for g, o in zip(goals, objs, strict=True)]
-    config = MapConfig(frame_step=4, visual=VisualLocalizationConfig(matcher="sift", stride=10))
-    return rec, queries, AVLMap.build(rec, config, encoders="oracle")
+    config = map_config(frame_step=4, visual=VisualLocalizationConfig(matcher="sift", stride=10))
+    return rec, queries, build_map(rec, "oracle", config)

@@ -3,7 +3,7 @@
 
 import functools
 
-from tabletop.mapping import AVLMap, MapConfig
+from tabletop.eval.harness import build_map, map_config
 from tabletop.sim.scan import ScanConfig, run_scan
 from tabletop.sim.scene import load_scene_spec
 
@@ -13,7 +13,7 @@ def scan_and_map():
     """(recording, AVLMap) of a short scan (3 audio episodes, one sound repeated)."""
     cfg = ScanConfig(speed=0.45, episodes=3, episode_s=2.5, repeat_sounds=1)
     rec = run_scan(load_scene_spec("default"), cfg)[0]
-    return rec, AVLMap.build(rec, MapConfig(frame_step=3), encoders="oracle")
+    return rec, build_map(rec, "oracle", map_config(frame_step=3))
 
 
 def box_distance(p, obj) -> float:

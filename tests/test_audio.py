@@ -7,7 +7,6 @@ import wave
 import numpy as np
 import pytest
 
-from tabletop.errors import AssetError, ConfigError
 from tabletop.audio import (
     EpisodeAudio,
     background_noise,
@@ -19,6 +18,7 @@ from tabletop.audio import (
     rms,
     write_wav,
 )
+from tabletop.errors import AssetError, ConfigError
 from tabletop.sim.sound_bank import SoundBank
 
 RATE = 16000

@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
+from tabletop.audio import background_noise, insert_clip
 from tabletop.errors import ConfigError
 from tabletop.mapping.audio_segments import NoiseGateConfig, noise_gate, segment_audio
-from tabletop.audio import background_noise, insert_clip
 
 RATE = 16000
 

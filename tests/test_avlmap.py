@@ -7,7 +7,9 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from tabletop.arm import RobotSelfFilter
 from tabletop.errors import ConfigError
+from tabletop.eval.harness import build_map, map_config
 from tabletop.mapping import AVLMap, MapConfig
 from tabletop.mapping.encoders.registry import ENCODER_SETS
 from tabletop.mapping.heatmaps import fuse
@@ -28,7 +30,7 @@ def rec():
 
 @pytest.fixture(scope="module")
 def avlmap(rec):
-    return AVLMap.build(rec, MapConfig(), encoders="oracle")
+    return build_map(rec, "oracle")
 
 
 def test_every_object_label_lands_on_its_box(avlmap, rec):
@@ -48,14 +50,14 @@ def test_category_query_is_ambiguous_and_a_sound_disambiguates(avlmap, rec):
     # Fused with a broad heatmap around one mug, the product picks that mug.
     for target in mugs:
         near = avlmap.object_heatmap(target["label"], major=False)
-        fused = fuse(avlmap.object_heatmap("mug").values, near.values)
+        fused = fuse(avlmap.object_heatmap("mug"), near)
         q = avlmap.get_max_pos_3d(fused)
         assert box_distance(q, target) <= 0.02
 
 
 def test_sounds_are_found_where_they_were_heard(avlmap, rec):
     events = rec.ground_truth["sound_events"]
-    assert len(avlmap.segments) >= len(events) - 1  # the gate may miss a very short clip
+    assert len(avlmap.sounds) >= len(events) - 1  # the gate may miss a very short clip
     unique = [e for e in events if [x["category"] for x in events].count(e["category"]) == 1]
     hits = 0
     for e in unique:
@@ -101,9 +103,14 @@ def test_map_is_small_and_online_equals_batch(avlmap, rec):
         segments=(),
         audio=None,
     )
-    batch = AVLMap.build(sub, avlmap.config, encoders="oracle")
+    batch = build_map(sub, "oracle", avlmap.config)
     online = AVLMap(
-        avlmap.config, avlmap.text, avlmap.dense, avlmap.global_image, avlmap.audio_encoder
+        avlmap.config,
+        avlmap.text,
+        avlmap.dense,
+        avlmap.global_image,
+        avlmap.audio_encoder,
+        self_filter=RobotSelfFilter(),
     )
     for f in sub:
         online.add_frame(
@@ -137,7 +144,8 @@ def test_save_load_round_trip_and_errors(avlmap, rec, tmp_path):
     back = AVLMap.load(path)
     np.testing.assert_array_equal(back.voxels.linear_indices, avlmap.voxels.linear_indices)
     np.testing.assert_array_equal(back.voxels.mean_features(), avlmap.voxels.mean_features())
-    assert back.segments == avlmap.segments and back.encoder_names == avlmap.encoder_names
+    assert back.sounds.segments == avlmap.sounds.segments
+    assert back.encoder_names == avlmap.encoder_names
     for q in ("red mug", "blue mug"):
         np.testing.assert_array_equal(
             back.object_heatmap(q).values, avlmap.object_heatmap(q).values
@@ -193,8 +201,8 @@ def test_map_goal_evaluation_scores_the_oracle_map(avlmap, rec):
 def test_a_5_mm_map_finds_every_object(rec):
     from tabletop.grid import VoxelGrid
 
-    config = MapConfig(grid=VoxelGrid(voxel_size=0.005), pixel_step=2, frame_step=8, visual=None)
-    m = AVLMap.build(rec, config, encoders="oracle")
+    config = map_config(grid=VoxelGrid(voxel_size=0.005), pixel_step=2, frame_step=8, visual=None)
+    m = build_map(rec, "oracle", config)
     assert m.grid.shape == (200, 240, 72)
     coarse = {tuple(c) for c in np.floor(m.voxels.centers / 0.01).astype(int)}
     assert m.voxels.n > 1.5 * len(coarse)  # finer than 1 cm where the scan saw surfaces
@@ -202,3 +210,66 @@ def test_a_5_mm_map_finds_every_object(rec):
         p = m.get_max_pos_3d(m.object_heatmap(obj["label"]))
         lo, hi = np.array(obj["aabb_min"]), np.array(obj["aabb_max"])
         assert np.linalg.norm(np.maximum(lo - p, 0) + np.maximum(p - hi, 0)) <= 0.02, obj["label"]
+
+
+def _empty_like(avlmap, config=None, **kw):
+    return AVLMap(
+        config or avlmap.config,
+        avlmap.text,
+        avlmap.dense,
+        avlmap.global_image,
+        avlmap.audio_encoder,
+        avlmap.encoder_names,
+        avlmap.encoder_set,
+        avlmap.rebuild_info,
+        **kw,
+    )
+
+
+def test_a_saved_map_keeps_every_config_field_and_its_calibration(avlmap, tmp_path):
+    config = replace(avlmap.config, image_target_px=0.35, area_top_score=0.6, visual=None)
+    cal = replace(avlmap.calibration, thresholds={"object": 0.123})
+    m = _empty_like(avlmap, config, calibration=cal)
+    back = AVLMap.load(m.save(tmp_path / "m.npz"))
+    assert back.config == config and back.config.to_dict() == config.to_dict()
+    assert back.images.target_px == 0.35 and back.areas.top_score == 0.6
+    assert back.calibration.thresholds == {"object": 0.123} and back.lacks == ()
+    assert MapConfig.from_dict(config.to_dict()) == config
+    with pytest.raises(ConfigError, match="unknown map config fields"):
+        MapConfig.from_dict({**config.to_dict(), "voxel": 1})
+
+
+def test_a_map_is_given_its_calibration_not_loading_one(avlmap):
+    m = _empty_like(avlmap)
+    assert m.calibration.models == {} and m.calibration.encoder_set == avlmap.encoder_set
+
+
+def test_one_or_two_sound_segments_are_judged_not_found_by_fiat(avlmap):
+    from tabletop.mapping.audio_segments import AudioSegment
+
+    m = _empty_like(avlmap, calibration=avlmap.calibration)
+    m.sounds.segments.append(AudioSegment(0.0, 1.0))
+    m.sounds.embeddings.append(m.audio_text.encode_text(["a dog barking"])[0])
+    m.sounds.positions.append(np.array([0.4, 0.0, 0.3]))
+    assert m.sound_heatmap("a dog barking").found
+    absent = m.sound_heatmap("a submarine sonar ping")
+    assert not absent.found and "confidence" in absent.reason
+
+
+def test_area_queries_follow_the_calibration(avlmap):
+    assert avlmap.area_heatmap("the tray area").found
+    m = copy.copy(avlmap)
+    m.calibration = replace(avlmap.calibration, thresholds={"area": 10.0})
+    h = m.area_heatmap("the tray area")
+    assert not h.found and h.reason
+
+
+def test_a_heatmap_without_heat_has_no_target(avlmap):
+    from tabletop.errors import GoalNotFound
+    from tabletop.mapping import Heatmap
+
+    zero = Heatmap.not_found(avlmap.grid, "nothing", "object", 10.0, "test")
+    with pytest.raises(GoalNotFound, match="nothing: not found"):
+        avlmap.get_max_pos_3d(zero)
+    with pytest.raises(ConfigError, match="takes a Heatmap"):
+        avlmap.get_max_pos_3d(np.zeros(avlmap.grid.shape, np.float32))

@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 
 from tabletop.errors import AssetError, ConfigError
-from tabletop.mapping import AVLMap, MapConfig
+from tabletop.eval.harness import build_map
+from tabletop.mapping import AVLMap
 from tabletop.mapping.encoders.base import (
     AudioEncoder,
     DenseImageEncoder,
@@ -53,7 +54,7 @@ def test_missing_weights_are_named(tmp_path):
 
 
 def test_default_map_builds_saves_and_loads(rec, tmp_path):
-    m = AVLMap.build(rec, MapConfig(), encoders="default")
+    m = build_map(rec, "default")
     assert m.encoder_set == "default"
     assert m.stats.voxels > 1000
     # the learned encoder, not the segmentation, decides: the duck's heat peaks on the duck

@@ -71,9 +71,7 @@ def test_the_walk_catches_an_upward_import(tmp_path):
     (pkg / "__init__.py").write_text("")
     (pkg / "mapping" / "__init__.py").write_text("")
     (pkg / "mapping" / "m.py").write_text("def f():\n    from tabletop.sim.scan import run_scan\n")
-    assert upward_imports(pkg) == [
-        "tabletop.mapping.m (mapping) imports tabletop.sim.scan (sim)"
-    ]
+    assert upward_imports(pkg) == ["tabletop.mapping.m (mapping) imports tabletop.sim.scan (sim)"]
 
 
 def test_requires_python_covers_the_standard_library_the_code_uses():

@@ -6,6 +6,7 @@ import pytest
 from robot_helpers import box_distance, scan_and_map
 
 from tabletop.errors import ConfigError, TabletopError
+from tabletop.mapping import Heatmap
 from tabletop.robot import (
     GoalNotFound,
     ImageGoalUnavailable,
@@ -122,16 +123,26 @@ def test_a_duplicated_category_near_a_sound_picks_the_right_instance(rec_map, gt
 def test_heatmap_values_and_argument_errors(rec_map, tmp_path):
     robot = PointRobot(rec_map[1])
     h = robot.get_major_map(obj="red mug")
-    assert h.shape == rec_map[1].grid.shape and h.dtype == np.float32
-    assert 0.0 <= h.min() and h.max() == pytest.approx(1.0)
+    assert isinstance(h, Heatmap) and h.found and h.grid == rec_map[1].grid
+    assert h.values.dtype == np.float32 and h.values.shape == h.grid.shape
+    assert 0.0 <= h.values.min() and h.peak == pytest.approx(1.0)
     broad = robot.get_map(obj="red mug")
-    assert (broad > 0).sum() > (h > 0).sum()  # auxiliary decay is broader
+    assert (broad.values > 0).sum() > (h.values > 0).sum()  # auxiliary decay is broader
     with pytest.raises(ConfigError, match="at least one"):
         robot.get_major_map()
     with pytest.raises(ConfigError, match="primary"):
         robot.get_major_map(obj="mug", primary="sound")
+    zero = Heatmap.not_found(h.grid, "nothing", "object", 10.0, "no match")
+    with pytest.raises(GoalNotFound, match="no match"):
+        robot.get_max_pos_3d(zero)
     with pytest.raises(GoalNotFound, match="zero everywhere"):
-        robot.get_max_pos_3d(np.zeros_like(h))
+        robot.get_max_pos_3d(h.with_values(np.zeros_like(h.values)))
+    # a raw array is not a query result: it is refused, not treated as found
+    with pytest.raises(ConfigError, match="expected a heatmap"):
+        robot.get_max_pos_3d(h.values)
+    # the product of two heatmaps is the fused heatmap, and its target is the map's
+    fused = h * robot.get_map(obj="blue mug")
+    assert fused.modality == "fused" and len(fused.parts) == 2
     # load_image reads RGB (not BGR); img= needs the visual localization module
     import cv2
 
@@ -142,8 +153,8 @@ def test_heatmap_values_and_argument_errors(rec_map, tmp_path):
     np.testing.assert_array_equal(got, img)
     with pytest.raises(ConfigError, match="does not exist"):
         robot.load_image(tmp_path / "missing.png")
-    if not hasattr(rec_map[1], "image_heatmap"):
-        with pytest.raises(ImageGoalUnavailable, match="image_heatmap"):
+    if rec_map[1].visual is None:
+        with pytest.raises(ImageGoalUnavailable, match="visual localization"):
             robot.get_major_map(img=tmp_path / "q.png")
 
 

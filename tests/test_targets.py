@@ -64,7 +64,8 @@ def test_region_box_of_an_object_and_of_a_place():
     col = np.zeros(GRID.shape)
     col[9, 6, :] = 1.0  # 2 cm beside the object: the place is level with its top
     c, lo, hi = region_box(_h(col, modality="sound"), occ)
-    assert c[2] == pytest.approx(0.03) and np.array_equal(lo, hi)
+    assert c[2] == pytest.approx(0.0) and np.array_equal(lo, c)  # the table beneath
+    assert hi[2] == pytest.approx(0.03) and np.array_equal(hi[:2], c[:2])  # the object's top
 
 
 def test_approach_point_clears_the_highest_surface_around():

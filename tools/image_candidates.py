@@ -23,8 +23,9 @@ from pathlib import Path
 
 import numpy as np
 
-from tabletop.eval.map_goals import ImageGoalConfig, image_goals
 from tabletop.eval.harness import build_map
+from tabletop.eval.map_goals import ImageGoalConfig, image_goals
+from tabletop.mapping import AVLMap
 from tabletop.mapping.visual import localize as vl
 from tabletop.sim.scan import ScanConfig, run_scan
 from tabletop.sim.scene import load_scene_spec

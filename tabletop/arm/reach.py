@@ -44,7 +44,7 @@ __all__ = ["ReachConfig", "ReachController", "ReachReason", "ReachResult"]
 log = logging.getLogger(__name__)
 
 
-class ReachReason(str, enum.Enum):
+class ReachReason(enum.StrEnum):
     """Why a reach ended."""
 
     REACHED = "reached"

@@ -35,7 +35,6 @@ __all__ = [
 ]
 
 
-
 @dataclass(frozen=True)
 class MapGoal:
     kind: str  # "object" | "sound" | "ambiguous" | "image" | "image_ambiguous"

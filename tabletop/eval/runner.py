@@ -88,16 +88,6 @@ def collect_task_files(items: str | Path | TaskFile | Iterable) -> list[TaskFile
 
 
 # ---------------------------------------------------------------------------- instructions
-def instruction_parser() -> tuple[tuple | None, str]:
-    """((to_code, run), "") from :mod:`tabletop.language` (the offline instruction parser and
-    the sandboxed runner), or (None, reason) when this version has no instruction parser."""
-    try:
-        from tabletop.language import instruction_to_code, run_instruction
-    except ImportError as e:
-        return None, f"instruction parser not available ({e})"
-    return (instruction_to_code, run_instruction), ""
-
-
 # ---------------------------------------------------------------------------- goals
 class _Context:
     """What one task file's goals run against: the robot, the map, the scene and truth."""
@@ -191,7 +181,7 @@ def _move(ctx: _Context, goal: Goal):
     return target, getattr(robot, _RELATION_MOVES[goal.relation])(*marks)
 
 
-def _run_goal(ctx: _Context, goal: Goal, sequence: str, region: Region, parser) -> GoalResult:
+def _run_goal(ctx: _Context, goal: Goal, sequence: str, region: Region) -> GoalResult:
     from tabletop.robot.api import ImageGoalUnavailable
 
     robot = ctx.robot
@@ -204,9 +194,7 @@ def _run_goal(ctx: _Context, goal: Goal, sequence: str, region: Region, parser) 
     )
     t0 = time.perf_counter()
     if goal.type == "instruction":
-        if parser[0] is None:
-            return GoalResult(**base, status="unavailable", reason=parser[1])
-        return _run_code(ctx, goal, base, parser[0], region, t0)
+        return _run_code(ctx, goal, base, region, t0)
     try:
         target, res = _move(ctx, goal)
     except ImageGoalUnavailable as e:
@@ -239,16 +227,17 @@ def _run_goal(ctx: _Context, goal: Goal, sequence: str, region: Region, parser) 
     )
 
 
-def _run_code(ctx: _Context, goal: Goal, base: dict, parser, region: Region, t0: float):
+def _run_code(ctx: _Context, goal: Goal, base: dict, region: Region, t0: float):
     """Parse an instruction, run its code in the sandbox against the robot, score the TCP
     after the last motion. A parse error or rejected code is a failure (nothing moves)."""
 
-    to_code, run_instruction = parser
+    from tabletop.language import instruction_to_code, run_instruction
+
     robot = ctx.robot
     moves_before = len(robot.history)
     code = ""
     try:
-        code = str(to_code(goal.instruction))
+        code = str(instruction_to_code(goal.instruction))
         run = run_instruction(goal.instruction, robot, code=code)
     except TabletopError as e:  # a parse error, rejected code, not found, a refused query
         tcp = robot.current_position()
@@ -323,7 +312,6 @@ def evaluate_task_file(
         g.id: resolve_truth(g.truth, rec.ground_truth, f"{where} goal {g.id!r} truth")
         for g in tf.goals
     }
-    parser = instruction_parser()
     robot = SimArm(m, spec)
     ctx = _Context(robot, m, spec, rec)
     if figures_dir is not None:
@@ -335,7 +323,7 @@ def evaluate_task_file(
         for seq_id, goals in runs:
             robot.reset()
             for g in goals:
-                results.append(_run_goal(ctx, g, seq_id, regions[g.id], parser))
+                results.append(_run_goal(ctx, g, seq_id, regions[g.id]))
                 done += 1
                 if progress:
                     progress(f"goals {tf.name}", done, len(tf.goals))

@@ -33,10 +33,9 @@ instruction parser. Ground truth is given by reference to the recording's ground
 from __future__ import annotations
 
 import json
+import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
-
-import tomllib
 
 from tabletop.errors import ConfigError
 

@@ -14,12 +14,11 @@ from __future__ import annotations
 import json
 import os
 import re
+import tomllib
 import urllib.error
 import urllib.request
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-
-import tomllib
 
 from tabletop.errors import ConfigError
 from tabletop.language.errors import LLMError

@@ -15,13 +15,13 @@ module that knows the suite's goal images. Any other map (a scanned one) works t
 from __future__ import annotations
 
 import functools
+import tomllib
 import zlib
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
-import tomllib
 
 from tabletop.errors import ConfigError, TabletopError
 from tabletop.language.errors import LanguageError

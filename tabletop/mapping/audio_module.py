@@ -5,9 +5,10 @@ The noise gate and silence segmentation (:mod:`tabletop.mapping.audio_segments`)
 track; each segment is encoded and tied to the mean microphone position over the frames heard
 during it. A query's text embedding is scored against every segment; heat decays top-down from
 each segment's place with its min-max normalised score. The evidence is the best score's margin
-over the typical segment score: the median with three segments or more; with one or two
-segments, whose median says nothing about what is typical, the best score itself (a cosine
-similarity against nothing), so a query for a sound that never played is still refused.
+over the typical score: the median over the segments with three segments or more; with one
+or two segments, whose median says nothing about what is typical, the median over the segments
+and :data:`REFERENCE_SOUNDS` (generic sound descriptions, encoded like the query), so a query
+for a sound that never played is refused instead of being found by fiat.
 """
 
 from __future__ import annotations
@@ -22,7 +23,24 @@ from tabletop.mapping.area_module import normalize_scores
 from tabletop.mapping.audio_segments import AudioSegment, NoiseGateConfig, segment_audio
 from tabletop.mapping.heatmaps import Heatmap, scored_points_heatmap_xy
 
-__all__ = ["AudioModule"]
+__all__ = ["REFERENCE_SOUNDS", "AudioModule"]
+
+#: Generic sound descriptions that stand in for the typical score of a map with one or two
+#: sound segments.
+REFERENCE_SOUNDS = (
+    "a sound",
+    "noise",
+    "people talking",
+    "music playing",
+    "an animal making a sound",
+    "a machine running",
+    "footsteps",
+    "a door closing",
+    "water running",
+    "a bell ringing",
+    "a car passing by",
+    "wind blowing",
+)
 
 Judge = Callable[[str, float], tuple[float, bool]]
 
@@ -83,10 +101,14 @@ class AudioModule:
             return Heatmap.not_found(
                 self.grid, query, "sound", decay, "the map has no audio segments"
             )
-        s = np.stack(self.embeddings) @ text.encode_text([query])[0]
+        q = text.encode_text([query])[0]
+        s = np.stack(self.embeddings) @ q
         pos = np.stack(self.positions)[:, :2]
         values = scored_points_heatmap_xy(self.grid, pos, normalize_scores(s), decay)
-        floor = float(np.median(s)) if len(s) > 2 else 0.0
+        typical = s
+        if len(s) <= 2:
+            typical = np.concatenate([s, text.encode_text(list(REFERENCE_SOUNDS)) @ q])
+        floor = float(np.median(typical))
         margin = float(s.max()) - floor
         conf, found = judge("sound", margin)
         reason = "" if found else f"no sound segment matches {query!r} well (confidence {conf:.2f})"

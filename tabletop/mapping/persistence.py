@@ -240,7 +240,7 @@ def load_map(path: str | Path, *, calibration=None):
         from dataclasses import replace
 
         m.config = replace(config, visual=db.config)
-    else:
+    elif h["version"] == 1:
         lacks.append("the visual localization module (image goals are not found)")
     m.lacks = tuple(lacks)
     for what in lacks:

@@ -114,16 +114,20 @@ def region_box(
     """(centre, lower, upper) [m] of the hottest region as a landmark for spatial relations.
 
     A 3D region (an object's voxels) gives its centroid and bounds; a top-down region (a place
-    where a sound was heard, an image's target) gives a point with no extent, level with the
-    highest surface within ``radius`` of it (an object's top, else the table).
+    where a sound was heard, an image's target) gives the point :func:`max_position` gives
+    (on the surface beneath), with no horizontal extent and its top at the highest surface
+    within ``radius`` of it (an object's top, else the table): a target level with the
+    landmark's top clears what stands there.
     """
     idx = np.argwhere(hottest_region(heatmap))
     grid = heatmap.grid
     centers = grid.centers(idx)
     if _is_column(grid, idx):
         p = centers.mean(axis=0)
-        p[2] = surface_z(grid, occupancy, p[:2], radius)
-        return p, p.copy(), p.copy()
+        p[2] = surface_z(grid, occupancy, p[:2])
+        top = p.copy()
+        top[2] = max(p[2], surface_z(grid, occupancy, p[:2], radius))
+        return p, p.copy(), top
     h = grid.voxel_size / 2
     return centers.mean(axis=0), centers.min(axis=0) - h, centers.max(axis=0) + h
 

@@ -1,10 +1,6 @@
 """Simulation: tabletop scenes, the Panda with its wrist RGB-D camera, teleop-style scans with
 inserted audio, the sound bank, and recordings on disk."""
 
-from tabletop.sim.camera import CameraIntrinsics, WristCameraConfig
-from tabletop.sim.catalog import COLORS, OBJECT_KINDS, ObjectKind
-from tabletop.sim.esc50 import load_esc50
-from tabletop.sim.noise import NoiseConfig, apply_noise
 from tabletop.recording import (
     FORMAT_VERSION,
     Frame,
@@ -13,6 +9,10 @@ from tabletop.recording import (
     load_recording,
     save_recording,
 )
+from tabletop.sim.camera import CameraIntrinsics, WristCameraConfig
+from tabletop.sim.catalog import COLORS, OBJECT_KINDS, ObjectKind
+from tabletop.sim.esc50 import load_esc50
+from tabletop.sim.noise import NoiseConfig, apply_noise
 from tabletop.sim.scan import ScanConfig, ScanStats, plan_scan, run_scan
 from tabletop.sim.scene import (
     AreaSpec,

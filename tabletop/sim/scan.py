@@ -21,9 +21,9 @@ import numpy as np
 
 from tabletop.arm.model import TCP_FRAME
 from tabletop.errors import ConfigError, SimulationError
+from tabletop.recording import Recording, Segment
 from tabletop.sim.camera import WristCameraConfig
 from tabletop.sim.noise import NoiseConfig, apply_noise
-from tabletop.recording import Recording, Segment
 from tabletop.sim.scene import SceneSpec
 from tabletop.sim.teleop import (
     Keyframe,

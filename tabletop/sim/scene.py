@@ -30,11 +30,11 @@ with a ``margin`` [m].
 from __future__ import annotations
 
 import json
+import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-import tomllib
 
 from tabletop.errors import SceneError
 from tabletop.paths import DATA_DIR
