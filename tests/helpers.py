@@ -21,6 +21,69 @@ def assert_on_table(points: np.ndarray, tol: float = 0.005) -> None:
     assert np.mean(np.abs(points[:, 2]) <= tol) > 0.9  # most of what is seen is the top
 
 
+def ground_truth_dict(objects=(), sound_events=(), areas=()) -> dict:
+    """A valid ground truth as a recording stores it, from partial entries; what a test leaves
+    out gets a plain value. Objects need ``name``, ``aabb_min`` and ``aabb_max``; sound events
+    ``category``, ``onset_s`` and ``table_point``; areas ``name``, ``x`` and ``y``."""
+    objs = []
+    for i, o in enumerate(objects):
+        lo, hi = np.array(o["aabb_min"], float), np.array(o["aabb_max"], float)
+        c = (lo + hi) / 2
+        T = np.eye(4)
+        T[:2, 3] = c[:2]
+        kind = o.get("kind", o["name"].split("_")[-1])
+        objs.append(
+            {
+                "name": o["name"],
+                "kind": kind,
+                "label": o.get("label", o["name"].replace("_", " ")),
+                "category": o.get("category", kind),
+                "color": o.get("color", "red"),
+                "instance_id": 4 + i,
+                "position": c[:2].tolist(),
+                "yaw_deg": 0.0,
+                "T_world_obj": T.tolist(),
+                "aabb_min": lo.tolist(),
+                "aabb_max": hi.tolist(),
+                "center": c.tolist(),
+            }
+        )
+    events = [
+        {
+            "episode": e.get("episode", f"episode_{i}"),
+            "category": e["category"],
+            "caption": e.get("caption", f"a {e['category']}"),
+            "clip_id": e.get("clip_id", f"{e['category']}-{i}"),
+            "onset_s": e["onset_s"],
+            "offset_s": e.get("offset_s", e["onset_s"] + 1.0),
+            "frames": e.get("frames", [0, 1]),
+            "tcp_mean": e.get("tcp_mean", [*e["table_point"][:2], 0.3]),
+            "table_point": e["table_point"],
+            "region_center": e.get("region_center", e["table_point"]),
+        }
+        for i, e in enumerate(sound_events)
+    ]
+    return {
+        "scene": {"name": "test"},
+        "frame": "world = robot base frame; table top at z = 0; metres",
+        "table": {"x": [-0.2, 0.8], "y": [-0.6, 0.6], "top_z": 0.0, "height": 0.75},
+        "objects": objs,
+        "areas": [
+            {
+                "name": a["name"],
+                "aliases": a.get("aliases", []),
+                "x": a["x"],
+                "y": a["y"],
+                "center": [sum(a["x"]) / 2, sum(a["y"]) / 2, 0.0],
+            }
+            for a in areas
+        ],
+        "instances": {"0": "none", "1": "floor", "2": "table", "3": "robot"}
+        | {str(o["instance_id"]): o["name"] for o in objs},
+        "sound_events": events,
+    }
+
+
 @functools.cache
 def visual_scene():
     """(rec, queries, avlmap) of the visual localization tests, built once per test session.
@@ -32,9 +95,12 @@ def visual_scene():
     with a SIFT visual module keeping every 10th frame as a reference frame (about 7 cm of
     camera travel apart); SIFT keeps the map tests fast, the map code is the same for XFeat.
     """
+    from dataclasses import replace
+
     from tabletop.eval.harness import build_map, map_config
     from tabletop.eval.map_goals import ImageGoalConfig, image_goals
     from tabletop.mapping.visual import VisualLocalizationConfig
+    from tabletop.sim.ground_truth import GroundTruth
     from tabletop.sim.scan import ScanConfig, run_scan
     from tabletop.sim.scene import load_scene_spec
     from tabletop.sim.world import SimWorld
@@ -42,14 +108,15 @@ def visual_scene():
     cfg = ScanConfig(seed=3, speed=0.45, episodes=0, repeat_sounds=0)
     rec = run_scan(load_scene_spec("default"), cfg)[0]
     labels = ("grey tray", "red lego brick", "green toy cube")
-    objs = [o for o in rec.ground_truth["objects"] if o["label"] in labels]
+    truth = GroundTruth.of(rec)
+    objs = tuple(o for o in truth.objects if o.label in labels)
     with SimWorld(load_scene_spec("default")) as world:
         goals = image_goals(
-            {**rec.ground_truth, "objects": objs},
+            replace(truth, objects=objs),
             world,
             ImageGoalConfig(seed=2, table_points=0),
             rec.T_world_cam,
         )
-    queries = [(g, o["label"]) for g, o in zip(goals, objs, strict=True)]
+    queries = [(g, o.label) for g, o in zip(goals, objs, strict=True)]
     config = map_config(frame_step=4, visual=VisualLocalizationConfig(matcher="sift", stride=10))
     return rec, queries, build_map(rec, "oracle", config)

@@ -13,6 +13,7 @@ from tabletop.eval.harness import build_map, map_config
 from tabletop.mapping import AVLMap, MapConfig
 from tabletop.mapping.encoders.registry import ENCODER_SETS
 from tabletop.mapping.heatmaps import fuse
+from tabletop.sim.ground_truth import GroundTruth
 from tabletop.sim.scan import ScanConfig, run_scan
 from tabletop.sim.scene import load_scene_spec
 
@@ -168,33 +169,32 @@ def test_save_load_round_trip_and_errors(avlmap, rec, tmp_path):
 def test_map_goal_evaluation_scores_the_oracle_map(avlmap, rec):
     from tabletop.eval.map_goals import evaluate_map_goals, map_goals
 
-    goals = map_goals(rec.ground_truth)
+    truth = GroundTruth.of(rec)
+    goals = map_goals(truth)
     assert {g.kind for g in goals} >= {"object", "sound"}
-    r = evaluate_map_goals(avlmap, rec.ground_truth)
-    assert r["object"]["goals"] == len(rec.ground_truth["objects"])
+    r = evaluate_map_goals(avlmap, truth)
+    assert r["object"]["goals"] == len(truth.objects)
     assert r["object"]["success_rate"] == 1.0
     assert r["sound"]["success_rate"] >= 0.75
     # a sound's truth is the column above where it was inserted, up to where it was heard
-    e = rec.ground_truth["sound_events"][0]
-    s = next(g for g in goals if g.kind == "sound" and g.sound == e["caption"])
+    e = truth.sound_events[0]
+    s = next(g for g in goals if g.kind == "sound" and g.sound == e.caption)
     lo, hi = s.truth_boxes[0]
-    np.testing.assert_allclose(lo, e["table_point"])
-    np.testing.assert_allclose(hi, [*lo[:2], e["tcp_mean"][2]])
+    np.testing.assert_allclose(lo, e.table_point)
+    np.testing.assert_allclose(hi, [*lo[:2], e.tcp_mean[2]])
     # a goal scored against the wrong truth fails: the scoring can say no
-    gt = {
-        **rec.ground_truth,
-        "objects": [
-            {**o, "aabb_min": [9, 9, 9], "aabb_max": [9.1, 9.1, 9.1]}
-            for o in rec.ground_truth["objects"]
-        ],
-    }
+    far = (np.array([9.0, 9, 9]), np.array([9.1, 9.1, 9.1]))
+    gt = replace(
+        truth,
+        objects=tuple(replace(o, aabb_min=far[0], aabb_max=far[1]) for o in truth.objects),
+    )
     assert evaluate_map_goals(avlmap, gt)["object"]["success_rate"] == 0.0
     assert r["object"]["not_found"] == 0
     # a query the map refuses is a failed goal even where its argmax would land right
     strict = replace(avlmap.calibration, thresholds={"object": 10.0, "sound": 10.0})
     m = copy.copy(avlmap)
     m.calibration = strict
-    r = evaluate_map_goals(m, rec.ground_truth)
+    r = evaluate_map_goals(m, truth)
     assert r["object"]["successes"] == 0 and r["object"]["not_found"] == r["object"]["goals"]
 
 
@@ -227,12 +227,21 @@ def _empty_like(avlmap, config=None, **kw):
 
 
 def test_a_saved_map_keeps_every_config_field_and_its_calibration(avlmap, tmp_path):
-    config = replace(avlmap.config, image_target_px=0.35, area_top_score=0.6, visual=None)
+    from tabletop.mapping.area_module import AreaConfig
+    from tabletop.mapping.object_module import ObjectConfig
+
+    config = replace(
+        avlmap.config,
+        object=ObjectConfig(select_margin=0.2),
+        area=AreaConfig(top_score=0.6),
+        visual=replace(avlmap.config.visual, target_px=0.35),
+    )
     cal = replace(avlmap.calibration, thresholds={"object": 0.123})
     m = _empty_like(avlmap, config, calibration=cal)
     back = AVLMap.load(m.save(tmp_path / "m.npz"))
     assert back.config == config and back.config.to_dict() == config.to_dict()
-    assert back.images.target_px == 0.35 and back.areas.top_score == 0.6
+    assert back.images.target_px == 0.35 and back.areas.config.top_score == 0.6
+    assert back.objects.config.select_margin == 0.2
     assert back.calibration.thresholds == {"object": 0.123} and back.lacks == ()
     assert MapConfig.from_dict(config.to_dict()) == config
     with pytest.raises(ConfigError, match="unknown map config fields"):

@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 
 import numpy as np
+from helpers import ground_truth_dict
 
 from tabletop.cli import main
 from tabletop.cli.scan import format_bank_table
@@ -27,7 +28,9 @@ def _tiny_recording(n: int = 3) -> Recording:
         K=np.array([[200.0, 0, 159.5], [0, 200.0, 119.5], [0, 0, 1]]),
         T_hand_cam=np.eye(4),
         segments=(Segment("mapping", "mapping", 0, n),),
-        ground_truth={"sound_events": [{"category": "dog", "table_point": [0.4, 0.1, 0.0]}]},
+        ground_truth=ground_truth_dict(
+            sound_events=[{"category": "dog", "onset_s": 0.0, "table_point": [0.4, 0.1, 0.0]}]
+        ),
         meta={"renderer": "test"},
     )
 

@@ -10,6 +10,7 @@ from tabletop.eval import load_tasks, run_eval
 from tabletop.eval.runner import collect_task_files, scan_recording
 from tabletop.eval.suites import generate_suite, to_toml
 from tabletop.eval.tasks import TaskFileError
+from tabletop.sim.ground_truth import GroundTruth
 
 SCENE = {"name": "default"}
 SCAN = {"seed": 1, "speed": 0.6, "episodes": 3, "episode_s": 2.0, "repeat_sounds": 0}
@@ -25,7 +26,7 @@ def run(tmp_path_factory):
     cache = tmp / "cache"
     rec, cached = scan_recording(SCENE, SCAN, cache)
     assert not cached
-    doc = generate_suite("tiny", SCENE, SCAN, rec.ground_truth, COUNTS, seed=3,
+    doc = generate_suite("tiny", SCENE, SCAN, GroundTruth.of(rec), COUNTS, seed=3,
                          map_section={"frame_step": 4})  # fmt: skip
     path = tmp / "tiny.toml"
     path.write_text(to_toml(doc))

@@ -6,6 +6,7 @@ import json
 
 import numpy as np
 import pytest
+from helpers import ground_truth_dict
 
 from tabletop.eval.report import EvalResult
 from tabletop.eval.results import EncoderRun, GoalResult, TaskRun, in_a_row
@@ -19,6 +20,7 @@ from tabletop.eval.tasks import (
     parse_tasks,
 )
 from tabletop.eval.truth import resolve_truth
+from tabletop.sim.ground_truth import GroundTruth
 
 DOC = {
     "format": "tabletop-tasks",
@@ -68,29 +70,36 @@ DOC = {
     "sequences": [{"id": "q", "goals": ["s", "o"]}],
 }
 
-GT = {
-    "objects": [
-        {"name": "red_mug", "aabb_min": [0.3, 0.2, 0.0], "aabb_max": [0.4, 0.3, 0.1]},
-        {"name": "tray", "aabb_min": [0.5, -0.1, 0.0], "aabb_max": [0.7, 0.1, 0.02]},
-    ],
-    "sound_events": [
-        {
-            "category": "dog",
-            "onset_s": 5.0,
-            "table_point": [0.6, 0.3, 0.0],
-            "tcp_mean": [0, 0, 0.3],
-        },
-        {
-            "category": "dog",
-            "onset_s": 1.0,
-            "table_point": [0.3, -0.3, 0.0],
-            "tcp_mean": [0, 0, 0.3],
-        },
-    ],
-    "areas": [
-        {"name": "left side of the table", "aliases": ["left"], "x": [0.2, 0.7], "y": [0.2, 0.5]}
-    ],
-}
+GT = GroundTruth.from_dict(
+    ground_truth_dict(
+        objects=[
+            {"name": "red_mug", "aabb_min": [0.3, 0.2, 0.0], "aabb_max": [0.4, 0.3, 0.1]},
+            {"name": "tray", "aabb_min": [0.5, -0.1, 0.0], "aabb_max": [0.7, 0.1, 0.02]},
+        ],
+        sound_events=[
+            {
+                "category": "dog",
+                "onset_s": 5.0,
+                "table_point": [0.6, 0.3, 0.0],
+                "tcp_mean": [0, 0, 0.3],
+            },
+            {
+                "category": "dog",
+                "onset_s": 1.0,
+                "table_point": [0.3, -0.3, 0.0],
+                "tcp_mean": [0, 0, 0.3],
+            },
+        ],
+        areas=[
+            {
+                "name": "left side of the table",
+                "aliases": ["left"],
+                "x": [0.2, 0.7],
+                "y": [0.2, 0.5],
+            }
+        ],
+    )
+)
 
 
 def bad(mutate):

@@ -83,3 +83,94 @@ def test_requires_python_covers_the_standard_library_the_code_uses():
     assert floor, meta["project"]["requires-python"]
     uses_tomllib = any("tomllib" in p.read_text() for p in ROOT.rglob("*.py"))
     assert not uses_tomllib or int(floor.group(1)) >= 11  # tomllib is new in 3.11
+
+
+def own_imports_behind_import_error(root: Path = ROOT) -> list[str]:
+    """``try: from tabletop... except ImportError`` hides a real bug in the package's own code
+    behind a fallback: list every such place."""
+    bad = []
+    for path in sorted(root.rglob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text())):
+            if not isinstance(node, ast.Try):
+                continue
+            own = any(
+                isinstance(n, ast.ImportFrom)
+                and (n.level or (n.module or "").startswith("tabletop"))
+                for stmt in node.body
+                for n in ast.walk(stmt)
+            )
+            caught = {getattr(h.type, "id", None) for h in node.handlers if h.type is not None} | {
+                getattr(e, "id", None)
+                for h in node.handlers
+                if isinstance(h.type, ast.Tuple)
+                for e in h.type.elts
+            }
+            if own and caught & {"ImportError", "ModuleNotFoundError"}:
+                bad.append(f"{path.relative_to(root.parent)}:{node.lineno}")
+    return bad
+
+
+def test_the_package_never_hides_its_own_import_errors(tmp_path):
+    assert own_imports_behind_import_error() == []
+    pkg = tmp_path / "tabletop"
+    pkg.mkdir()
+    (pkg / "m.py").write_text(
+        "try:\n    from tabletop.train.vision import x\nexcept ImportError:\n    x = None\n"
+    )
+    assert own_imports_behind_import_error(pkg) == ["tabletop/m.py:1"]
+
+
+def module_cycles(root: Path = ROOT) -> list[list[str]]:
+    """Groups of modules (package ``__init__`` files aside) that import each other, directly
+    or through others: each group is a strongly connected component of the import graph."""
+    modules = {}
+    for path in sorted(root.rglob("*.py")):
+        rel = path.relative_to(root.parent).with_suffix("")
+        modules[".".join(rel.parts).removesuffix(".__init__")] = path
+    inits = {m for m, p in modules.items() if p.name == "__init__.py"}
+    graph = {}
+    for m, path in modules.items():
+        if m in inits:
+            continue
+        graph[m] = set()
+        for name in _imports(path, m):
+            if name in modules and name not in inits and name != m:
+                graph[m].add(name)
+    index, low, stack, on, out = {}, {}, [], set(), []
+
+    def visit(v):  # Tarjan's strongly connected components
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on.add(v)
+        for w in graph[v]:
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            group = []
+            while True:
+                w = stack.pop()
+                on.discard(w)
+                group.append(w)
+                if w == v:
+                    break
+            if len(group) > 1:
+                out.append(sorted(group))
+
+    for v in graph:
+        if v not in index:
+            visit(v)
+    return out
+
+
+def test_no_two_modules_import_each_other(tmp_path):
+    assert module_cycles() == []
+    pkg = tmp_path / "tabletop"
+    (pkg / "sim").mkdir(parents=True)
+    (pkg / "__init__.py").write_text("")
+    (pkg / "sim" / "__init__.py").write_text("")
+    (pkg / "sim" / "a.py").write_text("from tabletop.sim.b import x\n")
+    (pkg / "sim" / "b.py").write_text("def f():\n    from tabletop.sim.a import y\n")
+    assert module_cycles(pkg) == [["tabletop.sim.a", "tabletop.sim.b"]]

@@ -28,7 +28,7 @@ def avlmap():
 
 
 def test_online_and_batch_reference_frames_agree(avlmap, rec):
-    batch = build_visual_database(rec, avlmap.config.visual)
+    batch = build_visual_database(rec, avlmap.config.visual.localization)
     (h_map, a_map), (h_batch, a_batch) = avlmap.visual.state(), batch.state()
     assert h_map == h_batch
     for k in a_map:

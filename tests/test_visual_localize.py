@@ -15,6 +15,7 @@ from tabletop.mapping.visual import (
     look_at_point,
 )
 from tabletop.mapping.visual.localize import _checked, _unturn
+from tabletop.sim.ground_truth import GroundTruth
 
 #: Reference frames: every 10th of a ~320-frame scan (about 7 cm of camera travel apart), as
 #: in the map of ``helpers.visual_scene``.
@@ -154,7 +155,7 @@ def shifted(T: np.ndarray, dx: float, dy: float) -> np.ndarray:
 
 def test_the_check_refuses_a_pose_the_matches_support_but_the_map_does_not(avlmap, queries):
     g = queries[0][0]
-    cfg, K, check = avlmap.config.visual, avlmap.visual.K, avlmap.photometric_check()
+    cfg, K, check = avlmap.config.visual.localization, avlmap.visual.K, avlmap.photometric_check()
     cand = {"T": shifted(g.T_world_cam, -0.1, 0.06), "inliers": 40, "reason": ""}
     out = _checked(cand, check, g.image, K, cfg)
     assert out["T"] is None and "40 inliers" in out["reason"] and out["kappa"] < cfg.min_kappa
@@ -180,7 +181,7 @@ def test_calibration_samples_label_every_modality(avlmap, queries, rec):
         x, y = rng.integers(0, 300), rng.integers(0, 220)
         foreign[y : y + rng.integers(5, 40), x : x + rng.integers(5, 40)] = rng.integers(0, 255, 3)
     goals = [g for g, _ in queries]
-    s = calibration_samples(avlmap, rec.ground_truth, goals, [foreign])
+    s = calibration_samples(avlmap, GroundTruth.of(rec), goals, [foreign])
     by = {m: [x for x in s if x["modality"] == m] for m in ("object", "sound", "area", "image")}
     assert len(by["image"]) == len(goals) + 1 and len(by["area"]) == len(rec.ground_truth["areas"])
     # the oracle finds every present object label; absent kinds are always wrong

@@ -29,7 +29,7 @@ def shifted(T: np.ndarray, dx: float, dy: float) -> np.ndarray:
 def test_the_map_seen_from_the_true_pose_reproduces_the_image(avlmap, queries):
     check, K = avlmap.photometric_check(), avlmap.visual.K
     assert len(check) == len(avlmap.voxels.indices)
-    cfg = avlmap.config.visual
+    cfg = avlmap.config.visual.localization
     for g, label in queries:
         cov, agree, kappa = check.score(g.T_world_cam, K, g.image, cfg)
         assert cov > 0.5 and agree >= cfg.min_agreement and kappa >= cfg.min_kappa, label

@@ -26,7 +26,7 @@ def world():
 
 
 def test_depth_backprojects_onto_ground_truth_boxes_within_5mm(world):
-    gt = {o["instance_id"]: o for o in world.ground_truth()["objects"]}
+    gt = {o.instance_id: o for o in world.ground_truth().objects}
     K = world.intrinsics.K
     seen = set()
     for q in VIEW_QS:
@@ -37,12 +37,12 @@ def test_depth_backprojects_onto_ground_truth_boxes_within_5mm(world):
             mask = img.segmentation == inst
             if mask.sum() < 20:
                 continue
-            seen.add(obj["name"])
+            seen.add(obj.name)
             pts = transform_points(T_world_cam, backproject(img.depth, K, mask))
-            lo, hi = np.array(obj["aabb_min"]), np.array(obj["aabb_max"])
+            lo, hi = obj.aabb_min, obj.aabb_max
             outside = np.maximum(lo - pts, 0) + np.maximum(pts - hi, 0)
             dist = np.linalg.norm(outside, axis=1)
-            assert dist.max() <= 0.005, (obj["name"], dist.max())
+            assert dist.max() <= 0.005, (obj.name, dist.max())
         # the table top is the plane z = 0
         table = transform_points(
             T_world_cam, backproject(img.depth, K, img.segmentation == INSTANCE_TABLE)
@@ -82,16 +82,14 @@ def test_render_outputs_have_documented_types(world):
 
 def test_ground_truth_lists_objects_areas_and_instances(world):
     gt = world.ground_truth()
-    names = [o["name"] for o in gt["objects"]]
-    assert "red_mug" in names and "blue_mug" in names
-    mugs = [o for o in gt["objects"] if o["kind"] == "mug"]
-    assert {m["color"] for m in mugs} == {"red", "blue"}
-    for o in gt["objects"]:
-        assert o["aabb_min"][2] == pytest.approx(0.0, abs=1e-9)
-        assert all(a < b for a, b in zip(o["aabb_min"], o["aabb_max"], strict=True))
-        assert gt["instances"][str(o["instance_id"])] == o["name"]
-    areas = {a["name"] for a in gt["areas"]}
-    assert {"left side of the table", "right side of the table", "tray area"} <= areas
+    assert "red_mug" in gt.object_names and "blue_mug" in gt.object_names
+    assert {m.color for m in gt.objects_of_kind("mug")} == {"red", "blue"}
+    for o in gt.objects:
+        assert o.aabb_min[2] == pytest.approx(0.0, abs=1e-9)
+        assert np.all(o.aabb_min < o.aabb_max)
+        assert gt.instances[o.instance_id] == o.name
+    assert {"left side of the table", "right side of the table", "tray area"} <= set(gt.area_names)
+    assert gt.sound_events == ()  # a scan adds the sounds it inserts
 
 
 def test_link_pose_is_link_frame_and_errors_name_links(world):

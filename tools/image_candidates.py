@@ -18,32 +18,24 @@ Usage (about 15 minutes on two cores)::
 from __future__ import annotations
 
 import argparse
-import tempfile
-from pathlib import Path
 
 import numpy as np
 
-from tabletop.eval.harness import build_map
+from tabletop.eval.harness import generated_scene, scene_map
 from tabletop.eval.map_goals import ImageGoalConfig, image_goals
 from tabletop.mapping import AVLMap
 from tabletop.mapping.visual import localize as vl
-from tabletop.sim.scan import ScanConfig, run_scan
+from tabletop.sim.ground_truth import GroundTruth
 from tabletop.sim.scene import load_scene_spec
 from tabletop.sim.world import SimWorld
 
 
 def scan_goals(seed: int, scene: str) -> tuple[AVLMap, list]:
     """The map and image goals of one eval-map scan (the same scene, scan and goal seeds)."""
-    if scene == "default":
-        spec = load_scene_spec("default")
-    else:
-        path = Path(tempfile.mkdtemp()) / "random.toml"
-        path.write_text(f"[random]\nseed = {seed + 10}\ncount = 9\nduplicates = 2\n")
-        spec = load_scene_spec(path)
-    rec, _ = run_scan(spec, ScanConfig(seed=seed, speed=0.3, episodes=6))
-    m = build_map(rec, "oracle")
+    spec = load_scene_spec("default") if scene == "default" else generated_scene(seed + 10)
+    rec, m = scene_map(spec, {"seed": seed, "speed": 0.3, "episodes": 6}, "oracle")
     with SimWorld(spec) as world:
-        goals = image_goals(rec.ground_truth, world, ImageGoalConfig(seed=seed), rec.T_world_cam)
+        goals = image_goals(GroundTruth.of(rec), world, ImageGoalConfig(seed=seed), rec.T_world_cam)
     return m, goals
 
 

@@ -6,7 +6,6 @@ from __future__ import annotations
 import argparse
 import contextlib
 import json
-import sys
 from pathlib import Path
 
 from tabletop.cli.output import stdout_to_stderr
@@ -22,19 +21,13 @@ _SHIPPED = {
 
 
 def cmd_check_encoders(args: argparse.Namespace) -> int:
-    """Measure the committed weights on held-out data (figures are null where a learned
-    encoder does not exist yet: never a stand-in value)."""
+    """Measure the committed weights on held-out data."""
     from tabletop.train.audio import evaluate_audio
+    from tabletop.train.vision import evaluate_vision
 
-    out = {"vision_top1_heldout": None, "vision_miou_heldout": None, "vision_synonym_top1": None}
-    try:
-        from tabletop.train.vision import evaluate_vision
-    except ImportError:
-        evaluate_vision = None
-
+    out = {}
     with stdout_to_stderr() if args.json else contextlib.nullcontext():
-        if evaluate_vision is not None:
-            out.update({k: v for k, v in evaluate_vision().items() if k.startswith("vision_")})
+        out.update({k: v for k, v in evaluate_vision().items() if k.startswith("vision_")})
         a = evaluate_audio()
     out.update({k: v for k, v in a.items() if k.startswith("audio_")})
     out["encoders"] = "embedded default (learned; held-out data)"
@@ -42,11 +35,7 @@ def cmd_check_encoders(args: argparse.Namespace) -> int:
         print(json.dumps(out, indent=1))
         return 0
     for k, v in out.items():
-        shown = (
-            "not available in this version"
-            if v is None
-            else (f"{v:.3f}" if isinstance(v, float) else v)
-        )
+        shown = f"{v:.3f}" if isinstance(v, float) else v
         print(f"{k:36s} {shown}")
     return 0
 
@@ -58,14 +47,8 @@ def cmd_train(args: argparse.Namespace) -> int:
 
         path = train_audio(AudioTrainConfig(out=out))
     else:
-        try:
-            from tabletop.train.vision import VisionTrainConfig, train_vision
-        except ImportError:
-            print(
-                "tabletop train vision: the vision encoder's training is not in this version",
-                file=sys.stderr,
-            )
-            return 2
+        from tabletop.train.vision import VisionTrainConfig, train_vision
+
         path = train_vision(VisionTrainConfig(out=out))
     print(f"weights written: {path}")
     return 0

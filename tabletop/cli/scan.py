@@ -98,6 +98,7 @@ def _do_scan(args: argparse.Namespace):
 
 def cmd_scan(args: argparse.Namespace) -> int:
     from tabletop.recording import save_recording
+    from tabletop.sim.ground_truth import GroundTruth
 
     spec, rec, stats = _do_scan(args)
     t0 = time.perf_counter()
@@ -114,13 +115,12 @@ def cmd_scan(args: argparse.Namespace) -> int:
         f"renderer {rec.meta['renderer']}); render alone {len(rec) / stats.render_s:.1f}"
     )
     print(f"written:          {args.out} in {write_s:.1f} s")
-    events = (rec.ground_truth or {}).get("sound_events", [])
+    events = () if rec.ground_truth is None else GroundTruth.of(rec).sound_events
     if events:
         print(
             f"sounds inserted:  {len(events)}: "
             + ", ".join(
-                f"{e['category']}@({e['table_point'][0]:.2f},{e['table_point'][1]:.2f})"
-                for e in events
+                f"{e.category}@({e.table_point[0]:.2f},{e.table_point[1]:.2f})" for e in events
             )
         )
     return 0

@@ -9,7 +9,6 @@ experiment that produces it, so it may use the simulator and the evaluation's go
 from __future__ import annotations
 
 from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
 
@@ -22,6 +21,7 @@ from tabletop.mapping.calibration import (
     expected_calibration_error,
     fit_platt,
 )
+from tabletop.sim.ground_truth import GroundTruth
 from tabletop.transforms import aabb_distance
 
 # --------------------------------------------------------------------------- fitting from maps
@@ -36,7 +36,9 @@ AREA_HEIGHT_M = 0.30
 GATED = ("image", "area")
 
 
-def calibration_samples(m, ground_truth: dict, image_goals=(), foreign_images=()) -> list[dict]:
+def calibration_samples(
+    m, ground_truth: GroundTruth, image_goals=(), foreign_images=()
+) -> list[dict]:
     """Labelled queries of one map: ``{"modality", "query", "margin", "correct"}`` each.
 
     Objects: every object label and every kind name present (right when the target lands
@@ -77,29 +79,29 @@ def calibration_samples(m, ground_truth: dict, image_goals=(), foreign_images=()
             }
         )
 
-    objs = ground_truth["objects"]
+    objs = ground_truth.objects
     by_query: dict[str, list] = {}
     for o in objs:
-        by_query.setdefault(o["label"], []).append(o)
-        by_query.setdefault(OBJECT_KINDS[o["kind"]].label, []).append(o)
+        by_query.setdefault(o.label, []).append(o)
+        by_query.setdefault(OBJECT_KINDS[o.kind].label, []).append(o)
     for q, os_ in sorted(by_query.items()):
-        boxes = [(o["aabb_min"], o["aabb_max"]) for o in os_]
+        boxes = [(o.aabb_min, o.aabb_max) for o in os_]
         add("object", q, m.object_heatmap(q), lambda p, b=boxes: [aabb_distance(p, *x) for x in b])
-    present = {o["kind"] for o in objs}
+    present = {o.kind for o in objs}
     for k in sorted(set(OBJECT_KINDS) - present):
         add("object", OBJECT_KINDS[k].label, m.object_heatmap(OBJECT_KINDS[k].label), None)
 
-    events = ground_truth.get("sound_events", [])
+    events = ground_truth.sound_events
     if events:
         heard: dict[str, list] = {}
         for e in events:
-            heard.setdefault(e["category"], []).append(e)
+            heard.setdefault(e.category, []).append(e)
         for _cat, es in sorted(heard.items()):
             cols = [heard_column(e) for e in es]
             add(
                 "sound",
-                es[0]["caption"],
-                m.sound_heatmap(es[0]["caption"]),
+                es[0].caption,
+                m.sound_heatmap(es[0].caption),
                 lambda p, cols=cols: [aabb_distance(p, *c) for c in cols],
             )
         bank = SoundBank.default()
@@ -107,12 +109,12 @@ def calibration_samples(m, ground_truth: dict, image_goals=(), foreign_images=()
             cap = bank.caption(cat)
             add("sound", cap, m.sound_heatmap(cap), None)
 
-    for a in ground_truth.get("areas", []):
-        lo, hi = (a["x"][0], a["y"][0], 0.0), (a["x"][1], a["y"][1], AREA_HEIGHT_M)
+    for a in ground_truth.areas:
+        lo, hi = (a.x[0], a.y[0], 0.0), (a.x[1], a.y[1], AREA_HEIGHT_M)
         add(
             "area",
-            a["name"],
-            m.area_heatmap(a["name"]),
+            a.name,
+            m.area_heatmap(a.name),
             lambda p, b=(lo, hi): [aabb_distance(p, *b)],
         )
 
@@ -199,35 +201,28 @@ def run_calibration(
     ``images``, each scene's image goals (rendered by a second simulator of it, at poses the
     scan never took) and the previous scene's pictures (foreign: always wrong) are queried too.
     """
-    import tempfile
-
-    from tabletop.eval.harness import build_map
+    from tabletop.eval.harness import generated_scene, scene_map
     from tabletop.eval.map_goals import ImageGoalConfig, image_goals
-    from tabletop.sim.scan import ScanConfig, run_scan
-    from tabletop.sim.scene import load_scene_spec
     from tabletop.sim.world import SimWorld
 
     seeds = list(seeds)
     if len(seeds) < 2:
         raise ConfigError("calibration needs at least 2 scene seeds (fit and held-out halves)")
     per_scene, previous = [], []
-    with tempfile.TemporaryDirectory() as tmp:
-        for seed in seeds:
-            path = Path(tmp) / f"calib-{seed}.toml"
-            path.write_text(f"[random]\nseed = {seed}\ncount = 9\nduplicates = 2\n")
-            spec = load_scene_spec(path)
-            rec, _ = run_scan(spec, ScanConfig(seed=seed, speed=speed))
-            m = build_map(rec, encoder_set)
-            goals = []
-            if images:
-                with SimWorld(spec) as world:
-                    cfg = ImageGoalConfig(seed=seed)
-                    goals = image_goals(rec.ground_truth, world, cfg, rec.T_world_cam)
-                goals = [g for g in goals if g.kind == "image"]
-            per_scene.append(calibration_samples(m, rec.ground_truth, goals, previous))
-            previous = [g.image for g in goals]
-            if progress is not None:
-                progress(seed, per_scene[-1])
+    for seed in seeds:
+        spec = generated_scene(seed, f"calib-{seed}")
+        rec, m = scene_map(spec, {"seed": seed, "speed": speed}, encoder_set)
+        truth = GroundTruth.of(rec)
+        goals = []
+        if images:
+            with SimWorld(spec) as world:
+                cfg = ImageGoalConfig(seed=seed)
+                goals = image_goals(truth, world, cfg, rec.T_world_cam)
+            goals = [g for g in goals if g.kind == "image"]
+        per_scene.append(calibration_samples(m, truth, goals, previous))
+        previous = [g.image for g in goals]
+        if progress is not None:
+            progress(seed, per_scene[-1])
     half = len(per_scene) // 2
     train = [s for scene in per_scene[:half] for s in scene]
     test = [s for scene in per_scene[half:] for s in scene]

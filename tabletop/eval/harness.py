@@ -6,7 +6,9 @@ here, so a map means the same wherever it was built.
   catalog's object names (what the simulated scenes hold) and the background concepts.
 - :func:`build_map`: :meth:`AVLMap.build` with the encoder set's committed calibration and the
   Panda's self-filter, as every experiment builds its maps.
-- :func:`scan_recording` / :func:`cached_recording` / :func:`cached_map`: the same through the
+- :func:`generated_scene`: the seeded generated tables of the calibration, eval-map and tools.
+- :func:`scene_map`: scene -> scan -> map in one call (through the cache when given one).
+- :func:`scan_recording` / :func:`cached_recording` / :func:`cached_map`: the steps through the
   cache (``cache_dir``, default ``out/eval-cache``): one recording per scene + scan settings
   and one map per recording + encoder set + map settings; the keys include a fingerprint of
   the simulator and mapping source, so editing either invalidates old entries.
@@ -28,9 +30,11 @@ __all__ = [
     "build_map",
     "cached_map",
     "cached_recording",
+    "generated_scene",
     "map_config",
     "recording_key",
     "scan_recording",
+    "scene_map",
 ]
 
 log = logging.getLogger(__name__)
@@ -159,3 +163,33 @@ def cached_map(
     if path is not None:
         m.save(path)
     return m, map_s, False
+
+
+def generated_scene(seed: int, name: str = "random", count: int = 9, duplicates: int = 2):
+    """The seeded generated scene (``count`` objects, ``duplicates`` kinds twice in different
+    colours) named ``name``: the tables of the calibration, eval-map and the tools."""
+    from tabletop.sim.scene import SceneSpec
+
+    random = {"seed": int(seed), "count": int(count), "duplicates": int(duplicates)}
+    return SceneSpec.from_dict({"random": random}, source=name)
+
+
+def scene_map(
+    spec,
+    scan: dict,
+    encoders: str,
+    *,
+    map_settings: dict | None = None,
+    cache_dir: str | Path | None = None,
+    progress: Progress | None = None,
+):
+    """(recording, AVLMap) of scene ``spec`` scanned with ``scan`` (``ScanConfig`` fields) and
+    mapped with ``encoders`` and ``map_settings`` (:func:`map_config` overrides), through the
+    cache in ``cache_dir`` when given."""
+    cache = Path(cache_dir) if cache_dir is not None else None
+    rec, _, _ = cached_recording(spec.name, dict(scan), spec, cache, progress)
+    settings = dict(map_settings or {})
+    m, _, _ = cached_map(
+        spec.name, settings, rec, encoders, cache, recording_key(spec, dict(scan)), progress
+    )
+    return rec, m

@@ -23,6 +23,7 @@ import numpy as np
 from tabletop.arm.success import SUCCESS_RADIUS_M
 from tabletop.errors import SimulationError
 from tabletop.mapping.heatmaps import fuse
+from tabletop.sim.ground_truth import GroundTruth, ObjectTruth, SoundEventTruth
 from tabletop.transforms import aabb_distance
 
 __all__ = [
@@ -69,61 +70,60 @@ class ImageGoalConfig:
     """A goal camera is at least this far [m] from every camera pose of the recording."""
 
 
-def _disambiguated(point, dups: list[dict], min_margin: float) -> dict | None:
+def _disambiguated(point, dups: tuple[ObjectTruth, ...], min_margin: float) -> ObjectTruth | None:
     """The duplicate nearest ``point`` if it is at least ``min_margin`` [m] nearer than the
     others, else None."""
-    d = [aabb_distance(point, o["aabb_min"], o["aabb_max"]) for o in dups]
+    d = [aabb_distance(point, o.aabb_min, o.aabb_max) for o in dups]
     order = np.argsort(d)
     return dups[order[0]] if d[order[1]] - d[order[0]] >= min_margin else None
 
 
-def _duplicates(objs: list[dict]) -> list[list[dict]]:
-    kinds = [o["kind"] for o in objs]
-    return [
-        [o for o in objs if o["kind"] == k]
-        for k in sorted({k for k in kinds if kinds.count(k) > 1})
-    ]
+def _duplicates(gt: GroundTruth) -> list[tuple[ObjectTruth, ...]]:
+    return [gt.objects_of_kind(k) for k in gt.duplicated_kinds]
 
 
-def heard_column(event: dict) -> tuple:
+def _box(o: ObjectTruth) -> tuple:
+    """An object's truth box as (lower, upper) corner lists [m]."""
+    return (o.aabb_min.tolist(), o.aabb_max.tolist())
+
+
+def heard_column(event: SoundEventTruth) -> tuple:
     """A sound's truth box: the column from its table point up to where the microphone heard
     it (a sound has a place on the table, not a height; the evaluation suites use the same
     column, :mod:`tabletop.eval.truth`)."""
-    p = np.asarray(event["table_point"], np.float64)
-    return (p, np.array([p[0], p[1], max(float(event["tcp_mean"][2]), 0.0)]))
+    p = np.array(event.table_point, np.float64)
+    return (p, np.array([p[0], p[1], max(float(event.tcp_mean[2]), 0.0)]))
 
 
-def map_goals(ground_truth: dict, min_margin: float = 0.05) -> list[MapGoal]:
+def map_goals(ground_truth: GroundTruth, min_margin: float = 0.05) -> list[MapGoal]:
     """Object, sound and ambiguous goals of a recording. An ambiguous goal is kept only when the
     sound was heard at least ``min_margin`` [m] nearer one duplicate than the other."""
-    objs = ground_truth["objects"]
-    events = ground_truth.get("sound_events", [])
-    goals = [
-        MapGoal("object", o["label"], None, ((o["aabb_min"], o["aabb_max"]),), ()) for o in objs
-    ]
+    gt = ground_truth
+    events = gt.sound_events
+    goals = [MapGoal("object", o.label, None, (_box(o),), ()) for o in gt.objects]
     for e in events:
-        same = [x for x in events if x["category"] == e["category"]]
-        goals.append(MapGoal("sound", None, e["caption"], tuple(heard_column(x) for x in same), ()))
-    for dups in _duplicates(objs):
+        same = [x for x in events if x.category == e.category]
+        goals.append(MapGoal("sound", None, e.caption, tuple(heard_column(x) for x in same), ()))
+    for dups in _duplicates(gt):
         for e in events:
-            if [x["category"] for x in events].count(e["category"]) > 1:
+            if [x.category for x in events].count(e.category) > 1:
                 continue  # an ambiguous sound cannot disambiguate
-            near = _disambiguated(e["table_point"], dups, min_margin)
+            near = _disambiguated(e.table_point, dups, min_margin)
             if near is not None:
-                box = ((near["aabb_min"], near["aabb_max"]),)
-                goals.append(MapGoal("ambiguous", near["category"], e["caption"], box, ()))
+                goals.append(MapGoal("ambiguous", near.category, e.caption, (_box(near),), ()))
     return goals
 
 
 def image_goals(
-    ground_truth: dict,
+    ground_truth: GroundTruth | dict,
     world,
     config: ImageGoalConfig | None = None,
     recorded_T_world_cam: np.ndarray | None = None,
     min_margin: float = 0.05,
 ) -> list[MapGoal]:
     """Image and image-ambiguous goals rendered by ``world`` (a
-    :class:`~tabletop.sim.world.SimWorld` of the recording's scene).
+    :class:`~tabletop.sim.world.SimWorld` of the recording's scene). ``ground_truth``: the
+    recording's, typed or as the recording stores it (a dict).
 
     One image per object (looking at its centre), ``config.table_points`` images of table
     points beside objects, and per duplicate of a duplicated kind one image of a table point
@@ -137,7 +137,10 @@ def image_goals(
 
     config = config or ImageGoalConfig()
     rng = np.random.default_rng(config.seed)
-    objs = ground_truth["objects"]
+    gt = ground_truth
+    if not isinstance(gt, GroundTruth):  # as a recording stores it
+        gt = GroundTruth.from_dict(gt)
+    objs = gt.objects
     model = PandaModel()
     T_cam_hand = invert(world.camera.T_hand_cam)
     recorded = None if recorded_T_world_cam is None else recorded_T_world_cam[:, :3, 3]
@@ -172,33 +175,31 @@ def image_goals(
     def beside(o, lo_m: float, hi_m: float) -> np.ndarray:
         for _ in range(100):
             a, r = rng.uniform(0, 2 * np.pi), rng.uniform(lo_m, hi_m)
-            p = np.array([*np.add(o["center"][:2], r * np.array([np.cos(a), np.sin(a)])), 0.0])
-            free = all(aabb_distance(p, b["aabb_min"], b["aabb_max"]) > 0.01 for b in objs)
-            t = ground_truth["table"]
-            on_table = t["x"][0] + 0.03 < p[0] < t["x"][1] - 0.03 and t["y"][0] + 0.03 < p[1] < (
-                t["y"][1] - 0.03
+            p = np.array([*np.add(o.center[:2], r * np.array([np.cos(a), np.sin(a)])), 0.0])
+            free = all(aabb_distance(p, b.aabb_min, b.aabb_max) > 0.01 for b in objs)
+            t = gt.table
+            on_table = t.x[0] + 0.03 < p[0] < t.x[1] - 0.03 and t.y[0] + 0.03 < p[1] < (
+                t.y[1] - 0.03
             )
             if free and on_table:
                 return p
-        return np.array([*o["center"][:2], 0.0])
+        return np.array([*o.center[:2], 0.0])
 
     goals = []
     for o in objs:
-        img, T = render(o["center"])
-        box = ((o["aabb_min"], o["aabb_max"]),)
-        goals.append(MapGoal("image", None, None, box, (), img, T))
+        img, T = render(o.center)
+        goals.append(MapGoal("image", None, None, (_box(o),), (), img, T))
     for _ in range(config.table_points):
         p = beside(objs[rng.integers(len(objs))], 0.08, 0.15)
         img, T = render(p)
         goals.append(MapGoal("image", None, None, (), (tuple(p),), img, T))
-    for dups in _duplicates(objs):
+    for dups in _duplicates(gt):
         for o in dups:
             p = beside(o, 0.06, 0.12)
             if _disambiguated(p, dups, min_margin) is not o:
                 continue
             img, T = render(p)
-            box = ((o["aabb_min"], o["aabb_max"]),)
-            goals.append(MapGoal("image_ambiguous", o["category"], None, box, (), img, T))
+            goals.append(MapGoal("image_ambiguous", o.category, None, (_box(o),), (), img, T))
     return goals
 
 
@@ -223,7 +224,7 @@ def _target(m, g: MapGoal) -> tuple[np.ndarray, bool]:
 
 def evaluate_map_goals(
     m,
-    ground_truth: dict,
+    ground_truth: GroundTruth,
     *,
     world=None,
     image_config: ImageGoalConfig | None = None,
@@ -264,11 +265,7 @@ def run_map_eval(
     Returns {"runs": [...], "by_type": {type: {goals, successes, not_found, success_rate}},
     "by_scene": {"default" | "random": {type: ...}}, "encoders"}.
     """
-    import tempfile
-    from pathlib import Path
-
-    from tabletop.eval.harness import build_map
-    from tabletop.sim.scan import ScanConfig, run_scan
+    from tabletop.eval.harness import generated_scene, scene_map
     from tabletop.sim.scene import load_scene_spec
     from tabletop.sim.world import SimWorld
 
@@ -279,16 +276,14 @@ def run_map_eval(
             if scene == "default":
                 spec = load_scene_spec("default")
             else:
-                path = Path(tempfile.mkdtemp()) / "random.toml"
-                path.write_text(f"[random]\nseed = {seed + 10}\ncount = 9\nduplicates = 2\n")
-                spec = load_scene_spec(path)
-            rec, _ = run_scan(spec, ScanConfig(seed=seed, speed=speed, episodes=6))
-            m = build_map(rec, encoders)
+                spec = generated_scene(seed + 10)
+            scan = {"seed": seed, "speed": speed, "episodes": 6}
+            rec, m = scene_map(spec, scan, encoders)
             names = m.encoder_names
             with SimWorld(spec) as world:
                 r = evaluate_map_goals(
                     m,
-                    rec.ground_truth,
+                    GroundTruth.of(rec),
                     world=world,
                     image_config=ImageGoalConfig(seed=seed),
                     recorded_T_world_cam=rec.T_world_cam,

@@ -14,6 +14,7 @@ import cv2
 import numpy as np
 
 from tabletop.eval.results import RECALL_RADII_M, EncoderRun, dumps
+from tabletop.sim.ground_truth import GroundTruth
 
 __all__ = ["EvalResult", "write_task_figures"]
 
@@ -238,21 +239,21 @@ def _pixel(m, xy) -> tuple[int, int]:
     return round((ny - iy) * _SCALE), round((nx - ix) * _SCALE)
 
 
-def scene_picture(m, ground_truth: dict, goals, regions) -> np.ndarray:
+def scene_picture(m, ground_truth: GroundTruth, goals, regions) -> np.ndarray:
     """BGR top view of the map with ground truth, truths and final TCPs."""
     from tabletop.mapping.render import heatmap_views
 
     img = heatmap_views(m, np.zeros(m.grid.shape, np.float32), scale=_SCALE)["top"].copy()
-    for o in ground_truth["objects"]:
-        a = _pixel(m, o["aabb_max"])
-        b = _pixel(m, o["aabb_min"])
+    for o in ground_truth.objects:
+        a = _pixel(m, o.aabb_max)
+        b = _pixel(m, o.aabb_min)
         cv2.rectangle(img, a, b, _GREEN, 1)
-        cv2.putText(img, o["label"], (a[0], a[1] - 3), cv2.FONT_HERSHEY_SIMPLEX, 0.35, _WHITE, 1)
-    for e in ground_truth.get("sound_events", []):
-        c = _pixel(m, e["table_point"])
+        cv2.putText(img, o.label, (a[0], a[1] - 3), cv2.FONT_HERSHEY_SIMPLEX, 0.35, _WHITE, 1)
+    for e in ground_truth.sound_events:
+        c = _pixel(m, e.table_point)
         cv2.circle(img, c, 9, _BLUE, 2)
         cv2.putText(
-            img, e["category"], (c[0] + 10, c[1] + 4), cv2.FONT_HERSHEY_SIMPLEX, 0.35, _BLUE, 1
+            img, e.category, (c[0] + 10, c[1] + 4), cv2.FONT_HERSHEY_SIMPLEX, 0.35, _BLUE, 1
         )
     for g in goals:  # truths smaller than 2 cm across (spatial points, image cameras)
         b = regions[g.goal_id].boxes
@@ -288,7 +289,9 @@ def _labelled(img: np.ndarray, text: str) -> np.ndarray:
     return np.vstack([bar, img])
 
 
-def write_task_figures(out_dir, tf, encoders, m, ground_truth, goals, regions, ctx) -> dict:
+def write_task_figures(
+    out_dir, tf, encoders, m, ground_truth: GroundTruth, goals, regions, ctx
+) -> dict:
     """Write the scene picture, heatmaps and query images of one task file; return
     {name: path relative to the report directory (two levels up)}."""
     from tabletop.mapping.render import heatmap_views

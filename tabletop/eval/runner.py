@@ -34,6 +34,7 @@ from tabletop.eval.harness import (
 from tabletop.eval.results import EncoderRun, GoalResult, TaskRun
 from tabletop.eval.tasks import Goal, Landmark, TaskFile, TaskFileError, load_tasks
 from tabletop.eval.truth import Region, resolve_truth
+from tabletop.sim.ground_truth import GroundTruth
 
 __all__ = [
     "DEFAULT_CACHE_DIR",
@@ -97,7 +98,7 @@ class _Context:
         self.map = avlmap
         self.spec = spec
         self.rec = rec
-        self.gt = rec.ground_truth
+        self.gt = GroundTruth.of(rec)
         self._world = None
         self.images: dict[str, np.ndarray] = {}  # goal id -> rendered query image
         self.heatmaps: dict[str, list] = {}  # goal id -> [(label, values)], for the report
@@ -308,9 +309,9 @@ def evaluate_task_file(
         raise
     # Resolve every truth before anything moves: a wrong reference is a task-file error.
     where = str(tf.path or tf.name)
+    truth = GroundTruth.of(rec)
     regions = {
-        g.id: resolve_truth(g.truth, rec.ground_truth, f"{where} goal {g.id!r} truth")
-        for g in tf.goals
+        g.id: resolve_truth(g.truth, truth, f"{where} goal {g.id!r} truth") for g in tf.goals
     }
     robot = SimArm(m, spec)
     ctx = _Context(robot, m, spec, rec)
@@ -341,7 +342,7 @@ def evaluate_task_file(
             from tabletop.eval.report import write_task_figures
 
             run.figures = write_task_figures(
-                figures_dir, tf, encoders, m, rec.ground_truth, results, regions, ctx
+                figures_dir, tf, encoders, m, truth, results, regions, ctx
             )
     finally:
         ctx.close()

@@ -20,6 +20,7 @@ import numpy as np
 
 from tabletop.eval.tasks import FORMAT_NAME, FORMAT_VERSION, Truth, parse_tasks
 from tabletop.eval.truth import resolve_truth, sound_occurrences
+from tabletop.sim.ground_truth import GroundTruth, ObjectTruth
 from tabletop.transforms import aabb_distance
 
 __all__ = ["DEFAULT_SUITES", "generate_suite", "to_toml", "write_default_suites"]
@@ -101,17 +102,17 @@ def to_toml(doc: dict, header: str = "") -> str:
 
 
 # ---------------------------------------------------------------------------- goal drawing
-def _box_dist(p, o) -> float:
-    return aabb_distance(p, o["aabb_min"], o["aabb_max"])
+def _box_dist(p, o: ObjectTruth) -> float:
+    return aabb_distance(p, o.aabb_min, o.aabb_max)
 
 
-def _xy_clear(p, objects, exclude=(), margin: float = 0.03) -> bool:
+def _xy_clear(p, objects: tuple[ObjectTruth, ...], exclude=(), margin: float = 0.03) -> bool:
     """The point's column is at least ``margin`` [m] from every object box but ``exclude``."""
     for o in objects:
-        if o["name"] in exclude:
+        if o.name in exclude:
             continue
         q = np.array([p[0], p[1], 0.0])
-        lo, hi = np.array(o["aabb_min"]), np.array(o["aabb_max"])
+        lo, hi = np.array(o.aabb_min), np.array(o.aabb_max)
         d = np.maximum(lo[:2] - q[:2], 0) + np.maximum(q[:2] - hi[:2], 0)
         if np.linalg.norm(d) < margin:
             return False
@@ -144,7 +145,7 @@ def generate_suite(
     name: str,
     scene: dict,
     scan: dict,
-    ground_truth: dict,
+    ground_truth: GroundTruth,
     counts: dict,
     seed: int = 0,
     map_section: dict | None = None,
@@ -153,14 +154,14 @@ def generate_suite(
     """A task document (dict) for one scene from its recording's ground truth."""
     rng = np.random.default_rng(seed)
     gt = ground_truth
-    objs = [o for o in gt["objects"] if _reachable(o["center"])]
-    by_name = {o["name"]: o for o in gt["objects"]}
-    kinds = [o["kind"] for o in gt["objects"]]
-    dup_kinds = sorted({k for k in kinds if kinds.count(k) > 1})
-    events = sorted(gt.get("sound_events", []), key=lambda e: e["onset_s"])
-    cats = [e["category"] for e in events]
-    unique_events = [e for e in events if cats.count(e["category"]) == 1]
-    caption = {e["category"]: e["caption"] for e in events}
+    objs = [o for o in gt.objects if _reachable(o.center)]
+    by_name = {o.name: o for o in gt.objects}
+    kinds = [o.kind for o in gt.objects]
+    dup_kinds = list(gt.duplicated_kinds)
+    events = list(gt.sound_events_by_onset)
+    cats = [e.category for e in events]
+    unique_events = [e for e in events if cats.count(e.category) == 1]
+    caption = {e.category: e.caption for e in events}
     goals: list[dict] = []
 
     def add(gid, gtype, text, truth, **kw):
@@ -175,63 +176,61 @@ def generate_suite(
     # object goals: a colour and a noun, unambiguous in the scene
     for o in pick(objs, counts["object"]):
         add(
-            f"object-{o['name']}",
+            f"object-{o.name}",
             "object",
-            _the(o["label"]),
-            {"object": o["name"]},
-            query={"obj": o["label"]},
+            _the(o.label),
+            {"object": o.name},
+            query={"obj": o.label},
         )
     # sound goals: every category inserted (a repeated one counts wherever it was heard)
     for cat in pick(dict.fromkeys(cats), counts["sound"]):
         add(f"sound-{cat}", "sound", caption[cat], {"sound": cat}, query={"sound": caption[cat]})
     # image goals: views from above a reachable table point near an object
     for i, o in enumerate(pick(objs, counts["image"])):
-        v = _view(rng, o["center"][:2])
+        v = _view(rng, o.center[:2])
         add(
             f"image-{i}",
             "image",
-            f"where this image was taken (over the {o['label']})",
+            f"where this image was taken (over the {o.label})",
             {"camera": v["eye"]},
             query={"img": v},
         )
     # area goals
-    for a in pick([a for a in gt["areas"]], counts["area"]):
+    for a in pick(list(gt.areas), counts["area"]):
         add(
-            f"area-{a['name'].replace(' ', '-')}",
+            f"area-{a.name.replace(' ', '-')}",
             "area",
-            _the(a["name"]),
-            {"area": a["name"]},
-            query={"area": a["name"]},
+            _the(a.name),
+            {"area": a.name},
+            query={"area": a.name},
         )
     # ambiguous: a duplicated kind disambiguated by a sound heard near one of them
     amb = []
     for k in dup_kinds:
-        dups = [o for o in gt["objects"] if o["kind"] == k]
+        dups = gt.objects_of_kind(k)
         for e in unique_events:
-            d = sorted((_box_dist(e["table_point"], o), o["name"]) for o in dups)
+            d = sorted((_box_dist(e.table_point, o), o.name) for o in dups)
             if d[1][0] - d[0][0] >= 0.10:
                 amb.append((by_name[d[0][1]], e))
     for o, e in pick(amb, counts["amb_sound"]):
         add(
-            f"ambiguous-{o['name']}-sound-{e['category']}",
+            f"ambiguous-{o.name}-sound-{e.category}",
             "ambiguous",
-            f"the {o['category']} near {e['caption']}",
-            {"object": o["name"]},
-            query={"obj": o["category"], "sound": e["caption"]},
+            f"the {o.category} near {e.caption}",
+            {"object": o.name},
+            query={"obj": o.category, "sound": e.caption},
             primary="obj",
         )
     # ambiguous: a duplicated kind disambiguated by an image taken above one of them
-    amb_img = [
-        o for k in dup_kinds for o in gt["objects"] if o["kind"] == k and _reachable(o["center"])
-    ]
+    amb_img = [o for k in dup_kinds for o in gt.objects_of_kind(k) if _reachable(o.center)]
     for o in pick(amb_img, counts["amb_image"]):
-        v = _view(rng, o["center"][:2])
+        v = _view(rng, o.center[:2])
         add(
-            f"ambiguous-{o['name']}-image",
+            f"ambiguous-{o.name}-image",
             "ambiguous",
-            f"the {o['category']} near this image",
-            {"object": o["name"]},
-            query={"obj": o["category"], "img": v},
+            f"the {o.category} near this image",
+            {"object": o.name},
+            query={"obj": o.category, "img": v},
             primary="obj",
         )
     # ambiguous: a sound heard in two places, disambiguated by an object near one of them
@@ -239,45 +238,44 @@ def generate_suite(
     for cat in sorted({c for c in cats if cats.count(c) > 1}):
         occ = sound_occurrences(gt, cat)
         for i, e in enumerate(occ):
-            for o in gt["objects"]:
-                if kinds.count(o["kind"]) > 1:
+            for o in gt.objects:
+                if kinds.count(o.kind) > 1:
                     continue
-                mine = _box_dist(e["table_point"], o)
-                other = min(_box_dist(x["table_point"], o) for j, x in enumerate(occ) if j != i)
+                mine = _box_dist(e.table_point, o)
+                other = min(_box_dist(x.table_point, o) for j, x in enumerate(occ) if j != i)
                 if mine <= 0.15 and other - mine >= 0.15:
                     amb_obj.append((cat, i, o))
     for cat, i, o in pick(amb_obj, counts["amb_object"]):
         add(
-            f"ambiguous-sound-{cat}-{i}-near-{o['name']}",
+            f"ambiguous-sound-{cat}-{i}-near-{o.name}",
             "ambiguous",
-            f"{caption[cat]} near the {o['label']}",
+            f"{caption[cat]} near the {o.label}",
             {"sound": cat, "occurrence": i},
-            query={"obj": o["label"], "sound": caption[cat]},
+            query={"obj": o.label, "sound": caption[cat]},
             primary="sound",
         )
     # ambiguous: a duplicated kind disambiguated by the table area it is in
     amb_area = []
     for k in dup_kinds:
-        dups = [o for o in gt["objects"] if o["kind"] == k]
-        for a in gt["areas"]:
+        dups = gt.objects_of_kind(k)
+        for a in gt.areas:
             inside = [
                 o
                 for o in dups
-                if a["x"][0] <= o["center"][0] <= a["x"][1]
-                and a["y"][0] <= o["center"][1] <= a["y"][1]
+                if a.x[0] <= o.center[0] <= a.x[1] and a.y[0] <= o.center[1] <= a.y[1]
             ]
-            if len(inside) == 1 and a["name"] in (
+            if len(inside) == 1 and a.name in (
                 "left side of the table",
                 "right side of the table",
             ):
                 amb_area.append((inside[0], a))
     for o, a in pick(amb_area, counts["amb_area"]):
         add(
-            f"ambiguous-{o['name']}-area",
+            f"ambiguous-{o.name}-area",
             "ambiguous",
-            f"the {o['category']} on the {a['name']}",
-            {"object": o["name"]},
-            query={"obj": o["category"], "area": a["name"]},
+            f"the {o.category} on the {a.name}",
+            {"object": o.name},
+            query={"obj": o.category, "area": a.name},
             primary="obj",
         )
     # spatial: between two objects, beside one (the truth point must be free table)
@@ -287,18 +285,18 @@ def generate_suite(
             t = Truth(
                 "relation",
                 relation="between",
-                of=(Truth("object", object=a["name"]), Truth("object", object=b["name"])),
+                of=(Truth("object", object=a.name), Truth("object", object=b.name)),
             )
             p = resolve_truth(t, gt).center
             if (
-                _xy_clear(p, gt["objects"])
-                and 0.12 <= np.linalg.norm(np.subtract(a["center"], b["center"])) <= 0.45
+                _xy_clear(p, gt.objects)
+                and 0.12 <= np.linalg.norm(np.subtract(a.center, b.center)) <= 0.45
             ):
                 spatial.append(("between", [a, b]))
         for rel in ("left_of", "right_of", "in_front_of", "behind"):
-            t = Truth("relation", relation=rel, of=(Truth("object", object=a["name"]),))
+            t = Truth("relation", relation=rel, of=(Truth("object", object=a.name),))
             p = resolve_truth(t, gt).center
-            if _reachable(p) and _xy_clear(p, gt["objects"], margin=0.05):
+            if _reachable(p) and _xy_clear(p, gt.objects, margin=0.05):
                 spatial.append((rel, [a]))
     words = {
         "between": "between",
@@ -309,74 +307,74 @@ def generate_suite(
     }
     for rel, os_ in pick(spatial, counts["spatial"]):
         text = (
-            f"between the {os_[0]['label']} and the {os_[1]['label']}"
+            f"between the {os_[0].label} and the {os_[1].label}"
             if rel == "between"
-            else f"{words[rel]} the {os_[0]['label']}"
+            else f"{words[rel]} the {os_[0].label}"
         )
         add(
-            f"spatial-{rel}-" + "-".join(o["name"] for o in os_),
+            f"spatial-{rel}-" + "-".join(o.name for o in os_),
             "spatial",
             text,
-            {"relation": rel, "of": [{"object": o["name"]} for o in os_]},
+            {"relation": rel, "of": [{"object": o.name} for o in os_]},
             relation=rel,
-            landmarks=[{"obj": o["label"]} for o in os_],
+            landmarks=[{"obj": o.label} for o in os_],
         )
     # multimodal spatial: between a sound and an object; beside an object found by a sound
     mm = []
     for e in unique_events:
         for o in objs:
-            mid = (np.array(e["table_point"]) + np.array(o["center"])) / 2
-            d = np.linalg.norm(np.subtract(e["table_point"][:2], o["center"][:2]))
-            if _xy_clear(mid, gt["objects"]) and 0.12 <= d <= 0.45:
+            mid = (np.array(e.table_point) + np.array(o.center)) / 2
+            d = np.linalg.norm(np.subtract(e.table_point[:2], o.center[:2]))
+            if _xy_clear(mid, gt.objects) and 0.12 <= d <= 0.45:
                 mm.append(("between-sound", e, o))
     for o, e in amb:
         for rel in ("left_of", "right_of", "in_front_of", "behind"):
-            t = Truth("relation", relation=rel, of=(Truth("object", object=o["name"]),))
+            t = Truth("relation", relation=rel, of=(Truth("object", object=o.name),))
             p = resolve_truth(t, gt).center
-            if _reachable(p) and _xy_clear(p, gt["objects"], margin=0.05):
+            if _reachable(p) and _xy_clear(p, gt.objects, margin=0.05):
                 mm.append((rel, e, o))
     for kind, e, o in pick(mm, counts["mm_spatial"]):
         if kind == "between-sound":
             add(
-                f"mm-between-{e['category']}-{o['name']}",
+                f"mm-between-{e.category}-{o.name}",
                 "multimodal_spatial",
-                f"between {e['caption']} and the {o['label']}",
-                {"relation": "between", "of": [{"sound": e["category"]}, {"object": o["name"]}]},
+                f"between {e.caption} and the {o.label}",
+                {"relation": "between", "of": [{"sound": e.category}, {"object": o.name}]},
                 relation="between",
-                landmarks=[{"sound": e["caption"]}, {"obj": o["label"]}],
+                landmarks=[{"sound": e.caption}, {"obj": o.label}],
             )
         else:
             add(
-                f"mm-{kind}-{o['name']}-{e['category']}",
+                f"mm-{kind}-{o.name}-{e.category}",
                 "multimodal_spatial",
-                f"{words[kind]} the {o['category']} near {e['caption']}",
-                {"relation": kind, "of": [{"object": o["name"]}]},
+                f"{words[kind]} the {o.category} near {e.caption}",
+                {"relation": kind, "of": [{"object": o.name}]},
                 relation=kind,
-                landmarks=[{"obj": o["category"], "sound": e["caption"]}],
+                landmarks=[{"obj": o.category, "sound": e.caption}],
             )
     # free-language instructions, phrased as a person would, through the instruction parser
     verbs = ["go to", "move to", "reach", "approach"]
     inst = []
     for o in objs:
-        inst.append((f"{{v}} the {o['label']}", {"object": o["name"]}))
+        inst.append((f"{{v}} the {o.label}", {"object": o.name}))
     for cat in dict.fromkeys(cats):
         if cats.count(cat) == 1:
             inst.append((f"{{v}} {caption[cat]}", {"sound": cat}))
     for o, e in amb:
-        inst.append((f"{{v}} the {o['category']} near {e['caption']}", {"object": o["name"]}))
+        inst.append((f"{{v}} the {o.category} near {e.caption}", {"object": o.name}))
     for rel, os_ in spatial:
         if rel == "between":
             inst.append(
                 (
-                    f"move in between the {os_[0]['label']} and the {os_[1]['label']}",
-                    {"relation": rel, "of": [{"object": o["name"]} for o in os_]},
+                    f"move in between the {os_[0].label} and the {os_[1].label}",
+                    {"relation": rel, "of": [{"object": o.name} for o in os_]},
                 )
             )
         else:
             inst.append(
                 (
-                    f"go {words[rel]} the {os_[0]['label']}",
-                    {"relation": rel, "of": [{"object": os_[0]["name"]}]},
+                    f"go {words[rel]} the {os_[0].label}",
+                    {"relation": rel, "of": [{"object": os_[0].name}]},
                 )
             )
     for j, (text, truth) in enumerate(pick(inst, counts["instruction"])):
@@ -405,10 +403,10 @@ def generate_suite(
     return doc
 
 
-def _scan_ground_truth(scene: dict, scan: dict, cache_dir) -> dict:
+def _scan_ground_truth(scene: dict, scan: dict, cache_dir) -> GroundTruth:
     from tabletop.eval.runner import scan_recording
 
-    return scan_recording(scene, scan, cache_dir)[0].ground_truth
+    return GroundTruth.of(scan_recording(scene, scan, cache_dir)[0])
 
 
 def write_default_suites(out_dir: Path, cache_dir="out/eval-cache", only=None) -> list[Path]:

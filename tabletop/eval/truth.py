@@ -16,6 +16,13 @@ from tabletop.eval.calibration import AREA_HEIGHT_M
 from tabletop.eval.map_goals import heard_column
 from tabletop.eval.tasks import TaskFileError, Truth
 from tabletop.robot.api import SpatialConfig
+from tabletop.sim.ground_truth import (
+    AreaTruth,
+    GroundTruth,
+    NotInGroundTruth,
+    ObjectTruth,
+    SoundEventTruth,
+)
 
 __all__ = ["AREA_HEIGHT_M", "Region", "resolve_truth", "sound_occurrences"]
 
@@ -58,28 +65,23 @@ def _region(boxes, description: str) -> Region:
     return Region(b, description)
 
 
-def sound_occurrences(ground_truth: dict, category: str) -> list[dict]:
-    """The sound events of ``category``, in time order."""
-    events = sorted(ground_truth.get("sound_events", []), key=lambda e: e["onset_s"])
-    return [e for e in events if e["category"] == category]
+def sound_occurrences(ground_truth: GroundTruth, category: str) -> list[SoundEventTruth]:
+    """The sound events of ``category``, in time order (empty when it was not inserted)."""
+    return [e for e in ground_truth.sound_events_by_onset if e.category == category]
 
 
-def _object(gt: dict, name: str, where: str) -> dict:
-    for o in gt["objects"]:
-        if o["name"] == name:
-            return o
-    raise TaskFileError(
-        f"{where}: no object {name!r} in the scene; objects: {[o['name'] for o in gt['objects']]}"
-    )
+def _object(gt: GroundTruth, name: str, where: str) -> ObjectTruth:
+    try:
+        return gt.object(name)
+    except NotInGroundTruth as e:
+        raise TaskFileError(f"{where}: {e}") from None
 
 
-def _sound_events(gt: dict, t: Truth, where: str) -> list[dict]:
-    occ = sound_occurrences(gt, t.sound)
-    if not occ:
-        inserted = sorted({e["category"] for e in gt.get("sound_events", [])})
-        raise TaskFileError(
-            f"{where}: sound {t.sound!r} was not inserted in this scan; inserted: {inserted}"
-        )
+def _sound_events(gt: GroundTruth, t: Truth, where: str) -> list[SoundEventTruth]:
+    try:
+        occ = list(gt.sound_events_of(t.sound))
+    except NotInGroundTruth as e:
+        raise TaskFileError(f"{where}: {e}") from None
     if t.occurrence is not None:
         if t.occurrence >= len(occ):
             raise TaskFileError(
@@ -90,18 +92,18 @@ def _sound_events(gt: dict, t: Truth, where: str) -> list[dict]:
     return occ
 
 
-def _area(gt: dict, name: str, where: str) -> dict:
-    for a in gt["areas"]:
-        if a["name"] == name or name in a.get("aliases", ()):
-            return a
-    raise TaskFileError(f"{where}: no area {name!r}; areas: {[a['name'] for a in gt['areas']]}")
+def _area(gt: GroundTruth, name: str, where: str) -> AreaTruth:
+    try:
+        return gt.area(name)
+    except NotInGroundTruth as e:
+        raise TaskFileError(f"{where}: {e}") from None
 
 
-def _anchor(gt: dict, t: Truth, where: str) -> tuple[np.ndarray, np.ndarray]:
+def _anchor(gt: GroundTruth, t: Truth, where: str) -> tuple[np.ndarray, np.ndarray]:
     """(centre (3,), half extents (3,)) [m] of a truth used as a relation's landmark."""
     if t.kind == "object":
         o = _object(gt, t.object, where)
-        lo, hi = np.array(o["aabb_min"]), np.array(o["aabb_max"])
+        lo, hi = np.array(o.aabb_min), np.array(o.aabb_max)
         return (lo + hi) / 2, (hi - lo) / 2
     if t.kind == "sound":
         occ = _sound_events(gt, t, where)
@@ -110,11 +112,11 @@ def _anchor(gt: dict, t: Truth, where: str) -> tuple[np.ndarray, np.ndarray]:
                 f"{where}: sound {t.sound!r} was heard in {len(occ)} places; a relation needs "
                 f"one: give occurrence = 0..{len(occ) - 1}"
             )
-        return np.array(occ[0]["table_point"], np.float64), np.zeros(3)
+        return np.array(occ[0].table_point, np.float64), np.zeros(3)
     if t.kind == "area":
         a = _area(gt, t.area, where)
-        c = np.array([np.mean(a["x"]), np.mean(a["y"]), 0.0])
-        return c, np.array([np.ptp(a["x"]) / 2, np.ptp(a["y"]) / 2, 0.0])
+        c = np.array([np.mean(a.x), np.mean(a.y), 0.0])
+        return c, np.array([np.ptp(a.x) / 2, np.ptp(a.y) / 2, 0.0])
     if t.kind in ("point", "camera"):
         p = np.array(t.point, np.float64)
         if t.kind == "camera":
@@ -151,9 +153,9 @@ def relation_point(
     return p
 
 
-def resolve_truth(t: Truth, ground_truth: dict, where: str = "truth") -> Region:
+def resolve_truth(t: Truth, ground_truth: GroundTruth, where: str = "truth") -> Region:
     """The :class:`Region` a :class:`~tabletop.eval.tasks.Truth` names in a recording's ground
-    truth.
+    truth (:meth:`GroundTruth.of(recording) <tabletop.sim.GroundTruth.of>`).
 
     Raises:
         TaskFileError: a reference the recording does not have (naming the valid ones).
@@ -161,15 +163,15 @@ def resolve_truth(t: Truth, ground_truth: dict, where: str = "truth") -> Region:
     gt = ground_truth
     if t.kind == "object":
         o = _object(gt, t.object, where)
-        return _region([[o["aabb_min"], o["aabb_max"]]], f"box of {t.object}")
+        return _region([[o.aabb_min, o.aabb_max]], f"box of {t.object}")
     if t.kind == "sound":
         boxes = [heard_column(e) for e in _sound_events(gt, t, where)]
         return _region(boxes, f"where {t.sound!r} was heard ({len(boxes)} place(s))")
     if t.kind == "area":
         a = _area(gt, t.area, where)
-        lo = [a["x"][0], a["y"][0], 0.0]
-        hi = [a["x"][1], a["y"][1], AREA_HEIGHT_M]
-        return _region([[lo, hi]], f"area {a['name']!r}")
+        lo = [a.x[0], a.y[0], 0.0]
+        hi = [a.x[1], a.y[1], AREA_HEIGHT_M]
+        return _region([[lo, hi]], f"area {a.name!r}")
     if t.kind == "point":
         return _region([[t.point, t.point]], f"point {list(t.point)}")
     if t.kind == "camera":

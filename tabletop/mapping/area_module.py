@@ -9,6 +9,7 @@ evidence is the best score's margin over the median frame.
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -16,9 +17,21 @@ from tabletop.errors import ConfigError
 from tabletop.grid import VoxelGrid
 from tabletop.mapping.heatmaps import Heatmap, scored_points_heatmap_xy
 
-__all__ = ["AreaModule", "look_at_table", "normalize_scores"]
+__all__ = ["AreaConfig", "AreaModule", "look_at_table", "normalize_scores"]
 
 Judge = Callable[[str, float], tuple[float, bool]]
+
+
+@dataclass(frozen=True)
+class AreaConfig:
+    """Which views carry an area."""
+
+    top_score: float = 0.8
+    """Frames whose min-max normalised score reaches this carry the area."""
+
+    def __post_init__(self) -> None:
+        if not 0 < self.top_score <= 1:
+            raise ConfigError(f"top_score must be in (0, 1], got {self.top_score}")
 
 
 def normalize_scores(s: np.ndarray) -> np.ndarray:
@@ -42,11 +55,9 @@ class AreaModule:
     """Per-frame global embeddings (``embeddings``: list of (dim,) float32) and camera poses
     (``poses``: list of (4, 4) ``T_world_cam``)."""
 
-    def __init__(self, grid: VoxelGrid, top_score: float = 0.8) -> None:
-        if not 0 < top_score <= 1:
-            raise ConfigError(f"top_score must be in (0, 1], got {top_score}")
+    def __init__(self, grid: VoxelGrid, config: AreaConfig | None = None) -> None:
         self.grid = grid
-        self.top_score = float(top_score)
+        self.config = config or AreaConfig()
         self.embeddings: list[np.ndarray] = []
         self.poses: list[np.ndarray] = []
 
@@ -67,7 +78,7 @@ class AreaModule:
         s = np.stack(self.embeddings) @ text.encode_text([query])[0]
         scores = normalize_scores(s)
         pts = look_at_table(np.stack(self.poses))
-        top = scores >= self.top_score
+        top = scores >= self.config.top_score
         values = scored_points_heatmap_xy(self.grid, pts[top], scores[top], decay)
         margin = float(s.max()) - float(np.median(s))
         conf, found = judge("area", margin)

@@ -14,6 +14,7 @@ for a sound that never played is refused instead of being found by fiat.
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -23,7 +24,7 @@ from tabletop.mapping.area_module import normalize_scores
 from tabletop.mapping.audio_segments import AudioSegment, NoiseGateConfig, segment_audio
 from tabletop.mapping.heatmaps import Heatmap, scored_points_heatmap_xy
 
-__all__ = ["REFERENCE_SOUNDS", "AudioModule"]
+__all__ = ["REFERENCE_SOUNDS", "AudioConfig", "AudioModule"]
 
 #: Generic sound descriptions that stand in for the typical score of a map with one or two
 #: sound segments.
@@ -45,13 +46,30 @@ REFERENCE_SOUNDS = (
 Judge = Callable[[str, float], tuple[float, bool]]
 
 
+@dataclass(frozen=True)
+class AudioConfig:
+    """How the audio module cuts a track and judges a query."""
+
+    gate: NoiseGateConfig = field(default_factory=NoiseGateConfig)
+    """The noise gate and silence segmentation."""
+    reference_sounds: tuple[str, ...] = REFERENCE_SOUNDS
+    """Descriptions that stand in for the typical score of a map with one or two segments."""
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.gate, NoiseGateConfig):
+            raise ConfigError(f"gate must be a NoiseGateConfig, got {type(self.gate).__name__}")
+        if len(self.reference_sounds) < 3:
+            raise ConfigError("give at least 3 reference sounds")
+        object.__setattr__(self, "reference_sounds", tuple(self.reference_sounds))
+
+
 class AudioModule:
     """Segments (``segments``), their embeddings (``embeddings``: (dim,) float32 each) and
     places (``positions``: (3,) [m] world frame, the mean microphone position while heard)."""
 
-    def __init__(self, grid: VoxelGrid, gate: NoiseGateConfig | None = None) -> None:
+    def __init__(self, grid: VoxelGrid, config: AudioConfig | None = None) -> None:
         self.grid = grid
-        self.gate = gate or NoiseGateConfig()
+        self.config = config or AudioConfig()
         self.segments: list[AudioSegment] = []
         self.embeddings: list[np.ndarray] = []
         self.positions: list[np.ndarray] = []
@@ -80,7 +98,7 @@ class AudioModule:
         if not len(timestamps):
             raise ConfigError("a track needs the poses of at least one frame")
         mic = T_world_mic[:, :3, 3]
-        segs = segment_audio(audio, sample_rate, self.gate)
+        segs = segment_audio(audio, sample_rate, self.config.gate)
         for seg in segs:
             heard = (timestamps >= seg.start_s) & (timestamps <= seg.end_s)
             if not heard.any():
@@ -107,7 +125,8 @@ class AudioModule:
         values = scored_points_heatmap_xy(self.grid, pos, normalize_scores(s), decay)
         typical = s
         if len(s) <= 2:
-            typical = np.concatenate([s, text.encode_text(list(REFERENCE_SOUNDS)) @ q])
+            refs = text.encode_text(list(self.config.reference_sounds))
+            typical = np.concatenate([s, refs @ q])
         floor = float(np.median(typical))
         margin = float(s.max()) - floor
         conf, found = judge("sound", margin)

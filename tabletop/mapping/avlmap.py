@@ -19,30 +19,36 @@ uncalibrated prior when none is), saved with it and restored on load.
 
 from __future__ import annotations
 
+import logging
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Protocol
 
 import numpy as np
 
-from tabletop.errors import ConfigError
+from tabletop.errors import ConfigError, TabletopError
 from tabletop.mapping.area_module import AreaModule
 from tabletop.mapping.audio_module import AudioModule
+from tabletop.mapping.audio_segments import AudioSegment
 from tabletop.mapping.calibration import Calibration
 from tabletop.mapping.config import MapConfig
 from tabletop.mapping.encoders.base import check_same_space
+from tabletop.mapping.errors import MapFormatError
 from tabletop.mapping.heatmaps import Heatmap
 from tabletop.mapping.object_module import ObjectModule
+from tabletop.mapping.persistence import read_map_file, save_map
 from tabletop.mapping.targets import max_position
-from tabletop.mapping.visual.database import VisualDatabase
+from tabletop.mapping.visual.database import VisualDatabase, VisualDatabaseError
 from tabletop.mapping.visual.localization import VisualLocalization
-from tabletop.mapping.visual.module import VisualModule
+from tabletop.mapping.visual.module import VisualModule, VisualModuleConfig
 from tabletop.mapping.visual.photometric import PhotometricCheck
 from tabletop.mapping.voxel_map import VoxelMap, frame_points
 
 __all__ = ["AVLMap", "MapStats", "SelfFilter"]
+
+log = logging.getLogger(__name__)
 
 
 class SelfFilter(Protocol):
@@ -124,14 +130,15 @@ class AVLMap:
         self.rebuild_info = dict(rebuild_info or {})
         self.self_filter = self_filter
         self.voxels = VoxelMap(self.grid, text.dim)
-        self.objects = ObjectModule(self.voxels, text, config.select_margin)
+        self.objects = ObjectModule(self.voxels, text, config.object)
         """The object module."""
-        self.areas = AreaModule(self.grid, config.area_top_score)
+        self.areas = AreaModule(self.grid, config.area)
         """The area module (per-frame global embeddings and camera poses)."""
-        self.sounds = AudioModule(self.grid, config.gate)
+        self.sounds = AudioModule(self.grid, config.audio)
         """The audio module (segments, embeddings, where each was heard)."""
-        db = None if config.visual is None else VisualDatabase(config.visual)
-        self.images = VisualModule(self.voxels, db, config.image_target_px)
+        visual = config.visual
+        db = None if visual is None else VisualDatabase(visual.localization)
+        self.images = VisualModule(self.voxels, db, 0.2 if visual is None else visual.target_px)
         """The visual localization module (its ``database`` is None: no image goals)."""
         self.lacks: tuple[str, ...] = ()
         """What a map loaded from an older file format lacks (empty for a new map)."""
@@ -162,7 +169,7 @@ class AVLMap:
     ) -> None:
         """Fuse one RGB-D frame (online). ``context`` feeds the encoders (oracle: segmentation);
         with ``joint_positions`` and a self-filter the robot's own points are dropped. Every
-        ``config.visual.stride``-th frame is kept as a visual reference frame."""
+        ``config.visual.localization.stride``-th frame is kept as a visual reference frame."""
         i = self._frames_seen
         self._frames_seen += 1
         if self.visual is not None:
@@ -268,17 +275,93 @@ class AVLMap:
 
     def save(self, path) -> Path:
         """Write the map to ``path`` (.npz); see :mod:`tabletop.mapping.persistence`."""
-        from tabletop.mapping.persistence import save_map
-
         return save_map(self, path)
 
     @classmethod
     def load(cls, path, *, calibration: Calibration | None = None) -> AVLMap:
-        """Load a map saved by :meth:`save`, re-creating its encoder set; ``calibration``
-        replaces the one saved with it (see :func:`~tabletop.mapping.persistence.load_map`)."""
-        from tabletop.mapping.persistence import load_map
+        """Load a map saved by :meth:`save`, re-creating its encoder set (file format:
+        :mod:`tabletop.mapping.persistence`). ``calibration`` replaces the calibration saved with
+        the map (a map of format 1-2 saved none: it gets the uncalibrated prior unless one is
+        given). What an older file lacks is listed in :attr:`lacks`."""
+        from tabletop.mapping.encoders.registry import make_encoders_from_rebuild
 
-        return load_map(path, calibration=calibration)
+        h, a = read_map_file(path)
+        lacks: list[str] = []
+        try:
+            c = dict(h["config"])
+            saved_visual = c.pop("visual", None) or {}
+            target_px = float(saved_visual.get("target_px", VisualModuleConfig().target_px))
+            if h["version"] < 3:
+                lacks.append("its image target's size and the area module's config (defaults)")
+            config = MapConfig.from_dict({**c, "visual": None})  # visual: with its frames below
+        except (KeyError, TypeError, ConfigError) as e:
+            raise MapFormatError(f"{path}: config is invalid: {e}") from None
+        if calibration is None:
+            if h.get("calibration") is not None:
+                try:
+                    calibration = Calibration.from_json(h["calibration"], f"{path}: calibration")
+                except TabletopError as e:
+                    raise MapFormatError(str(e)) from None
+            else:
+                lacks.append("a saved calibration (the uncalibrated prior is used)")
+        enc = make_encoders_from_rebuild(h["encoder_set"], h["rebuild"])
+        if enc.text.space != h["space"] or enc.text.dim != h["dim"]:
+            raise MapFormatError(
+                f"{path}: built in space {h['space']!r} ({h['dim']}-d), but its encoders now "
+                f"give {enc.text.space!r} ({enc.text.dim}-d)"
+            )
+        m = cls(
+            config,
+            enc.text,
+            enc.dense,
+            enc.global_image,
+            enc.audio,
+            h["encoders"],
+            h["encoder_set"],
+            h["rebuild"],
+            enc.audio_text,
+            calibration=calibration,
+        )
+        try:
+            voxels = VoxelMap.from_state(
+                config.grid,
+                h["dim"],
+                {
+                    "linear": a["voxel_linear"],
+                    "feature_sums": a["voxel_feature_sums"],
+                    "counts": a["voxel_counts"],
+                    "color_sums": a["voxel_color_sums"],
+                },
+            )
+        except ConfigError as e:
+            raise MapFormatError(f"{path}: {e}") from None
+        m.voxels = m.objects.voxels = m.images.voxels = voxels  # the modules share it
+        for e, T in zip(a["frame_embeddings"], a["frame_poses"], strict=True):
+            m.areas.add(e, T)
+        try:
+            m.sounds.segments = [AudioSegment(float(s0), float(s1)) for s0, s1 in h["segments"]]
+        except (TypeError, ValueError) as e:
+            raise MapFormatError(f"{path}: header 'segments' is malformed: {e}") from None
+        m.sounds.embeddings = list(a["segment_embeddings"])
+        m.sounds.positions = list(a["segment_positions"])
+        m._frames_seen = int(h["frames_seen"])
+        if h.get("visual") is not None:
+            visual = {k.removeprefix("visual_"): v for k, v in a.items() if k.startswith("visual_")}
+            try:
+                db = VisualDatabase.from_state(h["visual"], visual)
+            except VisualDatabaseError as e:
+                raise VisualDatabaseError(f"{path}: {e}") from None
+            m.images.database = db
+            m.images.target_px = target_px
+            m.config = replace(
+                config, visual=VisualModuleConfig(localization=db.config, target_px=target_px)
+            )
+        elif h["version"] == 1:
+            lacks.append("the visual localization module (image goals are not found)")
+        m.lacks = tuple(lacks)
+        for what in lacks:
+            log.info("%s (format %s) lacks %s", path, h["version"], what)
+        return m
 
     @property
     def stats(self) -> MapStats:

@@ -109,7 +109,7 @@ def run_map_benchmark(recording, reference_frames: int = 3) -> dict:
     s, beats = m.object_scores(q)
     cand = np.nonzero(beats)[0]
     best = s[cand].max()
-    keep = cand[s[cand] >= best - m.config.select_margin * (best - np.median(s))]
+    keep = cand[s[cand] >= best - m.config.object.select_margin * (best - np.median(s))]
     pts = m.voxels.centers[keep]
     t0 = time.perf_counter()
     ref = reference_object_heatmap(m, pts, m.config.major_decay)

@@ -1,4 +1,8 @@
-"""How a map is built and queried: :class:`MapConfig`, saved with the map and restored exactly."""
+"""How a map is built and queried: :class:`MapConfig`, saved with the map and restored exactly.
+
+Each module's parameters live in its own config, next to the module: :class:`ObjectConfig`,
+:class:`AreaConfig`, :class:`AudioConfig` and :class:`VisualModuleConfig`.
+"""
 
 from __future__ import annotations
 
@@ -6,12 +10,18 @@ from dataclasses import asdict, dataclass, field, fields
 
 from tabletop.errors import ConfigError
 from tabletop.grid import VoxelGrid
+from tabletop.mapping.area_module import AreaConfig
+from tabletop.mapping.audio_module import AudioConfig
 from tabletop.mapping.audio_segments import NoiseGateConfig
 from tabletop.mapping.heatmaps import AUX_DECAY, MAJOR_DECAY
-from tabletop.mapping.object_module import BACKGROUND
+from tabletop.mapping.object_module import BACKGROUND, ObjectConfig
 from tabletop.mapping.visual.localization import VisualLocalizationConfig
+from tabletop.mapping.visual.module import VisualModuleConfig
 
 __all__ = ["MapConfig"]
+
+#: Fields of map files of format 1-2, before the modules had their own configs.
+_LEGACY = {"select_margin", "gate", "image_target_px"}
 
 
 @dataclass(frozen=True)
@@ -34,74 +44,101 @@ class MapConfig:
     """Decay [1/m] of primary heatmaps (``get_major_map``)."""
     aux_decay: float = AUX_DECAY
     """Decay [1/m] of auxiliary heatmaps (``get_map``)."""
-    select_margin: float = 0.1
-    """Object module: target voxels score within this fraction of (best - median) of the
-    best."""
     min_confidence: float = 0.5
     """Below this calibrated confidence a query is not found (for a modality whose calibration
     has no operating point)."""
-    gate: NoiseGateConfig = field(default_factory=NoiseGateConfig)
-    """Audio module: the noise gate and silence segmentation."""
-    area_top_score: float = 0.8
-    """Area module: frames whose min-max normalised score reaches this carry the area."""
     self_filter_margin: float | None = 0.01
     """Drop points within this margin [m] of the robot's links, when the map is given a
     self-filter (None: keep them)."""
-    visual: VisualLocalizationConfig | None = field(default_factory=VisualLocalizationConfig)
-    """The visual localization module's reference frames and matcher (None: no image goals)."""
-    image_target_px: float = 0.2
-    """An image goal's target is the median surface point of the rays through the central
-    ``image_target_px`` fraction of the image's width and height."""
+    object: ObjectConfig = field(default_factory=ObjectConfig)
+    """The object module."""
+    area: AreaConfig = field(default_factory=AreaConfig)
+    """The area module."""
+    audio: AudioConfig = field(default_factory=AudioConfig)
+    """The audio module (noise gate, segmentation)."""
+    visual: VisualModuleConfig | None = field(default_factory=VisualModuleConfig)
+    """The visual localization module (None: no image goals). A
+    :class:`VisualLocalizationConfig` given here is taken as that module's localization."""
 
     def __post_init__(self) -> None:
         if self.pixel_step < 1 or self.frame_step < 1:
             raise ConfigError("pixel_step and frame_step must be >= 1")
+        object.__setattr__(self, "categories", tuple(self.categories))
         if "other" not in self.categories:
             raise ConfigError("categories must include 'other'")
-        if not 0 < self.image_target_px <= 1:
-            raise ConfigError(f"image_target_px must be in (0, 1], got {self.image_target_px}")
-        if not 0 < self.area_top_score <= 1:
-            raise ConfigError(f"area_top_score must be in (0, 1], got {self.area_top_score}")
         for name in ("major_decay", "aux_decay"):
             v = getattr(self, name)
             if not v > 0:
                 raise ConfigError(f"{name} must be a positive rate in 1/m, got {v}")
+        if isinstance(self.visual, VisualLocalizationConfig):
+            object.__setattr__(self, "visual", VisualModuleConfig(localization=self.visual))
+        for name, cls in (("object", ObjectConfig), ("area", AreaConfig), ("audio", AudioConfig)):
+            if not isinstance(getattr(self, name), cls):
+                raise ConfigError(
+                    f"{name} must be {cls.__name__}, got {type(getattr(self, name)).__name__}"
+                )
+        if self.visual is not None and not isinstance(self.visual, VisualModuleConfig):
+            raise ConfigError(f"visual must be a VisualModuleConfig or None, got {self.visual!r}")
 
     @property
     def objects(self) -> tuple[str, ...]:
         """The vocabulary's object names (``categories`` without the background)."""
-        return tuple(c for c in self.categories if c not in BACKGROUND)
+        return tuple(c for c in self.categories if c not in self.object.background)
 
     def to_dict(self) -> dict:
         """Plain JSON-able values of every field."""
         out = {f.name: getattr(self, f.name) for f in fields(self)}
         out["grid"] = self.grid.to_dict()
         out["categories"] = list(self.categories)
-        out["gate"] = asdict(self.gate)
-        out["visual"] = None if self.visual is None else asdict(self.visual)
+        for name in ("object", "area", "audio", "visual"):
+            v = getattr(self, name)
+            out[name] = None if v is None else _lists(asdict(v))
         return out
 
     @classmethod
     def from_dict(cls, d: dict) -> MapConfig:
-        """The config ``to_dict`` wrote; missing fields take their defaults, unknown ones are
-        an error naming the valid fields."""
+        """The config ``to_dict`` wrote (or a map file of format 1-2's flat one); missing fields
+        take their defaults, unknown ones are an error naming the valid fields."""
         if not isinstance(d, dict):
             raise ConfigError(f"a map config is a dict, got {type(d).__name__}")
         valid = [f.name for f in fields(cls)]
-        unknown = sorted(set(d) - set(valid))
+        unknown = sorted(set(d) - set(valid) - _LEGACY - {"visual"})
         if unknown:
             raise ConfigError(f"unknown map config fields {unknown}; valid: {valid}")
-        kw = dict(d)
+        kw = {k: v for k, v in d.items() if k not in _LEGACY}
         try:
             if "grid" in kw:
                 g = kw["grid"]
                 kw["grid"] = VoxelGrid(tuple(g["lower"]), tuple(g["upper"]), g["voxel_size"])
             if "categories" in kw:
                 kw["categories"] = tuple(kw["categories"])
-            if "gate" in kw:
-                kw["gate"] = NoiseGateConfig(**kw["gate"])
+            obj = dict(kw.get("object") or {})
+            if "select_margin" in d:
+                obj["select_margin"] = d["select_margin"]
+            if "background" in obj:
+                obj["background"] = tuple(obj["background"])
+            kw["object"] = ObjectConfig(**obj)
+            kw["area"] = AreaConfig(**(kw.get("area") or {}))
+            audio = dict(kw.get("audio") or {})
+            if "gate" in d:
+                audio["gate"] = d["gate"]
+            if "gate" in audio:
+                audio["gate"] = NoiseGateConfig(**audio["gate"])
+            if "reference_sounds" in audio:
+                audio["reference_sounds"] = tuple(audio["reference_sounds"])
+            kw["audio"] = AudioConfig(**audio)
             if kw.get("visual") is not None:
-                kw["visual"] = VisualLocalizationConfig(**kw["visual"])
+                v = dict(kw["visual"])
+                v["localization"] = VisualLocalizationConfig(**v.get("localization", {}))
+                kw["visual"] = VisualModuleConfig(**v)
             return cls(**kw)
         except (KeyError, TypeError) as e:
             raise ConfigError(f"map config is invalid: {e}") from None
+
+
+def _lists(d: dict) -> dict:
+    """Tuples as lists (JSON has no tuples), recursively."""
+    return {
+        k: _lists(v) if isinstance(v, dict) else list(v) if isinstance(v, tuple) else v
+        for k, v in d.items()
+    }

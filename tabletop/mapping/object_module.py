@@ -11,6 +11,7 @@ over the median voxel score, which the map's calibration turns into a confidence
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -18,13 +19,30 @@ from tabletop.errors import ConfigError
 from tabletop.mapping.heatmaps import Heatmap, point_heatmap_3d
 from tabletop.mapping.voxel_map import VoxelMap
 
-__all__ = ["BACKGROUND", "ObjectModule"]
+__all__ = ["BACKGROUND", "ObjectConfig", "ObjectModule"]
 
 #: Concepts every object query competes against: what a tabletop map holds besides objects.
 BACKGROUND = ("table", "floor", "robot arm", "other")
 
 Judge = Callable[[str, float], tuple[float, bool]]
 """``judge(modality, margin) -> (confidence, found)``: the map's calibration."""
+
+
+@dataclass(frozen=True)
+class ObjectConfig:
+    """How the object module picks a query's target voxels."""
+
+    select_margin: float = 0.1
+    """Target voxels score within this fraction of (best - median) of the best."""
+    background: tuple[str, ...] = BACKGROUND
+    """Concepts a query must beat at a voxel for the voxel to be a candidate."""
+
+    def __post_init__(self) -> None:
+        if not 0 <= self.select_margin <= 1:
+            raise ConfigError(f"select_margin must be in [0, 1], got {self.select_margin}")
+        if not self.background or not all(isinstance(b, str) and b for b in self.background):
+            raise ConfigError(f"background must be non-empty strings, got {self.background!r}")
+        object.__setattr__(self, "background", tuple(self.background))
 
 
 class ObjectModule:
@@ -34,25 +52,14 @@ class ObjectModule:
         voxels: the map's voxels (read at query time; the module caches their normalised
             features until the voxels change).
         text: the text encoder (``encode_text(list[str]) -> (n, dim)``, unit rows).
-        select_margin: target voxels score within this fraction of (best - median) of the best.
-        background: concepts a query must beat at a voxel for the voxel to be a candidate.
+        config: the module's parameters.
     """
 
-    def __init__(
-        self,
-        voxels: VoxelMap,
-        text,
-        select_margin: float = 0.1,
-        background: tuple[str, ...] = BACKGROUND,
-    ) -> None:
-        if not 0 <= select_margin <= 1:
-            raise ConfigError(f"select_margin must be in [0, 1], got {select_margin}")
-        if not background:
-            raise ConfigError("give at least one background concept")
+    def __init__(self, voxels: VoxelMap, text, config: ObjectConfig | None = None) -> None:
         self.voxels = voxels
         self.text = text
-        self.select_margin = float(select_margin)
-        self.background = tuple(background)
+        self.config = config or ObjectConfig()
+        self.background = self.config.background
         self._key: tuple[int, int] | None = None
         self._features: np.ndarray | None = None
         self._background: np.ndarray | None = None
@@ -95,7 +102,7 @@ class ObjectModule:
             )
         best = float(s[cand].max())
         margin = best - float(np.median(s))
-        keep = cand[s[cand] >= best - self.select_margin * margin]
+        keep = cand[s[cand] >= best - self.config.select_margin * margin]
         mask = np.zeros(grid.size, bool)
         mask[self.voxels.linear_indices[keep]] = True
         values = point_heatmap_3d(grid, mask.reshape(grid.shape), decay)

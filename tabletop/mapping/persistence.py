@@ -9,9 +9,10 @@ camera poses, the audio module's segments' embeddings and positions, and the vis
 localization module's reference frames (``visual_*`` arrays, described by the header's
 ``visual`` entry).
 
-Older files still load and say what they lack (:attr:`AVLMap.lacks`): version 1 has no visual
-module (image goals are not found), versions 1-2 have no saved calibration (the prior, unless
-one is passed to :func:`load_map`) and no ``image_target_px``/``area_top_score`` (defaults).
+Older files still load and say what they lack (:attr:`AVLMap.lacks`, filled by
+:meth:`AVLMap.load`): version 1 has no visual module (image goals are not found), versions 1-2
+have no saved calibration (the prior, unless one is passed to :meth:`AVLMap.load`), nor the
+image target's size and the area module's config (defaults).
 Writing is atomic (a temporary file, then a rename); loading validates and names what is wrong.
 See ``docs/mapping.md``.
 """
@@ -27,14 +28,14 @@ from pathlib import Path
 
 import numpy as np
 
-from tabletop.errors import ConfigError, TabletopError
+from tabletop.errors import ConfigError
+from tabletop.mapping.errors import MapFormatError
 
 __all__ = [
     "MAP_FORMAT",
     "MAP_VERSION",
     "READABLE_VERSIONS",
     "MapFormatError",
-    "load_map",
     "read_map_file",
     "save_map",
 ]
@@ -45,10 +46,6 @@ MAP_FORMAT = "tabletop-avlmap"
 MAP_VERSION = 3
 #: Versions this code reads: 1 (no visual module), 2 (no saved calibration) and 3.
 READABLE_VERSIONS = (1, 2, 3)
-
-
-class MapFormatError(TabletopError, ValueError):
-    """A map file is missing, truncated, of another version, or inconsistent."""
 
 
 def save_map(m, path: str | Path, *, rebuild: dict | None = None) -> Path:
@@ -156,93 +153,3 @@ def read_map_file(path: str | Path) -> tuple[dict, dict[str, np.ndarray]]:
     if not isinstance(segs, list) or len(segs) != h["n_segments"]:
         raise MapFormatError(f"{path}: header 'segments' must list {h['n_segments']} [start, end]")
     return h, arrays
-
-
-def load_map(path: str | Path, *, calibration=None):
-    """The :class:`~tabletop.mapping.avlmap.AVLMap` saved at ``path``, its encoder set
-    re-created. ``calibration`` replaces the calibration saved with the map (a map of format
-    1-2 saved none: it gets the uncalibrated prior unless one is given)."""
-    from tabletop.mapping.audio_segments import AudioSegment
-    from tabletop.mapping.avlmap import AVLMap
-    from tabletop.mapping.calibration import Calibration
-    from tabletop.mapping.config import MapConfig
-    from tabletop.mapping.encoders.registry import make_encoders_from_rebuild
-    from tabletop.mapping.visual.database import VisualDatabase, VisualDatabaseError
-    from tabletop.mapping.voxel_map import VoxelMap
-
-    h, a = read_map_file(path)
-    lacks: list[str] = []
-    try:
-        c = dict(h["config"])
-        c["visual"] = None  # restored with the reference frames below
-        if h["version"] < 3:
-            c.pop("image_target_px", None)
-            lacks.append("the map config's image_target_px and area_top_score (defaults used)")
-        config = MapConfig.from_dict(c)
-    except (KeyError, TypeError, ConfigError) as e:
-        raise MapFormatError(f"{path}: config is invalid: {e}") from None
-    if calibration is None:
-        if h.get("calibration") is not None:
-            try:
-                calibration = Calibration.from_json(h["calibration"], f"{path}: calibration")
-            except TabletopError as e:
-                raise MapFormatError(str(e)) from None
-        else:
-            lacks.append("a saved calibration (the uncalibrated prior is used)")
-    enc = make_encoders_from_rebuild(h["encoder_set"], h["rebuild"])
-    if enc.text.space != h["space"] or enc.text.dim != h["dim"]:
-        raise MapFormatError(
-            f"{path}: built in space {h['space']!r} ({h['dim']}-d), but its encoders now "
-            f"give {enc.text.space!r} ({enc.text.dim}-d)"
-        )
-    m = AVLMap(
-        config,
-        enc.text,
-        enc.dense,
-        enc.global_image,
-        enc.audio,
-        h["encoders"],
-        h["encoder_set"],
-        h["rebuild"],
-        enc.audio_text,
-        calibration=calibration,
-    )
-    try:
-        voxels = VoxelMap.from_state(
-            config.grid,
-            h["dim"],
-            {
-                "linear": a["voxel_linear"],
-                "feature_sums": a["voxel_feature_sums"],
-                "counts": a["voxel_counts"],
-                "color_sums": a["voxel_color_sums"],
-            },
-        )
-    except ConfigError as e:
-        raise MapFormatError(f"{path}: {e}") from None
-    m.voxels.__dict__.update(voxels.__dict__)  # the modules hold this VoxelMap object
-    for e, T in zip(a["frame_embeddings"], a["frame_poses"], strict=True):
-        m.areas.add(e, T)
-    try:
-        m.sounds.segments = [AudioSegment(float(s0), float(s1)) for s0, s1 in h["segments"]]
-    except (TypeError, ValueError) as e:
-        raise MapFormatError(f"{path}: header 'segments' is malformed: {e}") from None
-    m.sounds.embeddings = list(a["segment_embeddings"])
-    m.sounds.positions = list(a["segment_positions"])
-    m._frames_seen = int(h["frames_seen"])
-    if h.get("visual") is not None:
-        visual = {k.removeprefix("visual_"): v for k, v in a.items() if k.startswith("visual_")}
-        try:
-            db = VisualDatabase.from_state(h["visual"], visual)
-        except VisualDatabaseError as e:
-            raise VisualDatabaseError(f"{path}: {e}") from None
-        m.images.database = db
-        from dataclasses import replace
-
-        m.config = replace(config, visual=db.config)
-    elif h["version"] == 1:
-        lacks.append("the visual localization module (image goals are not found)")
-    m.lacks = tuple(lacks)
-    for what in lacks:
-        log.info("%s (format %s) lacks %s", path, h["version"], what)
-    return m

@@ -12,6 +12,15 @@ from tabletop.recording import (
 from tabletop.sim.camera import CameraIntrinsics, WristCameraConfig
 from tabletop.sim.catalog import COLORS, OBJECT_KINDS, ObjectKind
 from tabletop.sim.esc50 import load_esc50
+from tabletop.sim.ground_truth import (
+    AreaTruth,
+    GroundTruth,
+    GroundTruthError,
+    NotInGroundTruth,
+    ObjectTruth,
+    SoundEventTruth,
+    TableTruth,
+)
 from tabletop.sim.noise import NoiseConfig, apply_noise
 from tabletop.sim.scan import ScanConfig, ScanStats, plan_scan, run_scan
 from tabletop.sim.scene import (
@@ -31,12 +40,17 @@ __all__ = [
     "FORMAT_VERSION",
     "OBJECT_KINDS",
     "AreaSpec",
+    "AreaTruth",
     "CameraImage",
     "CameraIntrinsics",
     "Frame",
+    "GroundTruth",
+    "GroundTruthError",
     "NoiseConfig",
+    "NotInGroundTruth",
     "ObjectKind",
     "ObjectSpec",
+    "ObjectTruth",
     "RandomSpec",
     "Recording",
     "ScanConfig",
@@ -46,7 +60,9 @@ __all__ = [
     "SimWorld",
     "SoundBank",
     "SoundClip",
+    "SoundEventTruth",
     "TableSpec",
+    "TableTruth",
     "WristCameraConfig",
     "apply_noise",
     "list_default_scenes",

@@ -7,12 +7,25 @@ them without overlap inside the arm's comfortable reach.
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
 from tabletop.errors import SceneError
 from tabletop.sim.catalog import OBJECT_KINDS, load_mesh_geometry, object_kind
 
-__all__ = ["PLACEMENT_REGION", "footprint_radius", "generate_objects"]
+__all__ = ["PLACEMENT_REGION", "DrawnObject", "footprint_radius", "generate_objects"]
+
+
+class DrawnObject(NamedTuple):
+    """One object the generator placed (the scene module turns it into an ``ObjectSpec``)."""
+
+    name: str
+    kind: str
+    color: str
+    position: tuple[float, float]  # (x, y) [m], world frame
+    yaw_deg: float  # [deg] about +z
+
 
 #: Where objects may stand [m]: x range, |y| bound, and min/max distance of the footprint's
 #: corners from the robot base (the arm reaches everything inside).
@@ -52,13 +65,11 @@ def _apart(box, others) -> bool:
     )
 
 
-def generate_objects(rnd, table, existing=()) -> tuple:
+def generate_objects(rnd, table, existing=()) -> tuple[DrawnObject, ...]:
     """Draw ``rnd.count`` objects (a :class:`~tabletop.sim.scene.RandomSpec`) on ``table``.
 
     ``existing`` objects keep their places; drawn ones avoid them. Deterministic in ``rnd.seed``.
     """
-    from tabletop.sim.scene import ObjectSpec
-
     rng = np.random.default_rng(rnd.seed)
     pool = list(rnd.kinds) if rnd.kinds else sorted(OBJECT_KINDS)
     # Duplicated kinds need two colours; trays are never duplicated (they define an area).
@@ -105,5 +116,5 @@ def generate_objects(rnd, table, existing=()) -> tuple:
             name, i = f"{color}_{kind}_{i}", i + 1
         taken.add(name)
         placed.append(box)
-        out.append(ObjectSpec(name=name, kind=kind, color=color, position=(x, y), yaw_deg=yaw))
+        out.append(DrawnObject(name, kind, color, (x, y), yaw))
     return tuple(out)

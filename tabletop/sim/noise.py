@@ -6,13 +6,13 @@ keeps the clean poses beside the noisy ones, so a test can measure what the nois
 
 from __future__ import annotations
 
-import copy
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, fields, replace
 
 import numpy as np
 
 from tabletop.errors import ConfigError
 from tabletop.recording import Recording, Segment
+from tabletop.sim.ground_truth import GroundTruth
 from tabletop.transforms import make_transform
 
 __all__ = ["NoiseConfig", "apply_noise"]
@@ -72,7 +72,7 @@ def apply_noise(rec: Recording, noise: NoiseConfig) -> Recording:
     rng = np.random.default_rng(noise.seed)
     n = len(rec)
     kw = {f.name: getattr(rec, f.name) for f in fields(Recording)}
-    kw["ground_truth"] = copy.deepcopy(rec.ground_truth)
+    truth = None if rec.ground_truth is None else GroundTruth.of(rec)
     kw["meta"] = {**rec.meta, "noise": {f.name: getattr(noise, f.name) for f in fields(noise)}}
     true = rec.T_world_hand if rec.T_world_hand_true is None else rec.T_world_hand_true
     noisy = np.array(rec.T_world_hand)
@@ -118,8 +118,16 @@ def apply_noise(rec: Recording, noise: NoiseConfig) -> Recording:
                 segments.append(Segment(s.name, s.kind, int(a), int(b)))
         kw["segments"] = tuple(segments)
         kw["meta"]["dropped_frames"] = int((~keep).sum())
-        for ev in (kw["ground_truth"] or {}).get("sound_events", []):
-            f0, f1 = ev["frames"]
-            kept = np.nonzero(keep[f0 : f1 + 1])[0] + f0
-            ev["frames"] = [int(index[kept[0]]), int(index[kept[-1]])] if len(kept) else []
+        if truth is not None:
+            events = []
+            for ev in truth.sound_events:
+                frames = ev.frames
+                if frames:
+                    f0, f1 = frames
+                    kept = np.nonzero(keep[f0 : f1 + 1])[0] + f0
+                    frames = (int(index[kept[0]]), int(index[kept[-1]])) if len(kept) else ()
+                events.append(replace(ev, frames=frames))
+            truth = replace(truth, sound_events=tuple(events))
+    # A new dict: the input recording's ground truth is not modified.
+    kw["ground_truth"] = None if truth is None else truth.to_dict()
     return Recording(**kw)

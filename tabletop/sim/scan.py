@@ -15,7 +15,7 @@ import functools
 import logging
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -23,6 +23,7 @@ from tabletop.arm.model import TCP_FRAME
 from tabletop.errors import ConfigError, SimulationError
 from tabletop.recording import Recording, Segment
 from tabletop.sim.camera import WristCameraConfig
+from tabletop.sim.ground_truth import SoundEventTruth
 from tabletop.sim.noise import NoiseConfig, apply_noise
 from tabletop.sim.scene import SceneSpec
 from tabletop.sim.teleop import (
@@ -292,7 +293,12 @@ def run_scan(
         audio, audio_rate, events = insert_sounds(
             timestamps, tcp_world, segments, plan.episode_centers, config
         )
-    ground_truth["sound_events"] = events
+    ground_truth = replace(
+        ground_truth,
+        sound_events=tuple(
+            SoundEventTruth.from_dict(e, f"sound_events[{i}]") for i, e in enumerate(events)
+        ),
+    )
 
     rec_kwargs = dict(
         timestamps=timestamps,
@@ -308,7 +314,7 @@ def run_scan(
         audio_rate=audio_rate,
         segments=tuple(segments),
         segmentation=seg,
-        ground_truth=ground_truth,
+        ground_truth=ground_truth.to_dict(),  # the recording keeps the JSON form
         meta={
             "source": "tabletop.sim",
             "scene": spec.name,

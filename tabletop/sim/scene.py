@@ -294,7 +294,8 @@ class SceneSpec:
                 rnd = RandomSpec(
                     **{k: tuple(v) if isinstance(v, list) else v for k, v in r.items()}
                 )
-                objects = objects + generate_objects(rnd, table, existing=objects)
+                drawn = generate_objects(rnd, table, existing=objects)
+                objects = objects + tuple(ObjectSpec(*o) for o in drawn)
             areas = tuple(
                 AreaSpec(
                     name=a["name"],

@@ -28,6 +28,7 @@ from tabletop.sim.camera import (
     gl_view_matrix,
 )
 from tabletop.sim.catalog import COLORS, load_mesh_geometry, object_kind, pybullet_data_dir
+from tabletop.sim.ground_truth import AreaTruth, GroundTruth, ObjectTruth, TableTruth
 from tabletop.sim.scene import SceneSpec
 from tabletop.transforms import make_transform, quat_from_matrix, quat_to_matrix
 
@@ -330,45 +331,40 @@ class SimWorld:
         return CameraImage(rgb=rgb, depth=depth, segmentation=inst)
 
     # ------------------------------------------------------------------ ground truth
-    def ground_truth(self) -> dict:
-        """Everything a benchmark needs to know about the scene, JSON-serialisable."""
+    def ground_truth(self) -> GroundTruth:
+        """The scene's ground truth: objects, table, areas and segmentation instances (no
+        sound events: :func:`~tabletop.sim.scan.run_scan` adds those it inserts)."""
         objects = []
         for obj in self.spec.objects:
             lo, hi = obj.aabb()
             objects.append(
-                {
-                    "name": obj.name,
-                    "kind": obj.kind,
-                    "label": obj.label,
-                    "category": object_kind(obj.kind).label,
-                    "color": obj.color,
-                    "instance_id": self.object_instance[obj.name],
-                    "position": [float(v) for v in obj.position],
-                    "yaw_deg": float(obj.yaw_deg),
-                    "T_world_obj": obj.T_world_obj.tolist(),
-                    "aabb_min": lo.tolist(),
-                    "aabb_max": hi.tolist(),
-                    "center": ((lo + hi) / 2).tolist(),
-                }
+                ObjectTruth(
+                    name=obj.name,
+                    kind=obj.kind,
+                    label=obj.label,
+                    category=object_kind(obj.kind).label,
+                    color=obj.color,
+                    instance_id=self.object_instance[obj.name],
+                    position=obj.position,
+                    yaw_deg=obj.yaw_deg,
+                    T_world_obj=obj.T_world_obj,
+                    aabb_min=lo,
+                    aabb_max=hi,
+                    center=(lo + hi) / 2,
+                )
             )
         t = self.spec.table
-        return {
-            "scene": self.spec.to_dict(),
-            "frame": "world = robot base frame; table top at z = 0; metres",
-            "table": {"x": list(t.x), "y": list(t.y), "top_z": 0.0, "height": t.height},
-            "objects": objects,
-            "areas": [
-                {
-                    "name": a.name,
-                    "aliases": list(a.aliases),
-                    "x": list(a.x),
-                    "y": list(a.y),
-                    "center": a.center.tolist(),
-                }
+        return GroundTruth(
+            scene=self.spec.to_dict(),
+            frame="world = robot base frame; table top at z = 0; metres",
+            table=TableTruth(x=t.x, y=t.y, top_z=0.0, height=t.height),
+            objects=tuple(objects),
+            areas=tuple(
+                AreaTruth(name=a.name, aliases=a.aliases, x=a.x, y=a.y, center=a.center)
                 for a in self.spec.areas
-            ],
-            "instances": {str(k): v for k, v in sorted(self.instance_names.items())},
-        }
+            ),
+            instances=dict(sorted(self.instance_names.items())),
+        )
 
     # ------------------------------------------------------------------ lifetime
     def close(self) -> None:

@@ -21,7 +21,7 @@ import cv2
 import numpy as np
 
 from tabletop.errors import ConfigError
-from tabletop.mapping.persistence import MapFormatError
+from tabletop.mapping.errors import MapFormatError
 from tabletop.mapping.visual.features import DESCRIPTOR_DIMS, _backend
 from tabletop.mapping.visual.inputs import _check_K, check_rgb
 from tabletop.mapping.visual.localization import VisualLocalizationConfig

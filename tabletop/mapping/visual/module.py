@@ -11,7 +11,7 @@ beyond chance (kappa).
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -19,15 +19,35 @@ from tabletop.errors import ConfigError
 from tabletop.mapping.heatmaps import Heatmap, scored_points_heatmap_xy
 from tabletop.mapping.visual.database import VisualDatabase
 from tabletop.mapping.visual.inputs import check_rgb
-from tabletop.mapping.visual.localization import VisualLocalization
+from tabletop.mapping.visual.localization import VisualLocalization, VisualLocalizationConfig
 from tabletop.mapping.visual.localize import localize_image
 from tabletop.mapping.visual.photometric import PhotometricCheck
 from tabletop.mapping.voxel_map import VoxelMap
 from tabletop.transforms import pixel_rays
 
-__all__ = ["VisualModule"]
+__all__ = ["VisualModule", "VisualModuleConfig"]
 
 Judge = Callable[[str, float], tuple[float, bool]]
+
+
+@dataclass(frozen=True)
+class VisualModuleConfig:
+    """The visual localization module: how it localises an image, and what the image names."""
+
+    localization: VisualLocalizationConfig = field(default_factory=VisualLocalizationConfig)
+    """Reference frames, matcher and pose checks."""
+    target_px: float = 0.2
+    """An image's target is the median surface point of the rays through the central
+    ``target_px`` fraction of its width and height."""
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.localization, VisualLocalizationConfig):
+            raise ConfigError(
+                "localization must be a VisualLocalizationConfig, got "
+                f"{type(self.localization).__name__}"
+            )
+        if not 0 < self.target_px <= 1:
+            raise ConfigError(f"target_px must be in (0, 1], got {self.target_px}")
 
 
 class VisualModule:
@@ -37,15 +57,14 @@ class VisualModule:
         voxels: the map's voxels (occupancy for the image target, colours for the check).
         database: the reference frames (``None``: the map has no visual module; every image
             query is then not found, with that reason).
-        target_px: the image target is the median surface point of the rays through the
-            central ``target_px`` fraction of the image's width and height.
+        target_px: see :attr:`VisualModuleConfig.target_px`.
     """
 
     def __init__(
         self, voxels: VoxelMap, database: VisualDatabase | None, target_px: float = 0.2
     ) -> None:
         if not 0 < target_px <= 1:
-            raise ConfigError(f"image_target_px must be in (0, 1], got {target_px}")
+            raise ConfigError(f"target_px must be in (0, 1], got {target_px}")
         self.voxels = voxels
         self.database = database
         self.target_px = float(target_px)

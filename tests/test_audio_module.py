@@ -1,0 +1,98 @@
+"""The audio module: segments from a track, placed where the microphone was."""
+
+import numpy as np
+import pytest
+from module_helpers import GRID, judge_at, text_encoder
+
+from tabletop.errors import ConfigError
+from tabletop.mapping.audio_module import AudioConfig, AudioModule
+from tabletop.mapping.audio_segments import NoiseGateConfig
+from tabletop.mapping.encoders.oracle import OracleAudioEncoder
+from tabletop.mapping.targets import max_position
+
+RATE = 16000
+
+
+def _track(spans, seconds=12.0, seed=0):
+    rng = np.random.default_rng(seed)
+    x = 0.001 * rng.standard_normal(int(seconds * RATE)).astype(np.float32)
+    for t0, t1 in spans:
+        n = int((t1 - t0) * RATE)
+        x[int(t0 * RATE) : int(t0 * RATE) + n] += 0.5 * np.sin(
+            2 * np.pi * 440 * np.arange(n) / RATE
+        ).astype(np.float32)
+    return x
+
+
+def _poses(timestamps, where):
+    """Microphone poses: at ``where(t)`` (x, y) [m], 0.3 m above the table."""
+    T = np.repeat(np.eye(4)[None], len(timestamps), axis=0)
+    for i, t in enumerate(timestamps):
+        T[i, :3, 3] = [*where(t), 0.3]
+    return T
+
+
+EVENTS = [
+    {"caption": "a dog barking", "onset_s": 1.0, "offset_s": 2.5},
+    {"caption": "a phone ringing", "onset_s": 6.0, "offset_s": 7.0},
+]
+
+
+@pytest.fixture(scope="module")
+def module():
+    text = text_encoder()
+    m = AudioModule(GRID)
+    t = np.arange(0, 12.0, 1 / 30)
+    # the microphone moves along +x: at 0.1 m while the dog barks, at 0.5 m for the phone
+    m.add(
+        _track([(1.0, 2.5), (6.0, 7.0)]),
+        RATE,
+        t,
+        _poses(t, lambda s: (0.1 if s < 4 else 0.5, 0.0)),
+        OracleAudioEncoder(text, EVENTS),
+    )
+    return m
+
+
+def test_two_sounds_in_a_row_give_two_segments_where_they_were_heard(module):
+    assert len(module) == 2
+    (a, b) = module.segments
+    assert a.start_s == pytest.approx(1.0, abs=0.3) and b.start_s == pytest.approx(6.0, abs=0.3)
+    np.testing.assert_allclose(module.positions[0][:2], [0.1, 0.0])
+    np.testing.assert_allclose(module.positions[1][:2], [0.5, 0.0])
+
+
+def test_a_query_heats_where_its_sound_was_heard(module):
+    text = text_encoder()
+    h = module.heatmap("the sound of a phone ringing", 10.0, text, judge_at(0.1))
+    assert h.found
+    p = max_position(h, np.zeros(GRID.shape, bool))
+    np.testing.assert_allclose(p[:2], [0.5, 0.0], atol=0.011)
+
+
+def test_one_segment_is_judged_against_reference_sounds():
+    text = text_encoder()
+    m = AudioModule(GRID)
+    t = np.arange(0, 6.0, 1 / 30)
+    m.add(
+        _track([(1.0, 2.0)], 6.0),
+        RATE,
+        t,
+        _poses(t, lambda s: (0.2, 0.1)),
+        OracleAudioEncoder(text, EVENTS[:1]),
+    )
+    assert len(m) == 1
+    right = m.heatmap("a dog barking", 10.0, text, judge_at(0.3))
+    absent = m.heatmap("a submarine sonar ping", 10.0, text, judge_at(0.3))
+    assert right.found and not absent.found
+    assert right.evidence > 0.5 > absent.evidence
+
+
+def test_bad_input_names_the_problem():
+    with pytest.raises(ConfigError, match="one pose per timestamp"):
+        AudioModule(GRID).add(_track([]), RATE, np.arange(3.0), np.zeros((2, 4, 4)), None)
+    with pytest.raises(ConfigError, match="NoiseGateConfig"):
+        AudioConfig(gate={"threshold_db": -10})
+    assert AudioConfig(gate=NoiseGateConfig(hold_s=0.5)).gate.hold_s == 0.5
+    h = AudioModule(GRID).heatmap("x", 10.0, text_encoder(), judge_at(0))
+    assert not h.found and "no audio segments" in h.reason
