@@ -282,3 +282,17 @@ def test_a_heatmap_without_heat_has_no_target(avlmap):
         avlmap.get_max_pos_3d(zero)
     with pytest.raises(ConfigError, match="takes a Heatmap"):
         avlmap.get_max_pos_3d(np.zeros(avlmap.grid.shape, np.float32))
+
+
+def test_named_table_regions_come_from_the_map_geometry(avlmap, rec):
+    from tabletop.sim.ground_truth import GroundTruth
+
+    gt = GroundTruth.of(rec)
+    for name in ("left side of the table", "front of the table", "center of the table"):
+        a = gt.area(name)
+        h = avlmap.area_heatmap("the " + name)
+        assert h.found and h.evidence is None  # geometry, not an image embedding
+        p = avlmap.get_max_pos_3d(h)
+        assert a.x[0] <= p[0] <= a.x[1] and a.y[0] <= p[1] <= a.y[1]
+    tray = avlmap.area_heatmap("the tray area")
+    assert tray.evidence is not None  # named by what is there: the area module

@@ -58,6 +58,8 @@ def calibration_samples(
     out = []
 
     def add(modality, query, h, truth):
+        if h.found and h.evidence is None:
+            return  # decided by geometry (a named table region), not by a margin to calibrate
         if not h.found and h.evidence is None:
             margin, ok = -1.0, False  # nothing matched at all: the weakest evidence there is
         else:

@@ -39,6 +39,7 @@ from tabletop.mapping.errors import MapFormatError
 from tabletop.mapping.heatmaps import Heatmap
 from tabletop.mapping.object_module import ObjectModule
 from tabletop.mapping.persistence import read_map_file, save_map
+from tabletop.mapping.table_regions import TableFit, fit_table, parse_region, region_heatmap
 from tabletop.mapping.targets import max_position
 from tabletop.mapping.visual.database import VisualDatabase, VisualDatabaseError
 from tabletop.mapping.visual.localization import VisualLocalization
@@ -140,6 +141,7 @@ class AVLMap:
         db = None if visual is None else VisualDatabase(visual.localization)
         self.images = VisualModule(self.voxels, db, 0.2 if visual is None else visual.target_px)
         """The visual localization module (its ``database`` is None: no image goals)."""
+        self._table: tuple[tuple[int, int], TableFit | None] | None = None
         self.lacks: tuple[str, ...] = ()
         """What a map loaded from an older file format lacks (empty for a new map)."""
         self._frames_seen = 0
@@ -401,8 +403,23 @@ class AVLMap:
         return self.sounds.heatmap(q, self.decay(major), self.audio_text, self.judge)
 
     def area_heatmap(self, query: str, major: bool = False) -> Heatmap:
-        """Heat where frames whose global embedding matches ``query`` looked (the area module)."""
-        return self.areas.heatmap(_text(query, "area"), self.decay(major), self.text, self.judge)
+        """Heat over a named place on the table. A place named by where it is ("the left side
+        of the table", "the far right corner": :func:`~tabletop.mapping.table_regions.parse_region`)
+        is a region of the table fitted from the map; one named by what is there ("the tray
+        area") is where the frames whose global embedding matches it looked (the area module)."""
+        q = _text(query, "area")
+        region = parse_region(q)
+        if region is not None:
+            return region_heatmap(self.grid, self.table(), q, region, self.decay(major))
+        return self.areas.heatmap(q, self.decay(major), self.text, self.judge)
+
+    def table(self) -> TableFit | None:
+        """The table top fitted from the map (:func:`~tabletop.mapping.table_regions.fit_table`;
+        None without one), cached until the voxels change."""
+        key = (self.voxels.n, self.voxels.version)
+        if self._table is None or self._table[0] != key:
+            self._table = (key, fit_table(self.grid, self.voxels.indices))
+        return self._table[1]
 
     def image_heatmap(
         self, rgb: np.ndarray, major: bool = True, K: np.ndarray | None = None

@@ -1,0 +1,196 @@
+"""Named table regions from the map's own geometry: "the left side of the table", "the far
+right corner", "the middle", "near the robot".
+
+A region named by where it is on the table is geometry, not an image embedding: the table is
+fitted from the map (:func:`fit_table`: the dominant horizontal layer of occupied voxels, its
+height and its extent), and the phrase is parsed into a lateral and a depth constraint
+(:func:`parse_region`) in the robot frame: +x points away from the robot ("front", "far"),
++y to its left. Phrases that name what is in an area ("the tray area", "where the toys are")
+are not geometric: :func:`parse_region` returns None for them and they go to the area module.
+
+Geometric phrasings (case and the articles "the"/"a" aside; "table" may be left out):
+
+- lateral: "left" / "right" (the outer thirds of the table's width);
+- depth: "front", "far", "far side", "far end", "away from the robot" (the half away from the
+  robot) / "back", "near", "near side", "close to the robot", "near the robot" (the half
+  nearest the robot);
+- "center"/"centre"/"middle" alone: the middle third in both directions; with a lateral or a
+  depth word it is the middle of the other direction ("the middle of the left side");
+- corners: a lateral and a depth word together ("the far right corner", "front left").
+
+The table's usable part starts :data:`ROBOT_CLEARANCE_M` in front of the robot base (the base
+and shoulder stand nearer than that) and keeps :data:`EDGE_MARGIN_M` from the fitted edges.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import ndimage
+
+from tabletop.errors import ConfigError
+from tabletop.grid import VoxelGrid
+from tabletop.mapping.heatmaps import Heatmap
+
+__all__ = [
+    "EDGE_MARGIN_M",
+    "ROBOT_CLEARANCE_M",
+    "TableFit",
+    "TableRegion",
+    "fit_table",
+    "parse_region",
+    "region_heatmap",
+]
+
+#: The usable table starts this far [m] in front of the robot base (x = 0).
+ROBOT_CLEARANCE_M = 0.20
+#: Regions keep this far [m] inside the fitted table edges.
+EDGE_MARGIN_M = 0.05
+
+_LEFT = r"left"
+_RIGHT = r"right"
+# Longer phrases first: the alternation takes the first that matches.
+_FAR = r"away\s+from\s+the\s+robot|far\s+(?:side|end)|front|far"
+_NEAR = r"(?:close\s+to|near(?:est)?)\s+(?:to\s+)?the\s+robot|near\s+(?:side|end)|back|near"
+_MID = r"center|centre|middle"
+_FILLER = (
+    r"the|a|of|on|at|in|to|table|tabletop|side|part|half|corner|edge|area|region|zone|end|"
+    r"and|top|surface|\s"
+)
+
+
+@dataclass(frozen=True)
+class TableRegion:
+    """A parsed region: ``lateral`` in {"left", "right", "middle", None} (along y) and
+    ``depth`` in {"far", "near", "middle", None} (along x); None = the whole extent."""
+
+    lateral: str | None
+    depth: str | None
+    text: str
+
+
+@dataclass(frozen=True)
+class TableFit:
+    """The table fitted from a map: its top's height and extent [m], robot frame."""
+
+    z: float
+    x: tuple[float, float]
+    y: tuple[float, float]
+    voxels: int  # voxels of the table layer the fit used
+
+    def usable(self) -> tuple[tuple[float, float], tuple[float, float]]:
+        """((x0, x1), (y0, y1)) [m]: the part of the table regions divide."""
+        x0 = max(self.x[0] + EDGE_MARGIN_M, ROBOT_CLEARANCE_M)
+        x1 = self.x[1] - EDGE_MARGIN_M
+        y0, y1 = self.y[0] + EDGE_MARGIN_M, self.y[1] - EDGE_MARGIN_M
+        if not (x0 < x1 and y0 < y1):
+            raise ConfigError(
+                f"the fitted table ({self.x}, {self.y}) has no usable part in front of the robot"
+            )
+        return (x0, x1), (y0, y1)
+
+    def box(self, region: TableRegion) -> tuple[tuple[float, float], tuple[float, float]]:
+        """((x0, x1), (y0, y1)) [m] of ``region`` on this table."""
+        (x0, x1), (y0, y1) = self.usable()
+        xs = {
+            None: (x0, x1),
+            "near": (x0, (x0 + x1) / 2),
+            "far": ((x0 + x1) / 2, x1),
+            "middle": (x0 + (x1 - x0) / 3, x1 - (x1 - x0) / 3),
+        }[region.depth]
+        ys = {
+            None: (y0, y1),
+            "right": (y0, y0 + (y1 - y0) / 3),
+            "left": (y1 - (y1 - y0) / 3, y1),
+            "middle": (y0 + (y1 - y0) / 3, y1 - (y1 - y0) / 3),
+        }[region.lateral]
+        return xs, ys
+
+
+def parse_region(text: str) -> TableRegion | None:
+    """The geometric region ``text`` names, or None when it is not (only) a place on the table
+    (see the module docstring for the phrasings)."""
+    t = " " + re.sub(r"[^a-z ]", " ", str(text).lower()) + " "
+    t = re.sub(r"\s+", " ", t)
+    found: dict[str, str] = {}
+    for key, value, pattern in (
+        ("depth", "far", _FAR),
+        ("depth", "near", _NEAR),
+        ("lateral", "left", _LEFT),
+        ("lateral", "right", _RIGHT),
+        ("mid", "middle", _MID),
+    ):
+        rx = re.compile(rf" (?:{pattern}) ")
+        while rx.search(t):
+            if key in found and found[key] != value:
+                return None  # "left ... right": not one region
+            found[key] = value
+            t = rx.sub(" ", t, count=1)
+    if not found or re.sub(rf"(?:{_FILLER})+", "", t).strip():
+        return None  # nothing geometric, or other words ("the tray area")
+    lateral, depth = found.get("lateral"), found.get("depth")
+    if "mid" in found:
+        if lateral is None and depth is None:
+            lateral = depth = "middle"
+        elif lateral is None:
+            lateral = "middle"
+        elif depth is None:
+            depth = "middle"
+    return TableRegion(lateral, depth, str(text))
+
+
+def fit_table(grid: VoxelGrid, indices: np.ndarray) -> TableFit | None:
+    """The table top from the occupied voxels ``indices`` (N, 3): the densest horizontal layer
+    (with a neighbour layer holding at least a quarter as many voxels: a surface at a voxel
+    boundary fills two), its height (the count-weighted mean of those layers' centres) and the
+    1st-99th percentile extent of its largest connected part. None when the map holds no
+    horizontal surface of at least 100 voxels."""
+    idx = np.asarray(indices)
+    if len(idx) < 100:
+        return None
+    counts = np.bincount(idx[:, 2], minlength=grid.shape[2])
+    k = int(np.argmax(counts))
+    layers = [k] + [
+        j for j in (k - 1, k + 1) if 0 <= j < len(counts) and counts[j] >= counts[k] / 4
+    ]
+    if counts[layers].sum() < 100:
+        return None
+    zs = grid.axes()[2]
+    z = float(np.average(zs[layers], weights=counts[layers]))
+    layer = np.zeros(grid.shape[:2], bool)
+    sel = np.isin(idx[:, 2], layers)
+    layer[idx[sel, 0], idx[sel, 1]] = True
+    labels, n = ndimage.label(layer)
+    if n > 1:
+        sizes = ndimage.sum(layer, labels, index=np.arange(1, n + 1))
+        layer = labels == (int(np.argmax(sizes)) + 1)
+    ij = np.argwhere(layer)
+    xs, ys, _ = grid.axes()
+    px, py = xs[ij[:, 0]], ys[ij[:, 1]]
+    h = grid.voxel_size / 2
+    return TableFit(
+        z,
+        (float(np.percentile(px, 1)) - h, float(np.percentile(px, 99)) + h),
+        (float(np.percentile(py, 1)) - h, float(np.percentile(py, 99)) + h),
+        int(layer.sum()),
+    )
+
+
+def region_heatmap(
+    grid: VoxelGrid, table: TableFit | None, text: str, region: TableRegion, decay: float
+) -> Heatmap:
+    """Heat 1 over the region's rectangle (every height), ``max(1 - decay * d_xy, 0)`` around
+    it; not found when the map has no fitted table."""
+    if table is None:
+        return Heatmap.not_found(
+            grid, text, "area", decay, "the map holds no table surface to find regions on"
+        )
+    (x0, x1), (y0, y1) = table.box(region)
+    xs, ys, _ = grid.axes()
+    dx = np.maximum(np.maximum(x0 - xs, xs - x1), 0.0)[:, None]
+    dy = np.maximum(np.maximum(y0 - ys, ys - y1), 0.0)[None, :]
+    top = np.maximum(1.0 - decay * np.hypot(dx, dy), 0.0).astype(np.float32)
+    values = np.repeat(top[:, :, None], grid.shape[2], axis=2)
+    return Heatmap(grid, values, text, "area", decay, 1.0, True, "", None)

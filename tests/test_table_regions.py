@@ -1,0 +1,73 @@
+"""Named table regions: phrasings, the table fitted from a map, region heatmaps."""
+
+import numpy as np
+import pytest
+from module_helpers import GRID, labelled_voxels
+
+from tabletop.errors import ConfigError
+from tabletop.mapping.table_regions import (
+    EDGE_MARGIN_M,
+    ROBOT_CLEARANCE_M,
+    TableFit,
+    fit_table,
+    parse_region,
+    region_heatmap,
+)
+from tabletop.mapping.targets import max_position
+
+
+@pytest.mark.parametrize(
+    ("text", "lateral", "depth"),
+    [
+        ("the left side of the table", "left", None),
+        ("right", "right", None),
+        ("the front of the table", None, "far"),
+        ("the far end", None, "far"),
+        ("back of the table", None, "near"),
+        ("near the robot", None, "near"),
+        ("the center of the table", "middle", "middle"),
+        ("the middle", "middle", "middle"),
+        ("the far right corner", "right", "far"),
+        ("back left corner", "left", "near"),
+        ("the middle of the left side", "left", "middle"),
+    ],
+)
+def test_geometric_phrasings(text, lateral, depth):
+    r = parse_region(text)
+    assert r is not None and (r.lateral, r.depth) == (lateral, depth)
+
+
+@pytest.mark.parametrize(
+    "text", ["the tray area", "where the toys are", "left of the mug", "the moon", "left and right"]
+)
+def test_other_phrasings_are_not_geometry(text):
+    assert parse_region(text) is None
+
+
+def test_the_table_is_fitted_from_the_map():
+    vm = labelled_voxels({"red mug": ((0.10, -0.20, 0.01), (0.16, -0.14, 0.10))})
+    fit = fit_table(GRID, vm.indices)
+    assert fit is not None and abs(fit.z - 0.005) < 0.006  # the slab spans z 0..1 cm
+    np.testing.assert_allclose(fit.x, (0.0, 0.6), atol=0.011)
+    np.testing.assert_allclose(fit.y, (-0.3, 0.3), atol=0.011)
+    assert fit_table(GRID, vm.indices[:50]) is None  # no surface to speak of
+
+
+def test_regions_divide_the_usable_table_and_heat_their_rectangle():
+    fit = TableFit(0.0, (0.0, 0.6), (-0.3, 0.3), 1000)
+    (x0, x1), (y0, y1) = fit.usable()
+    assert x0 == ROBOT_CLEARANCE_M and x1 == pytest.approx(0.6 - EDGE_MARGIN_M)
+    assert (y0, y1) == pytest.approx((-0.3 + EDGE_MARGIN_M, 0.3 - EDGE_MARGIN_M))
+    xs, ys = fit.box(parse_region("the far left corner"))
+    assert xs == pytest.approx(((x0 + x1) / 2, x1)) and ys == pytest.approx(
+        (y1 - (y1 - y0) / 3, y1)
+    )
+    h = region_heatmap(GRID, fit, "far left", parse_region("far left"), 10.0)
+    assert h.found and h.confidence == 1.0 and h.evidence is None
+    p = max_position(h, np.zeros(GRID.shape, bool))
+    np.testing.assert_allclose(p[:2], [np.mean(xs), np.mean(ys)], atol=0.011)
+    assert p[2] == 0.0  # on the table
+    missing = region_heatmap(GRID, None, "left", parse_region("left"), 10.0)
+    assert not missing.found and "no table surface" in missing.reason
+    with pytest.raises(ConfigError, match="no usable part"):
+        TableFit(0.0, (0.0, 0.2), (-0.3, 0.3), 10).usable()
