@@ -101,7 +101,9 @@ def test_the_score_catches_a_wrong_generator(robot, suite, images):
             .replace("TMP", "get_map")
         )
 
-    near_cases = [c.id for c in suite.cases if c.family == "near"]
+    # A named table region is a plateau of heat (geometry): sharp and broad agree inside it, so
+    # cases with a region cannot tell the two generators apart.
+    near_cases = [c.id for c in suite.cases if c.family == "near" and "area" not in c.id]
     bad = evaluate_suite(robot, swapped, suite, image_dir=images, cases=near_cases)
     assert bad.matched < len(near_cases) // 2
     assert any("targets differ" in r.reason for r in bad.results)
