@@ -97,3 +97,16 @@ def test_bad_inputs_to_the_runner():
         collect_task_files("no-such-suite")
     with pytest.raises(Exception, match="unknown encoder set 'clip'; valid"):
         run_eval("demo", encoders="clip", progress=False, cache_dir=None)
+
+
+def test_a_bad_map_value_fails_before_the_scan(tmp_path):
+    from tabletop.eval.runner import evaluate_task_file
+
+    text = load_tasks("demo").path.read_text()
+    assert "[map]\nframe_step = 2" in text
+    bad = tmp_path / "bad.toml"
+    bad.write_text(text.replace("[map]\nframe_step = 2", "[map]\nframe_step = 0"))
+    cache = tmp_path / "cache"
+    with pytest.raises(TaskFileError, match=r"\[map\].*frame_step"):
+        evaluate_task_file(load_tasks(bad), "oracle", cache_dir=cache)
+    assert not cache.exists() or not any(cache.iterdir())  # nothing was scanned

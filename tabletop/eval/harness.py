@@ -154,10 +154,7 @@ def cached_map(
             log.warning("cached map %s is unusable (%s); building again", path, e)
     t0 = time.perf_counter()
     cb = (lambda d, n: progress(f"map {name}", d, n)) if progress else None
-    try:
-        config = map_config(**map_settings)
-    except (TypeError, TabletopError) as e:
-        raise TabletopError(f"{name} [map]: {e}") from None
+    config = map_config(**map_settings)
     m = build_map(rec, encoders, config, progress=cb)
     map_s = time.perf_counter() - t0
     if path is not None:

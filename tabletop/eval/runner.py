@@ -28,6 +28,7 @@ from tabletop.eval.harness import (
     DEFAULT_CACHE_DIR,
     cached_map,
     cached_recording,
+    map_config,
     recording_key,
     scan_recording,
 )
@@ -297,16 +298,15 @@ def evaluate_task_file(
     cache = Path(cache_dir) if cache_dir is not None else None
     if cache is not None:
         cache.mkdir(parents=True, exist_ok=True)
+    try:  # a bad [map] value fails before the scan, not after it
+        map_config(**dict(tf.map))
+    except (TypeError, TabletopError) as e:
+        raise TaskFileError(f"{tf.path or tf.name} [map]: {e}") from None
     rec, scan_s, rec_cached = cached_recording(tf.name, tf.scan, spec, cache, progress)
     rec_key = recording_key(spec, tf.scan)
-    try:
-        m, map_s, map_cached = cached_map(
-            tf.name, dict(tf.map), rec, encoders, cache, rec_key, progress
-        )
-    except TabletopError as e:
-        if str(e).startswith(f"{tf.name} [map]"):
-            raise TaskFileError(f"{tf.path or tf.name} [map]: {e}") from None
-        raise
+    m, map_s, map_cached = cached_map(
+        tf.name, dict(tf.map), rec, encoders, cache, rec_key, progress
+    )
     # Resolve every truth before anything moves: a wrong reference is a task-file error.
     where = str(tf.path or tf.name)
     truth = GroundTruth.of(rec)
