@@ -30,6 +30,7 @@ __all__ = [
     "Frame",
     "Recording",
     "Segment",
+    "check_output",
     "load_recording",
     "save_recording",
 ]
@@ -223,6 +224,29 @@ def _write_png(path: Path, image: np.ndarray) -> None:
         raise RecordingError(f"could not write {path}")
 
 
+def check_output(path: str | Path, overwrite: bool = False) -> Path:
+    """Check before any work that a recording may be written to ``path``: it must not exist, or
+    (with ``overwrite``) be a recording this package wrote, whose header names its format. Any
+    other existing file or directory is never replaced: the user's data is not ours to delete.
+    """
+    path = Path(path)
+    if not path.exists():
+        return path
+    if not overwrite:
+        raise RecordingError(f"{path} exists; pass overwrite=True (--overwrite) to replace it")
+    header = path / _HEADER
+    try:
+        ok = path.is_dir() and json.loads(header.read_text()).get("format") == FORMAT_NAME
+    except (OSError, ValueError, AttributeError):
+        ok = False
+    if not ok:
+        raise RecordingError(
+            f"{path} exists and is not a recording (no {_HEADER} of format {FORMAT_NAME!r}); "
+            "--overwrite only replaces a previous recording: choose another path"
+        )
+    return path
+
+
 def save_recording(
     rec: Recording, path: str | Path, *, overwrite: bool = False, workers: int = 2
 ) -> Path:
@@ -232,8 +256,7 @@ def save_recording(
     new recording is complete, so a failure never leaves half a recording behind.
     """
     path = Path(path)
-    if path.exists() and not overwrite:
-        raise RecordingError(f"{path} exists; pass overwrite=True (--overwrite) to replace it")
+    check_output(path, overwrite)
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{path.name}.", dir=path.parent))
     try:

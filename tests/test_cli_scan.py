@@ -87,3 +87,14 @@ def test_scenes_command(capsys):
     assert json.loads(capsys.readouterr().out)["scene"]["name"] == "default"
     assert main(["scenes", "no-such-scene"]) == 2
     assert "tabletop scenes: error:" in capsys.readouterr().err
+
+
+def test_scan_refuses_an_output_that_is_not_a_recording_before_scanning(tmp_path, capsys):
+    from tabletop.cli import main
+
+    photos = tmp_path / "photos"
+    photos.mkdir()
+    (photos / "a.jpg").write_bytes(b"x")
+    rc = main(["scan", "--out", str(photos), "--overwrite"])
+    assert rc != 0 and "is not a recording" in capsys.readouterr().err
+    assert (photos / "a.jpg").read_bytes() == b"x"

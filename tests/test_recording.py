@@ -118,6 +118,19 @@ def test_save_refuses_to_overwrite_and_replaces_atomically(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["rec"]  # no temporaries left
 
 
+def test_overwrite_never_replaces_what_is_not_a_recording(tmp_path):
+    photos = tmp_path / "photos"
+    photos.mkdir()
+    (photos / "holiday.jpg").write_bytes(b"not ours")
+    note = tmp_path / "note.txt"
+    note.write_text("mine")
+    rec = make_recording(n=2)
+    for path in (photos, note):
+        with pytest.raises(RecordingError, match="is not a recording.*only replaces a previous"):
+            save_recording(rec, path, overwrite=True)
+    assert (photos / "holiday.jpg").read_bytes() == b"not ours" and note.read_text() == "mine"
+
+
 def test_failed_save_leaves_nothing_behind(tmp_path):
     rec = make_recording(n=2)
     bad = Recording(**{**vars_of(rec), "depth": np.full((2, 240, 320), 9.0, np.float32)})
