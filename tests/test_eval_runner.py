@@ -6,6 +6,7 @@ import json
 
 import pytest
 
+from tabletop.errors import ConfigError
 from tabletop.eval import load_tasks, run_eval
 from tabletop.eval.runner import collect_task_files, scan_recording
 from tabletop.eval.suites import generate_suite, to_toml
@@ -110,3 +111,10 @@ def test_a_bad_map_value_fails_before_the_scan(tmp_path):
     with pytest.raises(TaskFileError, match=r"\[map\].*frame_step"):
         evaluate_task_file(load_tasks(bad), "oracle", cache_dir=cache)
     assert not cache.exists() or not any(cache.iterdir())  # nothing was scanned
+
+
+def test_eval_map_refuses_zero_seeds():
+    from tabletop.eval.map_goals import run_map_eval
+
+    with pytest.raises(ConfigError, match="seeds must be a whole number >= 1"):
+        run_map_eval(0)

@@ -213,3 +213,11 @@ def test_mobile_base_plans_around_obstacles(rec_map, gt):
         base.move_to_object("a laptop computer")
     r = base.move_to([2.0, 0.0, 0.0])
     assert not r.reached and r.reason == "outside_map"
+
+
+def test_move_to_refuses_what_is_not_a_point(arm):
+    n = len(arm.history)
+    for bad in (["a", "b", "c"], [1.0, 2.0], [0.0, float("nan"), 0.0], None):
+        with pytest.raises(ConfigError, match="finite 3-vector"):
+            arm.move_to(bad)
+    assert len(arm.history) == n  # nothing moved

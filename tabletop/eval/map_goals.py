@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from tabletop.arm.success import SUCCESS_RADIUS_M
-from tabletop.errors import SimulationError
+from tabletop.errors import ConfigError, SimulationError
 from tabletop.mapping.heatmaps import fuse
 from tabletop.sim.ground_truth import GroundTruth, ObjectTruth, SoundEventTruth
 from tabletop.transforms import aabb_distance
@@ -265,6 +265,10 @@ def run_map_eval(
     Returns {"runs": [...], "by_type": {type: {goals, successes, not_found, success_rate}},
     "by_scene": {"default" | "random": {type: ...}}, "encoders"}.
     """
+    if isinstance(seeds, bool) or not isinstance(seeds, int) or seeds < 1:
+        raise ConfigError(f"seeds must be a whole number >= 1, got {seeds!r}")
+    if not (isinstance(speed, (int, float)) and np.isfinite(speed) and speed > 0):
+        raise ConfigError(f"speed must be a positive number [m/s], got {speed!r}")
     from tabletop.eval.harness import generated_scene, scene_map
     from tabletop.sim.scene import load_scene_spec
     from tabletop.sim.world import SimWorld

@@ -66,9 +66,12 @@ class SpatialConfig:
 
 def _point(pos, name: str = "pos") -> np.ndarray:
     """A finite (3,) float64 copy of ``pos`` [m]."""
-    p = np.array(pos, dtype=np.float64)
-    if p.shape != (3,) or not np.all(np.isfinite(p)):
-        raise ConfigError(f"{name} must be a finite 3-vector [m], got {np.asarray(pos).tolist()}")
+    try:
+        p = np.array(pos, dtype=np.float64)
+    except (TypeError, ValueError):
+        p = None
+    if p is None or p.shape != (3,) or not np.all(np.isfinite(p)):
+        raise ConfigError(f"{name} must be a finite 3-vector [m] (x, y, z numbers), got {pos!r}")
     return p
 
 
