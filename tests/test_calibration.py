@@ -151,3 +151,13 @@ def test_keep_prior_sets_fits_aside(tmp_path, capsys):
 
     assert main(["calibrate", "--keep-prior", "object,smell", "--out", str(tmp_path / "x")]) == 2
     assert "valid" in capsys.readouterr().err and not (tmp_path / "x").exists()
+
+
+
+def test_a_modality_with_too_few_queries_keeps_the_prior():
+    few = [
+        {"modality": "area", "query": f"q{i}", "margin": 0.1 * i, "correct": i % 2 == 0}
+        for i in range(3)
+    ]
+    cal = fit_calibration("default", few, few)
+    assert "area" not in cal.models and cal.confidence("area", 0.2) == UNCALIBRATED(0.2)

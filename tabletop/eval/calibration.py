@@ -156,8 +156,8 @@ def fit_calibration(
     for mod in MODALITIES:
         tr = [s for s in train if s["modality"] == mod]
         te = [s for s in test if s["modality"] == mod]
-        if not tr or len({s["correct"] for s in tr}) < 2:
-            continue
+        if len(tr) < 4 or len({s["correct"] for s in tr}) < 2:
+            continue  # too few labelled queries (or one class only) to fit: the prior stays
         f = fit_platt([s["margin"] for s in tr], [s["correct"] for s in tr])
         models[mod] = f
         right = np.array([s["margin"] for s in tr if s["correct"]])
