@@ -282,3 +282,12 @@ def test_shipped_suites_cover_every_goal_type():
     assert "demo" in list_shipped_tasks()
     demo = load_tasks("demo")
     assert {g.type for g in demo.goals} == set(GOAL_TYPES) and len(demo.goals) <= 30
+
+
+def test_every_relation_is_a_target_primitive_of_the_robot_api():
+    from tabletop.eval.tasks import RELATIONS
+    from tabletop.robot.primitives import primitive
+
+    for relation, n in RELATIONS.items():
+        p = primitive(relation)  # the runner calls robot.<relation>(*landmarks)
+        assert p.kind == "target" and len(p.params) == n

@@ -150,37 +150,20 @@ def _query_heatmap(ctx: _Context, goal: Goal, lm: Landmark, tag: str = ""):
     return heat
 
 
-#: A spatial goal's relation -> the robot API's motion primitive.
-_RELATION_MOVES = {
-    "between": "move_in_between",
-    "left_of": "move_to_left",
-    "right_of": "move_to_right",
-    "in_front_of": "move_in_front_of",
-    "behind": "move_behind",
-    "above": "move_to_object",
-}
-#: ... and the target primitive it moves to.
-_RELATION_TARGETS = {
-    "between": "between",
-    "left_of": "left_of",
-    "right_of": "right_of",
-    "in_front_of": "in_front_of",
-    "behind": "behind",
-    "above": "above",
-}
-
-
 def _move(ctx: _Context, goal: Goal):
     """(target, reach result) of a query or spatial goal, through the public robot API only:
-    ``move_to(get_max_pos_3d(get_major_map(...)))``, or a spatial primitive whose landmarks are
-    object names or query heatmaps."""
+    ``move_to(get_max_pos_3d(get_major_map(...)))``, or ``move_to(<relation>(*landmarks))``
+    with object names or query heatmaps as landmarks. Every relation of a task file
+    (:data:`~tabletop.eval.tasks.RELATIONS`) is the robot API's target primitive of that name,
+    and ``move_to`` of its target is what the matching motion primitive (``move_to_left``,
+    ``move_in_between``, ...) does: the target is computed once."""
     robot = ctx.robot
     if not goal.landmarks:
         target = robot.get_max_pos_3d(_query_heatmap(ctx, goal, goal.query))
         return target, robot.move_to(target)
     marks = [_landmark(ctx, goal, m, f"landmark {i + 1} ") for i, m in enumerate(goal.landmarks)]
-    target = getattr(robot, _RELATION_TARGETS[goal.relation])(*marks)
-    return target, getattr(robot, _RELATION_MOVES[goal.relation])(*marks)
+    target = getattr(robot, goal.relation)(*marks)
+    return target, robot.move_to(target)
 
 
 def _run_goal(ctx: _Context, goal: Goal, sequence: str, region: Region) -> GoalResult:
