@@ -296,3 +296,12 @@ def test_named_table_regions_come_from_the_map_geometry(avlmap, rec):
         assert a.x[0] <= p[0] <= a.x[1] and a.y[0] <= p[1] <= a.y[1]
     tray = avlmap.area_heatmap("the tray area")
     assert tray.evidence is not None  # named by what is there: the area module
+
+
+def test_query_dispatches_by_kind_and_names_the_valid_ones(avlmap):
+    np.testing.assert_array_equal(
+        avlmap.query("obj", "red mug").values, avlmap.object_heatmap("red mug").values
+    )
+    assert avlmap.query("area", "the tray area", major=False).decay == avlmap.decay(False)
+    with pytest.raises(ConfigError, match=r"unknown query kind 'smell'; valid: \['obj'"):
+        avlmap.query("smell", "roses")

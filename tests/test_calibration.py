@@ -153,7 +153,6 @@ def test_keep_prior_sets_fits_aside(tmp_path, capsys):
     assert "valid" in capsys.readouterr().err and not (tmp_path / "x").exists()
 
 
-
 def test_a_modality_with_too_few_queries_keeps_the_prior():
     few = [
         {"modality": "area", "query": f"q{i}", "margin": 0.1 * i, "correct": i % 2 == 0}

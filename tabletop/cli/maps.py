@@ -64,11 +64,8 @@ def cmd_query(args: argparse.Namespace) -> int:
         if q is None:
             continue
         modality = kind.removeprefix("near_")
-        if modality == "img":
-            parts.append(m.image_heatmap(RobotAPI.load_image(q), major=major))
-            continue
-        fn = {"obj": m.object_heatmap, "sound": m.sound_heatmap, "area": m.area_heatmap}[modality]
-        parts.append(fn(q, major=major))
+        value = RobotAPI.load_image(q) if modality == "img" else q
+        parts.append(m.query(modality, value, major))
     if not parts:
         print("tabletop query: give at least one of --obj, --sound, --area, --img", file=sys.stderr)
         return 2

@@ -8,18 +8,15 @@ evidence is the best score's margin over the median frame.
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 
 from tabletop.errors import ConfigError
 from tabletop.grid import VoxelGrid
-from tabletop.mapping.heatmaps import Heatmap, scored_points_heatmap_xy
+from tabletop.mapping.heatmaps import Heatmap, Judge, scored_points_heatmap_xy
 
 __all__ = ["AreaConfig", "AreaModule", "look_at_table", "normalize_scores"]
-
-Judge = Callable[[str, float], tuple[float, bool]]
 
 
 @dataclass(frozen=True)

@@ -13,7 +13,6 @@ for a sound that never played is refused instead of being found by fiat.
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -22,7 +21,7 @@ from tabletop.errors import ConfigError
 from tabletop.grid import VoxelGrid
 from tabletop.mapping.area_module import normalize_scores
 from tabletop.mapping.audio_segments import AudioSegment, NoiseGateConfig, segment_audio
-from tabletop.mapping.heatmaps import Heatmap, scored_points_heatmap_xy
+from tabletop.mapping.heatmaps import Heatmap, Judge, scored_points_heatmap_xy
 
 __all__ = ["REFERENCE_SOUNDS", "AudioConfig", "AudioModule"]
 
@@ -42,8 +41,6 @@ REFERENCE_SOUNDS = (
     "a car passing by",
     "wind blowing",
 )
-
-Judge = Callable[[str, float], tuple[float, bool]]
 
 
 @dataclass(frozen=True)

@@ -24,6 +24,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
+from types import MappingProxyType
 from typing import Protocol
 
 import numpy as np
@@ -47,7 +48,17 @@ from tabletop.mapping.visual.module import VisualModule, VisualModuleConfig
 from tabletop.mapping.visual.photometric import PhotometricCheck
 from tabletop.mapping.voxel_map import VoxelMap, frame_points
 
-__all__ = ["AVLMap", "MapStats", "SelfFilter"]
+__all__ = ["QUERY_KINDS", "AVLMap", "MapStats", "SelfFilter"]
+
+#: Query kinds (the robot API's keywords) -> the map's query method each names.
+QUERY_KINDS = MappingProxyType(
+    {
+        "obj": "object_heatmap",
+        "sound": "sound_heatmap",
+        "area": "area_heatmap",
+        "img": "image_heatmap",
+    }
+)
 
 log = logging.getLogger(__name__)
 
@@ -325,19 +336,16 @@ class AVLMap:
             calibration=calibration,
         )
         try:
-            voxels = VoxelMap.from_state(
-                config.grid,
-                h["dim"],
+            m.voxels.restore(
                 {
                     "linear": a["voxel_linear"],
                     "feature_sums": a["voxel_feature_sums"],
                     "counts": a["voxel_counts"],
                     "color_sums": a["voxel_color_sums"],
-                },
+                }
             )
         except ConfigError as e:
             raise MapFormatError(f"{path}: {e}") from None
-        m.voxels = m.objects.voxels = m.images.voxels = voxels  # the modules share it
         for e, T in zip(a["frame_embeddings"], a["frame_poses"], strict=True):
             m.areas.add(e, T)
         try:
@@ -388,6 +396,14 @@ class AVLMap:
         """(calibrated confidence, found) of a query of ``modality`` whose best match beats
         the map's typical match by ``margin``."""
         return self.calibration.judge(modality, float(margin), self.config.min_confidence)
+
+    def query(self, kind: str, value, major: bool = True) -> Heatmap:
+        """The heatmap of one query part: ``kind`` one of :data:`QUERY_KINDS` (``value`` a text,
+        or an (H, W, 3) uint8 image for ``"img"``), sharp (``major``) or broad."""
+        name = QUERY_KINDS.get(kind)
+        if name is None:
+            raise ConfigError(f"unknown query kind {kind!r}; valid: {list(QUERY_KINDS)}")
+        return getattr(self, name)(value, major=major)
 
     def object_heatmap(self, query: str, major: bool = True) -> Heatmap:
         """Heat around the voxels that best match ``query`` (the object module)."""

@@ -16,6 +16,7 @@ a tabletop: ``MAJOR_DECAY`` = 10 /m (heat reaches 0 at 10 cm: "where exactly"), 
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -29,10 +30,15 @@ __all__ = [
     "MAJOR_DECAY",
     "MODALITIES",
     "Heatmap",
+    "Judge",
     "fuse",
     "point_heatmap_3d",
     "scored_points_heatmap_xy",
 ]
+
+Judge = Callable[[str, float], tuple[float, bool]]
+"""``judge(modality, margin) -> (confidence, found)``: how a module turns its evidence into a
+verdict (the map's calibration, :meth:`tabletop.mapping.avlmap.AVLMap.judge`)."""
 
 #: What produced a heatmap: one of the four modules, or a product of several ("fused").
 MODALITIES = ("object", "sound", "area", "image", "fused")

@@ -10,22 +10,18 @@ over the median voxel score, which the map's calibration turns into a confidence
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 
 from tabletop.errors import ConfigError
-from tabletop.mapping.heatmaps import Heatmap, point_heatmap_3d
+from tabletop.mapping.heatmaps import Heatmap, Judge, point_heatmap_3d
 from tabletop.mapping.voxel_map import VoxelMap
 
 __all__ = ["BACKGROUND", "ObjectConfig", "ObjectModule"]
 
 #: Concepts every object query competes against: what a tabletop map holds besides objects.
 BACKGROUND = ("table", "floor", "robot arm", "other")
-
-Judge = Callable[[str, float], tuple[float, bool]]
-"""``judge(modality, margin) -> (confidence, found)``: the map's calibration."""
 
 
 @dataclass(frozen=True)
@@ -59,7 +55,6 @@ class ObjectModule:
         self.voxels = voxels
         self.text = text
         self.config = config or ObjectConfig()
-        self.background = self.config.background
         self._key: tuple[int, int] | None = None
         self._features: np.ndarray | None = None
         self._background: np.ndarray | None = None
@@ -68,7 +63,7 @@ class ObjectModule:
         key = (self.voxels.n, self.voxels.version)
         if self._key != key:
             self._features = self.voxels.mean_features()
-            bg = self.text.encode_text(list(self.background))
+            bg = self.text.encode_text(list(self.config.background))
             self._background = (self._features @ bg.T).max(axis=1)
             self._key = key
 

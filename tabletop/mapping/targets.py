@@ -97,15 +97,20 @@ def _is_column(grid: VoxelGrid, idx: np.ndarray) -> bool:
     return len(np.unique(idx[:, 2])) == grid.shape[2]
 
 
-def max_position(heatmap: Heatmap, occupancy: np.ndarray) -> np.ndarray:
-    """(3,) [m]: the centroid of the hottest region (:func:`hottest_region`); a region spanning
-    the grid's whole height (a top-down heatmap) is placed on the surface beneath it."""
-    idx = np.argwhere(hottest_region(heatmap))
-    grid = heatmap.grid
+def _centroid(grid: VoxelGrid, occupancy: np.ndarray, idx: np.ndarray) -> np.ndarray:
+    """(3,) [m]: the centroid of the voxels ``idx`` (N, 3), put on the surface beneath when they
+    span the grid's whole height."""
     p = grid.centers(idx).mean(axis=0)
     if _is_column(grid, idx):
         p[2] = surface_z(grid, occupancy, p[:2])
     return p
+
+
+def max_position(heatmap: Heatmap, occupancy: np.ndarray) -> np.ndarray:
+    """(3,) [m]: the centroid of the hottest region (:func:`hottest_region`); a region spanning
+    the grid's whole height (a top-down heatmap) is placed on the surface beneath it."""
+    idx = np.argwhere(hottest_region(heatmap))  # checks the heatmap first
+    return _centroid(heatmap.grid, occupancy, idx)
 
 
 def region_box(
@@ -121,15 +126,13 @@ def region_box(
     """
     idx = np.argwhere(hottest_region(heatmap))
     grid = heatmap.grid
-    centers = grid.centers(idx)
+    p = _centroid(grid, occupancy, idx)
     if _is_column(grid, idx):
-        p = centers.mean(axis=0)
-        p[2] = surface_z(grid, occupancy, p[:2])
         top = p.copy()
         top[2] = max(p[2], surface_z(grid, occupancy, p[:2], radius))
         return p, p.copy(), top
-    h = grid.voxel_size / 2
-    return centers.mean(axis=0), centers.min(axis=0) - h, centers.max(axis=0) + h
+    centers, h = grid.centers(idx), grid.voxel_size / 2
+    return p, centers.min(axis=0) - h, centers.max(axis=0) + h
 
 
 def approach_point(

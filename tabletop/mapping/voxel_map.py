@@ -170,18 +170,26 @@ class VoxelMap:
     @classmethod
     def from_state(cls, grid: VoxelGrid, dim: int, state: dict[str, np.ndarray]) -> VoxelMap:
         m = cls(grid, dim, capacity=max(1, len(state["linear"])))
-        n = len(state["linear"])
-        if state["feature_sums"].shape != (n, dim) or len(state["counts"]) != n:
-            raise ConfigError("voxel map arrays disagree in length or feature dim")
-        if n and (state["linear"].min() < 0 or state["linear"].max() >= grid.size):
-            raise ConfigError("voxel map indices lie outside its grid")
-        m._lin[:n] = state["linear"]
-        m._feat[:n] = state["feature_sums"]
-        m._count[:n] = state["counts"]
-        m._rgb[:n] = state["color_sums"]
-        m._row_of[state["linear"]] = np.arange(n, dtype=np.int32)
-        m.n = n
+        m.restore(state)
         return m
+
+    def restore(self, state: dict[str, np.ndarray]) -> None:
+        """Fill this empty map with a :meth:`state` (in place: whatever holds the map sees it)."""
+        if self.n:
+            raise ConfigError(f"restore needs an empty voxel map, this one holds {self.n} voxels")
+        n = len(state["linear"])
+        if state["feature_sums"].shape != (n, self.dim) or len(state["counts"]) != n:
+            raise ConfigError("voxel map arrays disagree in length or feature dim")
+        if n and (state["linear"].min() < 0 or state["linear"].max() >= self.grid.size):
+            raise ConfigError("voxel map indices lie outside its grid")
+        self._grow(n)
+        self._lin[:n] = state["linear"]
+        self._feat[:n] = state["feature_sums"]
+        self._count[:n] = state["counts"]
+        self._rgb[:n] = state["color_sums"]
+        self._row_of[state["linear"]] = np.arange(n, dtype=np.int32)
+        self.n = n
+        self.version += 1
 
     @property
     def nbytes(self) -> int:

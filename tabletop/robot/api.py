@@ -119,7 +119,7 @@ class RobotAPI(abc.ABC):
             raise ConfigError(
                 f"img must be an (H, W, 3) uint8 RGB array or a path, got {rgb.shape} {rgb.dtype}"
             )
-        if getattr(self.map, "visual", None) is None:
+        if self.map.visual is None:
             raise ImageGoalUnavailable(
                 "image goals need the map's visual localization module; this map was built "
                 "without it (MapConfig.visual=None)"
@@ -127,14 +127,9 @@ class RobotAPI(abc.ABC):
         return self.map.image_heatmap(rgb, major=major)
 
     def _part(self, kind: str, value, major: bool) -> Heatmap:
-        m = self.map
-        if kind == "obj":
-            return m.object_heatmap(value, major=major)
-        if kind == "sound":
-            return m.sound_heatmap(value, major=major)
-        if kind == "area":
-            return m.area_heatmap(value, major=major)
-        return self._image_heatmap(value, major)
+        if kind == "img":
+            return self._image_heatmap(value, major)
+        return self.map.query(kind, value, major)
 
     def _heatmap(self, parts: dict, majors: dict) -> Heatmap:
         given = {k: v for k, v in parts.items() if v is not None}

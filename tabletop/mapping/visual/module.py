@@ -10,13 +10,12 @@ beyond chance (kappa).
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from tabletop.errors import ConfigError
-from tabletop.mapping.heatmaps import Heatmap, scored_points_heatmap_xy
+from tabletop.mapping.heatmaps import Heatmap, Judge, scored_points_heatmap_xy
 from tabletop.mapping.visual.database import VisualDatabase
 from tabletop.mapping.visual.inputs import check_rgb
 from tabletop.mapping.visual.localization import VisualLocalization, VisualLocalizationConfig
@@ -26,8 +25,6 @@ from tabletop.mapping.voxel_map import VoxelMap
 from tabletop.transforms import pixel_rays
 
 __all__ = ["VisualModule", "VisualModuleConfig"]
-
-Judge = Callable[[str, float], tuple[float, bool]]
 
 
 @dataclass(frozen=True)
