@@ -13,7 +13,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from tabletop.eval.results import RECALL_RADII_M, EncoderRun, dumps
+from tabletop.eval.results import RECALL_RADII_M, SUCCESS_RADIUS_M, EncoderRun, dumps
 from tabletop.sim.ground_truth import GroundTruth
 
 __all__ = ["EvalResult", "write_task_figures"]
@@ -72,7 +72,7 @@ class EvalResult:
         return {
             **top,
             "task_files": self.task_files,
-            "success_radius_m": 0.10,
+            "success_radius_m": SUCCESS_RADIUS_M,
             "report": str(self.report_path) if self.report_path else None,
             "rows": rows,
         }

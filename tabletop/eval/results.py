@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from tabletop.arm.success import SUCCESS_RADIUS_M
 from tabletop.eval.tasks import GOAL_TYPES
 
 __all__ = [
@@ -33,7 +34,6 @@ __all__ = [
     "summarize",
 ]
 
-SUCCESS_RADIUS_M = 0.10
 RECALL_RADII_M = (0.02, 0.05, 0.10)
 ORACLE_NOTE = "simulator upper bound"
 
