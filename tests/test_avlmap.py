@@ -305,3 +305,44 @@ def test_query_dispatches_by_kind_and_names_the_valid_ones(avlmap):
     assert avlmap.query("area", "the tray area", major=False).decay == avlmap.decay(False)
     with pytest.raises(ConfigError, match=r"unknown query kind 'smell'; valid: \['obj'"):
         avlmap.query("smell", "roses")
+
+
+def _rewrite(path, out, drop=(), **header):
+    """A copy of map file ``path`` with arrays dropped and header fields replaced."""
+    import json
+
+    with np.load(path) as z:
+        arrays = {k: z[k] for k in z.files if k not in drop}
+    h = json.loads(arrays["header"].tobytes().decode())
+    h.update(header)
+    arrays["header"] = np.frombuffer(json.dumps(h).encode(), dtype=np.uint8)
+    np.savez(out, **arrays)
+    return out
+
+
+def test_object_instances_are_saved_and_an_older_file_segments_again(avlmap, rec, tmp_path):
+    from tabletop.mapping.persistence import MAP_VERSION
+
+    truth = GroundTruth.of(rec)
+    inst = avlmap.objects.instances.items
+    assert len(inst) == len(truth.objects)  # one instance per object of the scene
+    path = avlmap.save(tmp_path / "map.npz")
+    # the saved labels are what a load uses: change them and the loaded instances follow
+    labels = avlmap.objects.instances.labels().copy()
+    merged = labels.copy()
+    merged[merged == 1] = 0
+    merged[merged > 1] -= 1
+    edited = _rewrite(path, tmp_path / "edited.npz", drop=("voxel_instance",))
+    with np.load(edited) as z:
+        arrays = {k: z[k] for k in z.files}
+    np.savez(edited, voxel_instance=merged, **arrays)
+    assert len(AVLMap.load(edited).objects.instances) == len(inst) - 1
+    back = AVLMap.load(path)
+    assert back.lacks == () and MAP_VERSION == 4
+    np.testing.assert_array_equal(back.objects.instances.labels(), labels)
+    old = _rewrite(path, tmp_path / "v3.npz", drop=("voxel_instance",), version=3)
+    m3 = AVLMap.load(old)
+    assert any("instances" in w for w in m3.lacks)
+    np.testing.assert_array_equal(m3.objects.instances.labels(), labels)
+    with pytest.raises(Exception, match="voxel_instance"):
+        AVLMap.load(_rewrite(path, tmp_path / "bad.npz", drop=("voxel_instance",)))

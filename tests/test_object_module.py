@@ -50,3 +50,94 @@ def test_config_is_checked():
         ObjectConfig(select_margin=2.0)
     with pytest.raises(ConfigError, match="background"):
         ObjectConfig(background=())
+
+
+# ---------------------------------------------------------------------- instances
+
+VOCAB = ("mug", "duck", "teddy bear", "tray", "soccer ball", "ball")
+DESCRIPTIONS = {"mug": ("a ceramic cup with a handle", "a cup for hot drinks like coffee or tea")}
+RED, BLUE, YELLOW = (200, 30, 25), (30, 60, 180), (220, 190, 30)
+SCENE = {
+    "red mug": ((0.10, -0.20, 0.01), (0.16, -0.14, 0.10), RED),
+    "blue mug": ((0.30, -0.20, 0.01), (0.36, -0.14, 0.10), BLUE),
+    "yellow duck": ((0.40, 0.10, 0.01), (0.46, 0.16, 0.07), YELLOW),
+}
+
+
+@pytest.fixture(scope="module")
+def scene():
+    from module_helpers import coloured_voxels
+
+    from tabletop.mapping.table_regions import fit_table
+
+    vm = coloured_voxels(SCENE)
+    return ObjectModule(
+        vm, text_encoder(), ObjectConfig(), VOCAB, DESCRIPTIONS, lambda: fit_table(GRID, vm.indices)
+    )
+
+
+def _lands_on(module, h, name):
+    p = max_position(h, module.voxels.occupancy())
+    lo, hi, _ = SCENE[name]
+    return bool(
+        np.all(p[:2] >= np.subtract(lo[:2], 0.01)) and np.all(p[:2] <= np.add(hi[:2], 0.01))
+    )
+
+
+def test_colour_words_pick_the_instance_by_its_measured_colour(scene):
+    for q, name in (
+        ("the red mug", "red mug"),
+        ("a blue mug", "blue mug"),
+        ("scarlet mug", "red mug"),
+    ):
+        h = scene.heatmap(q, 10.0, judge_at(0.2))
+        assert h.found and _lands_on(scene, h, name), (q, h.reason)
+
+
+def test_a_paraphrase_finds_its_object_through_the_descriptions(scene):
+    h = scene.heatmap("the coffee cup", 10.0, judge_at(0.2))
+    assert h.found and h.evidence > 0.2
+    m = scene.match("the coffee cup")
+    assert m.names == ("mug",) and m.text_score > 0.6
+
+
+def test_both_mugs_stay_hot_for_the_mug(scene):
+    h = scene.heatmap("the mug", 10.0, judge_at(0.2))
+    hot = {n for n in SCENE if _box_peak(scene, h, n) == pytest.approx(1.0)}
+    assert hot == {"red mug", "blue mug"}
+
+
+def _box_peak(module, h, name):
+    lo, hi, _ = SCENE[name]
+    idx, _ = GRID.world_to_index(np.array([np.add(lo, hi) / 2]))
+    return float(h.values[tuple(idx[0])])
+
+
+def test_absent_things_are_not_found_with_a_reason(scene):
+    out = scene.heatmap("the giraffe", 10.0, judge_at(0.2))
+    assert not out.found and "vocabulary" in out.reason and out.peak == 0.0
+    colour = scene.heatmap("the purple mug", 10.0, judge_at(0.2))
+    assert not colour.found and "purple" in colour.reason
+    kind = scene.heatmap("the teddy bear", 10.0, judge_at(0.2))  # known, not in this map
+    assert not kind.found and "teddy bear" in kind.reason
+
+
+def test_a_shorter_name_may_mean_a_longer_one(scene):
+    m = scene.match("the ball")
+    assert set(m.names) == {"ball", "soccer ball"}
+
+
+def test_instances_off_scores_voxels(scene):
+    off = ObjectModule(scene.voxels, text_encoder(), ObjectConfig(instances=False), VOCAB)
+    assert not off.uses_instances
+    h = off.heatmap("yellow duck", 10.0, judge_at(0.1))
+    assert h.found and _lands_on(off, h, "yellow duck")
+
+
+def test_instance_config_is_checked():
+    with pytest.raises(ConfigError, match="text_min"):
+        ObjectConfig(text_min=1.5)
+    with pytest.raises(ConfigError, match="temperature"):
+        ObjectConfig(temperature=0.0)
+    with pytest.raises(ConfigError, match="segmentation"):
+        ObjectConfig(segmentation=3)

@@ -42,8 +42,8 @@ def calibration_samples(
     """Labelled queries of one map: ``{"modality", "query", "margin", "correct"}`` each.
 
     Objects: every object label and every kind name present (right when the target lands
-    within 10 cm of an object carrying it) and every catalog kind absent from the scene
-    (always wrong). Sounds: the caption of every inserted category (right within 10 cm of the
+    within 10 cm of an object carrying it), every catalog kind absent from the scene and,
+    for each present kind, a colour it may take that none of its objects has (always wrong). Sounds: the caption of every inserted category (right within 10 cm of the
     column above a place it was inserted, up to where it was heard) and of sound-bank
     categories never inserted (always wrong). Areas: each named table area (right within
     10 cm of its rectangle, up to :data:`AREA_HEIGHT_M`). Images: ``image_goals``
@@ -92,6 +92,12 @@ def calibration_samples(
     present = {o.kind for o in objs}
     for k in sorted(set(OBJECT_KINDS) - present):
         add("object", OBJECT_KINDS[k].label, m.object_heatmap(OBJECT_KINDS[k].label), None)
+    for k in sorted(present):  # a colour the kind may take that no object of it has here
+        worn = {o.color for o in objs if o.kind == k}
+        absent = [c for c in OBJECT_KINDS[k].colors if c not in worn]
+        if absent and not OBJECT_KINDS[k].keep_texture:
+            q = f"{absent[0]} {OBJECT_KINDS[k].label}"
+            add("object", q, m.object_heatmap(q), None)
 
     events = ground_truth.sound_events
     if events:
@@ -197,11 +203,13 @@ def run_calibration(
     speed: float = 0.3,
     progress=None,
     images: bool = True,
+    cache_dir=None,
 ) -> Calibration:
     """Scan a generated scene per seed, build its map with ``encoder_set``, label queries,
     fit on the first half of the scenes and report on the second (held-out scenes). With
     ``images``, each scene's image goals (rendered by a second simulator of it, at poses the
     scan never took) and the previous scene's pictures (foreign: always wrong) are queried too.
+    ``cache_dir``: scans and maps are reused from (and kept in) it, as the evaluation does.
     """
     from tabletop.eval.harness import generated_scene, scene_map
     from tabletop.eval.map_goals import ImageGoalConfig, image_goals
@@ -213,7 +221,7 @@ def run_calibration(
     per_scene, previous = [], []
     for seed in seeds:
         spec = generated_scene(seed, f"calib-{seed}")
-        rec, m = scene_map(spec, {"seed": seed, "speed": speed}, encoder_set)
+        rec, m = scene_map(spec, {"seed": seed, "speed": speed}, encoder_set, cache_dir=cache_dir)
         truth = GroundTruth.of(rec)
         goals = []
         if images:

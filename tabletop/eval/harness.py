@@ -20,10 +20,12 @@ import hashlib
 import json
 import logging
 import time
+import tomllib
 from collections.abc import Callable
 from pathlib import Path
 
-from tabletop.errors import TabletopError
+from tabletop.errors import AssetError, TabletopError
+from tabletop.paths import DATA_DIR
 
 __all__ = [
     "DEFAULT_CACHE_DIR",
@@ -46,9 +48,9 @@ Progress = Callable[[str, int, int], None]
 
 
 def map_config(**overrides):
-    """A :class:`~tabletop.mapping.MapConfig` with the simulator catalog's vocabulary (unless
-    ``categories`` is given) and ``overrides`` (MapConfig fields; ``voxel_size`` [m] sets the
-    grid's voxel size)."""
+    """A :class:`~tabletop.mapping.MapConfig` with the simulator catalog's vocabulary and its
+    descriptions (unless ``categories`` is given) and ``overrides`` (MapConfig fields;
+    ``voxel_size`` [m] sets the grid's voxel size)."""
     from tabletop.grid import VoxelGrid
     from tabletop.mapping import BACKGROUND, MapConfig
     from tabletop.sim.catalog import OBJECT_KINDS
@@ -56,8 +58,30 @@ def map_config(**overrides):
     kw = dict(overrides)
     if "voxel_size" in kw:
         kw["grid"] = VoxelGrid(voxel_size=float(kw.pop("voxel_size")))
-    kw.setdefault("categories", (*(k.label for k in OBJECT_KINDS.values()), *BACKGROUND))
+    if "categories" not in kw:
+        kw["categories"] = (*(k.label for k in OBJECT_KINDS.values()), *BACKGROUND)
+        desc = catalog_descriptions()
+        kw.setdefault(
+            "descriptions", {k.label: desc[n] for n, k in OBJECT_KINDS.items() if n in desc}
+        )
     return MapConfig(**kw)
+
+
+DESCRIPTIONS_PATH = DATA_DIR / "descriptions.toml"
+
+
+def catalog_descriptions(path: Path = DESCRIPTIONS_PATH) -> dict[str, tuple[str, ...]]:
+    """Catalog kind name -> descriptions of it (``tabletop/data/descriptions.toml``)."""
+    try:
+        d = tomllib.loads(Path(path).read_text())
+    except (OSError, tomllib.TOMLDecodeError) as e:
+        raise AssetError(f"cannot read the object descriptions {path}: {e}") from None
+    bad = [
+        k for k, v in d.items() if not isinstance(v, list) or not all(isinstance(t, str) for t in v)
+    ]
+    if bad:
+        raise AssetError(f"{path}: {bad} must be lists of strings")
+    return {k: tuple(v) for k, v in d.items()}
 
 
 def build_map(recording, encoders: str, config=None, progress=None, **kwargs):
@@ -145,7 +169,8 @@ def cached_map(
     (:func:`map_config` overrides), through the cache."""
     from tabletop.mapping import AVLMap
 
-    key = _key({"rec": rec_key, "map": map_settings, "mapping": _fingerprint("mapping", "arm")})
+    config = map_config(**map_settings)
+    key = _key({"rec": rec_key, "map": config.to_dict(), "mapping": _fingerprint("mapping", "arm")})
     path = cache / f"map-{encoders}-{key}.npz" if cache else None
     if path is not None and path.is_file():
         try:
@@ -157,7 +182,6 @@ def cached_map(
             log.warning("cached map %s is unusable (%s); building again", path, e)
     t0 = time.perf_counter()
     cb = (lambda d, n: progress(f"map {name}", d, n)) if progress else None
-    config = map_config(**map_settings)
     m = build_map(rec, encoders, config, progress=cb)
     map_s = time.perf_counter() - t0
     if path is not None:

@@ -142,7 +142,9 @@ class AVLMap:
         self.rebuild_info = dict(rebuild_info or {})
         self.self_filter = self_filter
         self.voxels = VoxelMap(self.grid, text.dim)
-        self.objects = ObjectModule(self.voxels, text, config.object)
+        self.objects = ObjectModule(
+            self.voxels, text, config.object, config.objects, config.descriptions, self.table
+        )
         """The object module."""
         self.areas = AreaModule(self.grid, config.area)
         """The area module (per-frame global embeddings and camera poses)."""
@@ -344,6 +346,10 @@ class AVLMap:
                     "color_sums": a["voxel_color_sums"],
                 }
             )
+            if "voxel_instance" in a:
+                m.objects.instances.restore(a["voxel_instance"])
+            else:
+                lacks.append("saved object instances (segmented again on load)")
         except ConfigError as e:
             raise MapFormatError(f"{path}: {e}") from None
         for e, T in zip(a["frame_embeddings"], a["frame_poses"], strict=True):

@@ -6,7 +6,9 @@ Each module's parameters live in its own config, next to the module: :class:`Obj
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import asdict, dataclass, field, fields
+from types import MappingProxyType
 
 from tabletop.errors import ConfigError
 from tabletop.grid import VoxelGrid
@@ -14,6 +16,7 @@ from tabletop.mapping.area_module import AreaConfig
 from tabletop.mapping.audio_module import AudioConfig
 from tabletop.mapping.audio_segments import NoiseGateConfig
 from tabletop.mapping.heatmaps import AUX_DECAY, MAJOR_DECAY
+from tabletop.mapping.instances import InstanceConfig
 from tabletop.mapping.object_module import BACKGROUND, ObjectConfig
 from tabletop.mapping.visual.localization import VisualLocalizationConfig
 from tabletop.mapping.visual.module import VisualModuleConfig
@@ -40,6 +43,9 @@ class MapConfig:
     """The map's vocabulary: the object names it is asked about (the scene's catalog, passed
     in by whoever builds the map) and the background concepts, "other" among them. The robot
     layer's obstacle maps label voxels with it."""
+    descriptions: Mapping[str, tuple[str, ...]] = field(default_factory=dict)
+    """Vocabulary name -> descriptions of it (what it is, its shape, material, use): extra text
+    targets the object module matches a query's words against."""
     major_decay: float = MAJOR_DECAY
     """Decay [1/m] of primary heatmaps (``get_major_map``)."""
     aux_decay: float = AUX_DECAY
@@ -64,6 +70,18 @@ class MapConfig:
         if self.pixel_step < 1 or self.frame_step < 1:
             raise ConfigError("pixel_step and frame_step must be >= 1")
         object.__setattr__(self, "categories", tuple(self.categories))
+        if not isinstance(self.descriptions, Mapping):
+            raise ConfigError(f"descriptions must map names to texts, got {self.descriptions!r}")
+        desc = {}
+        for name, texts in self.descriptions.items():
+            texts = (texts,) if isinstance(texts, str) else tuple(texts)
+            if name not in self.categories or not all(isinstance(t, str) and t for t in texts):
+                raise ConfigError(
+                    f"descriptions[{name!r}] must describe a vocabulary name with non-empty "
+                    f"texts; vocabulary: {list(self.categories)}"
+                )
+            desc[name] = texts
+        object.__setattr__(self, "descriptions", MappingProxyType(desc))
         if "other" not in self.categories:
             raise ConfigError("categories must include 'other'")
         for name in ("major_decay", "aux_decay"):
@@ -90,6 +108,7 @@ class MapConfig:
         out = {f.name: getattr(self, f.name) for f in fields(self)}
         out["grid"] = self.grid.to_dict()
         out["categories"] = list(self.categories)
+        out["descriptions"] = {k: list(v) for k, v in self.descriptions.items()}
         for name in ("object", "area", "audio", "visual"):
             v = getattr(self, name)
             out[name] = None if v is None else _lists(asdict(v))
@@ -113,6 +132,8 @@ class MapConfig:
             if "categories" in kw:
                 kw["categories"] = tuple(kw["categories"])
             obj = dict(kw.get("object") or {})
+            if "segmentation" in obj:
+                obj["segmentation"] = InstanceConfig(**obj["segmentation"])
             if "select_margin" in d:
                 obj["select_margin"] = d["select_margin"]
             if "background" in obj:

@@ -1,24 +1,50 @@
-"""The object module: a text query scored against the map's fused voxel features.
+"""The object module: a text query scored against the map's object instances.
 
-Each occupied voxel holds the mean of the dense image features of every pixel fused into it.
-A query's text embedding is scored (cosine) against every voxel and against the background
-concepts; the voxels where the query beats the background and scores within
-``select_margin`` of the best are the target, and the heat decays from them in 3D
-(:func:`~tabletop.mapping.heatmaps.point_heatmap_3d`). The evidence is the best score's margin
-over the median voxel score, which the map's calibration turns into a confidence.
+The unit is the object instance (:mod:`tabletop.mapping.instances`: segmented from the map's
+geometry, each with a fused embedding and a measured colour). A query is answered in three
+steps, each with its own reason when it fails:
+
+1. **Words to the vocabulary.** The query is split into a colour phrase and the rest
+   (:func:`~tabletop.mapping.colors.split_color_words`). The rest is scored by the text encoder
+   against every name of the map's vocabulary and that name's descriptions (what it is, its
+   shape, material, use): a person's word for a thing ("coffee cup", "plush bear") lands on the
+   name ("mug", "teddy bear") even where the image network never saw that word. When its best
+   cosine is below ``text_min`` the query names nothing this map knows: not found. Every name
+   within ``text_margin`` of the best is what the query may mean.
+2. **Instances to the vocabulary.** Each instance's fused embedding is scored against every
+   vocabulary name (the name alone and with each basic colour term, as the image encoder was
+   trained) and the background concepts; a softmax at ``temperature`` gives how much the
+   instance looks like each. An instance's kind score is the probability of the query's names.
+3. **Colour, composed.** A colour phrase is compared with the instance's *measured* colour, not
+   with the embedding: the colour words are matched by the text encoder to the colour lexicon's
+   names (:data:`~tabletop.mapping.colors.COLOR_NAMES`), and the instance scores
+   ``exp(-ΔE / colour_scale)`` to those names' colours (CIELAB). Any colour word the text
+   encoder knows works ("scarlet", "navy"), not a list of the simulator's colours.
+
+An instance's score is kind score x colour score; the best is the query's evidence (the map's
+calibration makes it a confidence and decides found). Every instance scoring within
+``keep_ratio`` of the best stays hot — two mugs for "the mug", so that "the mug near the sound
+of X" still disambiguates by multiplication — and the heat decays from their voxels in 3D.
+
+With ``instances=False`` (or a map without a vocabulary) the module scores single voxels as
+before instances existed: the voxels where the query beats the background and scores within
+``select_margin`` of the best, evidence the best score's margin over the median.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from tabletop.errors import ConfigError
+from tabletop.mapping.colors import BASIC_COLOURS, COLOR_NAMES, rgb_to_lab, split_color_words
 from tabletop.mapping.heatmaps import Heatmap, Judge, point_heatmap_3d
+from tabletop.mapping.instances import InstanceConfig, InstanceSet, ObjectInstance
 from tabletop.mapping.voxel_map import VoxelMap
 
-__all__ = ["BACKGROUND", "ObjectConfig", "ObjectModule"]
+__all__ = ["BACKGROUND", "InstanceMatch", "ObjectConfig", "ObjectModule"]
 
 #: Concepts every object query competes against: what a tabletop map holds besides objects.
 BACKGROUND = ("table", "floor", "robot arm", "other")
@@ -26,12 +52,27 @@ BACKGROUND = ("table", "floor", "robot arm", "other")
 
 @dataclass(frozen=True)
 class ObjectConfig:
-    """How the object module picks a query's target voxels."""
+    """How the object module answers a query."""
 
     select_margin: float = 0.1
-    """Target voxels score within this fraction of (best - median) of the best."""
+    """Voxel scoring (``instances=False``): target voxels score within this fraction of
+    (best - median) of the best."""
     background: tuple[str, ...] = BACKGROUND
-    """Concepts a query must beat at a voxel for the voxel to be a candidate."""
+    """Concepts a query competes against."""
+    instances: bool = True
+    """Score object instances (False: single voxels)."""
+    segmentation: InstanceConfig = field(default_factory=InstanceConfig)
+    """How the voxels are split into instances."""
+    text_min: float = 0.56
+    """A query's words must reach this cosine with some vocabulary name or description."""
+    text_margin: float = 0.04
+    """Vocabulary names within this cosine of the query's best are all what it may mean."""
+    temperature: float = 0.03
+    """Softmax temperature of an instance's scores against the vocabulary."""
+    colour_scale: float = 20.0
+    """CIELAB ΔE at which a colour's fit falls to 1/e."""
+    keep_ratio: float = 0.5
+    """Instances scoring at least this fraction of the best stay hot."""
 
     def __post_init__(self) -> None:
         if not 0 <= self.select_margin <= 1:
@@ -39,26 +80,80 @@ class ObjectConfig:
         if not self.background or not all(isinstance(b, str) and b for b in self.background):
             raise ConfigError(f"background must be non-empty strings, got {self.background!r}")
         object.__setattr__(self, "background", tuple(self.background))
+        if isinstance(self.segmentation, Mapping):
+            object.__setattr__(self, "segmentation", InstanceConfig(**self.segmentation))
+        if not isinstance(self.segmentation, InstanceConfig):
+            raise ConfigError(
+                f"segmentation must be an InstanceConfig, got {type(self.segmentation).__name__}"
+            )
+        for name in ("text_min", "keep_ratio"):
+            if not 0 <= getattr(self, name) <= 1:
+                raise ConfigError(f"{name} must be in [0, 1], got {getattr(self, name)}")
+        for name in ("text_margin", "temperature", "colour_scale"):
+            if not getattr(self, name) > 0:
+                raise ConfigError(f"{name} must be > 0, got {getattr(self, name)}")
+
+
+@dataclass(frozen=True)
+class InstanceMatch:
+    """How a query scored against the map's instances."""
+
+    words: str
+    """The query without its colour phrase."""
+    colour: str
+    """The query's colour phrase ("" for none)."""
+    names: tuple[str, ...]
+    """Vocabulary names the words may mean."""
+    text_score: float
+    """The words' best cosine with a vocabulary name or description."""
+    nearest: str
+    """The vocabulary name of that best cosine."""
+    kind: np.ndarray
+    """(n_instances,) probability that each instance is one of ``names``."""
+    colour_match: np.ndarray
+    """(n_instances,) how well each instance's measured colour fits ``colour`` (1 without)."""
+
+    @property
+    def scores(self) -> np.ndarray:
+        return self.kind * self.colour_match
 
 
 class ObjectModule:
     """Object queries on a :class:`~tabletop.mapping.voxel_map.VoxelMap`.
 
     Args:
-        voxels: the map's voxels (read at query time; the module caches their normalised
-            features until the voxels change).
+        voxels: the map's voxels (read at query time; derived data is cached until they change).
         text: the text encoder (``encode_text(list[str]) -> (n, dim)``, unit rows).
         config: the module's parameters.
+        vocabulary: the object names the map knows (``MapConfig.objects``); empty: voxel
+            scoring only.
+        descriptions: name -> descriptions of it, extra text targets of the name.
+        table: () -> the map's fitted table (:meth:`AVLMap.table`), for the segmentation.
     """
 
-    def __init__(self, voxels: VoxelMap, text, config: ObjectConfig | None = None) -> None:
+    def __init__(
+        self,
+        voxels: VoxelMap,
+        text,
+        config: ObjectConfig | None = None,
+        vocabulary: tuple[str, ...] = (),
+        descriptions: Mapping[str, tuple[str, ...]] | None = None,
+        table: Callable | None = None,
+    ) -> None:
         self.voxels = voxels
         self.text = text
         self.config = config or ObjectConfig()
+        self.vocabulary = tuple(vocabulary)
+        self.descriptions = {k: tuple(v) for k, v in (descriptions or {}).items()}
+        self.instances = InstanceSet(voxels, table or (lambda: None), self.config.segmentation)
+        """The map's object instances (segmented on first use, again after new frames)."""
         self._key: tuple[int, int] | None = None
         self._features: np.ndarray | None = None
         self._background: np.ndarray | None = None
+        self._targets: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None = None
+        self._lexicon: tuple[np.ndarray, np.ndarray] | None = None
 
+    # ------------------------------------------------------------------ single voxels
     def _refresh(self) -> None:
         key = (self.voxels.n, self.voxels.version)
         if self._key != key:
@@ -79,12 +174,161 @@ class ObjectModule:
         s = self._features @ self.text.encode_text([query])[0]
         return s, s > self._background
 
+    # ------------------------------------------------------------------ instances
+    @property
+    def uses_instances(self) -> bool:
+        return self.config.instances and bool(self.vocabulary)
+
+    def _vocab_targets(self):
+        """(text targets (T, dim), their name index (T,), vision targets (V, dim), their class
+        index (V,)); classes are the vocabulary then the background."""
+        if self._targets is None:
+            texts, owner = [], []
+            for i, name in enumerate(self.vocabulary):
+                for t in (name, f"a {name}", *self.descriptions.get(name, ())):
+                    texts.append(t)
+                    owner.append(i)
+            vis, vowner = [], []
+            for i, name in enumerate(self.vocabulary):
+                for t in (name, *(f"{c} {name}" for c in BASIC_COLOURS)):
+                    vis.append(t)
+                    vowner.append(i)
+            for j, b in enumerate(self.config.background):
+                vis.append(b)
+                vowner.append(len(self.vocabulary) + j)
+            emb = self.text.encode_text(texts + vis)
+            self._targets = (
+                emb[: len(texts)],
+                np.array(owner),
+                emb[len(texts) :],
+                np.array(vowner),
+            )
+        return self._targets
+
+    def class_scores(self, instances: list[ObjectInstance] | None = None) -> np.ndarray:
+        """(n_instances, vocabulary + background): each instance's best cosine with each
+        class's vision targets."""
+        inst = self.instances.items if instances is None else instances
+        _, _, V, vowner = self._vocab_targets()
+        n_cls = len(self.vocabulary) + len(self.config.background)
+        if not inst:
+            return np.zeros((0, n_cls))
+        s = np.stack([i.embedding for i in inst]) @ V.T
+        out = np.full((len(inst), n_cls), -np.inf)
+        for c in range(n_cls):
+            out[:, c] = s[:, vowner == c].max(axis=1)
+        return out
+
+    def match(self, query: str) -> InstanceMatch:
+        """Score ``query`` against every instance (see the module docstring)."""
+        cfg = self.config
+        colour, words = split_color_words(query)
+        inst = self.instances.items
+        n = len(inst)
+        T, owner, _, _ = self._vocab_targets()
+        nv = len(self.vocabulary)
+        content = [w for w in words.split() if w not in _THING]
+        if content:
+            e = self.text.encode_text([words])[0]
+            per = np.array([float((T[owner == i] @ e).max()) for i in range(nv)])
+            best = int(np.argmax(per))
+            text_score, nearest = float(per[best]), self.vocabulary[best]
+            # The names within the margin, and those the query's head noun is part of (a
+            # shorter name: "the ball" may be the soccer ball, "the bear" the teddy bear).
+            want = per >= per[best] - cfg.text_margin
+            want |= np.array([content[-1] in name.split() for name in self.vocabulary])
+            names = tuple(np.array(self.vocabulary)[want])
+        else:  # "something red": any object
+            names, text_score, nearest = self.vocabulary, 1.0, ""
+            want = np.ones(nv, bool)
+        if n:
+            z = self.class_scores(inst) / cfg.temperature
+            p = np.exp(z - z.max(axis=1, keepdims=True))
+            p /= p.sum(axis=1, keepdims=True)
+            kind = p[:, :nv][:, want].sum(axis=1)
+        else:
+            kind = np.zeros(0)
+        cm = self.colour_match(colour, inst) if colour else np.ones(n)
+        return InstanceMatch(words, colour, names, text_score, nearest, kind, cm)
+
+    def colour_match(self, colour: str, instances: list[ObjectInstance]) -> np.ndarray:
+        """(n,) in [0, 1]: how well each instance's measured colour fits the colour phrase.
+
+        The phrase is matched to lexicon names by the text encoder; the fit falls off with the
+        CIELAB distance ΔE (lightness at half weight: shading darkens a whole object) from the
+        instance's measured colour to those names' colours, ``exp(-ΔE / colour_scale)``, and
+        again with how much nearer another basic colour term lies than the name's own (its
+        nearest basic term: "scarlet" is a red): a blue mug is not the purple one even though
+        blue and purple are neighbours."""
+        if self._lexicon is None:
+            names = list(COLOR_NAMES)
+            lab = rgb_to_lab(np.array([v[0] for v in COLOR_NAMES.values()], float))
+            self._lexicon = (self.text.encode_text(names), lab)
+            self._basic = [names.index(c) for c in BASIC_COLOURS]
+            self._family = [names.index(v[1]) for v in COLOR_NAMES.values()]
+        E, lab = self._lexicon
+        sim = E @ self.text.encode_text([colour])[0]
+        w = np.exp((sim - sim.max()) / 0.02)  # the lexicon names the phrase means
+        w /= w.sum()
+        if not instances:
+            return np.zeros(0)
+        de = _delta_e(np.stack([i.lab for i in instances])[:, None, :], lab[None, :, :])
+        fam = de[:, self._family]  # to each name's basic colour term ("scarlet" -> red)
+        best_basic = de[:, self._basic].min(axis=1, keepdims=True)
+        sc = self.config.colour_scale
+        near = np.exp(-np.minimum(de, fam) / sc)
+        return (near * np.exp(-np.maximum(fam - best_basic, 0.0) / sc)) @ w
+
     def heatmap(self, query: str, decay: float, judge: Judge) -> Heatmap:
-        """Heat around the voxels that best match ``query``; not found (with the reason) when
-        no voxel beats the background or the calibrated confidence says so."""
+        """Heat around the instances (or voxels) that best match ``query``; not found, with the
+        reason, when nothing does."""
         grid = self.voxels.grid
         if self.voxels.n == 0:
             return Heatmap.not_found(grid, query, "object", decay, "the map is empty")
+        if not self.uses_instances:
+            return self._voxel_heatmap(query, decay, judge)
+        m = self.match(query)
+        if m.text_score < self.config.text_min:
+            return Heatmap.not_found(
+                grid,
+                query,
+                "object",
+                decay,
+                f"{m.words!r} is like nothing in this map's vocabulary (nearest: "
+                f"{m.nearest!r}, cosine {m.text_score:.2f} < {self.config.text_min})",
+                0.0,
+            )
+        inst = self.instances.items
+        if not inst:
+            return Heatmap.not_found(
+                grid, query, "object", decay, "no object stands on the map's table", 0.0
+            )
+        s = m.scores
+        k = int(np.argmax(s))
+        best = float(s[k])
+        conf, found = judge("object", best)
+        if not found:
+            what = f"{m.colour} " if m.colour else ""
+            return Heatmap.not_found(
+                grid,
+                query,
+                "object",
+                decay,
+                f"no {what}{' / '.join(m.names)} in the map: the best instance scores {best:.2f} "
+                f"(looks like {m.names[0] if m.kind[k] > 0.5 else 'something else'}"
+                f"{f', colour fit {m.colour_match[k]:.2f}' if m.colour else ''}; "
+                f"confidence {conf:.2f})",
+                best,
+            )
+        mask = np.zeros(grid.size, bool)
+        lin = self.voxels.linear_indices
+        for i in np.nonzero(s >= self.config.keep_ratio * best)[0]:
+            mask[lin[inst[i].rows]] = True
+        values = point_heatmap_3d(grid, mask.reshape(grid.shape), decay)
+        return Heatmap(grid, values, query, "object", decay, conf, True, "", best)
+
+    def _voxel_heatmap(self, query: str, decay: float, judge: Judge) -> Heatmap:
+        grid = self.voxels.grid
         s, beats = self.scores(query)
         cand = np.nonzero(beats)[0]
         if not len(cand):
@@ -104,3 +348,12 @@ class ObjectModule:
         conf, found = judge("object", margin)
         reason = "" if found else f"best match {best:.2f} is weak (confidence {conf:.2f})"
         return Heatmap(grid, values, query, "object", decay, conf, found, reason, margin)
+
+
+def _delta_e(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """CIELAB distance with lightness at half weight (shading changes it across an object)."""
+    d = np.asarray(a) - np.asarray(b)
+    return np.sqrt((0.5 * d[..., 0]) ** 2 + d[..., 1] ** 2 + d[..., 2] ** 2)
+
+
+_THING = frozenset(("the", "a", "an", "one", "thing", "object", "something", "item", "that", "is"))

@@ -1,0 +1,183 @@
+"""Colour names and perceptual colour: what a person calls a colour, and how far two colours
+look apart.
+
+The object module composes a colour word of a query ("the crimson mug") with the colour an
+object instance was measured to have (the mean RGB of its fused pixels), because the learned
+image embedding alone does not carry colour reliably for colour–kind pairs it never saw. The
+comparison goes through the text encoder, so it is not a lookup of the simulator's colours:
+
+- :data:`COLOR_NAMES` is a lexicon of everyday English colour names with a typical sRGB value
+  each (web and paint-chart conventions) and the basic colour term it is a shade of; a
+  measured colour is compared with them by the perceptual distance ΔE in CIELAB
+  (:func:`rgb_to_lab`).
+- A query's colour word is embedded by the text encoder and compared with the embeddings of
+  those names; any word the text encoder places near a lexicon name scores — "scarlet" near
+  "red", "navy" near "dark blue" — not only the lexicon's own names.
+
+:func:`split_color_words` says which words of a query are colour words: lexicon names, their
+"-ish" forms and light/dark/pale/bright modifiers.
+"""
+
+from __future__ import annotations
+
+import re
+
+import numpy as np
+
+__all__ = [
+    "COLOR_MODIFIERS",
+    "COLOR_NAMES",
+    "rgb_to_lab",
+    "split_color_words",
+]
+
+#: The basic colour terms of English: every lexicon name belongs to one of them.
+BASIC_COLOURS = (
+    "black",
+    "white",
+    "red",
+    "green",
+    "yellow",
+    "blue",
+    "brown",
+    "purple",
+    "pink",
+    "orange",
+    "grey",
+)
+
+#: Everyday colour names -> (a typical sRGB value (0-255), the basic colour term it is a shade
+#: of: "scarlet" is a red, "navy" a blue).
+COLOR_NAMES: dict[str, tuple[tuple[int, int, int], str]] = {
+    "red": ((220, 30, 30), "red"),
+    "dark red": ((139, 0, 0), "red"),
+    "crimson": ((220, 20, 60), "red"),
+    "scarlet": ((255, 36, 0), "red"),
+    "maroon": ((128, 0, 0), "red"),
+    "burgundy": ((128, 0, 32), "red"),
+    "pink": ((255, 150, 180), "pink"),
+    "hot pink": ((255, 105, 180), "pink"),
+    "rose": ((255, 0, 127), "pink"),
+    "magenta": ((255, 0, 255), "purple"),
+    "orange": ((255, 140, 0), "orange"),
+    "coral": ((255, 127, 80), "orange"),
+    "salmon": ((250, 128, 114), "pink"),
+    "peach": ((255, 203, 164), "orange"),
+    "yellow": ((255, 225, 25), "yellow"),
+    "gold": ((255, 200, 0), "yellow"),
+    "lemon": ((255, 247, 0), "yellow"),
+    "mustard": ((225, 173, 1), "yellow"),
+    "amber": ((255, 191, 0), "orange"),
+    "cream": ((255, 253, 208), "white"),
+    "beige": ((225, 210, 170), "brown"),
+    "tan": ((210, 180, 140), "brown"),
+    "khaki": ((195, 176, 145), "brown"),
+    "brown": ((130, 80, 40), "brown"),
+    "dark brown": ((92, 64, 51), "brown"),
+    "chocolate": ((123, 63, 0), "brown"),
+    "caramel": ((175, 111, 9), "brown"),
+    "bronze": ((205, 127, 50), "brown"),
+    "green": ((40, 160, 50), "green"),
+    "dark green": ((0, 100, 0), "green"),
+    "lime": ((150, 230, 40), "green"),
+    "olive": ((128, 128, 0), "green"),
+    "mint": ((152, 255, 152), "green"),
+    "emerald": ((80, 200, 120), "green"),
+    "teal": ((0, 128, 128), "blue"),
+    "turquoise": ((64, 224, 208), "blue"),
+    "cyan": ((0, 220, 230), "blue"),
+    "blue": ((30, 80, 220), "blue"),
+    "light blue": ((150, 200, 240), "blue"),
+    "sky blue": ((135, 206, 235), "blue"),
+    "navy": ((0, 0, 128), "blue"),
+    "dark blue": ((0, 30, 120), "blue"),
+    "royal blue": ((65, 105, 225), "blue"),
+    "cobalt": ((0, 71, 171), "blue"),
+    "indigo": ((75, 0, 130), "purple"),
+    "purple": ((128, 40, 170), "purple"),
+    "violet": ((143, 0, 255), "purple"),
+    "lavender": ((200, 170, 230), "purple"),
+    "lilac": ((200, 162, 200), "purple"),
+    "plum": ((142, 69, 133), "purple"),
+    "white": ((245, 245, 245), "white"),
+    "ivory": ((255, 255, 240), "white"),
+    "off-white": ((240, 236, 225), "white"),
+    "silver": ((192, 192, 192), "grey"),
+    "light grey": ((200, 200, 200), "grey"),
+    "grey": ((128, 128, 128), "grey"),
+    "gray": ((128, 128, 128), "grey"),
+    "dark grey": ((80, 80, 80), "grey"),
+    "charcoal": ((54, 69, 79), "grey"),
+    "black": ((15, 15, 15), "black"),
+}
+
+#: Words that modify a colour ("dark blue", "pale pink"); part of a colour phrase, not a noun.
+COLOR_MODIFIERS = ("light", "dark", "pale", "bright", "deep", "vivid", "pastel", "soft")
+
+
+def rgb_to_lab(rgb) -> np.ndarray:
+    """CIELAB (D65) of sRGB colours (..., 3) in 0-255 (float): L in [0, 100]."""
+    c = np.asarray(rgb, dtype=np.float64) / 255.0
+    lin = np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
+    m = np.array(
+        [
+            [0.4124564, 0.3575761, 0.1804375],
+            [0.2126729, 0.7151522, 0.0721750],
+            [0.0193339, 0.1191920, 0.9503041],
+        ]
+    )
+    xyz = lin @ m.T / np.array([0.95047, 1.0, 1.08883])
+    e = 216 / 24389
+    f = np.where(xyz > e, np.cbrt(xyz), (24389 / 27 * xyz + 16) / 116)
+    L = 116 * f[..., 1] - 16
+    a = 500 * (f[..., 0] - f[..., 1])
+    b = 200 * (f[..., 1] - f[..., 2])
+    return np.stack([L, a, b], axis=-1)
+
+
+_THING = frozenset(("one", "thing", "object", "something", "item"))
+_FILLER = _THING | {"the", "a", "an", "that", "is", "this", "its", "it"}
+_WORD = re.compile(r"[a-z]+(?:-[a-z]+)?")
+
+
+def split_color_words(text: str) -> tuple[str, str]:
+    """(colour phrase, the rest) of a query: "the dark blue coffee mug" -> ("dark blue",
+    "the coffee mug"). Colour words are lexicon names (one or two words), their "-ish" forms
+    ("reddish", "bluish") and the :data:`COLOR_MODIFIERS` before one; the colour phrase is ""
+    when the query names none, or when nothing but a colour name is left ("the orange", "a
+    lemon": then the name is the thing asked for)."""
+    raw = _WORD.findall(str(text).lower())
+    words = [p for w in raw for p in ([w] if w in COLOR_NAMES else w.split("-"))]
+    names = set(COLOR_NAMES)
+    colour: list[str] = []
+    rest: list[str] = []
+    i = 0
+    while i < len(words):
+        w = words[i]
+        pair = " ".join(words[i : i + 2])
+        if pair in names:
+            colour.append(pair)
+            i += 2
+            continue
+        base = _ish(w)
+        if base in names:
+            colour.append(base)
+        elif w in COLOR_MODIFIERS and i + 1 < len(words) and _ish(words[i + 1]) in names:
+            colour.append(w)
+        else:
+            rest.append(w)
+        i += 1
+    if colour and not [w for w in rest if w not in _FILLER]:
+        if not [w for w in rest if w in _THING]:
+            return "", " ".join(words)  # "the orange", "a lemon": the colour name is the noun
+    return " ".join(colour), " ".join(rest)
+
+
+def _ish(word: str) -> str:
+    """ "reddish" -> "red", "bluish" -> "blue", "greyish" -> "grey"; other words unchanged."""
+    if word.endswith("ish") and len(word) > 5:
+        stem = word[:-3]
+        for cand in (stem, stem[:-1], stem + "e"):  # redd-ish, blu-ish, purpl-ish
+            if cand in COLOR_NAMES:
+                return cand
+    return word

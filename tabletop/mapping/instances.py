@@ -1,0 +1,283 @@
+"""Object instances segmented from the map's geometry: the object module's unit.
+
+:func:`segment_instances` splits the occupied voxels into objects without any label:
+
+1. the supporting surface is fitted from the map (:func:`~tabletop.mapping.table_regions.fit_table`:
+   the densest horizontal layer, not ground truth);
+2. voxels above that surface and over it are connected (26-neighbourhood) into components;
+3. a component is split where the measured colour changes sharply between neighbouring
+   voxels (CIELAB ΔE above ``split_delta_e``) *and* the fused features change too (cosine
+   below ``split_cos``) — two objects that touch — and fragments smaller than
+   ``min_voxels`` rejoin the neighbour they touch most; components smaller than
+   ``min_voxels`` are dropped (specks, sensor noise).
+
+Each :class:`ObjectInstance` keeps its voxels (rows of the :class:`VoxelMap`), centre, extent,
+measured colour (mean RGB over every fused pixel, and CIELAB) and fused embedding: the mean of
+every pixel feature fused into its voxels, so every view of every voxel votes, and a view that
+saw the object closer or more squarely (more pixels per voxel) weighs more.
+
+Segmentation is a pure function of the voxels: a map built frame by frame (online) and one
+built in batch give the same instances, and :class:`InstanceSet` caches them until the voxels
+change.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+
+from tabletop.errors import ConfigError
+from tabletop.mapping.colors import rgb_to_lab
+from tabletop.mapping.table_regions import TableFit
+from tabletop.mapping.voxel_map import VoxelMap
+
+__all__ = [
+    "InstanceConfig",
+    "InstanceSet",
+    "ObjectInstance",
+    "instances_from_labels",
+    "segment_instances",
+]
+
+
+@dataclass(frozen=True)
+class InstanceConfig:
+    """How the map's voxels are split into object instances."""
+
+    min_voxels: int = 6
+    """Smaller components are dropped; smaller fragments of a split rejoin a neighbour."""
+    above_table_m: float = 0.006
+    """A voxel belongs to an object when its centre is this far [m] above the fitted table."""
+    table_margin_m: float = 0.03
+    """...and lies over the table, within this margin [m] of its fitted edges."""
+    split_delta_e: float = 25.0
+    """Neighbouring voxels whose colours differ by more than this CIELAB ΔE..."""
+    split_cos: float = 0.8
+    """...and whose fused features' cosine is below this belong to different objects."""
+
+    def __post_init__(self) -> None:
+        if self.min_voxels < 1:
+            raise ConfigError(f"min_voxels must be >= 1, got {self.min_voxels}")
+        if not self.above_table_m >= 0 or not self.table_margin_m >= 0:
+            raise ConfigError("above_table_m and table_margin_m must be >= 0 [m]")
+        if not self.split_delta_e > 0 or not -1 <= self.split_cos <= 1:
+            raise ConfigError(
+                f"split_delta_e must be > 0 and split_cos in [-1, 1], got "
+                f"{self.split_delta_e}, {self.split_cos}"
+            )
+
+
+@dataclass(frozen=True, eq=False)
+class ObjectInstance:
+    """One object segmented from the map."""
+
+    id: int
+    rows: np.ndarray
+    """(n,) rows of the instance's voxels in the :class:`VoxelMap`."""
+    center: np.ndarray
+    """(3,) [m] the mean of its voxel centres."""
+    lo: np.ndarray
+    """(3,) [m] the low corner of its voxels' bounding box."""
+    hi: np.ndarray
+    """(3,) [m] the high corner."""
+    rgb: np.ndarray
+    """(3,) the mean colour (0-255) of every pixel fused into it."""
+    lab: np.ndarray
+    """(3,) that colour in CIELAB."""
+    embedding: np.ndarray
+    """(dim,) unit: the mean of every pixel feature fused into it."""
+    points: int
+    """Pixels fused into it."""
+
+    @property
+    def extent(self) -> np.ndarray:
+        """(3,) [m] size of its bounding box."""
+        return self.hi - self.lo
+
+    @property
+    def voxels(self) -> int:
+        return len(self.rows)
+
+
+#: The 13 offsets that reach each of the 26 neighbours of a voxel once per pair.
+_HALF_NEIGHBOURHOOD = [
+    np.array(o) - 1 for o in np.ndindex(3, 3, 3) if (np.array(o) - 1).tolist() > [0, 0, 0]
+]
+
+
+def segment_instances(
+    voxels: VoxelMap, table: TableFit | None, config: InstanceConfig | None = None
+) -> list[ObjectInstance]:
+    """The object instances of ``voxels`` standing on ``table`` (none without a table), largest
+    first (see the module docstring)."""
+    config = config or InstanceConfig()
+    if table is None or voxels.n == 0:
+        return []
+    centers = voxels.centers
+    m = config.table_margin_m
+    cand = np.nonzero(
+        (centers[:, 2] > table.z + config.above_table_m)
+        & (centers[:, 0] >= table.x[0] - m)
+        & (centers[:, 0] <= table.x[1] + m)
+        & (centers[:, 1] >= table.y[0] - m)
+        & (centers[:, 1] <= table.y[1] + m)
+    )[0]
+    if len(cand) < config.min_voxels:
+        return []
+    idx = voxels.indices[cand]
+    lo = idx.min(axis=0)
+    sub = idx - lo
+    dense = np.full(tuple(sub.max(axis=0) + 1), -1, np.int64)
+    dense[tuple(sub.T)] = np.arange(len(cand))
+
+    feats = voxels.mean_features()[cand]
+    counts = voxels.counts[cand]
+    rgb = voxels.mean_colors()[cand].astype(np.float64)
+    lab = rgb_to_lab(rgb)
+    # Neighbour pairs (26-neighbourhood, each pair once), and whether they stay joined.
+    a_list, b_list = [], []
+    for off in _HALF_NEIGHBOURHOOD:
+        nb = sub + off
+        ok = np.all((nb >= 0) & (nb < dense.shape), axis=1)
+        j = np.full(len(sub), -1, np.int64)
+        j[ok] = dense[tuple(nb[ok].T)]
+        has = j >= 0
+        a_list.append(np.nonzero(has)[0])
+        b_list.append(j[has])
+    a = np.concatenate(a_list)
+    b = np.concatenate(b_list)
+    d = lab[a] - lab[b]
+    de = np.sqrt((0.5 * d[:, 0]) ** 2 + d[:, 1] ** 2 + d[:, 2] ** 2)
+    cos = np.einsum("ij,ij->i", feats[a], feats[b])
+    cut = (de > config.split_delta_e) & (cos < config.split_cos)
+    keep = ~cut
+    g = coo_matrix((np.ones(int(keep.sum())), (a[keep], b[keep])), shape=(len(cand),) * 2)
+    _, frag = connected_components(g, directed=False)
+    frag = _absorb_small(frag, a, b, counts, config.min_voxels)
+
+    sizes = np.bincount(frag)
+    big = [f for f in np.argsort(-sizes, kind="stable") if sizes[f] >= config.min_voxels]
+    labels = np.full(voxels.n, -1, np.int64)
+    for k, f in enumerate(big):
+        labels[cand[frag == f]] = k
+    return instances_from_labels(voxels, labels)
+
+
+def _absorb_small(frag, a, b, counts, min_voxels: int) -> np.ndarray:
+    """Fragments below ``min_voxels`` join the neighbouring fragment they share the most voxel
+    faces with (repeated until none can move)."""
+    frag = np.asarray(frag).copy()
+    for _ in range(8):
+        sizes = np.bincount(frag)
+        small = sizes[frag] < min_voxels
+        fa, fb = frag[a], frag[b]
+        cross = (fa != fb) & (small[a] | small[b])
+        if not cross.any():
+            break
+        moved = False
+        # For each small fragment, its most-shared neighbour that is larger than itself.
+        src = np.concatenate([fa[cross & small[a]], fb[cross & small[b]]])
+        dst = np.concatenate([fb[cross & small[a]], fa[cross & small[b]]])
+        if not len(src):
+            break
+        pairs, n = np.unique(np.stack([src, dst], 1), axis=0, return_counts=True)
+        order = np.lexsort((-sizes[pairs[:, 1]], -n, pairs[:, 0]))
+        best: dict[int, int] = {}
+        for s, t in pairs[order]:
+            if int(s) not in best and sizes[t] >= sizes[s]:
+                best[int(s)] = int(t)
+        for s, t in best.items():
+            frag[frag == s] = t
+            moved = True
+        if not moved:
+            break
+    return frag
+
+
+class InstanceSet:
+    """The instances of a map's voxels, segmented when first asked for and again only after
+    the voxels change (online maps stay current)."""
+
+    def __init__(self, voxels: VoxelMap, table, config: InstanceConfig | None = None) -> None:
+        self.voxels = voxels
+        self._table = table  # () -> TableFit | None (the map's cached fit)
+        self.config = config or InstanceConfig()
+        self._key: tuple[int, int] | None = None
+        self._items: list[ObjectInstance] = []
+        self._labels: np.ndarray | None = None
+
+    def _refresh(self) -> None:
+        key = (self.voxels.n, self.voxels.version)
+        if self._key != key:
+            self._items = segment_instances(self.voxels, self._table(), self.config)
+            self._labels = None
+            self._key = key
+
+    def restore(self, labels: np.ndarray) -> None:
+        """Take a saved segmentation (per voxel row: its instance id, -1 for none) for the
+        current voxels instead of segmenting them again."""
+        labels = np.asarray(labels, np.int64)
+        if labels.shape != (self.voxels.n,):
+            raise ConfigError(
+                f"saved instance labels have {labels.shape} entries, the map {self.voxels.n} voxels"
+            )
+        if labels.size and labels.min() < -1:
+            raise ConfigError(f"saved instance labels must be >= -1, got {int(labels.min())}")
+        self._items = instances_from_labels(self.voxels, labels)
+        self._labels = labels
+        self._key = (self.voxels.n, self.voxels.version)
+
+    @property
+    def items(self) -> list[ObjectInstance]:
+        self._refresh()
+        return self._items
+
+    def __len__(self) -> int:
+        return len(self.items)
+
+    def __iter__(self):
+        return iter(self.items)
+
+    def labels(self) -> np.ndarray:
+        """(n,) per voxel row: the id of its instance, -1 for none."""
+        self._refresh()
+        if self._labels is None:
+            out = np.full(self.voxels.n, -1, np.int64)
+            for inst in self._items:
+                out[inst.rows] = inst.id
+            self._labels = out
+        return self._labels
+
+
+def instances_from_labels(voxels: VoxelMap, labels: np.ndarray) -> list[ObjectInstance]:
+    """The instances a labelling of the voxel rows (0..k-1, -1 for none) describes."""
+    state = voxels.state()
+    centers = voxels.centers
+    h = voxels.grid.voxel_size / 2
+    out = []
+    for k in range(int(labels.max(initial=-1)) + 1):
+        rows = np.nonzero(labels == k)[0]
+        if not len(rows):
+            raise ConfigError(f"saved instance labels skip instance {k}")
+        pts = int(state["counts"][rows].sum())
+        e = state["feature_sums"][rows].sum(axis=0) / max(pts, 1)
+        e = e / max(float(np.linalg.norm(e)), 1e-12)
+        c = state["color_sums"][rows].sum(axis=0) / max(pts, 1)
+        ctr = centers[rows]
+        out.append(
+            ObjectInstance(
+                k,
+                rows,
+                ctr.mean(axis=0),
+                ctr.min(axis=0) - h,
+                ctr.max(axis=0) + h,
+                c,
+                rgb_to_lab(c),
+                e.astype(np.float32),
+                pts,
+            )
+        )
+    return out

@@ -1,0 +1,39 @@
+"""Colour words and perceptual colour."""
+
+import numpy as np
+import pytest
+
+from tabletop.mapping.colors import BASIC_COLOURS, COLOR_NAMES, rgb_to_lab, split_color_words
+
+
+def test_lab_of_reference_colours():
+    assert np.allclose(rgb_to_lab([255, 255, 255]), [100, 0, 0], atol=0.01)
+    assert np.allclose(rgb_to_lab([0, 0, 0]), [0, 0, 0], atol=0.01)
+    # sRGB red in CIELAB (D65), the published value
+    assert np.allclose(rgb_to_lab([255, 0, 0]), [53.24, 80.09, 67.20], atol=0.05)
+    assert rgb_to_lab(np.zeros((2, 5, 3))).shape == (2, 5, 3)
+
+
+@pytest.mark.parametrize(
+    ("text", "colour", "rest"),
+    [
+        ("the dark blue coffee mug", "dark blue", "the coffee mug"),
+        ("a reddish duck", "red", "a duck"),
+        ("the light-grey tray", "light grey", "the tray"),
+        ("the red one", "red", "the one"),
+        ("the mug", "", "the mug"),
+        ("the orange", "", "the orange"),  # a colour name alone is the thing asked for
+        ("the orange cube", "orange", "the cube"),
+        ("an off-white bear", "off-white", "an bear"),
+    ],
+)
+def test_colour_words_are_split_from_the_rest(text, colour, rest):
+    assert split_color_words(text) == (colour, rest)
+
+
+def test_every_name_belongs_to_a_basic_colour_term():
+    assert set(BASIC_COLOURS) <= set(COLOR_NAMES)
+    for name, (rgb, family) in COLOR_NAMES.items():
+        assert family in BASIC_COLOURS, name
+        assert len(rgb) == 3 and all(0 <= c <= 255 for c in rgb), name
+        assert COLOR_NAMES[family][1] == family  # a basic term is its own family

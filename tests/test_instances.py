@@ -1,0 +1,121 @@
+"""Object instances segmented from a map's geometry: one per object, split where objects
+touch, the same online as in batch, saved and restored."""
+
+import numpy as np
+import pytest
+from module_helpers import GRID, box_points, coloured_voxels, text_encoder
+
+from tabletop.errors import ConfigError
+from tabletop.mapping.instances import (
+    InstanceConfig,
+    InstanceSet,
+    instances_from_labels,
+    segment_instances,
+)
+from tabletop.mapping.table_regions import fit_table
+from tabletop.mapping.voxel_map import VoxelMap
+
+RED, BLUE, YELLOW = (200, 30, 25), (30, 60, 180), (220, 190, 30)
+BOXES = {
+    "red mug": ((0.10, -0.20, 0.01), (0.16, -0.14, 0.10), RED),
+    "yellow duck": ((0.40, 0.10, 0.01), (0.46, 0.16, 0.07), YELLOW),
+    "blue mug": ((0.30, -0.20, 0.01), (0.36, -0.14, 0.10), BLUE),
+}
+
+
+def _segment(vm, config=None):
+    return segment_instances(vm, fit_table(GRID, vm.indices), config)
+
+
+def _which(inst, boxes):
+    """The box each instance's centre lies in."""
+    out = []
+    for i in inst:
+        hit = [
+            k
+            for k, (lo, hi, _) in boxes.items()
+            if np.all(i.center >= lo) and np.all(i.center <= hi)
+        ]
+        out.append(hit[0] if len(hit) == 1 else None)
+    return out
+
+
+def test_one_instance_per_object_with_its_geometry_and_colour():
+    vm = coloured_voxels(BOXES)
+    inst = _segment(vm)
+    assert sorted(_which(inst, BOXES)) == sorted(BOXES)
+    for i, name in zip(inst, _which(inst, BOXES), strict=True):
+        lo, hi, rgb = BOXES[name]
+        # the extent is the box's above the table layer, to a voxel
+        assert np.allclose(i.hi, hi, atol=0.011) and np.allclose(i.lo[:2], lo[:2], atol=0.011)
+        assert np.allclose(i.rgb, rgb, atol=1.0)
+        assert i.embedding.shape == (vm.dim,) and np.isclose(np.linalg.norm(i.embedding), 1)
+        cos = float(i.embedding @ text_encoder().encode_text([name])[0])
+        assert cos > 0.99  # every voxel of it carries its label's embedding
+    assert [i.id for i in inst] == list(range(len(inst)))
+    assert inst[0].voxels >= inst[-1].voxels  # largest first
+
+
+def test_touching_objects_split_where_colour_and_features_change():
+    boxes = {
+        "red mug": ((0.10, -0.05, 0.01), (0.16, 0.01, 0.10), RED),
+        "blue mug": ((0.16, -0.05, 0.01), (0.22, 0.01, 0.10), BLUE),  # shares a face
+    }
+    vm = coloured_voxels(boxes)
+    assert sorted(_which(_segment(vm), boxes)) == sorted(boxes)
+    # with the split disabled they are one component
+    merged = _segment(vm, InstanceConfig(split_delta_e=1000.0))
+    assert len(merged) == 1
+
+
+def test_specks_are_dropped_and_no_table_means_no_instances():
+    vm = coloured_voxels({"red mug": BOXES["red mug"]})
+    vm.integrate(np.array([[0.5, 0.2, 0.05]]), np.zeros((1, vm.dim), np.float32), np.zeros((1, 3)))
+    assert len(_segment(vm)) == 1
+    assert segment_instances(vm, None) == []
+    empty = VoxelMap(GRID, 4)
+    assert segment_instances(empty, fit_table(GRID, empty.indices)) == []
+
+
+def test_online_equals_batch_and_the_set_follows_new_frames():
+    text = text_encoder()
+    labels = ["table", *BOXES]
+    table = text.encode_text(labels)
+    parts = [(box_points((0.0, -0.3, 0.0), (0.6, 0.3, 0.01), 0.01), 0, (128, 128, 128))]
+    parts += [(box_points(lo, hi), k, rgb) for k, (lo, hi, rgb) in enumerate(BOXES.values(), 1)]
+    online = VoxelMap(GRID, text.dim)
+    s = InstanceSet(online, lambda: fit_table(GRID, online.indices))
+    counts = []
+    for pts, k, rgb in parts:  # one "frame" per part
+        online.integrate(pts, table, np.tile(rgb, (len(pts), 1)), np.full(len(pts), k))
+        counts.append(len(s))
+    assert counts == [0, 1, 2, 3]  # the set was segmented again after each frame
+    batch = coloured_voxels(BOXES)
+    a = sorted((tuple(np.round(i.center, 4)), i.voxels) for i in s)
+    b = sorted((tuple(np.round(i.center, 4)), i.voxels) for i in _segment(batch))
+    assert a == b
+
+
+def test_restore_round_trips_and_rejects_bad_labels():
+    vm = coloured_voxels(BOXES)
+    s = InstanceSet(vm, lambda: fit_table(GRID, vm.indices))
+    labels = s.labels()
+    assert labels.shape == (vm.n,) and set(np.unique(labels)) == {-1, 0, 1, 2}
+    again = InstanceSet(vm, lambda: None)  # no table: only the restored labels can give these
+    again.restore(labels)
+    assert [(i.voxels, tuple(i.center)) for i in again] == [(i.voxels, tuple(i.center)) for i in s]
+    with pytest.raises(ConfigError, match="entries"):
+        again.restore(labels[:-1])
+    bad = labels.copy()
+    bad[bad == 1] = 5
+    with pytest.raises(ConfigError, match="skip"):
+        instances_from_labels(vm, bad)
+    with pytest.raises(ConfigError, match=">= -1"):
+        again.restore(np.full(vm.n, -2))
+
+
+def test_config_is_checked():
+    with pytest.raises(ConfigError, match="min_voxels"):
+        InstanceConfig(min_voxels=0)
+    with pytest.raises(ConfigError, match="split_cos"):
+        InstanceConfig(split_cos=2.0)
