@@ -43,9 +43,10 @@ def calibration_samples(
 
     Objects: every object label and every kind name present (right when the target lands
     within 10 cm of an object carrying it), every catalog kind absent from the scene and,
-    for each present kind, a colour it may take that none of its objects has (always wrong). Sounds: the caption of every inserted category (right within 10 cm of the
-    column above a place it was inserted, up to where it was heard) and of sound-bank
-    categories never inserted (always wrong). Areas: each named table area (right within
+    for each present kind, a colour it may take that none of its objects has (always wrong).
+    Sounds: the caption of every inserted category (right within 10 cm of the column above a
+    place it was inserted, up to where it was heard) and of sound-bank categories never
+    inserted (always wrong). Areas: each named table area (right within
     10 cm of its rectangle, up to :data:`AREA_HEIGHT_M`). Images: ``image_goals``
     (:class:`~tabletop.eval.map_goals.MapGoal` of kind ``"image"``, pictures of this scene:
     right when found and within 10 cm of the truth) and ``foreign_images`` ((H, W, 3) uint8
