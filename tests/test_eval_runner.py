@@ -3,10 +3,12 @@ generated from the scan's ground truth, written, run through the robot API on Si
 reported; a second run reuses the cached recording and map."""
 
 import json
+from types import SimpleNamespace
 
+import numpy as np
 import pytest
 
-from tabletop.errors import ConfigError
+from tabletop.errors import ConfigError, GoalNotFound
 from tabletop.eval import load_tasks, run_eval
 from tabletop.eval.runner import collect_task_files, scan_recording
 from tabletop.eval.suites import generate_suite, to_toml
@@ -21,6 +23,15 @@ COUNTS = dict(
 )  # fmt: skip
 
 
+ABSENT = {
+    "id": "absent-giraffe",
+    "type": "absent",
+    "text": "the giraffe",
+    "query": {"obj": "the giraffe"},
+    "truth": {"absent": True},
+}
+
+
 @pytest.fixture(scope="module")
 def run(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("eval")
@@ -29,6 +40,7 @@ def run(tmp_path_factory):
     assert not cached
     doc = generate_suite("tiny", SCENE, SCAN, GroundTruth.of(rec), COUNTS, seed=3,
                          map_section={"frame_step": 4})  # fmt: skip
+    doc["goals"].append(dict(ABSENT))
     path = tmp / "tiny.toml"
     path.write_text(to_toml(doc))
     out = tmp / "report"
@@ -51,6 +63,11 @@ def test_goals_succeed_and_json_has_the_summary(run):
         assert by[t]["mean_error_m"] <= 0.10 and by[t]["time_per_goal_s"] > 0
     assert by["object"]["recall_at"]["2cm"] == 1.0  # the oracle map puts objects on their boxes
     assert by["sound"]["success_rate"] == 1.0
+    # the oracle map has no giraffe: reported not found, and the arm did not move for it
+    ab = by["absent"]
+    assert ab["success_rate"] == 1.0 and ab["not_found"] == 1 and ab["recall_at"]["2cm"] is None
+    (g,) = [g for t in d["rows"][0]["tasks"] for g in t["goals"] if g["type"] == "absent"]
+    assert g["status"] == "not_found" and g["target"] is None and "giraffe" in g["reason"]
     assert by["instruction"]["attempted"] == 1  # through the instruction parser
     img = [g for t in d["rows"][0]["tasks"] for g in t["goals"] if g["type"] == "image"]
     assert img and all(
@@ -111,6 +128,75 @@ def test_a_bad_map_value_fails_before_the_scan(tmp_path):
     with pytest.raises(TaskFileError, match=r"\[map\].*frame_step"):
         evaluate_task_file(load_tasks(bad), "oracle", cache_dir=cache)
     assert not cache.exists() or not any(cache.iterdir())  # nothing was scanned
+
+
+class _Robot:
+    """The robot API as an absent goal meets it: a query, a target, a motion."""
+
+    def __init__(self, target=None):
+        self.target = target  # None: the map finds nothing
+        self.moves = []
+        self.contacts = []
+        self.last_heatmaps = ()
+
+    def get_major_map(self, **parts):
+        return SimpleNamespace(parts=parts)
+
+    def get_max_pos_3d(self, heat):
+        if self.target is None:
+            raise GoalNotFound("obj='the giraffe'", "below the calibrated threshold")
+        return np.array(self.target)
+
+    def move_to(self, target):
+        self.moves.append(np.asarray(target))
+        self.contacts.append(0)
+        return SimpleNamespace(
+            final_tcp=np.asarray(target) + np.array([0.0, 0.0, 0.04]),
+            reached=True,
+            reason=SimpleNamespace(value="reached"),
+        )
+
+    def current_position(self):
+        return np.array([0.3, 0.0, 0.5]) if not self.moves else self.moves[-1]
+
+
+@pytest.mark.parametrize("target", [None, (0.5, 0.1, 0.05)])
+def test_an_absent_goal_succeeds_only_when_nothing_is_found(target):
+    from tabletop.eval.runner import _run_goal
+    from tabletop.eval.tasks import parse_tasks
+    from tabletop.eval.truth import resolve_truth
+
+    tf = parse_tasks(
+        {"format": "tabletop-tasks", "version": 1, "scene": SCENE, "goals": [ABSENT]}, "t.toml"
+    )
+    goal = tf.goals[0]
+    robot = _Robot(target)
+    ctx = SimpleNamespace(robot=robot, keep_heatmaps=set(), heatmaps={}, images={})
+    r = _run_goal(ctx, goal, "s", resolve_truth(goal.truth, None))
+    if target is None:  # not found: a success, and nothing moved
+        assert r.success and r.status == "not_found" and not robot.moves
+        assert "below the calibrated threshold" in r.reason and r.target is None
+    else:  # a false positive: the robot went there, the goal failed with its target
+        assert not r.success and r.status == "done" and len(robot.moves) == 1
+        assert r.target == target and "false positive" in r.reason and r.reach == "reached"
+        assert r.error_m is None and r.target_error_m is None
+
+
+def test_an_absent_goal_naming_a_scene_object_is_refused_before_anything_moves(run, tmp_path):
+    from tabletop.eval.runner import evaluate_task_file
+
+    path, cache, _, _ = run
+    tf = load_tasks(path)
+    label = GroundTruth.of(scan_recording(SCENE, SCAN, cache)[0]).objects[0].label
+    text = path.read_text() + (
+        f'\n[[goals]]\nid = "not-absent"\ntype = "absent"\ntext = "x"\n'
+        f'query = {{ obj = "the {label}" }}\ntruth = {{ absent = true }}\n'
+    )
+    bad = tmp_path / "bad.toml"
+    bad.write_text(text)
+    assert len(load_tasks(bad).goals) == len(tf.goals) + 1
+    with pytest.raises(TaskFileError, match="'not-absent': an 'absent' goal asks obj="):
+        evaluate_task_file(load_tasks(bad), "oracle", cache_dir=cache)
 
 
 def test_eval_map_refuses_zero_seeds():

@@ -19,7 +19,7 @@ from tabletop.eval.tasks import (
     load_tasks,
     parse_tasks,
 )
-from tabletop.eval.truth import resolve_truth
+from tabletop.eval.truth import check_absent, resolve_truth
 from tabletop.sim.ground_truth import GroundTruth
 
 DOC = {
@@ -102,8 +102,18 @@ GT = GroundTruth.from_dict(
 )
 
 
+ABSENT = {
+    "id": "x",
+    "type": "absent",
+    "text": "the giraffe",
+    "query": {"obj": "giraffe"},
+    "truth": {"absent": True},
+}
+
+
 def bad(mutate):
     d = copy.deepcopy(DOC)
+    d["goals"].append(copy.deepcopy(ABSENT))
     mutate(d)
     with pytest.raises(TaskFileError) as e:
         parse_tasks(d, source="t.toml")
@@ -153,6 +163,35 @@ def test_valid_file_parses_with_sequences_first():
         (lambda d: d["scan"].update(episodes=-1), ["[scan]", "episodes"]),
         (lambda d: d["scan"].update(sped=1), ["unknown keys ['sped']", "speed"]),
         (lambda d: d.update(goals=[]), ["non-empty list"]),
+        # absent goals: one obj= or sound= part, truth { absent = true }, nowhere else
+        (
+            lambda d: d["goals"][5]["query"].update(sound="a lion roaring"),
+            [
+                "'x'",
+                "an 'absent' goal asks for one thing",
+                "['obj', 'sound']",
+                "got ['obj', 'sound']",
+            ],
+        ),
+        (
+            lambda d: d["goals"][5].update(query={"area": "the kitchen"}),
+            ["an 'absent' goal asks for one thing", "got ['area']"],
+        ),
+        (
+            lambda d: d["goals"][5].update(truth={"object": "red_mug"}),
+            ["an 'absent' goal's truth is { absent = true }, got object red_mug"],
+        ),
+        (lambda d: d["goals"][5].update(truth={"absent": False}), ["absent must be true"]),
+        (lambda d: d["goals"][5].update(truth={"absent": "yes"}), ["absent must be true"]),
+        (lambda d: d["goals"][5].update(primary="obj"), ["unknown keys ['primary']"]),
+        (
+            lambda d: d["goals"][0].update(truth={"absent": True}),
+            ["'o'", "truth { absent = true } belongs to type 'absent' goals", "'object' goal"],
+        ),
+        (
+            lambda d: d["goals"][2]["truth"]["of"].__setitem__(0, {"absent": True}),
+            ["of[0]", "a relation's landmark cannot be absent"],
+        ),
     ],
 )
 def test_bad_files_name_the_problem_and_the_options(mutate, needles):
@@ -160,6 +199,39 @@ def test_bad_files_name_the_problem_and_the_options(mutate, needles):
     assert msg.startswith("t.toml")
     for n in needles:
         assert n in msg, (n, msg)
+
+
+def test_absent_goal_parses_and_resolves_to_nowhere():
+    d = copy.deepcopy(DOC)
+    d["goals"] += [ABSENT, {**ABSENT, "id": "y", "query": {"sound": "a submarine"}}]
+    tf = parse_tasks(d, source="t.toml")
+    g = tf.goal("x")
+    assert (
+        g.type == "absent" and g.truth == Truth("absent") and g.query.parts == (("obj", "giraffe"),)
+    )
+    assert tf.goal("y").query.primary == "sound" and "absent" in GOAL_TYPES
+    r = resolve_truth(g.truth, GT, "f.toml goal 'x' truth")
+    assert r.boxes.shape == (0, 2, 3) and r.distance([0.35, 0.25, 0.05]) == float("inf")
+    check_absent(g.query, GT, "x")  # no giraffe in GT
+
+
+@pytest.mark.parametrize(
+    ("part", "needle"),
+    [
+        (("obj", "the Red  Mug"), "(object red_mug)"),  # case, articles and spaces aside
+        (("obj", "tray"), "(object tray)"),
+        (("obj", "mug"), "(object red_mug)"),  # the kind
+        (("sound", "a dog"), "(sound dog)"),  # the caption
+        (("sound", "dog"), "(sound dog)"),  # the category
+    ],
+)
+def test_an_absent_goal_naming_what_the_scene_has_is_refused(part, needle):
+    from tabletop.eval.tasks import Landmark
+
+    with pytest.raises(TaskFileError) as e:
+        check_absent(Landmark((part,), part[0]), GT, "f.toml goal 'x'")
+    msg = str(e.value)
+    assert msg.startswith("f.toml goal 'x': an 'absent' goal asks") and needle in msg, msg
 
 
 def test_load_errors_name_the_file(tmp_path):
@@ -270,6 +342,36 @@ def test_unavailable_goals_and_encoder_sets_are_reported_not_counted():
     assert "default | unavailable: ConfigError: not wired" in md
 
 
+def test_absent_goals_count_when_reported_not_found_and_have_no_recall():
+    absent = [
+        GoalResult("n", "absent", "the giraffe", "n", "not_found", success=True, tcp=(0.3, 0, 0.4)),
+        GoalResult(
+            "f",
+            "absent",
+            "a laptop",
+            "f",
+            "done",
+            reason="found at [0.5, 0.1, 0.05] (a false positive)",
+            target=(0.5, 0.1, 0.05),
+            tcp=(0.5, 0.1, 0.09),
+        ),
+        GoalResult("r", "absent", "a submarine", "r", "failed", reason="ConfigError: x"),
+    ]
+    goals = [_g("a", "a", True), *absent]
+    run = EncoderRun("oracle", {"set": "oracle"}, True, tasks=[TaskRun("t", "t.toml", "s", goals)])
+    res = EvalResult(["t.toml"], [run])
+    s = res.to_json()
+    ab = s["by_type"]["absent"]
+    assert list(s["by_type"]) == ["object", "absent"]  # GOAL_TYPES order
+    assert ab["goals"] == 3 and ab["success_rate"] == pytest.approx(1 / 3) and ab["not_found"] == 1
+    assert set(ab["recall_at"].values()) == {None} and ab["mean_target_error_m"] is None
+    # "all": success over every goal, recall over the goals with a place
+    assert s["all"]["success_rate"] == 0.5 and s["all"]["recall_at"]["2cm"] == 1.0
+    md = res.to_markdown()
+    assert "| absent | oracle (simulator upper bound) | 3 | 33 (1/3) | – | – | – |" in md
+    assert "success: not found" in md and "miss: found at [0.5, 0.1, 0.05] (a false positive)" in md
+
+
 def test_shipped_suites_cover_every_goal_type():
     from tabletop.eval.runner import collect_task_files
 
@@ -277,11 +379,13 @@ def test_shipped_suites_cover_every_goal_type():
     scenes = {json.dumps(f.scene.__dict__, default=str, sort_keys=True) for f in files}
     goals = [g for f in files for g in f.goals]
     assert len(scenes) >= 5 and len(goals) >= 150
-    assert {g.type for g in goals} == set(GOAL_TYPES)
+    # absent goals are the paraphrase suites' (tests/test_paraphrase.py)
+    assert {g.type for g in goals} == set(GOAL_TYPES) - {"absent"}
     assert sum(len(f.sequences) for f in files) >= 5
     assert "demo" in list_shipped_tasks()
     demo = load_tasks("demo")
-    assert {g.type for g in demo.goals} == set(GOAL_TYPES) and len(demo.goals) <= 30
+    assert {g.type for g in demo.goals} == set(GOAL_TYPES) - {"absent"}
+    assert len(demo.goals) <= 30
 
 
 def test_every_relation_is_a_target_primitive_of_the_robot_api():

@@ -165,6 +165,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
         args.encoders,
         seeds,
         progress=lambda seed, s: print(f"  scene {seed}: {len(s)} queries", file=sys.stderr),
+        cache_dir=None if args.no_cache else args.cache_dir,
     )
     if keep_prior:
         cal = cal.keep_prior(keep_prior)
@@ -187,7 +188,8 @@ def add_commands(sub) -> None:
         "tasks",
         nargs="+",
         help="task files (.toml/.json), directories of them, or shipped names: 'default' (the "
-        "default suites), 'demo'",
+        "default suites), 'demo', 'paraphrase-tune' (goals asked as people ask, to tune on), "
+        "'paraphrase-heldout' (the same, held out: evaluate at the end)",
     )
     p.add_argument(
         "--encoders",
@@ -238,4 +240,10 @@ def add_commands(sub) -> None:
         default="",
         help="modalities that keep the prior (comma-separated; their fits go to the report)",
     )
+    p.add_argument(
+        "--cache-dir",
+        default="out/eval-cache",
+        help="recordings and maps reused across runs (default: out/eval-cache)",
+    )
+    p.add_argument("--no-cache", action="store_true", help="scan and map afresh, keep nothing")
     p.set_defaults(func=cmd_calibrate)

@@ -145,7 +145,9 @@ class EvalResult:
             "ground truth (an object's box, where a sound was heard, an area, the point a "
             "spatial relation names). R@k: the predicted target (where the robot was sent) "
             "lies within k of the truth. Contacts: robot-scene contact points during the "
-            "motions. The **oracle** encoders read the simulator's segmentation and the "
+            "motions. An **absent** goal asks for something the scene does not have: it "
+            "succeeds when the map reports it not found (nothing moves), and recall and errors "
+            "leave it out. The **oracle** encoders read the simulator's segmentation and the "
             "inserted clips' labels: a simulator upper bound, never the default."
         )
         out += ["", f"Task files: {', '.join(f'`{p}`' for p in self.task_files)}", ""]
@@ -210,6 +212,10 @@ class EvalResult:
 def _outcome(g) -> str:
     if g.status == "unavailable":
         return f"unavailable: {g.reason}"
+    if not g.has_place:  # an absent goal
+        if g.success:
+            return "success: not found"
+        return f"miss: {g.reason}" if g.reason else "miss"
     if g.status == "not_found":
         return "not found"
     return f"{'success' if g.success else 'miss'}, TCP {_cm(g.error_m)} cm from the truth"
@@ -262,8 +268,8 @@ def scene_picture(m, ground_truth: GroundTruth, goals, regions) -> np.ndarray:
     for g in goals:
         if g.target is not None:
             cv2.drawMarker(img, _pixel(m, g.target), _YELLOW, cv2.MARKER_CROSS, 8, 1)
-        if g.tcp is None or g.status == "unavailable":
-            continue
+        if g.tcp is None or g.status == "unavailable" or (g.success and not g.has_place):
+            continue  # an absent goal's success: nothing moved
         c = _pixel(m, g.tcp)
         if g.success:
             cv2.circle(img, c, 4, _RED, -1)

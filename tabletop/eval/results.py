@@ -13,6 +13,10 @@ Metrics per goal type (the paper's tabletop criterion and its cross-modal indexi
 Goals that could not be attempted because a component is missing (an image goal without the
 visual localization module, an instruction without the parser) are counted as ``unavailable``
 and left out of the rates; a goal the map does not find, or a reach that fails, is a failure.
+
+An ``absent`` goal (something the scene does not have) succeeds when the map finds nothing: its
+success rate is the share reported not found. It has no place, so recall and the mean errors
+leave it out (they are over the goals with a place; ``None`` for a row of absent goals alone).
 """
 
 from __future__ import annotations
@@ -46,7 +50,8 @@ class GoalResult:
     type: str
     text: str
     sequence: str
-    status: str  # "done" | "not_found" | "failed" | "unavailable"
+    # "done" | "not_found" | "failed" | "unavailable"; an absent goal's success is "not_found"
+    status: str
     reason: str = ""
     target: tuple | None = None  # (3,) [m] predicted target, world frame
     target_error_m: float | None = None  # predicted target to the truth [m]
@@ -62,6 +67,11 @@ class GoalResult:
     @property
     def attempted(self) -> bool:
         return self.status != "unavailable"
+
+    @property
+    def has_place(self) -> bool:
+        """Whether the goal's truth is a place (every type but ``absent``)."""
+        return self.type != "absent"
 
     def to_json(self) -> dict:
         d = dict(self.__dict__)
@@ -151,10 +161,13 @@ def _rate(goals: list[GoalResult]) -> dict:
         out["unavailable_reason"] = "; ".join(reasons)
         return out
     out["success_rate"] = out["successes"] / n
-    # A goal without a prediction (not found) counts as a miss at every radius.
-    terr = [g.target_error_m for g in att]
+    # A goal without a prediction (not found) counts as a miss at every radius; an absent goal
+    # has no place to recall.
+    terr = [g.target_error_m for g in att if g.has_place]
     for r in RECALL_RADII_M:
-        out["recall_at"][f"{int(r * 100)}cm"] = sum(e is not None and e <= r for e in terr) / n
+        out["recall_at"][f"{int(r * 100)}cm"] = (
+            sum(e is not None and e <= r for e in terr) / len(terr) if terr else None
+        )
     errs = [g.error_m for g in att if g.error_m is not None]
     terrs = [e for e in terr if e is not None]
     out["mean_error_m"] = float(np.mean(errs)) if errs else None

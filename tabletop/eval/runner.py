@@ -34,7 +34,7 @@ from tabletop.eval.harness import (
 )
 from tabletop.eval.results import EncoderRun, GoalResult, TaskRun
 from tabletop.eval.tasks import Goal, Landmark, TaskFile, TaskFileError, load_tasks
-from tabletop.eval.truth import Region, resolve_truth
+from tabletop.eval.truth import Region, check_absent, resolve_truth
 from tabletop.sim.ground_truth import GroundTruth
 
 __all__ = [
@@ -180,6 +180,8 @@ def _run_goal(ctx: _Context, goal: Goal, sequence: str, region: Region) -> GoalR
     t0 = time.perf_counter()
     if goal.type == "instruction":
         return _run_code(ctx, goal, base, region, t0)
+    if goal.type == "absent":
+        return _run_absent(ctx, goal, base, t0)
     try:
         target, res = _move(ctx, goal)
     except ImageGoalUnavailable as e:
@@ -206,6 +208,55 @@ def _run_goal(ctx: _Context, goal: Goal, sequence: str, region: Region) -> GoalR
         tcp=tuple(tcp),
         error_m=err,
         success=err <= SUCCESS_RADIUS_M,
+        reach=res.reason.value,
+        contacts=int(robot.contacts[-1]),
+        time_s=time.perf_counter() - t0,
+    )
+
+
+def _run_absent(ctx: _Context, goal: Goal, base: dict, t0: float) -> GoalResult:
+    """An absent goal succeeds when the robot API finds nothing (:class:`GoalNotFound`): then
+    nothing moves. A target the map returns is a false positive: the robot goes there, as
+    ``move_to(get_max_pos_3d(get_major_map(...)))`` would, and the goal fails with the target
+    and the final TCP in the result. A query the map or the API refuses otherwise is a failure."""
+    robot = ctx.robot
+    try:
+        target = np.asarray(robot.get_max_pos_3d(_query_heatmap(ctx, goal, goal.query)))
+    except GoalNotFound as e:
+        return GoalResult(
+            **base,
+            status="not_found",
+            reason=str(e),
+            success=True,
+            tcp=tuple(robot.current_position()),
+            time_s=time.perf_counter() - t0,
+        )
+    except TabletopError as e:
+        return GoalResult(
+            **base,
+            status="failed",
+            reason=f"{type(e).__name__}: {e}",
+            tcp=tuple(robot.current_position()),
+            time_s=time.perf_counter() - t0,
+        )
+    found = f"found at {np.round(target, 3).tolist()} (a false positive)"
+    try:
+        res = robot.move_to(target)
+    except TabletopError as e:
+        return GoalResult(
+            **base,
+            status="failed",
+            reason=f"{found}; the reach failed: {type(e).__name__}: {e}",
+            target=tuple(target),
+            tcp=tuple(robot.current_position()),
+            time_s=time.perf_counter() - t0,
+        )
+    return GoalResult(
+        **base,
+        status="done",
+        reason=found,
+        target=tuple(target),
+        tcp=tuple(np.asarray(res.final_tcp, np.float64)),
         reach=res.reason.value,
         contacts=int(robot.contacts[-1]),
         time_s=time.perf_counter() - t0,
@@ -296,6 +347,9 @@ def evaluate_task_file(
     regions = {
         g.id: resolve_truth(g.truth, truth, f"{where} goal {g.id!r} truth") for g in tf.goals
     }
+    for g in tf.goals:
+        if g.type == "absent":
+            check_absent(g.query, truth, f"{where} goal {g.id!r}")
     robot = SimArm(m, spec)
     ctx = _Context(robot, m, spec, rec)
     if figures_dir is not None:

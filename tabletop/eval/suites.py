@@ -8,6 +8,9 @@ any task file, generated or written by hand. Regenerate the shipped suites with:
     python -m tabletop.eval.suites            # writes tabletop/data/tasks/default/*.toml, demo.toml
 
 Goal choices are seeded (``generator.seed`` in each file), so the same scan gives the same file.
+How goals are worded is a :class:`Wording`: this one asks with the scene's exact catalog labels
+and the sound bank's captions; :mod:`tabletop.eval.paraphrase` words the same goals the way
+people do.
 """
 
 from __future__ import annotations
@@ -20,10 +23,10 @@ import numpy as np
 
 from tabletop.eval.tasks import FORMAT_NAME, FORMAT_VERSION, Truth, parse_tasks
 from tabletop.eval.truth import resolve_truth, sound_occurrences
-from tabletop.sim.ground_truth import GroundTruth, ObjectTruth
+from tabletop.sim.ground_truth import AreaTruth, GroundTruth, ObjectTruth, SoundEventTruth
 from tabletop.transforms import aabb_distance
 
-__all__ = ["DEFAULT_SUITES", "generate_suite", "to_toml", "write_default_suites"]
+__all__ = ["DEFAULT_SUITES", "Wording", "generate_suite", "to_toml", "write_default_suites"]
 
 #: (file stem, scene section, scan section, map section, goal counts) of the shipped suites.
 _SCAN = {"speed": 0.3, "episodes": 6, "episode_s": 4.0, "repeat_sounds": 1}
@@ -137,8 +140,60 @@ def _view(rng, target_xy) -> dict:
     }
 
 
-def _the(label: str) -> str:
-    return f"the {label}"
+def _the(phrase: str) -> str:
+    """``phrase`` with a leading article: "the red mug"; one that has an article keeps it."""
+    return phrase if phrase.split(" ", 1)[0] in ("the", "a", "an") else f"the {phrase}"
+
+
+#: Relation words of goal texts and instructions.
+RELATION_WORDS = {
+    "between": "between",
+    "left_of": "to the left of",
+    "right_of": "to the right of",
+    "in_front_of": "in front of",
+    "behind": "behind",
+}
+_VERBS = ("go to", "move to", "reach", "approach")
+
+
+class Wording:
+    """How generated goals word their queries: this one with the scene's exact catalog labels
+    ("red mug") and the sound bank's captions (the shipped suites). A subclass words them
+    otherwise (:class:`tabletop.eval.paraphrase.ParaphraseWording`); the goals and their truth
+    stay what :func:`generate_suite` draws. Each call words one mention: a goal's text and its
+    query use the same call's result."""
+
+    def object(self, o: ObjectTruth) -> str:
+        """A query naming object ``o`` unambiguously in its scene."""
+        return o.label
+
+    def kind(self, o: ObjectTruth) -> str:
+        """A query naming ``o``'s kind, which another object of the scene shares (the
+        ambiguous goals' primary part)."""
+        return o.category
+
+    def sound(self, event: SoundEventTruth) -> str:
+        """A query naming the sound category of ``event``."""
+        return event.caption
+
+    def area(self, area: AreaTruth) -> str:
+        """A query naming a table area."""
+        return area.name
+
+    def instruction(self, j: int, form: str, *args) -> str:
+        """The ``j``-th instruction of a suite in free text. ``form`` and ``args``: "object"
+        (o), "sound" (event), "near" (o, event: o's kind near the sound), "between" (a, b),
+        or a side relation of :data:`RELATION_WORDS` (o)."""
+        v = _VERBS[j % len(_VERBS)]
+        if form == "object":
+            return f"{v} the {args[0].label}"
+        if form == "sound":
+            return f"{v} {args[0].caption}"
+        if form == "near":
+            return f"{v} the {args[0].category} near {args[1].caption}"
+        if form == "between":
+            return f"move in between the {args[0].label} and the {args[1].label}"
+        return f"go {RELATION_WORDS[form]} the {args[0].label}"
 
 
 def generate_suite(
@@ -150,9 +205,15 @@ def generate_suite(
     seed: int = 0,
     map_section: dict | None = None,
     description: str = "",
+    wording: Wording | None = None,
+    generator: dict | None = None,
 ) -> dict:
-    """A task document (dict) for one scene from its recording's ground truth."""
+    """A task document (dict) for one scene from its recording's ground truth. ``wording``
+    (default :class:`Wording`: exact labels and captions) words the queries; the goals drawn
+    depend on ``seed`` and the ground truth only. ``generator`` replaces the document's
+    ``[generator]`` section (default: the seed and this module)."""
     rng = np.random.default_rng(seed)
+    w = wording if wording is not None else Wording()
     gt = ground_truth
     objs = [o for o in gt.objects if _reachable(o.center)]
     by_name = {o.name: o for o in gt.objects}
@@ -161,7 +222,9 @@ def generate_suite(
     events = list(gt.sound_events_by_onset)
     cats = [e.category for e in events]
     unique_events = [e for e in events if cats.count(e.category) == 1]
-    caption = {e.category: e.caption for e in events}
+    first_event = {}
+    for e in events:
+        first_event.setdefault(e.category, e)
     goals: list[dict] = []
 
     def add(gid, gtype, text, truth, **kw):
@@ -175,16 +238,12 @@ def generate_suite(
 
     # object goals: a colour and a noun, unambiguous in the scene
     for o in pick(objs, counts["object"]):
-        add(
-            f"object-{o.name}",
-            "object",
-            _the(o.label),
-            {"object": o.name},
-            query={"obj": o.label},
-        )
+        q = w.object(o)
+        add(f"object-{o.name}", "object", _the(q), {"object": o.name}, query={"obj": q})
     # sound goals: every category inserted (a repeated one counts wherever it was heard)
     for cat in pick(dict.fromkeys(cats), counts["sound"]):
-        add(f"sound-{cat}", "sound", caption[cat], {"sound": cat}, query={"sound": caption[cat]})
+        s = w.sound(first_event[cat])
+        add(f"sound-{cat}", "sound", s, {"sound": cat}, query={"sound": s})
     # image goals: views from above a reachable table point near an object
     for i, o in enumerate(pick(objs, counts["image"])):
         v = _view(rng, o.center[:2])
@@ -197,12 +256,9 @@ def generate_suite(
         )
     # area goals
     for a in pick(list(gt.areas), counts["area"]):
+        q = w.area(a)
         add(
-            f"area-{a.name.replace(' ', '-')}",
-            "area",
-            _the(a.name),
-            {"area": a.name},
-            query={"area": a.name},
+            f"area-{a.name.replace(' ', '-')}", "area", _the(q), {"area": a.name}, query={"area": q}
         )
     # ambiguous: a duplicated kind disambiguated by a sound heard near one of them
     amb = []
@@ -213,24 +269,26 @@ def generate_suite(
             if d[1][0] - d[0][0] >= 0.10:
                 amb.append((by_name[d[0][1]], e))
     for o, e in pick(amb, counts["amb_sound"]):
+        k, s = w.kind(o), w.sound(e)
         add(
             f"ambiguous-{o.name}-sound-{e.category}",
             "ambiguous",
-            f"the {o.category} near {e.caption}",
+            f"{_the(k)} near {s}",
             {"object": o.name},
-            query={"obj": o.category, "sound": e.caption},
+            query={"obj": k, "sound": s},
             primary="obj",
         )
     # ambiguous: a duplicated kind disambiguated by an image taken above one of them
     amb_img = [o for k in dup_kinds for o in gt.objects_of_kind(k) if _reachable(o.center)]
     for o in pick(amb_img, counts["amb_image"]):
         v = _view(rng, o.center[:2])
+        k = w.kind(o)
         add(
             f"ambiguous-{o.name}-image",
             "ambiguous",
-            f"the {o.category} near this image",
+            f"{_the(k)} near this image",
             {"object": o.name},
-            query={"obj": o.category, "img": v},
+            query={"obj": k, "img": v},
             primary="obj",
         )
     # ambiguous: a sound heard in two places, disambiguated by an object near one of them
@@ -246,12 +304,13 @@ def generate_suite(
                 if mine <= 0.15 and other - mine >= 0.15:
                     amb_obj.append((cat, i, o))
     for cat, i, o in pick(amb_obj, counts["amb_object"]):
+        q, s = w.object(o), w.sound(first_event[cat])
         add(
             f"ambiguous-sound-{cat}-{i}-near-{o.name}",
             "ambiguous",
-            f"{caption[cat]} near the {o.label}",
+            f"{s} near {_the(q)}",
             {"sound": cat, "occurrence": i},
-            query={"obj": o.label, "sound": caption[cat]},
+            query={"obj": q, "sound": s},
             primary="sound",
         )
     # ambiguous: a duplicated kind disambiguated by the table area it is in
@@ -270,12 +329,13 @@ def generate_suite(
             ):
                 amb_area.append((inside[0], a))
     for o, a in pick(amb_area, counts["amb_area"]):
+        k, q = w.kind(o), w.area(a)
         add(
             f"ambiguous-{o.name}-area",
             "ambiguous",
-            f"the {o.category} on the {a.name}",
+            f"{_the(k)} on {_the(q)}",
             {"object": o.name},
-            query={"obj": o.category, "area": a.name},
+            query={"obj": k, "area": q},
             primary="obj",
         )
     # spatial: between two objects, beside one (the truth point must be free table)
@@ -298,18 +358,13 @@ def generate_suite(
             p = resolve_truth(t, gt).center
             if _reachable(p) and _xy_clear(p, gt.objects, margin=0.05):
                 spatial.append((rel, [a]))
-    words = {
-        "between": "between",
-        "left_of": "to the left of",
-        "right_of": "to the right of",
-        "in_front_of": "in front of",
-        "behind": "behind",
-    }
+    words = RELATION_WORDS
     for rel, os_ in pick(spatial, counts["spatial"]):
+        qs = [w.object(o) for o in os_]
         text = (
-            f"between the {os_[0].label} and the {os_[1].label}"
+            f"between {_the(qs[0])} and {_the(qs[1])}"
             if rel == "between"
-            else f"{words[rel]} the {os_[0].label}"
+            else f"{words[rel]} {_the(qs[0])}"
         )
         add(
             f"spatial-{rel}-" + "-".join(o.name for o in os_),
@@ -317,7 +372,7 @@ def generate_suite(
             text,
             {"relation": rel, "of": [{"object": o.name} for o in os_]},
             relation=rel,
-            landmarks=[{"obj": o.label} for o in os_],
+            landmarks=[{"obj": q} for q in qs],
         )
     # multimodal spatial: between a sound and an object; beside an object found by a sound
     mm = []
@@ -335,50 +390,38 @@ def generate_suite(
                 mm.append((rel, e, o))
     for kind, e, o in pick(mm, counts["mm_spatial"]):
         if kind == "between-sound":
+            s, q = w.sound(e), w.object(o)
             add(
                 f"mm-between-{e.category}-{o.name}",
                 "multimodal_spatial",
-                f"between {e.caption} and the {o.label}",
+                f"between {s} and {_the(q)}",
                 {"relation": "between", "of": [{"sound": e.category}, {"object": o.name}]},
                 relation="between",
-                landmarks=[{"sound": e.caption}, {"obj": o.label}],
+                landmarks=[{"sound": s}, {"obj": q}],
             )
         else:
+            k, s = w.kind(o), w.sound(e)
             add(
                 f"mm-{kind}-{o.name}-{e.category}",
                 "multimodal_spatial",
-                f"{words[kind]} the {o.category} near {e.caption}",
+                f"{words[kind]} {_the(k)} near {s}",
                 {"relation": kind, "of": [{"object": o.name}]},
                 relation=kind,
-                landmarks=[{"obj": o.category, "sound": e.caption}],
+                landmarks=[{"obj": k, "sound": s}],
             )
     # free-language instructions, phrased as a person would, through the instruction parser
-    verbs = ["go to", "move to", "reach", "approach"]
     inst = []
     for o in objs:
-        inst.append((f"{{v}} the {o.label}", {"object": o.name}))
+        inst.append((("object", o), {"object": o.name}))
     for cat in dict.fromkeys(cats):
         if cats.count(cat) == 1:
-            inst.append((f"{{v}} {caption[cat]}", {"sound": cat}))
+            inst.append((("sound", first_event[cat]), {"sound": cat}))
     for o, e in amb:
-        inst.append((f"{{v}} the {o.category} near {e.caption}", {"object": o.name}))
+        inst.append((("near", o, e), {"object": o.name}))
     for rel, os_ in spatial:
-        if rel == "between":
-            inst.append(
-                (
-                    f"move in between the {os_[0].label} and the {os_[1].label}",
-                    {"relation": rel, "of": [{"object": o.name} for o in os_]},
-                )
-            )
-        else:
-            inst.append(
-                (
-                    f"go {words[rel]} the {os_[0].label}",
-                    {"relation": rel, "of": [{"object": os_[0].name}]},
-                )
-            )
-    for j, (text, truth) in enumerate(pick(inst, counts["instruction"])):
-        text = text.replace("{v}", verbs[j % len(verbs)])
+        inst.append(((rel, *os_), {"relation": rel, "of": [{"object": o.name} for o in os_]}))
+    for j, (form, truth) in enumerate(pick(inst, counts["instruction"])):
+        text = w.instruction(j, *form)
         add(f"instruction-{j}", "instruction", text, truth, instruction=text)
     # sequences like the paper's tables: a sound, an image, then two objects, in a row
     seqs = []
@@ -395,7 +438,7 @@ def generate_suite(
         "scene": scene,
         "scan": scan,
         "map": dict(map_section or _MAP),
-        "generator": {"seed": seed, "module": "tabletop.eval.suites"},
+        "generator": dict(generator or {"seed": seed, "module": "tabletop.eval.suites"}),
         "goals": goals,
         "sequences": seqs,
     }

@@ -20,14 +20,16 @@ A task file is TOML or JSON (``tabletop-tasks`` version 1; see ``docs/evaluation
     query = { obj = "red mug" }
     truth = { object = "red_mug" }
 
-Goal types: object, sound, image, area, ambiguous, spatial, multimodal_spatial, instruction.
-A *query* goal (every type but spatial ones and instructions) names map queries by modality
+Goal types: object, sound, image, area, ambiguous, spatial, multimodal_spatial, instruction,
+absent. A *query* goal (every type but spatial ones and instructions) names map queries by modality
 (``obj``, ``sound``, ``img``, ``area``); with several, ``primary`` is the sharp one and the
 others broad constraints, as in :meth:`tabletop.robot.RobotAPI.get_major_map`. A spatial goal
 has a ``relation`` and ``landmarks`` (each a query). An instruction goal has free text for the
-instruction parser. Ground truth is given by reference to the recording's ground truth
-(``object``, ``sound`` [+ ``occurrence``], ``area``), explicitly (``point``, ``box``,
-``camera``) or as a relation of other truths (``relation`` + ``of``).
+instruction parser. An *absent* goal asks for one thing (``obj`` or ``sound``) that is not
+there; its truth is ``{ absent = true }`` and it succeeds when the map finds nothing. Ground truth
+is given by reference to the recording's ground truth (``object``, ``sound`` [+ ``occurrence``],
+``area``), explicitly (``point``, ``box``, ``camera``), as a relation of other truths
+(``relation`` + ``of``), or as ``absent``.
 """
 
 from __future__ import annotations
@@ -40,6 +42,7 @@ from pathlib import Path
 from tabletop.errors import ConfigError
 
 __all__ = [
+    "ABSENT_MODALITIES",
     "FORMAT_NAME",
     "FORMAT_VERSION",
     "GOAL_TYPES",
@@ -69,9 +72,12 @@ GOAL_TYPES = (
     "spatial",
     "multimodal_spatial",
     "instruction",
+    "absent",
 )
 #: Query parts, as the robot API names them.
 MODALITIES = ("obj", "sound", "img", "area")
+#: What an ``absent`` goal may ask for (one of them).
+ABSENT_MODALITIES = ("obj", "sound")
 #: Spatial relations and how many landmarks each takes.
 RELATIONS = {
     "between": 2,
@@ -81,7 +87,7 @@ RELATIONS = {
     "behind": 1,
     "above": 1,
 }
-_TRUTH_KINDS = ("object", "sound", "area", "point", "box", "camera", "relation")
+_TRUTH_KINDS = ("object", "sound", "area", "point", "box", "camera", "relation", "absent")
 _SCAN_FIELDS = ("seed", "speed", "episodes", "episode_s", "repeat_sounds", "clip_split", "snr_db")
 _MAP_FIELDS = ("frame_step", "pixel_step", "voxel_size")
 
@@ -111,7 +117,9 @@ class Truth:
     - ``area``: a named table area (its rectangle, up to 0.30 m above the table);
     - ``point`` (3,) / ``box`` ((3,), (3,)) [m]: explicit;
     - ``camera`` (3,) [m]: where a query image was taken (the column beneath the camera);
-    - ``relation`` with ``of``: a spatial relation of other truths (see :data:`RELATIONS`).
+    - ``relation`` with ``of``: a spatial relation of other truths (see :data:`RELATIONS`);
+    - ``absent``: nowhere, the goal's query names nothing in the scene (``absent`` goals only,
+      written ``truth = { absent = true }``).
     """
 
     kind: str
@@ -134,6 +142,8 @@ class Truth:
             return f"area {self.area!r}"
         if self.kind == "relation":
             return f"{self.relation}(" + ", ".join(t.describe() for t in self.of) + ")"
+        if self.kind == "absent":
+            return "absent (not in the scene)"
         return f"{self.kind} {getattr(self, self.kind)}"
 
 
@@ -302,13 +312,24 @@ def _landmark(d: object, where: str, primary: object = None) -> Landmark:
     return Landmark(tuple(parts), primary)
 
 
-def _truth(d: object, where: str) -> Truth:
+def _truth(d: object, where: str, nested: bool = False) -> Truth:
     if not isinstance(d, dict):
         raise _err(where, f"must be a table with one of {list(_TRUTH_KINDS)}, got {d!r}")
     kinds = [k for k in _TRUTH_KINDS if k in d]
     if len(kinds) != 1:
         raise _err(where, f"give exactly one of {list(_TRUTH_KINDS)}, got {sorted(d)}")
     kind = kinds[0]
+    if kind == "absent":
+        _keys(d, where, ("absent",))
+        if d["absent"] is not True:
+            raise _err(
+                where,
+                f"absent must be true, got {d['absent']!r}; a thing that is there names its "
+                "truth (object, sound, area, ...)",
+            )
+        if nested:
+            raise _err(where, "a relation's landmark cannot be absent: it names a place")
+        return Truth("absent")
     if kind == "object":
         _keys(d, where, ("object",))
         return Truth("object", object=_text(d["object"], f"{where}.object"))
@@ -336,7 +357,9 @@ def _truth(d: object, where: str) -> Truth:
     _keys(d, where, ("relation", "of"))
     rel, of = _relation(d["relation"], d["of"], where, "truths in 'of'")
     return Truth(
-        "relation", relation=rel, of=tuple(_truth(t, f"{where}.of[{i}]") for i, t in enumerate(of))
+        "relation",
+        relation=rel,
+        of=tuple(_truth(t, f"{where}.of[{i}]", nested=True) for i, t in enumerate(of)),
     )
 
 
@@ -364,10 +387,20 @@ def _goal(d: object, where: str) -> Goal:
         _keys(d, where, (*_GOAL_COMMON, "relation", "landmarks"))
     elif gtype == "instruction":
         _keys(d, where, (*_GOAL_COMMON, "instruction"))
+    elif gtype == "absent":  # one query part: no primary to choose
+        _keys(d, where, (*_GOAL_COMMON, "query"))
     else:
         _keys(d, where, (*_GOAL_COMMON, "query"), ("primary",))
     gid = _text(d["id"], f"{where}.id")
     truth = _truth(d["truth"], f"{where}.truth")
+    if (gtype == "absent") != (truth.kind == "absent"):
+        raise _err(
+            where,
+            f"an 'absent' goal's truth is {{ absent = true }}, got {truth.describe()}"
+            if gtype == "absent"
+            else f"truth {{ absent = true }} belongs to type 'absent' goals (one obj= or "
+            f"sound= query part); a {gtype!r} goal names where its goal is",
+        )
     common = dict(id=gid, type=gtype, text=_text(d["text"], f"{where}.text"), truth=truth)
     if gtype == "instruction":
         return Goal(**common, instruction=_text(d["instruction"], f"{where}.instruction"))
@@ -401,6 +434,11 @@ def _goal(d: object, where: str) -> Goal:
         )
     if gtype == "ambiguous" and len(given) < 2:
         raise _err(where, f"an 'ambiguous' goal needs two or more query parts, got {given}")
+    if gtype == "absent" and (len(given) != 1 or given[0] not in ABSENT_MODALITIES):
+        raise _err(
+            where,
+            f"an 'absent' goal asks for one thing, one of {list(ABSENT_MODALITIES)}, got {given}",
+        )
     return Goal(**common, query=query)
 
 

@@ -2,19 +2,23 @@
 
 A :class:`Region` is a union of axis-aligned boxes (a point is a box of zero size, the column
 beneath a microphone a box of zero width); the distance of a point to it is the distance to the
-nearest box (0 inside). Every reference (object name, sound category, area name) is checked
-against the recording and a wrong one is named together with the valid ones.
+nearest box (0 inside); an ``absent`` goal's region has no box (every point is infinitely far).
+Every reference (object name, sound category, area name) is checked against the recording and a
+wrong one is named together with the valid ones; an absent goal's query is checked not to name,
+word for word, something the recording has (:func:`check_absent`).
 """
 
 from __future__ import annotations
 
+import math
+import re
 from dataclasses import dataclass
 
 import numpy as np
 
 from tabletop.eval.calibration import AREA_HEIGHT_M
 from tabletop.eval.map_goals import heard_column
-from tabletop.eval.tasks import TaskFileError, Truth
+from tabletop.eval.tasks import Landmark, TaskFileError, Truth
 from tabletop.robot.api import SpatialConfig
 from tabletop.sim.ground_truth import (
     AreaTruth,
@@ -24,7 +28,7 @@ from tabletop.sim.ground_truth import (
     SoundEventTruth,
 )
 
-__all__ = ["AREA_HEIGHT_M", "Region", "resolve_truth", "sound_occurrences"]
+__all__ = ["AREA_HEIGHT_M", "Region", "check_absent", "resolve_truth", "sound_occurrences"]
 
 
 #: Unit directions of the side relations (robot API conventions: left = +y, in front = +x).
@@ -38,13 +42,16 @@ _SIDES = {
 
 @dataclass(frozen=True)
 class Region:
-    """Acceptable places of a goal: boxes (K, 2, 3) [m] world frame (lower, upper corners)."""
+    """Acceptable places of a goal: boxes (K, 2, 3) [m] world frame (lower, upper corners);
+    K = 0 for an absent goal (no place is right)."""
 
     boxes: np.ndarray  # (K, 2, 3) float64 [m]
     description: str
 
     def distance(self, p) -> float:
-        """Distance [m] from a point (3,) to the nearest box (0 inside)."""
+        """Distance [m] from a point (3,) to the nearest box (0 inside; inf without boxes)."""
+        if not len(self.boxes):
+            return math.inf
         p = np.asarray(p, np.float64)
         lo, hi = self.boxes[:, 0], self.boxes[:, 1]
         d = np.maximum(lo - p, 0) + np.maximum(p - hi, 0)
@@ -179,6 +186,46 @@ def resolve_truth(t: Truth, ground_truth: GroundTruth, where: str = "truth") -> 
         return _region([[[p[0], p[1], 0.0], p]], "beneath the camera that took the image")
     if t.kind == "box":
         return _region([t.box], "box")
+    if t.kind == "absent":
+        return _region(np.zeros((0, 2, 3)), "nowhere: absent from the scene")
     anchors = [_anchor(gt, x, f"{where}.of[{i}]") for i, x in enumerate(t.of)]
     p = relation_point(t.relation, anchors)
     return _region([[p, p]], t.describe())
+
+
+def _words(text: str) -> str:
+    """Lower case, no leading articles, single spaces: how two names are compared."""
+    text = re.sub(r"\s+", " ", text.lower()).strip()
+    return re.sub(r"^(?:(?:the|a|an)\s+)+", "", text)
+
+
+def check_absent(query: Landmark, ground_truth: GroundTruth, where: str = "goal") -> None:
+    """An ``absent`` goal's query must not be, word for word (case and leading articles aside),
+    what the recording calls something it has: an object's label, name or kind, an inserted
+    sound's caption or category. (Synonyms are the suite writer's responsibility.)
+
+    Raises:
+        TaskFileError: naming the query and what the scene has under that name.
+    """
+    gt = ground_truth
+    for kind, text in query.parts:
+        if kind == "obj":
+            names = {
+                n: f"object {o.name}"
+                for o in gt.objects
+                for n in (o.label, o.name.replace("_", " "), o.category)
+            }
+        elif kind == "sound":
+            names = {
+                n: f"sound {e.category}"
+                for e in gt.sound_events
+                for n in (e.caption, e.category.replace("_", " "))
+            }
+        else:
+            continue
+        hit = {_words(n): what for n, what in names.items()}.get(_words(str(text)))
+        if hit is not None:
+            raise TaskFileError(
+                f"{where}: an 'absent' goal asks {kind}={text!r}, which this recording has "
+                f"({hit}); an absent goal names something the scene does not have"
+            )

@@ -1,0 +1,320 @@
+"""Paraphrase suites (tabletop/eval/paraphrase.py): the bank's two pools are disjoint and share
+nothing with training texts, generation is seeded and deterministic (on a ground truth built
+from the scene spec, no scan), every instruction parses, and the shipped suites load, cover
+every goal type with absent goals, and sit on seeds nothing else uses.
+
+Failure messages name bank entries and goal ids, never held-out phrasings: the team must not
+read them."""
+
+import importlib
+import pkgutil
+import re
+import tomllib
+from collections import Counter
+
+import numpy as np
+import pytest
+
+from tabletop.errors import AssetError, ConfigError
+from tabletop.eval.paraphrase import (
+    AREA_KEYS,
+    HELDOUT_SEEDS,
+    MIN_ABSENT,
+    POOLS,
+    SUITE_DIRS,
+    TUNE_SEEDS,
+    load_bank,
+    paraphrase_suite,
+    suite_sections,
+)
+from tabletop.eval.suites import to_toml
+from tabletop.eval.tasks import GOAL_TYPES, SceneRef, load_tasks
+from tabletop.eval.truth import resolve_truth
+from tabletop.paths import DATA_DIR
+from tabletop.sim.catalog import COLORS, OBJECT_KINDS, object_kind
+from tabletop.sim.ground_truth import (
+    AreaTruth,
+    GroundTruth,
+    ObjectTruth,
+    SoundEventTruth,
+    TableTruth,
+)
+from tabletop.sim.sound_bank import CAPTIONS, SoundBank
+
+BANKS = {pool: load_bank(pool) for pool in POOLS}
+
+
+# ---------------------------------------------------------------------------- texts
+def bag(text: str) -> str:
+    """A phrase as a sorted bag of words: case, punctuation, hyphens, articles and a leading
+    "sound of" aside ("the wake-up alarm" = "a wake up alarm" = "alarm wake up")."""
+    t = re.sub(r"[^a-z0-9' ]", " ", text.lower().replace("-", " "))
+    t = re.sub(r"^\s*(?:(?:the|a|an)\s+)?(?:sound|noise)s?\s+of\s+", "", t)
+    return " ".join(sorted(w for w in t.split() if w not in ("a", "an", "the")))
+
+
+def norm(text: str) -> str:
+    """Lower case, single spaces, no leading article: the same words in the same order."""
+    return re.sub(r"^(?:(?:the|a|an)\s+)+", "", re.sub(r"\s+", " ", text.lower()).strip())
+
+
+def _strings(obj, out: set) -> None:
+    if isinstance(obj, str):
+        out.add(obj)
+    elif isinstance(obj, dict):
+        for k, v in obj.items():
+            _strings(k, out)
+            _strings(v, out)
+    elif isinstance(obj, (list, tuple, set, frozenset)):
+        for x in obj:
+            _strings(x, out)
+
+
+def _module_texts(module) -> set:
+    out: set = set()
+    for name, v in vars(module).items():
+        if not name.startswith("__"):
+            _strings(v, out)
+    return out
+
+
+def training_texts() -> set:
+    """Every text training or the maps' tuning uses, as bags: the string constants of the
+    training modules (vision synonyms and templates, audio captions and paraphrases), of the
+    catalog (colours) and of every mapping module, templates ("a {}") filled
+    with every catalog label, labelled class and colour, the bank's captions and the audio
+    trainer's phrasings of every category, and the data files the maps read
+    (``tabletop/data/*.toml``: the kinds' descriptions)."""
+    import tabletop.mapping
+    import tabletop.sim.catalog as catalog
+    import tabletop.train.audio as audio
+    import tabletop.train.vision as vision
+
+    texts = _module_texts(vision) | _module_texts(audio) | _module_texts(catalog)
+    for m in pkgutil.walk_packages(tabletop.mapping.__path__, "tabletop.mapping."):
+        texts |= _module_texts(importlib.import_module(m.name))
+    for f in sorted(DATA_DIR.glob("*.toml")):  # texts the maps read (the kinds' descriptions)
+        _strings(tomllib.loads(f.read_text()), texts)
+    fillers = set(COLORS)
+    for k in OBJECT_KINDS.values():
+        fillers |= {k.label, *(f"{c} {k.label}" for c in k.colors)}
+    texts |= fillers
+    texts |= {t.format(f) for t in list(texts) if t.count("{}") == 1 for f in fillers}
+    texts |= set(CAPTIONS.values())
+    bank = SoundBank.default()
+    for c in bank.categories:
+        texts |= set(audio.phrases_for(c, bank.caption(c)))
+    return {bag(t) for t in texts if isinstance(t, str) and t.strip()}
+
+
+@pytest.fixture(scope="module")
+def trained():
+    return training_texts()
+
+
+def _bank_entries(pool: str) -> dict[str, str]:
+    """Every phrasing of a pool by entry name, instruction templates included."""
+    b = BANKS[pool]
+    out = dict(b.phrasings())
+    for k, vs in b.instructions.items():
+        for i, v in enumerate(vs):
+            out[f"instructions.{k}[{i}]"] = v
+    for i, f in enumerate(b.colour_forms):
+        out[f"colour_forms[{i}]"] = f
+    return out
+
+
+# ---------------------------------------------------------------------------- the bank
+def test_both_pools_cover_every_kind_colour_sound_area_and_instruction():
+    cats = set(SoundBank.default().categories)
+    for pool, b in BANKS.items():
+        assert set(b.objects) == set(OBJECT_KINDS), pool
+        assert set(b.colours) == set(COLORS), pool
+        assert cats <= set(b.sounds), (pool, sorted(cats - set(b.sounds)))
+        assert set(b.areas) == set(AREA_KEYS), pool
+        assert len(b.absent_objects) >= 8 and len(b.absent_sounds) >= 6, pool
+        for k, ph in b.objects.items():
+            assert len(ph.names) >= 2, (pool, k)
+
+
+def test_the_pools_are_disjoint():
+    tune = {bag(v): k for k, v in _bank_entries("tune").items()}
+    shared = sorted(k for k, v in _bank_entries("heldout").items() if bag(v) in tune)
+    assert not shared, f"held-out entries equal to a tune phrasing: {shared}"
+
+
+def test_no_held_out_phrasing_is_a_training_text(trained):
+    assert bag("a dog barking") in trained and bag("a coffee cup") in trained  # it reads them
+    hits = sorted(k for k, v in _bank_entries("heldout").items() if bag(v) in trained)
+    assert not hits, f"held-out entries equal to a training text: {hits}"
+
+
+def test_held_out_suite_queries_are_no_training_texts(trained):
+    hits = []
+    for tf in _suites("heldout"):
+        for g in tf.goals:
+            texts = [g.instruction] if g.instruction else []
+            for lm in [g.query] if g.query else g.landmarks:
+                texts += [v for k, v in lm.parts if k != "img"]
+            hits += [f"{tf.name}:{g.id}" for t in texts if bag(t) in trained]
+    assert not hits, f"held-out goals asking a training text: {hits}"
+
+
+def test_a_broken_bank_names_the_entry(tmp_path):
+    text = (DATA_DIR / "paraphrases" / "tune.toml").read_text()
+    p = tmp_path / "tune.toml"
+    p.write_text(text.replace('[objects.tray]\nnames = ["{c}', '[objects.tray]\nnamez = ["{c}'))
+    with pytest.raises(AssetError, match=r"\[objects.tray\]: unknown keys \['namez'\]"):
+        load_bank("tune", p)
+    p.write_text(text.replace('"the left end"', '"over on the left"'))
+    with pytest.raises(AssetError, match="must be noun phrases starting with 'the '"):
+        load_bank("tune", p)
+    with pytest.raises(AssetError, match="pool is 'tune', expected 'heldout'"):
+        load_bank("heldout", DATA_DIR / "paraphrases" / "tune.toml")
+    with pytest.raises(ConfigError, match="unknown paraphrase pool 'test'; valid"):
+        load_bank("test")
+
+
+# ---------------------------------------------------------------------------- generation
+def spec_ground_truth(seed: int, sounds: int = 6, repeats: int = 1) -> GroundTruth:
+    """The generated scene's ground truth from its spec (no scan), with ``sounds`` synthetic
+    sound events of held-out-split categories (the first ``repeats`` heard twice)."""
+    spec = SceneRef(random={"seed": seed, "count": 9, "duplicates": 2}).load()
+    objs = []
+    for i, o in enumerate(spec.objects):
+        lo, hi = o.aabb()
+        objs.append(
+            ObjectTruth(
+                name=o.name,
+                kind=o.kind,
+                label=o.label,
+                category=object_kind(o.kind).label,
+                color=o.color,
+                instance_id=4 + i,
+                position=o.position,
+                yaw_deg=o.yaw_deg,
+                T_world_obj=o.T_world_obj,
+                aabb_min=lo,
+                aabb_max=hi,
+                center=(lo + hi) / 2,
+            )
+        )
+    bank = SoundBank.default()
+    rng = np.random.default_rng([seed, 99])
+    usable = [c for c in bank.categories if bank.clips(category=c, split="heldout")]
+    cats = [str(c) for c in rng.choice(usable, sounds - repeats, replace=False)]
+    cats += cats[:repeats]
+    points = [(0.35, 0.25), (0.35, -0.25), (0.55, 0.3), (0.55, -0.3), (0.65, 0.0), (0.45, 0.0)]
+    events = [
+        SoundEventTruth(
+            episode=f"episode_{i}",
+            category=c,
+            caption=bank.caption(c),
+            clip_id=f"{c}-{i}",
+            onset_s=10.0 + 5 * i,
+            offset_s=12.0 + 5 * i,
+            frames=(0, 1),
+            tcp_mean=(*points[i % 6], 0.3),
+            table_point=(*points[i % 6], 0.0),
+            region_center=(*points[i % 6], 0.0),
+        )
+        for i, c in enumerate(cats)
+    ]
+    t = spec.table
+    return GroundTruth(
+        scene=spec.to_dict(),
+        frame="world = robot base frame; table top at z = 0; metres",
+        table=TableTruth(x=t.x, y=t.y, top_z=0.0, height=t.height),
+        objects=tuple(objs),
+        areas=tuple(
+            AreaTruth(name=a.name, aliases=a.aliases, x=a.x, y=a.y, center=a.center)
+            for a in spec.areas
+        ),
+        sound_events=tuple(events),
+    )
+
+
+def _doc(pool: str, seed: int, gt_seed: int | None = None) -> dict:
+    stem, scene, scan = suite_sections(pool)[0]
+    gt = spec_ground_truth(seed if gt_seed is None else gt_seed)
+    return paraphrase_suite(pool, stem, scene, scan, gt, seed=seed, bank=BANKS[pool])
+
+
+@pytest.mark.parametrize("pool", POOLS)
+def test_generation_is_seeded_and_deterministic(pool):
+    a, b = to_toml(_doc(pool, 31)), to_toml(_doc(pool, 31))
+    assert a == b
+    assert to_toml(_doc(pool, 32, gt_seed=31)) != a  # another seed words and draws otherwise
+
+
+@pytest.mark.parametrize("pool", POOLS)
+@pytest.mark.parametrize("seed", [31, 33, 35])
+def test_generated_goals_are_asked_the_way_people_ask(pool, seed):
+    from tabletop.language import parse_instruction
+
+    gt = spec_ground_truth(seed)
+    doc = _doc(pool, seed)
+    types = Counter(g["type"] for g in doc["goals"])
+    assert set(types) == set(GOAL_TYPES) and types["absent"] >= MIN_ABSENT, types
+    # another word order is a paraphrase ("cube toy"); the label itself is not
+    labels = {norm(o.label) for o in gt.objects} | {norm(k.label) for k in OBJECT_KINDS.values()}
+    captions = {norm(e.caption) for e in gt.sound_events}
+    colour_words = {c: {bag(c), *(bag(w) for w in BANKS[pool].colours.get(c, ()))} for c in COLORS}
+    for g in doc["goals"]:
+        parts = [g["query"]] if "query" in g else g.get("landmarks", [])
+        for p in parts:
+            assert norm(str(p.get("obj", ""))) not in labels, g["id"]  # never the catalog label
+            assert norm(str(p.get("sound", ""))) not in captions, g["id"]  # nor the caption
+        if g["type"] == "object":
+            o = gt.object(g["truth"]["object"])
+            if len(gt.objects_of_kind(o.kind)) > 1:  # the colour tells the two apart
+                words = bag(g["query"]["obj"]).split()
+                assert any(all(w in words for w in cw.split()) for cw in colour_words[o.color]), g[
+                    "id"
+                ]
+        if g["type"] == "instruction":
+            steps = parse_instruction(g["instruction"])  # the offline parser reads it
+            assert len(steps) == 1, g["id"]
+        if g["type"] == "absent":
+            assert g["truth"] == {"absent": True} and len(g["query"]) == 1
+
+
+# ---------------------------------------------------------------------------- shipped suites
+def _suites(pool: str):
+    d = DATA_DIR / "tasks" / SUITE_DIRS[pool]
+    return [load_tasks(p) for p in sorted(d.glob("*.toml"))]
+
+
+@pytest.mark.parametrize(("pool", "seeds"), [("tune", TUNE_SEEDS), ("heldout", HELDOUT_SEEDS)])
+def test_shipped_paraphrase_suites_load_and_cover_every_goal_type(pool, seeds):
+    from tabletop.eval.runner import collect_task_files
+
+    files = _suites(pool)
+    assert [f.scene.random["seed"] for f in files] == list(seeds)
+    assert [f.name for f in collect_task_files(SUITE_DIRS[pool])] == [f.name for f in files]
+    for f in files:
+        assert f.extra["generator"]["pool"] == pool and f.scan["seed"] == f.scene.random["seed"]
+        types = Counter(g.type for g in f.goals)
+        assert set(types) == set(GOAL_TYPES), (f.name, types)
+        assert types["absent"] >= MIN_ABSENT, f.name
+        # object truths resolve against the scene (sounds need the scan: the runner checks)
+        gt = spec_ground_truth(f.scene.random["seed"], sounds=0, repeats=0)
+        for g in f.goals:
+            if g.truth.kind == "object":
+                resolve_truth(g.truth, gt, f"{f.name} {g.id}")
+
+
+def test_paraphrase_seeds_are_used_nowhere_else():
+    from tabletop.eval.calibration import CALIBRATION_SEEDS
+    from tabletop.eval.suites import DEFAULT_SUITES
+    from tabletop.train.vision import EVAL_SEED_BASE, VisionTrainConfig
+
+    ours = set(TUNE_SEEDS) | set(HELDOUT_SEEDS)
+    assert len(ours) == len(TUNE_SEEDS) + len(HELDOUT_SEEDS)
+    shipped = {s["random"]["seed"] for _, s, _ in DEFAULT_SUITES if "random" in s}
+    scans = {scan["seed"] for _, _, scan in DEFAULT_SUITES}
+    cfg = VisionTrainConfig()
+    vision = set(range(cfg.seed * 100_000, cfg.seed * 100_000 + cfg.train_layouts))
+    assert not ours & (shipped | scans | set(CALIBRATION_SEEDS) | vision)
+    assert min(ours) < EVAL_SEED_BASE
+    assert not ours & set(range(10, 10 + 100))  # eval-map's generated scenes: seed + 10
