@@ -15,14 +15,18 @@ steps, each with its own reason when it fails:
    vocabulary name (the name alone and with each basic colour term, as the image encoder was
    trained) and the background concepts; a softmax at ``temperature`` gives how much the
    instance looks like each. An instance's kind score is the probability of the query's names.
-3. **Colour, composed.** A colour phrase is compared with the instance's *measured* colour, not
-   with the embedding: the colour words are matched by the text encoder to the colour lexicon's
-   names (:data:`~tabletop.mapping.colors.COLOR_NAMES`), and the instance scores
-   ``exp(-ΔE / colour_scale)`` to those names' colours (CIELAB). Any colour word the text
-   encoder knows works ("scarlet", "navy"), not a list of the simulator's colours.
+3. **Colour, composed.** A colour phrase is compared with the instance's *measured* colour:
+   the colour words are matched by the text encoder to the colour lexicon's names
+   (:data:`~tabletop.mapping.colors.COLOR_NAMES`), and the instance scores
+   ``exp(-ΔE / colour_scale)`` to those names' colours (CIELAB), less where another basic
+   colour term lies nearer. Any colour word the text encoder knows works ("scarlet", "navy"),
+   not a list of the simulator's colours. Where the image encoder did learn the colour (its
+   embedding prefers "red mug" to the other colour variants of "mug"), that counts too: the
+   colour score is the better of the two.
 
 An instance's score is kind score x colour score; the best is the query's evidence (the map's
-calibration makes it a confidence and decides found). Every instance scoring within
+calibration makes it a confidence and decides found). A colour word no object of the kind
+shows (a textured object's nominal colour included) is not found. Every instance scoring within
 ``keep_ratio`` of the best stays hot — two mugs for "the mug", so that "the mug near the sound
 of X" still disambiguates by multiplication — and the heat decays from their voxels in 3D.
 
@@ -39,7 +43,13 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from tabletop.errors import ConfigError
-from tabletop.mapping.colors import BASIC_COLOURS, COLOR_NAMES, rgb_to_lab, split_color_words
+from tabletop.mapping.colors import (
+    BASIC_COLOURS,
+    COLOR_NAMES,
+    FILLER_WORDS,
+    rgb_to_lab,
+    split_color_words,
+)
 from tabletop.mapping.heatmaps import Heatmap, Judge, point_heatmap_3d
 from tabletop.mapping.instances import InstanceConfig, InstanceSet, ObjectInstance
 from tabletop.mapping.voxel_map import VoxelMap
@@ -67,8 +77,9 @@ class ObjectConfig:
     """A query's words must reach this cosine with some vocabulary name or description."""
     text_margin: float = 0.04
     """Vocabulary names within this cosine of the query's best are all what it may mean."""
-    temperature: float = 0.03
-    """Softmax temperature of an instance's scores against the vocabulary."""
+    temperature: float = 0.02
+    """Softmax temperature of an instance's scores against the vocabulary (and of its colour
+    variants)."""
     colour_scale: float = 20.0
     """CIELAB ΔE at which a colour's fit falls to 1/e."""
     keep_ratio: float = 0.5
@@ -227,7 +238,7 @@ class ObjectModule:
         n = len(inst)
         T, owner, _, _ = self._vocab_targets()
         nv = len(self.vocabulary)
-        content = [w for w in words.split() if w not in _THING]
+        content = [w for w in words.split() if w not in FILLER_WORDS]
         if content:
             e = self.text.encode_text([words])[0]
             per = np.array([float((T[owner == i] @ e).max()) for i in range(nv)])
@@ -237,7 +248,7 @@ class ObjectModule:
             # shorter name: "the ball" may be the soccer ball, "the bear" the teddy bear).
             want = per >= per[best] - cfg.text_margin
             want |= np.array([content[-1] in name.split() for name in self.vocabulary])
-            names = tuple(np.array(self.vocabulary)[want])
+            names = tuple(str(x) for x in np.array(self.vocabulary)[want])
         else:  # "something red": any object
             names, text_score, nearest = self.vocabulary, 1.0, ""
             want = np.ones(nv, bool)
@@ -248,36 +259,69 @@ class ObjectModule:
             kind = p[:, :nv][:, want].sum(axis=1)
         else:
             kind = np.zeros(0)
-        cm = self.colour_match(colour, inst) if colour else np.ones(n)
+        if colour:
+            w = self._colour_weights(colour)
+            cm = np.maximum(self.colour_match(w, inst), self.learned_colour(w, inst, want))
+        else:
+            cm = np.ones(n)
         return InstanceMatch(words, colour, names, text_score, nearest, kind, cm)
 
-    def colour_match(self, colour: str, instances: list[ObjectInstance]) -> np.ndarray:
-        """(n,) in [0, 1]: how well each instance's measured colour fits the colour phrase.
-
-        The phrase is matched to lexicon names by the text encoder; the fit falls off with the
-        CIELAB distance ΔE (lightness at half weight: shading darkens a whole object) from the
-        instance's measured colour to those names' colours, ``exp(-ΔE / colour_scale)``, and
-        again with how much nearer another basic colour term lies than the name's own (its
-        nearest basic term: "scarlet" is a red): a blue mug is not the purple one even though
-        blue and purple are neighbours."""
+    def _colour_weights(self, colour: str) -> np.ndarray:
+        """(len(COLOR_NAMES),) summing to 1: the lexicon names the colour phrase means (their
+        text embeddings' cosine with the phrase's, sharpened)."""
         if self._lexicon is None:
             names = list(COLOR_NAMES)
             lab = rgb_to_lab(np.array([v[0] for v in COLOR_NAMES.values()], float))
             self._lexicon = (self.text.encode_text(names), lab)
             self._basic = [names.index(c) for c in BASIC_COLOURS]
             self._family = [names.index(v[1]) for v in COLOR_NAMES.values()]
-        E, lab = self._lexicon
-        sim = E @ self.text.encode_text([colour])[0]
-        w = np.exp((sim - sim.max()) / 0.02)  # the lexicon names the phrase means
-        w /= w.sum()
+        sim = self._lexicon[0] @ self.text.encode_text([colour])[0]
+        w = np.exp((sim - sim.max()) / 0.02)
+        return w / w.sum()
+
+    def learned_colour(
+        self, weights: np.ndarray, instances: list[ObjectInstance], want: np.ndarray
+    ) -> np.ndarray:
+        """(n,) in [0, 1]: how strongly each instance's *embedding* says the colour, for the
+        query's names: a softmax over the basic colour variants of each name ("red mug",
+        "blue mug", ...) at the module's temperature, at the phrase's basic colour terms; the
+        best of the names. What the image encoder learned of colour, beside the measured one."""
+        if not instances or not want.any():
+            return np.zeros(len(instances))
+        _, _, V, vowner = self._vocab_targets()
+        nc = len(BASIC_COLOURS)
+        fam = np.zeros(nc)  # the phrase's weight on each basic colour term
+        for wi, f in zip(weights, self._family, strict=True):
+            fam[self._basic.index(f)] += wi
+        g = np.stack([i.embedding for i in instances])
+        out = np.zeros(len(instances))
+        for c in np.nonzero(want)[0]:
+            variants = V[vowner == c][1 : 1 + nc]  # the name with each basic colour term
+            z = g @ variants.T / self.config.temperature
+            p = np.exp(z - z.max(axis=1, keepdims=True))
+            p /= p.sum(axis=1, keepdims=True)
+            out = np.maximum(out, p @ fam)
+        return out
+
+    def colour_match(self, weights: np.ndarray, instances: list[ObjectInstance]) -> np.ndarray:
+        """(n,) in [0, 1]: how well each instance's measured colour fits the colour phrase
+        (``weights``: the lexicon names it means, :meth:`_colour_weights`).
+
+        The fit falls off with the
+        CIELAB distance ΔE (lightness at half weight: shading darkens a whole object) from the
+        instance's measured colour to those names' colours, ``exp(-ΔE / colour_scale)``, and
+        again with how much nearer another basic colour term lies than the name's own (its
+        nearest basic term: "scarlet" is a red): a blue mug is not the purple one even though
+        blue and purple are neighbours."""
         if not instances:
             return np.zeros(0)
+        lab = self._lexicon[1]
         de = _delta_e(np.stack([i.lab for i in instances])[:, None, :], lab[None, :, :])
         fam = de[:, self._family]  # to each name's basic colour term ("scarlet" -> red)
         best_basic = de[:, self._basic].min(axis=1, keepdims=True)
         sc = self.config.colour_scale
         near = np.exp(-np.minimum(de, fam) / sc)
-        return (near * np.exp(-np.maximum(fam - best_basic, 0.0) / sc)) @ w
+        return (near * np.exp(-np.maximum(fam - best_basic, 0.0) / sc)) @ weights
 
     def heatmap(self, query: str, decay: float, judge: Judge) -> Heatmap:
         """Heat around the instances (or voxels) that best match ``query``; not found, with the
@@ -354,6 +398,3 @@ def _delta_e(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """CIELAB distance with lightness at half weight (shading changes it across an object)."""
     d = np.asarray(a) - np.asarray(b)
     return np.sqrt((0.5 * d[..., 0]) ** 2 + d[..., 1] ** 2 + d[..., 2] ** 2)
-
-
-_THING = frozenset(("the", "a", "an", "one", "thing", "object", "something", "item", "that", "is"))
