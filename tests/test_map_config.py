@@ -56,3 +56,18 @@ def test_bad_configs_name_the_problem():
         MapConfig(major_decay=0.0)
     with pytest.raises(ConfigError, match="object must be ObjectConfig, got dict"):
         MapConfig(object={"select_margin": 0.1})
+
+
+def test_eval_map_settings_reach_the_module_configs():
+    from tabletop.cli.evaluate import parse_map_settings
+    from tabletop.eval.harness import map_config
+
+    s = parse_map_settings(["object.instances=false", "frame_step=2", "object.text_min=0.4"])
+    assert s == {"object": {"instances": False, "text_min": 0.4}, "frame_step": 2}
+    c = map_config(**s)
+    assert (c.object.instances, c.object.text_min, c.frame_step) == (False, 0.4, 2)
+    assert c.object.temperature == map_config().object.temperature  # the rest keeps defaults
+    with pytest.raises(ConfigError, match="bogus"):
+        map_config(**parse_map_settings(["object.bogus=1"]))
+    with pytest.raises(ConfigError, match="FIELD=VALUE"):
+        parse_map_settings(["instances"])

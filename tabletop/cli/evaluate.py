@@ -8,10 +8,12 @@ import contextlib
 import json
 import sys
 import time
+import tomllib
 from pathlib import Path
 
 from tabletop.cli.output import stdout_to_stderr
 from tabletop.cli.progress import ProgressBars
+from tabletop.errors import ConfigError
 
 __all__ = [
     "add_commands",
@@ -31,6 +33,13 @@ def cmd_eval(args: argparse.Namespace) -> int:
     from tabletop.eval.runner import run_eval
 
     encoders = [e.strip() for e in args.encoders.split(",") if e.strip()]
+    try:
+        overrides = parse_map_settings(args.map_set)
+    except ConfigError as e:
+        print(f"tabletop eval: {e}", file=sys.stderr)
+        return 2
+    if overrides and not args.json:
+        print(f"map settings changed for every task: {overrides}")
     t0 = time.perf_counter()
     with contextlib.ExitStack() as stack:
         if args.json:  # stdout carries only the JSON, and no progress is shown
@@ -44,15 +53,41 @@ def cmd_eval(args: argparse.Namespace) -> int:
             out_dir=args.out,
             progress=bars,
             cache_dir=None if args.no_cache else args.cache_dir,
+            map_overrides=overrides,
         )
     wall = time.perf_counter() - t0
     if args.json:
         d = res.to_json()
         d["wall_s"] = round(wall, 1)
+        d["map_overrides"] = overrides
         print(json.dumps(d if args.goals else _without_goals(d), indent=1, default=float))
         return 0
     print_result(res, wall)
     return 0
+
+
+def parse_map_settings(items) -> dict:
+    """``["object.instances=false", "frame_step=2"]`` -> ``{"object": {"instances": False},
+    "frame_step": 2}``: map config fields (``module.field`` for a module's) with TOML values."""
+    out: dict = {}
+    for item in items or ():
+        key, sep, raw = str(item).partition("=")
+        if not sep or not key.strip():
+            raise ConfigError(
+                f"--map-set {item!r}: expected FIELD=VALUE (e.g. object.instances=false)"
+            )
+        try:
+            value = tomllib.loads(f"v = {raw.strip()}")["v"]
+        except tomllib.TOMLDecodeError:
+            value = raw.strip()  # a bare word: a string
+        *parents, leaf = key.strip().split(".")
+        d = out
+        for part in parents:
+            d = d.setdefault(part, {})
+            if not isinstance(d, dict):
+                raise ConfigError(f"--map-set {item!r}: {part!r} is set twice")
+        d[leaf] = value
+    return out
 
 
 def print_result(res, wall: float, what: str = "") -> None:
@@ -207,6 +242,14 @@ def add_commands(sub) -> None:
         help="recordings and maps reused across runs (default: out/eval-cache)",
     )
     p.add_argument("--no-cache", action="store_true", help="scan and map afresh, keep nothing")
+    p.add_argument(
+        "--map-set",
+        action="append",
+        default=[],
+        metavar="FIELD=VALUE",
+        help="change a map config field for every task (an ablation; repeatable), e.g. "
+        "object.instances=false",
+    )
     p.set_defaults(func=cmd_eval)
 
     p = sub.add_parser("eval-map", help="score map goals: object, sound, ambiguous, image")

@@ -50,12 +50,20 @@ Progress = Callable[[str, int, int], None]
 def map_config(**overrides):
     """A :class:`~tabletop.mapping.MapConfig` with the simulator catalog's vocabulary and its
     descriptions (unless ``categories`` is given) and ``overrides`` (MapConfig fields;
-    ``voxel_size`` [m] sets the grid's voxel size)."""
+    ``voxel_size`` [m] sets the grid's voxel size; ``object``, ``area`` and ``audio`` may be
+    dicts of the module config fields that change)."""
     from tabletop.grid import VoxelGrid
     from tabletop.mapping import BACKGROUND, MapConfig
     from tabletop.sim.catalog import OBJECT_KINDS
 
     kw = dict(overrides)
+    nested = {k: kw.pop(k) for k in ("object", "area", "audio") if isinstance(kw.get(k), dict)}
+    if nested:  # module configs given as dicts of the fields that change
+        from tabletop.mapping.config import MapConfig as _MC
+
+        base = _MC().to_dict()
+        full = _MC.from_dict({k: {**base[k], **v} for k, v in nested.items()})
+        kw.update({k: getattr(full, k) for k in nested})
     if "voxel_size" in kw:
         kw["grid"] = VoxelGrid(voxel_size=float(kw.pop("voxel_size")))
     if "categories" not in kw:

@@ -323,24 +323,26 @@ def evaluate_task_file(
     cache_dir: Path | None = DEFAULT_CACHE_DIR,
     figures_dir: Path | None = None,
     progress: Progress | None = None,
+    map_overrides: dict | None = None,
 ) -> TaskRun:
     """Scan (or reuse), map (or reuse), run every goal of ``tf`` with the encoder set
-    ``encoders``; write the figures into ``figures_dir`` when given."""
+    ``encoders``; write the figures into ``figures_dir`` when given. ``map_overrides``: map
+    config fields that replace the task file's ``[map]`` ones (an ablation, e.g.
+    ``{"object": {"instances": False}}``)."""
     from tabletop.robot import SimArm
 
     spec = tf.scene.load()
     cache = Path(cache_dir) if cache_dir is not None else None
     if cache is not None:
         cache.mkdir(parents=True, exist_ok=True)
+    settings = {**dict(tf.map), **dict(map_overrides or {})}
     try:  # a bad [map] value fails before the scan, not after it
-        map_config(**dict(tf.map))
+        map_config(**settings)
     except (TypeError, TabletopError) as e:
         raise TaskFileError(f"{tf.path or tf.name} [map]: {e}") from None
     rec, scan_s, rec_cached = cached_recording(tf.name, tf.scan, spec, cache, progress)
     rec_key = recording_key(spec, tf.scan)
-    m, map_s, map_cached = cached_map(
-        tf.name, dict(tf.map), rec, encoders, cache, rec_key, progress
-    )
+    m, map_s, map_cached = cached_map(tf.name, settings, rec, encoders, cache, rec_key, progress)
     # Resolve every truth before anything moves: a wrong reference is a task-file error.
     where = str(tf.path or tf.name)
     truth = GroundTruth.of(rec)
@@ -408,9 +410,11 @@ def run_eval(
     out_dir: str | Path | None = None,
     progress: Progress | None = None,
     cache_dir: str | Path | None = DEFAULT_CACHE_DIR,
+    map_overrides: dict | None = None,
 ):
     """Evaluate task files (paths, directories, shipped names or :class:`TaskFile`s) with one
-    or more encoder sets; write the report into ``out_dir`` when given. ``progress`` is called
+    or more encoder sets; write the report into ``out_dir`` when given. ``map_overrides``:
+    see :func:`evaluate_task_file`. ``progress`` is called
     as ``progress(stage, done, total)`` (see :data:`Progress`); None reports nothing.
 
     An encoder set that cannot be built here is a row marked unavailable with the reason (no
@@ -434,7 +438,14 @@ def run_eval(
         er = EncoderRun(name, {}, True)
         for tf in files:
             fig = out / "figures" / name / _slug(tf.name) if out is not None else None
-            tr = evaluate_task_file(tf, name, cache_dir=cache_dir, figures_dir=fig, progress=cb)
+            tr = evaluate_task_file(
+                tf,
+                name,
+                cache_dir=cache_dir,
+                figures_dir=fig,
+                progress=cb,
+                map_overrides=map_overrides,
+            )
             er.tasks.append(tr)
         er.encoder_names = dict(er.tasks[0].encoder_names)
         er.wall_s = time.perf_counter() - t0
