@@ -136,7 +136,8 @@ def rgb_to_lab(rgb) -> np.ndarray:
 
 
 _THING = frozenset(("one", "thing", "object", "something", "item"))
-_FILLER = _THING | {"the", "a", "an", "that", "is", "this", "its", "it"}
+#: Words that name no particular thing: "the red one", "something red".
+FILLER_WORDS = _THING | {"the", "a", "an", "that", "is", "this", "its", "it"}
 _WORD = re.compile(r"[a-z]+(?:-[a-z]+)?")
 
 
@@ -167,7 +168,7 @@ def split_color_words(text: str) -> tuple[str, str]:
         else:
             rest.append(w)
         i += 1
-    if colour and not [w for w in rest if w not in _FILLER]:
+    if colour and not [w for w in rest if w not in FILLER_WORDS]:
         if not [w for w in rest if w in _THING]:
             return "", " ".join(words)  # "the orange", "a lemon": the colour name is the noun
     return " ".join(colour), " ".join(rest)
