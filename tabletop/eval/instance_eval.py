@@ -27,10 +27,14 @@ INSTANCE_EVAL_SEEDS = (900, 901, 902)
 
 
 def evaluate_instances(
-    encoder_set: str = "default", seeds=INSTANCE_EVAL_SEEDS, cache_dir="out/eval-cache"
+    encoder_set: str = "default",
+    seeds=INSTANCE_EVAL_SEEDS,
+    cache_dir="out/eval-cache",
+    scan: dict | None = None,
 ) -> dict:
     """Instance-level figures of ``encoder_set`` on the scenes of ``seeds`` (see the module
-    docstring); scans and maps are reused from ``cache_dir`` (None: none kept)."""
+    docstring); scans and maps are reused from ``cache_dir`` (None: none kept). ``scan``:
+    ``ScanConfig`` fields beside the seed (default: speed 0.3, as the suites scan)."""
     from tabletop.eval.harness import generated_scene, scene_map
     from tabletop.mapping.colors import BASIC_COLOURS, COLOR_NAMES, rgb_to_lab
     from tabletop.sim.catalog import OBJECT_KINDS
@@ -40,7 +44,8 @@ def evaluate_instances(
     kind_ok = label_ok = n = objects = single = 0
     for seed in seeds:
         spec = generated_scene(seed, f"instances-{seed}")
-        rec, m = scene_map(spec, {"seed": seed, "speed": 0.3}, encoder_set, cache_dir=cache_dir)
+        settings = {"speed": 0.3, **(scan or {}), "seed": seed}
+        rec, m = scene_map(spec, settings, encoder_set, cache_dir=cache_dir)
         truth = GroundTruth.of(rec)
         names = list(m.objects.vocabulary) + list(m.config.object.background)
         inst = m.objects.instances.items
