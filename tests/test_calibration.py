@@ -160,3 +160,15 @@ def test_a_modality_with_too_few_queries_keeps_the_prior():
     ]
     cal = fit_calibration("default", few, few)
     assert "area" not in cal.models and cal.confidence("area", 0.2) == UNCALIBRATED(0.2)
+
+
+def test_the_operating_point_sits_in_the_gap_below_the_kept_right_answers():
+    from tabletop.eval.calibration import operating_point
+
+    right = np.linspace(0.9, 1.0, 100)
+    # separable: halfway between the 5 % quantile of the right margins and the highest wrong one
+    t = operating_point(right, np.array([0.0, 0.1, 0.3]))
+    assert t == pytest.approx((np.quantile(right, 0.05, method="lower") + 0.3) / 2)
+    # a wrong margin above the quantile does not move it up; none below: the quantile itself
+    assert operating_point(right, np.array([0.95])) == np.quantile(right, 0.05, method="lower")
+    assert operating_point(right, np.array([])) == np.quantile(right, 0.05, method="lower")

@@ -150,11 +150,22 @@ def calibration_samples(
     return out
 
 
+def operating_point(right: np.ndarray, wrong: np.ndarray, keep_right: float = 0.95) -> float:
+    """The smallest margin reported as found: the threshold that keeps ``keep_right`` of the
+    ``right`` answers' margins, moved down to the middle of the gap below it (halfway to the
+    highest ``wrong`` margin under it), so that right answers slightly weaker than the fit's
+    are still kept where nothing wrong scored."""
+    t = float(np.quantile(right, 1 - keep_right, method="lower"))
+    below = wrong[wrong < t]
+    return (t + float(below.max())) / 2 if len(below) else t
+
+
 def fit_calibration(
     encoder_set: str, train: list[dict], test: list[dict], keep_right: float = 0.95
 ) -> Calibration:
-    """Platt parameters per modality fitted on ``train``, and an operating point: the margin
-    threshold that keeps ``keep_right`` of the right answers of ``train`` reported as found
+    """Platt parameters per modality fitted on ``train``, and an operating point
+    (:func:`operating_point`): a margin threshold that keeps ``keep_right`` of the right
+    answers of ``train`` reported as found
     (a query of something present is rarely refused; what a weak encoder cannot tell apart
     is then reported with a low confidence instead). The report holds ``test`` figures:
     samples, expected calibration error (fitted and uncalibrated prior), share of right
@@ -168,7 +179,8 @@ def fit_calibration(
         f = fit_platt([s["margin"] for s in tr], [s["correct"] for s in tr])
         models[mod] = f
         right = np.array([s["margin"] for s in tr if s["correct"]])
-        t = float(np.quantile(right, 1 - keep_right, method="lower"))
+        wrong = np.array([s["margin"] for s in tr if not s["correct"]])
+        t = operating_point(right, wrong, keep_right)
         if mod not in GATED:
             thresholds[mod] = t
         if te:
