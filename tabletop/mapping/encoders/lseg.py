@@ -5,11 +5,18 @@ that live in all-MiniLM-L6-v2's text space, so a pixel is compared to a query by
 with the query's MiniLM embedding, exactly as LSeg compares pixels to CLIP text embeddings.
 It also gives one global embedding per image (see :meth:`LSegEncoder.encode_image`).
 
-The network (:class:`LSegNet`, about 0.3 M parameters, stored in fp16) is trained by
-:func:`tabletop.train.vision.train_vision` on images rendered by :mod:`tabletop.sim`; its
-weights ship in ``tabletop/data/weights/vision_dense.pt``. It knows the simulator's object
-kinds, colours, the table and the robot — nothing else: it is a stand-in for LSeg/OpenSeg on a
-machine that cannot download them, not a general-purpose segmenter.
+A weights file records the architecture it was trained with (``arch``; see :data:`ARCHS`):
+
+- ``"lseg-small"`` (:class:`LSegNet`, 0.74 M parameters trained from scratch; files without an
+  ``arch`` record are this one): ``tabletop/data/weights/vision_dense.pt``.
+- ``"effnet-lite0-fpn"`` (:func:`~tabletop.mapping.encoders.effnet.build_effnet_lseg_net`: an
+  ImageNet-pretrained EfficientNet-Lite0 with a light FPN head, 3.2 M parameters):
+  ``tabletop/data/weights/vision_dense_effnet.pt``.
+
+Both are trained by :func:`tabletop.train.vision.train_vision` on images rendered by
+:mod:`tabletop.sim` and stored in fp16, with the input normalisation they expect. They know the
+simulator's object kinds, colours, the table and the robot — nothing else: a stand-in for
+LSeg/OpenSeg on a machine that cannot download them, not a general-purpose segmenter.
 """
 
 from __future__ import annotations
@@ -25,15 +32,60 @@ from tabletop.mapping.encoders.base import torch_threads
 from tabletop.mapping.encoders.minilm import MINILM_SPACE
 from tabletop.paths import DATA_DIR
 
-__all__ = ["VISION_WEIGHTS_PATH", "LSegEncoder", "LSegNet", "build_lseg_net"]
+__all__ = [
+    "ARCHS",
+    "EFFNET_WEIGHTS_PATH",
+    "VISION_WEIGHTS_PATH",
+    "LSegEncoder",
+    "LSegNet",
+    "build_lseg_net",
+    "build_vision_net",
+]
 
 log = logging.getLogger(__name__)
 
 VISION_WEIGHTS_PATH = DATA_DIR / "weights" / "vision_dense.pt"
-"""Where the committed weights of the embedded default image encoder live."""
+"""The committed weights of the first (small) image encoder: what ``LSegEncoder()`` loads
+without a path."""
+
+EFFNET_WEIGHTS_PATH = DATA_DIR / "weights" / "vision_dense_effnet.pt"
+"""Where the committed weights of the EfficientNet-Lite0 image encoder live."""
 
 _MEAN = (0.485, 0.456, 0.406)
 _STD = (0.229, 0.224, 0.225)
+
+ARCHS = ("lseg-small", "effnet-lite0-fpn")
+"""Architectures a vision weights file may record (``ckpt["arch"]``)."""
+
+
+def build_vision_net(arch: str, arch_config: dict):
+    """A fresh network of a named architecture (see :data:`ARCHS`) from its recorded config:
+    ``lseg-small``: ``width``, ``dim``; ``effnet-lite0-fpn``: see
+    :func:`~tabletop.mapping.encoders.effnet.build_effnet_lseg_net`."""
+    cfg = dict(arch_config)
+    try:
+        if arch == "lseg-small":
+            return LSegNet(**cfg)
+        if arch == "effnet-lite0-fpn":
+            from tabletop.mapping.encoders.effnet import build_effnet_lseg_net
+
+            return build_effnet_lseg_net(**cfg)
+    except TypeError as e:
+        raise ConfigError(f"vision architecture {arch!r}: bad config {cfg}: {e}") from None
+    raise ConfigError(f"unknown vision architecture {arch!r}; valid: {list(ARCHS)}")
+
+
+def _arch_of(ckpt: dict) -> tuple[str, dict, tuple, tuple]:
+    """(arch, arch_config, input mean, input std) recorded by a checkpoint; files written
+    before the record existed are ``lseg-small`` with ImageNet normalisation."""
+    arch = ckpt.get("arch", "lseg-small")
+    if arch == "lseg-small" and "arch_config" not in ckpt:
+        cfg = {"width": int(ckpt["width"]), "dim": int(ckpt["dim"])}
+    else:
+        cfg = dict(ckpt.get("arch_config", {}))
+    mean = tuple(float(v) for v in ckpt.get("input_mean", _MEAN))
+    std = tuple(float(v) for v in ckpt.get("input_std", _STD))
+    return arch, cfg, mean, std
 
 
 def build_lseg_net(width: int = 32, dim: int = 384):
@@ -76,6 +128,7 @@ def _make_net_class():
             super().__init__()
             w = width
             self.width, self.dim, self.stride = w, dim, 4
+            self.arch, self.arch_config = "lseg-small", {"width": int(w), "dim": int(dim)}
             self.s4 = nn.Sequential(cbr(3, 24, 2), cbr(24, w, 2), cbr(w, w))
             self.s8 = nn.Sequential(cbr(w, 2 * w, 2), cbr(2 * w, 2 * w))
             self.s16 = nn.Sequential(
@@ -119,16 +172,17 @@ def LSegNet(width: int = 32, dim: int = 384):
     return _net_class()(width=width, dim=dim)
 
 
-def preprocess(rgb: np.ndarray):
-    """(H, W, 3) uint8 RGB (or (B, H, W, 3)) -> (B, 3, H, W) float32 normalised tensor."""
+def preprocess(rgb: np.ndarray, mean: tuple = _MEAN, std: tuple = _STD):
+    """(H, W, 3) uint8 RGB (or (B, H, W, 3)) -> (B, 3, H, W) float32 normalised tensor
+    (per-channel ``(x / 255 - mean) / std``; ImageNet statistics by default)."""
     torch = _torch()
     x = torch.from_numpy(np.require(rgb, requirements=["C", "W"])).float().div_(255.0)
     if x.ndim == 3:
         x = x[None]
     x = x.permute(0, 3, 1, 2)
-    mean = torch.tensor(_MEAN).view(1, 3, 1, 1)
-    std = torch.tensor(_STD).view(1, 3, 1, 1)
-    return (x - mean) / std
+    m = torch.tensor(mean).view(1, 3, 1, 1)
+    s = torch.tensor(std).view(1, 3, 1, 1)
+    return (x - m) / s
 
 
 @functools.cache
@@ -145,25 +199,36 @@ def _load(path: str):
         ckpt = torch.load(p, map_location="cpu", weights_only=True)
     except Exception as e:  # a truncated file or a Git LFS pointer
         raise AssetError(f"vision encoder weights at {p} are unreadable: {e}") from None
-    if ckpt.get("space") != MINILM_SPACE:
-        raise AssetError(f"{p} embeds into {ckpt.get('space')!r}, expected {MINILM_SPACE!r}")
-    net = LSegNet(width=int(ckpt["width"]), dim=int(ckpt["dim"]))
-    net.load_state_dict({k: v.float() for k, v in ckpt["state_dict"].items()})
+    if not isinstance(ckpt, dict) or ckpt.get("space") != MINILM_SPACE:
+        space = ckpt.get("space") if isinstance(ckpt, dict) else None
+        raise AssetError(f"{p} embeds into {space!r}, expected {MINILM_SPACE!r}")
+    arch, cfg, mean, std = _arch_of(ckpt)
+    if arch not in ARCHS:
+        raise AssetError(
+            f"{p} records the vision architecture {arch!r}, which this version does not know; "
+            f"valid: {list(ARCHS)}"
+        )
+    net = build_vision_net(arch, cfg)
+    try:
+        net.load_state_dict({k: v.float() for k, v in ckpt["state_dict"].items()})
+    except RuntimeError as e:
+        raise AssetError(f"{p}: weights do not fit the recorded {arch!r} {cfg}: {e}") from None
     net.eval()
-    return net, ckpt
+    return net, ckpt, arch, mean, std
 
 
 class LSegEncoder:
-    """Dense and global image embeddings in MiniLM space from the committed small network.
+    """Dense and global image embeddings in MiniLM space from a committed network.
 
-    Implements both :class:`~tabletop.mapping.encoders.base.DenseImageEncoder` (stride 4) and
-    :class:`~tabletop.mapping.encoders.base.GlobalImageEncoder`. Weights load once per path.
-    Images of any size divisible by 4 work; the network was trained at 320x240.
+    Implements both :class:`~tabletop.mapping.encoders.base.DenseImageEncoder` (``stride``:
+    the network's output stride, 4 for both shipped files) and
+    :class:`~tabletop.mapping.encoders.base.GlobalImageEncoder`. The weights file says which
+    architecture to build (``arch``) and how to normalise the input. Weights load once per
+    path. Images of any size divisible by ``stride`` work; the networks were trained at 320x240.
     """
 
     space = MINILM_SPACE
     dim = 384
-    stride = 4
 
     def __init__(self, weights: str | Path | None = None, *, num_threads: int | None = 1) -> None:
         if num_threads is not None and (int(num_threads) != num_threads or num_threads < 1):
@@ -171,7 +236,9 @@ class LSegEncoder:
         self.num_threads = num_threads
         """torch threads during a forward pass (see :func:`~.base.torch_threads`)."""
         self.weights = Path(weights) if weights is not None else VISION_WEIGHTS_PATH
-        self._net, ckpt = _load(str(self.weights))
+        self._net, ckpt, self.arch, self._mean, self._std = _load(str(self.weights))
+        self.stride: int = int(self._net.stride)
+        """Output stride [px]: one embedding per ``stride`` x ``stride`` pixel cell."""
         self.metrics: dict = dict(ckpt.get("metrics", {}))
         """Held-out figures recorded when the weights were trained."""
 
@@ -188,10 +255,11 @@ class LSegEncoder:
 
     def _embed(self, rgb: np.ndarray):
         with torch_threads(self.num_threads):
-            return self._net(preprocess(rgb))[0]  # (dim, h, w)
+            return self._net(preprocess(rgb, self._mean, self._std))[0]  # (dim, h, w)
 
     def encode_dense(self, rgb: np.ndarray, context: dict | None = None) -> np.ndarray:
-        """(H/4, W/4, 384) float32 L2-normalised cell embeddings of an (H, W, 3) uint8 image."""
+        """(H/s, W/s, 384) float32 L2-normalised cell embeddings of an (H, W, 3) uint8 image,
+        ``s`` = :attr:`stride`."""
         emb = self._embed(self._check(rgb))
         return np.ascontiguousarray(emb.permute(1, 2, 0).numpy(), dtype=np.float32)
 
@@ -208,7 +276,7 @@ class LSegEncoder:
         return g / max(float(np.linalg.norm(g)), 1e-12)
 
     def encode_dense_and_global(self, rgb: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Both embeddings from one forward pass: ((H/4, W/4, 384), (384,)), float32."""
+        """Both embeddings from one forward pass: ((H/s, W/s, 384), (384,)), float32."""
         emb = self._embed(self._check(rgb))
         g = emb.mean(dim=(1, 2)).numpy().astype(np.float32)
         dense = np.ascontiguousarray(emb.permute(1, 2, 0).numpy(), dtype=np.float32)
