@@ -87,9 +87,9 @@ def make_encoders_from_rebuild(name: str, rebuild: dict) -> EncoderSet:
         )
     if name == "default":
         from tabletop.mapping.encoders.audio import DEFAULT_AUDIO_WEIGHTS, MelCNNAudioEncoder
-        from tabletop.mapping.encoders.lseg import VISION_WEIGHTS_PATH, LSegEncoder
+        from tabletop.mapping.encoders.lseg import EFFNET_WEIGHTS_PATH, LSegEncoder
 
-        vision_w = rebuild.get("vision_weights") or str(VISION_WEIGHTS_PATH)
+        vision_w = rebuild.get("vision_weights") or str(EFFNET_WEIGHTS_PATH)
         audio_w = rebuild.get("audio_weights") or str(DEFAULT_AUDIO_WEIGHTS)
         image = LSegEncoder(vision_w)  # dense and global embeddings from one network
         return EncoderSet(
@@ -100,8 +100,8 @@ def make_encoders_from_rebuild(name: str, rebuild: dict) -> EncoderSet:
             {
                 "set": "default (embedded learned encoders)",
                 "text": "minilm-l6-v2",
-                "dense": f"lseg-style small net ({_short(vision_w)})",
-                "global_image": "lseg-style small net, mean of cell embeddings",
+                "dense": f"lseg-style {image.arch} ({_short(vision_w)})",
+                "global_image": f"lseg-style {image.arch}, mean of cell embeddings",
                 "audio": f"mel-cnn ({_short(audio_w)})",
             },
             # None = the committed weights, wherever the package lives when the map is loaded
