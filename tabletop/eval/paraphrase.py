@@ -65,7 +65,7 @@ BANK_DIR = DATA_DIR / "paraphrases"
 SUITE_DIRS = {"tune": "paraphrase-tune", "heldout": "paraphrase-heldout"}
 #: Generator seeds of the scenes (and their scans), used by no other experiment: not the shipped
 #: suites (11-15), the calibration (700-705), eval-map (10-12), vision training (layout seeds
-#: ``seed * 100_000 + i``: 0-109) or its held-out layouts (from 9,000,000).
+#: ``seed * 100_000 + i``: 0-219) or its held-out layouts (from 9,000,000).
 TUNE_SEEDS = (750, 751, 752)
 HELDOUT_SEEDS = (800, 801, 802, 803)
 _SEEDS = {"tune": TUNE_SEEDS, "heldout": HELDOUT_SEEDS}
