@@ -143,7 +143,7 @@ def test_calibrate_writes_under_the_working_directory_by_default(tmp_path, monke
     monkeypatch.setattr(
         fitting,
         "run_calibration",
-        lambda encoders, seeds, progress=None: Calibration(encoders, {}, {}),
+        lambda encoders, seeds, progress=None, cache_dir=None: Calibration(encoders, {}, {}),
     )
     monkeypatch.chdir(tmp_path)
     assert main(["calibrate", "--scenes", "1"]) == 0
