@@ -26,19 +26,7 @@ def box_points(lo, hi, step=0.005) -> np.ndarray:
 def labelled_voxels(boxes: dict[str, tuple]) -> VoxelMap:
     """A voxel map whose voxels carry the text embedding of their box's label (``boxes``:
     label -> (lo, hi) [m]); the table top is a slab labelled "table"."""
-    text = text_encoder()
-    labels = ["table", *boxes]
-    table = text.encode_text(labels)
-    vm = VoxelMap(GRID, text.dim)
-    pts = [box_points((0.0, -0.3, 0.0), (0.6, 0.3, 0.01), 0.01)]
-    idx = [np.zeros(len(pts[0]), np.int64)]
-    for i, (lo, hi) in enumerate(boxes.values(), start=1):
-        pts.append(box_points(lo, hi))
-        idx.append(np.full(len(pts[-1]), i, np.int64))
-    points = np.concatenate(pts)
-    colors = np.full((len(points), 3), 128, np.uint8)
-    vm.integrate(points, table, colors, feature_index=np.concatenate(idx))
-    return vm
+    return coloured_voxels({k: (lo, hi, (128, 128, 128)) for k, (lo, hi) in boxes.items()})
 
 
 def judge_at(threshold: float):

@@ -59,10 +59,8 @@ def map_config(**overrides):
     kw = dict(overrides)
     nested = {k: kw.pop(k) for k in ("object", "area", "audio") if isinstance(kw.get(k), dict)}
     if nested:  # module configs given as dicts of the fields that change
-        from tabletop.mapping.config import MapConfig as _MC
-
-        base = _MC().to_dict()
-        full = _MC.from_dict({k: {**base[k], **v} for k, v in nested.items()})
+        base = MapConfig().to_dict()
+        full = MapConfig.from_dict({k: {**base[k], **v} for k, v in nested.items()})
         kw.update({k: getattr(full, k) for k in nested})
     if "voxel_size" in kw:
         kw["grid"] = VoxelGrid(voxel_size=float(kw.pop("voxel_size")))

@@ -36,7 +36,7 @@ def evaluate_instances(
     docstring); scans and maps are reused from ``cache_dir`` (None: none kept). ``scan``:
     ``ScanConfig`` fields beside the seed (default: speed 0.3, as the suites scan)."""
     from tabletop.eval.harness import generated_scene, scene_map
-    from tabletop.mapping.colors import BASIC_COLOURS, COLOR_NAMES, rgb_to_lab
+    from tabletop.mapping.colors import BASIC_COLOURS, COLOR_NAMES, delta_e, rgb_to_lab
     from tabletop.sim.catalog import OBJECT_KINDS
     from tabletop.sim.ground_truth import GroundTruth
 
@@ -69,8 +69,7 @@ def evaluate_instances(
             if OBJECT_KINDS[o.kind].keep_texture:
                 label_ok += ok
             else:
-                d = basic_lab - i.lab
-                de = np.sqrt((0.5 * d[:, 0]) ** 2 + d[:, 1] ** 2 + d[:, 2] ** 2)
+                de = delta_e(basic_lab, i.lab)
                 label_ok += ok and BASIC_COLOURS[int(np.argmin(de))] == o.color
         objects += len(truth.objects)
         single += sum(1 for o in truth.objects if owner_count.get(o.name) == 1)

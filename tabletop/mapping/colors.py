@@ -25,8 +25,11 @@ import re
 import numpy as np
 
 __all__ = [
+    "BASIC_COLOURS",
     "COLOR_MODIFIERS",
     "COLOR_NAMES",
+    "FILLER_WORDS",
+    "delta_e",
     "rgb_to_lab",
     "split_color_words",
 ]
@@ -113,6 +116,13 @@ COLOR_NAMES: dict[str, tuple[tuple[int, int, int], str]] = {
 
 #: Words that modify a colour ("dark blue", "pale pink"); part of a colour phrase, not a noun.
 COLOR_MODIFIERS = ("light", "dark", "pale", "bright", "deep", "vivid", "pastel", "soft")
+
+
+def delta_e(a, b) -> np.ndarray:
+    """CIELAB distance between colours (..., 3), lightness at half weight: shading changes
+    it across one object, and a colour's name depends more on its hue and chroma."""
+    d = np.asarray(a, dtype=np.float64) - np.asarray(b, dtype=np.float64)
+    return np.sqrt((0.5 * d[..., 0]) ** 2 + d[..., 1] ** 2 + d[..., 2] ** 2)
 
 
 def rgb_to_lab(rgb) -> np.ndarray:

@@ -30,7 +30,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
 from tabletop.errors import ConfigError
-from tabletop.mapping.colors import rgb_to_lab
+from tabletop.mapping.colors import delta_e, rgb_to_lab
 from tabletop.mapping.table_regions import TableFit
 from tabletop.mapping.voxel_map import VoxelMap
 
@@ -134,7 +134,6 @@ def segment_instances(
     dense[tuple(sub.T)] = np.arange(len(cand))
 
     feats = voxels.mean_features()[cand]
-    counts = voxels.counts[cand]
     rgb = voxels.mean_colors()[cand].astype(np.float64)
     lab = rgb_to_lab(rgb)
     # Neighbour pairs (26-neighbourhood, each pair once), and whether they stay joined.
@@ -149,14 +148,13 @@ def segment_instances(
         b_list.append(j[has])
     a = np.concatenate(a_list)
     b = np.concatenate(b_list)
-    d = lab[a] - lab[b]
-    de = np.sqrt((0.5 * d[:, 0]) ** 2 + d[:, 1] ** 2 + d[:, 2] ** 2)
+    de = delta_e(lab[a], lab[b])
     cos = np.einsum("ij,ij->i", feats[a], feats[b])
     cut = (de > config.split_delta_e) & (cos < config.split_cos)
     keep = ~cut
     g = coo_matrix((np.ones(int(keep.sum())), (a[keep], b[keep])), shape=(len(cand),) * 2)
     _, frag = connected_components(g, directed=False)
-    frag = _absorb_small(frag, a, b, counts, config.min_voxels)
+    frag = _absorb_small(frag, a, b, config.min_voxels)
 
     sizes = np.bincount(frag)
     big = [f for f in np.argsort(-sizes, kind="stable") if sizes[f] >= config.min_voxels]
@@ -166,7 +164,7 @@ def segment_instances(
     return instances_from_labels(voxels, labels)
 
 
-def _absorb_small(frag, a, b, counts, min_voxels: int) -> np.ndarray:
+def _absorb_small(frag, a, b, min_voxels: int) -> np.ndarray:
     """Fragments below ``min_voxels`` join the neighbouring fragment they share the most voxel
     faces with (repeated until none can move)."""
     frag = np.asarray(frag).copy()
@@ -177,7 +175,6 @@ def _absorb_small(frag, a, b, counts, min_voxels: int) -> np.ndarray:
         cross = (fa != fb) & (small[a] | small[b])
         if not cross.any():
             break
-        moved = False
         # For each small fragment, its most-shared neighbour that is larger than itself.
         src = np.concatenate([fa[cross & small[a]], fb[cross & small[b]]])
         dst = np.concatenate([fb[cross & small[a]], fa[cross & small[b]]])
@@ -189,11 +186,10 @@ def _absorb_small(frag, a, b, counts, min_voxels: int) -> np.ndarray:
         for s, t in pairs[order]:
             if int(s) not in best and sizes[t] >= sizes[s]:
                 best[int(s)] = int(t)
+        if not best:
+            break
         for s, t in best.items():
             frag[frag == s] = t
-            moved = True
-        if not moved:
-            break
     return frag
 
 

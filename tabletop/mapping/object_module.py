@@ -47,6 +47,7 @@ from tabletop.mapping.colors import (
     BASIC_COLOURS,
     COLOR_NAMES,
     FILLER_WORDS,
+    delta_e,
     rgb_to_lab,
     split_color_words,
 )
@@ -316,7 +317,7 @@ class ObjectModule:
         if not instances:
             return np.zeros(0)
         lab = self._lexicon[1]
-        de = _delta_e(np.stack([i.lab for i in instances])[:, None, :], lab[None, :, :])
+        de = delta_e(np.stack([i.lab for i in instances])[:, None, :], lab[None, :, :])
         fam = de[:, self._family]  # to each name's basic colour term ("scarlet" -> red)
         best_basic = de[:, self._basic].min(axis=1, keepdims=True)
         sc = self.config.colour_scale
@@ -392,9 +393,3 @@ class ObjectModule:
         conf, found = judge("object", margin)
         reason = "" if found else f"best match {best:.2f} is weak (confidence {conf:.2f})"
         return Heatmap(grid, values, query, "object", decay, conf, found, reason, margin)
-
-
-def _delta_e(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """CIELAB distance with lightness at half weight (shading changes it across an object)."""
-    d = np.asarray(a) - np.asarray(b)
-    return np.sqrt((0.5 * d[..., 0]) ** 2 + d[..., 1] ** 2 + d[..., 2] ** 2)
