@@ -71,3 +71,30 @@ def test_regions_divide_the_usable_table_and_heat_their_rectangle():
     assert not missing.found and "no table surface" in missing.reason
     with pytest.raises(ConfigError, match="no usable part"):
         TableFit(0.0, (0.0, 0.2), (-0.3, 0.3), 10).usable()
+
+
+def test_hand_sides_extremes_and_the_arm_are_geometry():
+    from tabletop.mapping.table_regions import parse_region
+
+    for text, want in [
+        ("the left-hand side of the table", ("left", None)),
+        ("the rightmost part", ("right", None)),
+        ("the area nearest the arm", (None, "near")),
+        ("the table's far side", (None, "far")),
+        ("the furthest end from the robot", (None, "far")),
+        ("at the back", (None, "near")),
+    ]:
+        r = parse_region(text)
+        assert r is not None and (r.lateral, r.depth) == want, text
+    for text in ("left of the mug", "the area around the tray", "the left arm of the bear"):
+        assert parse_region(text) is None, text
+
+
+def test_area_subject_names_the_object_a_place_is_named_after():
+    from tabletop.mapping.table_regions import area_subject
+
+    assert area_subject("the area around the tray") == "tray"
+    assert area_subject("the spot by the blue mug") == "blue mug"
+    assert area_subject("where the toys are") == "toys"
+    assert area_subject("the left side of the table") is None
+    assert area_subject("the area") is None

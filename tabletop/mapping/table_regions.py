@@ -10,12 +10,14 @@ are not geometric: :func:`parse_region` returns None for them and they go to the
 
 Geometric phrasings (case and the articles "the"/"a" aside; "table" may be left out):
 
-- lateral: "left" / "right" (the outer thirds of the table's width);
-- depth: "front", "far", "far side", "far end", "away from the robot" (the half away from the
-  robot) / "back", "near", "near side", "close to the robot", "near the robot" (the half
-  nearest the robot);
-- "center"/"centre"/"middle" alone: the middle third in both directions; with a lateral or a
-  depth word it is the middle of the other direction ("the middle of the left side");
+- lateral: "left", "left-hand", "leftmost" / "right", "right-hand", "rightmost" (the outer
+  thirds of the table's width);
+- depth: "front", "far", "farthest", "furthest", "opposite", "far side", "far end", "away from
+  the robot" (the half away from the robot) / "back", "near", "nearest", "closest", "near side",
+  "close to the robot", "next to the robot", "by the robot" (the half nearest the robot;
+  "arm" or "base" may stand for "robot");
+- "center"/"centre"/"central"/"middle" alone: the middle third in both directions; with a
+  lateral or a depth word it is the middle of the other direction ("the middle of the left side");
 - corners: a lateral and a depth word together ("the far right corner", "front left").
 
 The table's usable part starts :data:`ROBOT_CLEARANCE_M` in front of the robot base (the base
@@ -39,6 +41,7 @@ __all__ = [
     "ROBOT_CLEARANCE_M",
     "TableFit",
     "TableRegion",
+    "area_subject",
     "fit_table",
     "parse_region",
     "region_heatmap",
@@ -49,15 +52,24 @@ ROBOT_CLEARANCE_M = 0.20
 #: Regions keep this far [m] inside the fitted table edges.
 EDGE_MARGIN_M = 0.05
 
-_LEFT = r"left"
-_RIGHT = r"right"
+_LEFT = r"left\s+hand|leftmost|left"
+_RIGHT = r"right\s+hand|rightmost|right"
 # Longer phrases first: the alternation takes the first that matches.
-_FAR = r"away\s+from\s+the\s+robot|far\s+(?:side|end)|front|far"
-_NEAR = r"(?:close\s+to|near(?:est)?)\s+(?:to\s+)?the\s+robot|near\s+(?:side|end)|back|near"
-_MID = r"center|centre|middle"
+_ROBOT = r"(?:the\s+)?(?:robot|arm|base)"
+_FAR = (
+    rf"(?:far(?:thest|ther)?|furthest|further)(?:\s+(?:end|side|part))?\s+(?:away\s+)?from\s+"
+    rf"{_ROBOT}|away\s+from\s+{_ROBOT}|"
+    r"far\s+(?:side|end)|front|far(?:thest|ther)?|furthest|further|opposite"
+)
+_NEAR = (
+    rf"(?:close(?:st)?|near(?:est)?|next)\s+(?:to\s+)?{_ROBOT}|by\s+{_ROBOT}|"
+    r"near\s+(?:side|end)|back|near(?:est|er)?|closest"
+)
+_MID = r"center|centre|central|middle"
+#: Words a geometric phrase may hold beside the place words (space-separated).
 _FILLER = (
-    r"the|a|of|on|at|in|to|table|tabletop|side|part|half|corner|edge|area|region|zone|end|"
-    r"and|top|surface|\s"
+    "the a of on at in to table tabletop side part half corner edge area region zone end and "
+    "top surface portion section space bit s"
 )
 
 
@@ -112,7 +124,7 @@ class TableFit:
 def parse_region(text: str) -> TableRegion | None:
     """The geometric region ``text`` names, or None when it is not (only) a place on the table
     (see the module docstring for the phrasings)."""
-    t = " " + re.sub(r"[^a-z ]", " ", str(text).lower()) + " "
+    t = " " + re.sub(r"[^a-z ]", " ", str(text).lower().replace("'s", " ")) + " "
     t = re.sub(r"\s+", " ", t)
     found: dict[str, str] = {}
     for key, value, pattern in (
@@ -128,7 +140,7 @@ def parse_region(text: str) -> TableRegion | None:
                 return None  # "left ... right": not one region
             found[key] = value
             t = rx.sub(" ", t, count=1)
-    if not found or re.sub(rf"(?:{_FILLER})+", "", t).strip():
+    if not found or any(w not in _FILLER.split() for w in t.split()):
         return None  # nothing geometric, or other words ("the tray area")
     lateral, depth = found.get("lateral"), found.get("depth")
     if "mid" in found:
@@ -139,6 +151,26 @@ def parse_region(text: str) -> TableRegion | None:
         elif depth is None:
             depth = "middle"
     return TableRegion(lateral, depth, str(text))
+
+
+#: Words that wrap an object into a place: "the area around the tray", "the spot by the mug"
+#: (space-separated).
+_PLACE_WORDS = (
+    "the a an area around near by next to beside spot place region zone space part side of "
+    "close where is are stands sits lies"
+)
+
+
+def area_subject(text: str) -> str | None:
+    """What a place named by its contents is named after: "the area around the tray" ->
+    "tray", "the spot by the blue mug" -> "blue mug"; None when ``text`` holds only place
+    words or is a geometric region (:func:`parse_region`)."""
+    if parse_region(text) is not None:
+        return None
+    words = re.sub(r"[^a-z ]", " ", str(text).lower()).split()
+    place = set(_PLACE_WORDS.split())
+    rest = [w for w in words if w not in place]
+    return " ".join(rest) or None
 
 
 def fit_table(grid: VoxelGrid, indices: np.ndarray) -> TableFit | None:
