@@ -96,3 +96,40 @@ def test_bad_input_names_the_problem():
     assert AudioConfig(gate=NoiseGateConfig(hold_s=0.5)).gate.hold_s == 0.5
     h = AudioModule(GRID).heatmap("x", 10.0, text_encoder(), judge_at(0))
     assert not h.found and "no audio segments" in h.reason
+
+
+def test_the_default_encoder_places_held_out_recordings_and_refuses_unplayed_sounds():
+    """Real held-out clips over the scans' background, heard at three places: the embedded
+    default encoder and its vocabulary find each where it played and refuse sounds that did
+    not play, at the shipped operating point."""
+    from tabletop.audio import background_noise, insert_clip
+    from tabletop.mapping.calibration import load_calibration
+    from tabletop.mapping.encoders.audio import MelCNNAudioEncoder
+    from tabletop.sim.sound_bank import SoundBank
+
+    bank, enc, text = SoundBank.default(), MelCNNAudioEncoder(), text_encoder()
+    cats = ["dog", "cow", "clapping", "piano"]
+    x = background_noise(24 * RATE, RATE, np.random.default_rng(5)).astype(np.float64)
+    for k, cat in enumerate(cats):
+        insert_clip(x, bank.clips(category=cat, split="heldout")[0].load(), 2 + 5.5 * k, RATE, 15)
+    t = np.arange(0, 24.0, 1 / 30)
+    where = np.array([0.1, 0.25, 0.4, 0.55])
+    m = AudioModule(GRID, AudioConfig(), enc.vocabulary)
+    m.add(
+        x.astype(np.float32), RATE, t, _poses(t, lambda s: (where[min(int(s // 5.5), 3)], 0.0)), enc
+    )
+    cal = load_calibration("default")
+
+    def judge(modality, margin):
+        return cal.judge(modality, margin, 0.5)
+
+    right = 0
+    for k, cat in enumerate(cats):
+        h = m.heatmap(bank.caption(cat), 10.0, text, judge)
+        if h.found:
+            p = max_position(h, np.zeros(GRID.shape, bool))
+            right += abs(p[0] - where[k]) <= 0.05
+    assert right >= 3, right
+    for absent in ("the sound of a horse neighing", "the sound of a trumpet playing"):
+        assert not m.heatmap(absent, 10.0, text, judge).found, absent
+    assert not m.heatmap("a submarine sonar ping", 10.0, text, judge).found

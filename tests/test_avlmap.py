@@ -266,10 +266,11 @@ def test_one_or_two_sound_segments_are_judged_not_found_by_fiat(avlmap):
 
 
 def test_area_queries_follow_the_calibration(avlmap):
-    assert avlmap.area_heatmap("the tray area").found
+    # a place named by neither geometry nor an object the map holds: the area module
+    assert avlmap.area_heatmap("the cluttered area").found
     m = copy.copy(avlmap)
     m.calibration = replace(avlmap.calibration, thresholds={"area": 10.0})
-    h = m.area_heatmap("the tray area")
+    h = m.area_heatmap("the cluttered area")
     assert not h.found and h.reason
 
 
@@ -346,3 +347,11 @@ def test_object_instances_are_saved_and_an_older_file_segments_again(avlmap, rec
     np.testing.assert_array_equal(m3.objects.instances.labels(), labels)
     with pytest.raises(Exception, match="voxel_instance"):
         AVLMap.load(_rewrite(path, tmp_path / "bad.npz", drop=("voxel_instance",)))
+
+
+def test_an_area_named_after_an_object_is_around_its_instance(avlmap, rec):
+    tray = next(o for o in rec.ground_truth["objects"] if o["kind"] == "tray")
+    for q in ("the area around the tray", "the spot by the tray"):
+        h = avlmap.area_heatmap(q)
+        assert h.found and h.modality == "area" and h.query == q
+        assert box_distance(avlmap.get_max_pos_3d(h), tray) <= 0.02

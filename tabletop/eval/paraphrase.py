@@ -36,6 +36,7 @@ import numpy as np
 from tabletop.errors import AssetError, ConfigError
 from tabletop.eval.suites import _FULL, _SCAN, RELATION_WORDS, Wording, generate_suite, to_toml
 from tabletop.eval.tasks import parse_tasks
+from tabletop.mapping.sound_vocabulary import SOUND_FAMILIES
 from tabletop.paths import DATA_DIR
 from tabletop.sim.catalog import COLORS, OBJECT_KINDS
 from tabletop.sim.ground_truth import AreaTruth, GroundTruth, ObjectTruth, SoundEventTruth
@@ -87,32 +88,6 @@ CONFUSABLE_KINDS: Mapping[str, frozenset[str]] = MappingProxyType(
         "jenga_block": frozenset({"toy_cube", "domino"}),
         "domino": frozenset({"jenga_block"}),
     }
-)
-#: Sound categories close enough to be heard as one another: a category is not asked as absent
-#: while one of its family was played.
-SOUND_FAMILIES: tuple[frozenset[str], ...] = tuple(
-    frozenset(f)
-    for f in (
-        {"water", "toilet_flush", "washing_machine"},
-        {"clock_alarm", "telephone", "church_bells"},
-        {"duck", "goose"},
-        {"drums", "cymbals"},
-        {"piano", "xylophone"},
-        {"airplane", "helicopter", "engine", "train"},
-        {"crickets", "insects", "chirping_birds"},
-        {"hen", "rooster"},
-        {"crow", "chirping_birds", "owl"},
-        {"laughing", "crying_baby"},
-        {"coughing", "sneezing"},
-        {"camera_shutter", "keyboard_typing", "clock_tick"},
-        {"wolf", "dog"},
-        {"lion", "elephant"},
-        {"hand_saw", "hammering"},
-        {"vacuum_cleaner", "washing_machine"},
-        {"trumpet", "elephant"},
-        {"violin", "guitar"},
-        {"flute", "trumpet"},
-    )
 )
 #: Colours a person could take for one another: an absent colour is none of these of a colour
 #: that kind has in the scene.

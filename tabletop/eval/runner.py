@@ -324,11 +324,14 @@ def evaluate_task_file(
     figures_dir: Path | None = None,
     progress: Progress | None = None,
     map_overrides: dict | None = None,
+    scan_overrides: dict | None = None,
 ) -> TaskRun:
     """Scan (or reuse), map (or reuse), run every goal of ``tf`` with the encoder set
     ``encoders``; write the figures into ``figures_dir`` when given. ``map_overrides``: map
     config fields that replace the task file's ``[map]`` ones (an ablation, e.g.
-    ``{"object": {"instances": False}}``)."""
+    ``{"object": {"instances": False}}``); ``scan_overrides``: scan settings that replace the
+    task file's ``[scan]`` ones (e.g. ``{"snr_db": 5.0}``: the same scan, sounds 10 dB
+    quieter)."""
     from tabletop.robot import SimArm
 
     spec = tf.scene.load()
@@ -340,8 +343,9 @@ def evaluate_task_file(
         map_config(**settings)
     except (TypeError, TabletopError) as e:
         raise TaskFileError(f"{tf.path or tf.name} [map]: {e}") from None
-    rec, scan_s, rec_cached = cached_recording(tf.name, tf.scan, spec, cache, progress)
-    rec_key = recording_key(spec, tf.scan)
+    scan = {**dict(tf.scan), **dict(scan_overrides or {})}
+    rec, scan_s, rec_cached = cached_recording(tf.name, scan, spec, cache, progress)
+    rec_key = recording_key(spec, scan)
     m, map_s, map_cached = cached_map(tf.name, settings, rec, encoders, cache, rec_key, progress)
     # Resolve every truth before anything moves: a wrong reference is a task-file error.
     where = str(tf.path or tf.name)
@@ -411,10 +415,11 @@ def run_eval(
     progress: Progress | None = None,
     cache_dir: str | Path | None = DEFAULT_CACHE_DIR,
     map_overrides: dict | None = None,
+    scan_overrides: dict | None = None,
 ):
     """Evaluate task files (paths, directories, shipped names or :class:`TaskFile`s) with one
-    or more encoder sets; write the report into ``out_dir`` when given. ``map_overrides``:
-    see :func:`evaluate_task_file`. ``progress`` is called
+    or more encoder sets; write the report into ``out_dir`` when given. ``map_overrides``,
+    ``scan_overrides``: see :func:`evaluate_task_file`. ``progress`` is called
     as ``progress(stage, done, total)`` (see :data:`Progress`); None reports nothing.
 
     An encoder set that cannot be built here is a row marked unavailable with the reason (no
@@ -445,6 +450,7 @@ def run_eval(
                 figures_dir=fig,
                 progress=cb,
                 map_overrides=map_overrides,
+                scan_overrides=scan_overrides,
             )
             er.tasks.append(tr)
         er.encoder_names = dict(er.tasks[0].encoder_names)

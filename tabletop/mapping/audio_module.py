@@ -3,12 +3,21 @@ robot's microphone was while it played.
 
 The noise gate and silence segmentation (:mod:`tabletop.mapping.audio_segments`) split the
 track; each segment is encoded and tied to the mean microphone position over the frames heard
-during it. A query's text embedding is scored against every segment; heat decays top-down from
-each segment's place with its min-max normalised score. The evidence is the best score's margin
-over the typical score: the median over the segments with three segments or more; with one
-or two segments, whose median says nothing about what is typical, the median over the segments
-and :data:`REFERENCE_SOUNDS` (generic sound descriptions, encoded like the query), so a query
-for a sound that never played is refused instead of being found by fiat.
+during it.
+
+**With a vocabulary** (a learned encoder that records the sound categories it knows, the
+embedded default): the query is read against the vocabulary and every segment scored by its
+posterior mass on the asked categories (:mod:`tabletop.mapping.sound_vocabulary`). A query that
+names no known sound, or that no segment carries, is not found; the evidence is the best
+segment's score. Heat decays top-down from every segment within ``keep_ratio`` of the best
+(a sound heard twice is hot in both places).
+
+**Without one** (an open-vocabulary encoder such as CLAP): the query's text embedding is scored
+against every segment; heat decays from each segment's place with its min-max normalised score.
+The evidence is the best score's margin over the typical score: the median over the segments
+with three segments or more; with one or two segments, the median over the segments and
+:data:`REFERENCE_SOUNDS` (generic sound descriptions, encoded like the query), so a query for a
+sound that never played is refused instead of being found by fiat.
 """
 
 from __future__ import annotations
@@ -22,6 +31,7 @@ from tabletop.grid import VoxelGrid
 from tabletop.mapping.area_module import normalize_scores
 from tabletop.mapping.audio_segments import AudioSegment, NoiseGateConfig, segment_audio
 from tabletop.mapping.heatmaps import Heatmap, Judge, scored_points_heatmap_xy
+from tabletop.mapping.sound_vocabulary import SoundMatcher, SoundVocabulary
 
 __all__ = ["REFERENCE_SOUNDS", "AudioConfig", "AudioModule"]
 
@@ -50,7 +60,20 @@ class AudioConfig:
     gate: NoiseGateConfig = field(default_factory=NoiseGateConfig)
     """The noise gate and silence segmentation."""
     reference_sounds: tuple[str, ...] = REFERENCE_SOUNDS
-    """Descriptions that stand in for the typical score of a map with one or two segments."""
+    """Descriptions that stand in for the typical score of a map with one or two segments
+    (encoders without a vocabulary)."""
+    text_min: float = 0.42
+    """A query whose best cosine with every known sound's phrasings is below this names no
+    sound the encoder knows: not found. (The tune pool's sound phrasings scored 0.50 and up;
+    a sound outside the vocabulary that passes is still refused by the segments' posteriors.)"""
+    text_margin: float = 0.05
+    """Categories within this cosine of the query's best one are asked for too."""
+    keep_ratio: float = 0.5
+    """Segments scoring at least this share of the best stay hot."""
+    join_gap_s: float = 1.0
+    """Neighbouring segments closer than this [s] that sound alike are joined into one."""
+    join_cosine: float = 0.85
+    """How alike (embedding cosine) neighbouring segments must be to be joined."""
 
     def __post_init__(self) -> None:
         if not isinstance(self.gate, NoiseGateConfig):
@@ -58,15 +81,35 @@ class AudioConfig:
         if len(self.reference_sounds) < 3:
             raise ConfigError("give at least 3 reference sounds")
         object.__setattr__(self, "reference_sounds", tuple(self.reference_sounds))
+        if not -1 <= self.text_min <= 1 or not 0 <= self.text_margin <= 2:
+            raise ConfigError(
+                f"need text_min in [-1, 1] and text_margin in [0, 2], got {self.text_min}, "
+                f"{self.text_margin}"
+            )
+        if self.join_gap_s < 0 or not -1 <= self.join_cosine <= 1:
+            raise ConfigError(
+                f"need join_gap_s >= 0 and join_cosine in [-1, 1], got {self.join_gap_s}, "
+                f"{self.join_cosine}"
+            )
+        if not 0 < self.keep_ratio <= 1:
+            raise ConfigError(f"keep_ratio must be in (0, 1], got {self.keep_ratio}")
 
 
 class AudioModule:
     """Segments (``segments``), their embeddings (``embeddings``: (dim,) float32 each) and
     places (``positions``: (3,) [m] world frame, the mean microphone position while heard)."""
 
-    def __init__(self, grid: VoxelGrid, config: AudioConfig | None = None) -> None:
+    def __init__(
+        self,
+        grid: VoxelGrid,
+        config: AudioConfig | None = None,
+        vocabulary: SoundVocabulary | None = None,
+    ) -> None:
         self.grid = grid
         self.config = config or AudioConfig()
+        self.vocabulary = vocabulary
+        """The sounds the audio encoder knows (None: score queries by raw cosine)."""
+        self._matcher: SoundMatcher | None = None
         self.segments: list[AudioSegment] = []
         self.embeddings: list[np.ndarray] = []
         self.positions: list[np.ndarray] = []
@@ -95,20 +138,42 @@ class AudioModule:
         if not len(timestamps):
             raise ConfigError("a track needs the poses of at least one frame")
         mic = T_world_mic[:, :3, 3]
+
+        def encode(seg: AudioSegment) -> np.ndarray:
+            a, b = int(seg.start_s * sample_rate), int(seg.end_s * sample_rate)
+            e = encoder.encode_audio(audio[a:b], sample_rate, {"span_s": (seg.start_s, seg.end_s)})
+            return np.asarray(e, np.float32)
+
         segs = segment_audio(audio, sample_rate, self.config.gate)
-        for seg in segs:
+        embs = [encode(seg) for seg in segs]
+        segs, embs = self._join(segs, embs, encode)
+        for seg, emb in zip(segs, embs, strict=True):
             heard = (timestamps >= seg.start_s) & (timestamps <= seg.end_s)
             if not heard.any():
                 mid = np.abs(timestamps - (seg.start_s + seg.end_s) / 2)
                 heard = mid == mid.min()
-            a, b = int(seg.start_s * sample_rate), int(seg.end_s * sample_rate)
-            emb = encoder.encode_audio(
-                audio[a:b], sample_rate, {"span_s": (seg.start_s, seg.end_s)}
-            )
             self.segments.append(seg)
-            self.embeddings.append(np.asarray(emb, np.float32))
+            self.embeddings.append(emb)
             self.positions.append(mic[heard].mean(axis=0))
         return len(segs)
+
+    def _join(self, segs: list[AudioSegment], embs: list[np.ndarray], encode):
+        """Join neighbouring segments that sound alike (a sound with pauses: a ticking clock, a
+        dog barking twice): closer than ``join_gap_s`` and embeddings at cosine
+        ``join_cosine`` or more; the joined span is encoded again. Different sounds a moment
+        apart keep a segment each."""
+        cfg = self.config
+        i = 0
+        while i + 1 < len(segs):
+            a, b = segs[i], segs[i + 1]
+            near = b.start_s - a.end_s < cfg.join_gap_s
+            if near and float(embs[i] @ embs[i + 1]) >= cfg.join_cosine:
+                joined = AudioSegment(a.start_s, b.end_s)
+                segs[i : i + 2] = [joined]
+                embs[i : i + 2] = [encode(joined)]
+            else:
+                i += 1
+        return segs, embs
 
     def heatmap(self, query: str, decay: float, text, judge: Judge) -> Heatmap:
         """Heat around where the sound best matching ``query`` was heard."""
@@ -116,6 +181,8 @@ class AudioModule:
             return Heatmap.not_found(
                 self.grid, query, "sound", decay, "the map has no audio segments"
             )
+        if self.vocabulary is not None:
+            return self._vocabulary_heatmap(query, decay, text, judge)
         q = text.encode_text([query])[0]
         s = np.stack(self.embeddings) @ q
         pos = np.stack(self.positions)[:, :2]
@@ -129,3 +196,41 @@ class AudioModule:
         conf, found = judge("sound", margin)
         reason = "" if found else f"no sound segment matches {query!r} well (confidence {conf:.2f})"
         return Heatmap(self.grid, values, query, "sound", decay, conf, found, reason, margin)
+
+    def matcher(self, text) -> SoundMatcher:
+        """The vocabulary's matcher with ``text`` (built once)."""
+        if self._matcher is None or self._matcher.text is not text:
+            cfg = self.config
+            self._matcher = SoundMatcher(self.vocabulary, text, cfg.text_min, cfg.text_margin)
+        return self._matcher
+
+    def match(self, query: str, text):
+        """``query`` read against the vocabulary and scored on every segment
+        (:class:`~tabletop.mapping.sound_vocabulary.SoundQuery`)."""
+        return self.matcher(text).match(query, np.stack(self.embeddings))
+
+    def _vocabulary_heatmap(self, query: str, decay: float, text, judge: Judge) -> Heatmap:
+        m = self.match(query, text)
+        if not m.known:
+            nearest = self.vocabulary.caption(m.nearest)
+            return Heatmap.not_found(
+                self.grid,
+                query,
+                "sound",
+                decay,
+                f"{query!r} names no sound the audio encoder knows (nearest: {nearest!r}, "
+                f"similarity {m.text_score:.2f} < {self.config.text_min})",
+            )
+        s = m.scores
+        best = float(s.max())
+        keep = np.where(s >= self.config.keep_ratio * best, s / max(best, 1e-12), 0.0)
+        pos = np.stack(self.positions)[:, :2]
+        values = scored_points_heatmap_xy(self.grid, pos, keep, decay)
+        conf, found = judge("sound", best)
+        reason = (
+            ""
+            if found
+            else f"no sound heard here is {query!r} (best segment {best:.2f} on "
+            f"{', '.join(m.categories)}; confidence {conf:.2f})"
+        )
+        return Heatmap(self.grid, values, query, "sound", decay, conf, found, reason, best)

@@ -40,7 +40,13 @@ from tabletop.mapping.errors import MapFormatError
 from tabletop.mapping.heatmaps import Heatmap
 from tabletop.mapping.object_module import ObjectModule
 from tabletop.mapping.persistence import read_map_file, save_map
-from tabletop.mapping.table_regions import TableFit, fit_table, parse_region, region_heatmap
+from tabletop.mapping.table_regions import (
+    TableFit,
+    area_subject,
+    fit_table,
+    parse_region,
+    region_heatmap,
+)
 from tabletop.mapping.targets import max_position
 from tabletop.mapping.visual.database import VisualDatabase, VisualDatabaseError
 from tabletop.mapping.visual.localization import VisualLocalization
@@ -148,7 +154,7 @@ class AVLMap:
         """The object module."""
         self.areas = AreaModule(self.grid, config.area)
         """The area module (per-frame global embeddings and camera poses)."""
-        self.sounds = AudioModule(self.grid, config.audio)
+        self.sounds = AudioModule(self.grid, config.audio, getattr(audio, "vocabulary", None))
         """The audio module (segments, embeddings, where each was heard)."""
         visual = config.visual
         db = None if visual is None else VisualDatabase(visual.localization)
@@ -427,12 +433,20 @@ class AVLMap:
     def area_heatmap(self, query: str, major: bool = False) -> Heatmap:
         """Heat over a named place on the table. A place named by where it is ("the left side
         of the table", "the far right corner": :func:`~tabletop.mapping.table_regions.parse_region`)
-        is a region of the table fitted from the map; one named by what is there ("the tray
-        area") is where the frames whose global embedding matches it looked (the area module)."""
+        is a region of the table fitted from the map; one named after an object there ("the
+        area around the tray": :func:`~tabletop.mapping.table_regions.area_subject`) is heat
+        around that object's instance when the object module finds it; otherwise ("where the
+        toys are") it is where the frames whose global embedding matches it looked (the area
+        module)."""
         q = _text(query, "area")
         region = parse_region(q)
         if region is not None:
             return region_heatmap(self.grid, self.table(), q, region, self.decay(major))
+        subject = area_subject(q)
+        if subject is not None and self.objects.uses_instances:
+            h = self.objects.heatmap(subject, self.decay(major), self.judge)
+            if h.found:
+                return replace(h, query=q, modality="area")
         return self.areas.heatmap(q, self.decay(major), self.text, self.judge)
 
     def table(self) -> TableFit | None:

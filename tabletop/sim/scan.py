@@ -64,6 +64,10 @@ class ScanConfig:
     """Which sound-bank clips to insert: "heldout" (never seen in training), "train", "any"."""
     snr_db: float = 15.0
     """Clip-to-background ratio [dB] of the inserted sounds."""
+    min_recordings: int = 6
+    """Only categories with at least this many clips in the bank (all splits) are inserted:
+    the categories an encoder could learn from several recordings. A bank with fewer such
+    categories than the scan needs lowers it to what it has (see ``sound_insertion``)."""
     min_clearance: float = 0.02
     """Smallest allowed distance [m] between the arm and the table or objects."""
     camera: WristCameraConfig = field(default_factory=WristCameraConfig)
@@ -81,6 +85,8 @@ class ScanConfig:
                 f"repeat_sounds must be in [0, episodes // 2 = {self.episodes // 2}], "
                 f"got {self.repeat_sounds}"
             )
+        if self.min_recordings < 1:
+            raise ConfigError(f"min_recordings must be >= 1, got {self.min_recordings}")
         if self.clip_split not in ("heldout", "train", "any"):
             raise ConfigError(
                 f"clip_split must be 'heldout', 'train' or 'any', not {self.clip_split!r}"

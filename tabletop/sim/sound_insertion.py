@@ -32,10 +32,20 @@ def _repeat_to(audio: np.ndarray, rate: int, min_s: float) -> np.ndarray:
     return np.concatenate(parts)
 
 
-def _choose_categories(bank, rng: np.random.Generator, n: int, repeats: int, split: str):
+def _choose_categories(
+    bank, rng: np.random.Generator, n: int, repeats: int, split: str, min_recordings: int = 1
+):
+    """``n`` categories, the first ``repeats`` twice, of those with ``split`` clips and at
+    least ``min_recordings`` clips in all (the most-recorded ones if too few reach it)."""
     wanted = None if split == "any" else split
     usable = [c for c in bank.categories if bank.clips(category=c, split=wanted)]
     unique = n - repeats
+    count = {c: len(bank.clips(category=c)) for c in usable}
+    rich = [c for c in usable if count[c] >= min_recordings]
+    if len(rich) < unique:  # a small bank: the most-recorded categories
+        rich = sorted(usable, key=lambda c: (-count[c], c))[:unique]
+        rich = [c for c in usable if c in rich]
+    usable = rich
     if unique > len(usable):
         raise ConfigError(
             f"{n} episodes with {repeats} repeated sounds need {unique} categories with "
@@ -68,7 +78,12 @@ def insert_sounds(
     rng = np.random.default_rng([config.seed, 1])
     episodes = [s for s in segments if s.kind == "episode"]
     cats, split = _choose_categories(
-        bank, rng, len(episodes), config.repeat_sounds, config.clip_split
+        bank,
+        rng,
+        len(episodes),
+        config.repeat_sounds,
+        config.clip_split,
+        config.min_recordings,
     )
     dt = 1.0 / config.rate_hz
     n_samples = int(np.ceil((timestamps[-1] + dt) * rate))

@@ -24,6 +24,7 @@ from torch import nn
 from tabletop.errors import AssetError, ConfigError
 from tabletop.mapping.encoders.base import l2_normalize, torch_threads
 from tabletop.mapping.encoders.minilm import MINILM_SPACE
+from tabletop.mapping.sound_vocabulary import SoundVocabulary
 from tabletop.paths import DATA_DIR
 
 __all__ = [
@@ -32,6 +33,7 @@ __all__ = [
     "DEFAULT_AUDIO_WEIGHTS",
     "AudioCNN",
     "AudioNetConfig",
+    "EffNetAudio",
     "LogMel",
     "MelCNNAudioEncoder",
     "load_audio_checkpoint",
@@ -49,6 +51,8 @@ AUDIO_WEIGHTS_FORMAT = "tabletop-audio-encoder"
 AUDIO_WEIGHTS_VERSION = 1
 #: Shorter segments are tiled (repeated) up to this length [s].
 MIN_SEGMENT_S = 0.1
+#: Network designs an :class:`AudioNetConfig` may name.
+AUDIO_BACKBONES = ("cnn", "effnet-lite0")
 
 
 @dataclass(frozen=True)
@@ -76,8 +80,18 @@ class AudioNetConfig:
     band_norm: bool = False
     """Subtract each mel band's mean over time (removes a fixed channel colouring) instead of
     one mean over all bins."""
+    backbone: str = "cnn"
+    """``"cnn"``: :class:`AudioCNN` (``channels`` wide); ``"effnet-lite0"``: the
+    EfficientNet-Lite0 image backbone (:mod:`tabletop.mapping.encoders.effnet`, ImageNet
+    initialised when trained) on the log-mel spectrogram as a one-channel image."""
+    last_stage: int = 6
+    """Last EfficientNet-Lite0 stage kept (``"effnet-lite0"`` only; 6 = the whole backbone)."""
 
     def __post_init__(self) -> None:
+        if self.backbone not in AUDIO_BACKBONES:
+            raise ConfigError(
+                f"unknown audio backbone {self.backbone!r}; valid: {', '.join(AUDIO_BACKBONES)}"
+            )
         object.__setattr__(self, "channels", tuple(int(c) for c in self.channels))
         if not self.win_length <= self.n_fft:
             raise ConfigError(f"win_length {self.win_length} must be <= n_fft {self.n_fft}")
@@ -88,7 +102,7 @@ class AudioNetConfig:
             )
         if not self.channels or min(self.channels) < 1:
             raise ConfigError(f"channels must be positive integers, got {self.channels}")
-        if self.n_mels < 2 ** len(self.channels):
+        if self.backbone == "cnn" and self.n_mels < 2 ** len(self.channels):
             raise ConfigError(
                 f"n_mels {self.n_mels} too small for {len(self.channels)} halving blocks"
             )
@@ -186,13 +200,41 @@ class AudioCNN(nn.Module):
         return nn.functional.normalize(x, dim=1)
 
 
+class EffNetAudio(nn.Module):
+    """EfficientNet-Lite0 on a log-mel spectrogram: a learned input scale (batch norm over the
+    one channel), the spectrogram repeated to the three input channels the ImageNet weights
+    expect, the backbone to ``last_stage``, mean over frequency, mean + max over time, a
+    two-layer projection to ``dim``, L2 normalisation. Same contract as :class:`AudioCNN`."""
+
+    def __init__(self, cfg: AudioNetConfig) -> None:
+        super().__init__()
+        from tabletop.mapping.encoders.effnet import EfficientNetLite0
+
+        self.cfg = cfg
+        self.norm = nn.BatchNorm2d(1)
+        self.backbone = EfficientNetLite0(last_stage=cfg.last_stage)
+        c = self.backbone.channels[max(self.backbone.channels)]
+        self.dropout = nn.Dropout(cfg.dropout)
+        self.proj = nn.Sequential(
+            nn.Linear(2 * c, 512), nn.ReLU(inplace=True), nn.Linear(512, cfg.dim)
+        )
+
+    def forward(self, logmel: torch.Tensor) -> torch.Tensor:
+        x = self.norm(logmel[:, None]).expand(-1, 3, -1, -1)
+        feats = self.backbone(x)
+        x = feats[max(feats)].mean(dim=2)  # (B, C, T')
+        x = torch.cat([x.mean(dim=2), x.amax(dim=2)], dim=1)
+        x = self.proj(self.dropout(x))
+        return nn.functional.normalize(x, dim=1)
+
+
 class _Net(nn.Module):
-    """Frontend + CNN: (B, S) 16 kHz waveforms -> (B, dim) embeddings."""
+    """Frontend + network: (B, S) 16 kHz waveforms -> (B, dim) embeddings."""
 
     def __init__(self, cfg: AudioNetConfig) -> None:
         super().__init__()
         self.frontend = LogMel(cfg)
-        self.cnn = AudioCNN(cfg)
+        self.cnn = AudioCNN(cfg) if cfg.backbone == "cnn" else EffNetAudio(cfg)
 
     def forward(self, wave: torch.Tensor) -> torch.Tensor:
         return self.cnn(self.frontend(wave))
@@ -309,6 +351,8 @@ class MelCNNAudioEncoder:
         self._net, self.meta = _cached_net(str(path), mtime)
         if self._net.cnn.cfg.dim != self.dim:
             raise AssetError(f"{self.weights}: embeds into {self._net.cnn.cfg.dim}-d, not 384-d")
+        self.vocabulary = SoundVocabulary.from_meta(self.meta.get("vocabulary"))
+        """The sound categories the network was trained on (None for older checkpoints)."""
 
     def __repr__(self) -> str:
         return f"MelCNNAudioEncoder(weights={str(self.weights)!r})"

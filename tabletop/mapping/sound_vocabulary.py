@@ -1,0 +1,270 @@
+"""The sounds an audio encoder knows, and how a sound query is scored against heard segments.
+
+A learned audio encoder is trained on a bank of named sound categories; each category has a
+caption ("the sound of a dog barking") and a set of phrasings ("a barking dog", "woof woof",
+...) in ``tabletop/data/sound_phrasings.toml``. The encoder's checkpoint records the categories
+and texts it was trained against, and the temperature it learned (:class:`SoundVocabulary`).
+
+A sound query is answered in two steps (:class:`SoundMatcher`):
+
+1. **Words -> categories.** The query's text embedding is compared with every phrasing of
+   every category (the best phrasing counts: a prompt ensemble). The categories within
+   ``text_margin`` of the best are what the query asks for ("a bird" may be chirping birds, an
+   owl or a crow). A query below ``text_min`` to every phrasing names no sound the encoder knows:
+   it is not found, and the reason names the nearest known sound.
+2. **Segments -> categories.** Each heard segment's embedding gives a posterior over the known
+   categories: a softmax, at the learned temperature, of its cosine with each category's
+   prototype (the normalised mean of the category's phrasing embeddings). A segment's score
+   for the query is the posterior mass on the asked categories, in [0, 1].
+
+The best segment's score is the evidence the calibration judges: a query for a known sound that
+never played ("a chainsaw" when none did) finds every segment's mass elsewhere.
+"""
+
+from __future__ import annotations
+
+import tomllib
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from tabletop.errors import AssetError, ConfigError
+from tabletop.paths import DATA_DIR
+
+__all__ = [
+    "PHRASINGS_PATH",
+    "SOUND_FAMILIES",
+    "SoundMatcher",
+    "SoundQuery",
+    "SoundVocabulary",
+    "load_phrasings",
+    "phrases_for",
+]
+
+#: Sound categories close enough to be heard as one another: a category is not asked as absent
+#: while one of its family was played (the paraphrase suites, the absent-sound measure).
+SOUND_FAMILIES: tuple[frozenset[str], ...] = tuple(
+    frozenset(f)
+    for f in (
+        {"water", "toilet_flush", "washing_machine"},
+        {"clock_alarm", "telephone", "church_bells"},
+        {"duck", "goose"},
+        {"drums", "cymbals"},
+        {"piano", "xylophone"},
+        {"airplane", "helicopter", "engine", "train"},
+        {"crickets", "insects", "chirping_birds"},
+        {"hen", "rooster"},
+        {"crow", "chirping_birds", "owl"},
+        {"laughing", "crying_baby"},
+        {"coughing", "sneezing"},
+        {"camera_shutter", "keyboard_typing", "clock_tick"},
+        {"wolf", "dog"},
+        {"lion", "elephant"},
+        {"hand_saw", "hammering"},
+        {"vacuum_cleaner", "washing_machine"},
+        {"trumpet", "elephant"},
+        {"violin", "guitar"},
+        {"flute", "trumpet"},
+        {"trumpet", "trombone", "tuba", "french_horn"},
+        {"violin", "cello"},
+        {"flute", "clarinet", "saxophone", "harmonica"},
+        {"piano", "organ", "accordion"},
+        {"drums", "bongos", "timpani"},
+        {"cymbals", "triangle", "cowbell"},
+        {"maracas", "tambourine"},
+        {"guitar", "banjo", "harp"},
+        {"clapping", "finger_snapping", "castanets"},
+    )
+)
+
+#: Phrasings of every sound category beside its caption.
+PHRASINGS_PATH = DATA_DIR / "sound_phrasings.toml"
+
+
+def load_phrasings(path: str | Path | None = None) -> dict[str, tuple[str, ...]]:
+    """category -> its phrasings, from ``path`` (default :data:`PHRASINGS_PATH`)."""
+    p = Path(path) if path is not None else PHRASINGS_PATH
+    try:
+        d = tomllib.loads(p.read_text())
+    except (OSError, tomllib.TOMLDecodeError) as e:
+        raise AssetError(f"cannot read sound phrasings {p}: {e}") from None
+    table = d.get("phrasings")
+    if not isinstance(table, dict):
+        raise AssetError(f"{p}: expected a [phrasings] table of category = [texts]")
+    out = {}
+    for k, v in table.items():
+        if not isinstance(v, list) or not v or not all(isinstance(t, str) and t for t in v):
+            raise AssetError(f"{p}: [phrasings].{k} must be a non-empty list of texts")
+        out[k] = tuple(v)
+    return out
+
+
+_PHRASINGS: dict[str, tuple[str, ...]] | None = None
+
+
+def phrases_for(category: str, caption: str) -> list[str]:
+    """The caption of ``category`` and its phrasings (generic ones for a category without an
+    entry in :data:`PHRASINGS_PATH`), without repeats."""
+    global _PHRASINGS
+    if _PHRASINGS is None:
+        _PHRASINGS = load_phrasings()
+    words = category.replace("_", " ")
+    extra = _PHRASINGS.get(category) or (words, f"a {words}", f"{words} sound", f"{words} noise")
+    return list(dict.fromkeys([caption, *extra]))
+
+
+@dataclass(frozen=True)
+class SoundVocabulary:
+    """The sound categories an encoder knows: ``texts`` maps each category to its caption and
+    phrasings (caption first); ``logit_scale`` is the inverse temperature of its posteriors."""
+
+    texts: Mapping[str, tuple[str, ...]]
+    logit_scale: float = 30.0
+
+    def __post_init__(self) -> None:
+        if not self.texts:
+            raise ConfigError("a sound vocabulary needs at least one category")
+        for k, v in self.texts.items():
+            if not isinstance(v, (list, tuple)) or not v:
+                raise ConfigError(f"sound category {k!r} needs at least one text")
+        if not self.logit_scale > 0:
+            raise ConfigError(f"logit_scale must be > 0, got {self.logit_scale}")
+        object.__setattr__(self, "texts", {str(k): tuple(v) for k, v in self.texts.items()})
+
+    @property
+    def categories(self) -> tuple[str, ...]:
+        return tuple(self.texts)
+
+    def caption(self, category: str) -> str:
+        return self.texts[category][0]
+
+    def to_meta(self) -> dict:
+        """A JSON-like dict (what a checkpoint stores)."""
+        return {
+            "texts": {k: list(v) for k, v in self.texts.items()},
+            "logit_scale": self.logit_scale,
+        }
+
+    @classmethod
+    def from_meta(cls, d: Mapping | None) -> SoundVocabulary | None:
+        """The vocabulary a checkpoint's meta records, or None when it records none."""
+        if not d:
+            return None
+        try:
+            return cls(dict(d["texts"]), float(d.get("logit_scale", 30.0)))
+        except (KeyError, TypeError, ValueError) as e:
+            raise AssetError(f"malformed sound vocabulary in checkpoint: {e}") from None
+
+    @classmethod
+    def from_bank(cls, bank, logit_scale: float = 30.0) -> SoundVocabulary:
+        """Every category of a :class:`~tabletop.sim.sound_bank.SoundBank` with its caption and
+        phrasings."""
+        return cls(
+            {c: tuple(phrases_for(c, bank.caption(c))) for c in bank.categories}, logit_scale
+        )
+
+
+@dataclass(frozen=True)
+class SoundQuery:
+    """How a sound query reads against a vocabulary."""
+
+    query: str
+    categories: tuple[str, ...]
+    """The categories the query asks for (empty: none is near enough)."""
+    text_score: float
+    """Best cosine of the query with any phrasing of any category."""
+    nearest: str
+    """The category of that best phrasing."""
+    scores: np.ndarray = field(repr=False)
+    """(n_segments,) in [0, 1]: each segment's posterior mass on ``categories``."""
+    log_odds: np.ndarray = field(repr=False)
+    """(n_segments,) float64: ``log(scores / (1 - scores))``, computed without rounding to 1
+    (what ranks segments whose posteriors all round to 1)."""
+
+    @property
+    def known(self) -> bool:
+        return bool(self.categories)
+
+
+class SoundMatcher:
+    """Scores sound queries against segment embeddings through a :class:`SoundVocabulary`
+    (see the module docstring). ``text`` embeds the query and the vocabulary's texts in the
+    audio encoder's space."""
+
+    def __init__(
+        self,
+        vocabulary: SoundVocabulary,
+        text,
+        text_min: float = 0.42,
+        text_margin: float = 0.05,
+    ) -> None:
+        self.vocabulary = vocabulary
+        self.text = text
+        self.text_min = float(text_min)
+        self.text_margin = float(text_margin)
+        self._targets: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+
+    def targets(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(phrasing embeddings (T, dim), their category index (T,), prototypes (C, dim))."""
+        if self._targets is None:
+            texts, owner = [], []
+            for i, c in enumerate(self.vocabulary.categories):
+                texts += list(self.vocabulary.texts[c])
+                owner += [i] * len(self.vocabulary.texts[c])
+            emb = np.asarray(self.text.encode_text(texts), np.float32)
+            owner = np.array(owner)
+            proto = np.stack([emb[owner == i].mean(axis=0) for i in range(owner.max() + 1)])
+            proto /= np.linalg.norm(proto, axis=1, keepdims=True)
+            self._targets = (emb, owner, proto)
+        return self._targets
+
+    def logits(self, embeddings: np.ndarray) -> np.ndarray:
+        """(N, C) float64: each segment's logit for each category (scaled prototype cosine)."""
+        _, _, proto = self.targets()
+        e = np.asarray(embeddings, np.float64).reshape(-1, proto.shape[1])
+        return self.vocabulary.logit_scale * (e @ proto.T.astype(np.float64))
+
+    def posteriors(self, embeddings: np.ndarray) -> np.ndarray:
+        """(N, C): each segment embedding's posterior over the vocabulary's categories."""
+        z = self.logits(embeddings)
+        z -= z.max(axis=1, keepdims=True)
+        p = np.exp(z)
+        return p / p.sum(axis=1, keepdims=True)
+
+    def log_odds(self, embeddings: np.ndarray, want: np.ndarray) -> np.ndarray:
+        """(N,) float64: log of (posterior mass on the ``want`` categories) / (the rest)."""
+        z = self.logits(embeddings)
+        if want.all():
+            return np.full(len(z), np.inf)
+        return _logsumexp(z[:, want]) - _logsumexp(z[:, ~want])
+
+    def category_scores(self, query: str) -> np.ndarray:
+        """(C,): the query's best cosine with each category's texts."""
+        emb, owner, proto = self.targets()
+        s = emb @ np.asarray(self.text.encode_text([query])[0], np.float32)
+        out = np.full(len(proto), -np.inf)
+        np.maximum.at(out, owner, s)
+        return out
+
+    def match(self, query: str, embeddings: np.ndarray) -> SoundQuery:
+        """``query`` against segments with these embeddings (N, dim)."""
+        per = self.category_scores(query)
+        best = int(np.argmax(per))
+        cats = self.vocabulary.categories
+        n = len(embeddings)
+        if per[best] < self.text_min:
+            return SoundQuery(
+                query, (), float(per[best]), cats[best], np.zeros(n), np.full(n, -np.inf)
+            )
+        want = per >= per[best] - self.text_margin
+        lo = self.log_odds(embeddings, want) if n else np.zeros(0)
+        scores = 1.0 / (1.0 + np.exp(-np.clip(lo, -700, 700)))
+        chosen = tuple(c for c, w in zip(cats, want, strict=True) if w)
+        return SoundQuery(query, chosen, float(per[best]), cats[best], scores, lo)
+
+
+def _logsumexp(z: np.ndarray) -> np.ndarray:
+    m = z.max(axis=1)
+    return m + np.log(np.exp(z - m[:, None]).sum(axis=1))

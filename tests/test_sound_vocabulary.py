@@ -1,0 +1,154 @@
+"""Sound queries through the vocabulary an audio encoder knows: words -> categories -> segments,
+and "not found" for sounds that are not known or were not heard."""
+
+import numpy as np
+import pytest
+from module_helpers import GRID, judge_at, text_encoder
+
+from tabletop.errors import AssetError, ConfigError
+from tabletop.mapping.audio_module import AudioConfig, AudioModule
+from tabletop.mapping.encoders.oracle import OracleAudioEncoder
+from tabletop.mapping.sound_vocabulary import (
+    SOUND_FAMILIES,
+    SoundMatcher,
+    SoundVocabulary,
+    load_phrasings,
+    phrases_for,
+)
+from tabletop.mapping.targets import max_position
+from tabletop.sim.sound_bank import SoundBank
+
+RATE = 16000
+
+VOCAB = SoundVocabulary(
+    {
+        "dog": tuple(phrases_for("dog", "the sound of a dog barking")),
+        "telephone": tuple(phrases_for("telephone", "the sound of a telephone ringing")),
+        "chirping_birds": tuple(phrases_for("chirping_birds", "the sound of birds chirping")),
+        "owl": tuple(phrases_for("owl", "the sound of an owl hooting")),
+        "hammering": tuple(phrases_for("hammering", "the sound of hammering")),
+    },
+    logit_scale=20.0,
+)
+
+
+def test_every_bank_category_has_phrasings_and_families_name_real_categories():
+    phr = load_phrasings()
+    bank = SoundBank.default()
+    missing = sorted(c for c in bank.categories if c not in phr)
+    assert not missing, f"bank categories without phrasings: {missing}"
+    assert all(len(v) >= 5 for v in phr.values())
+    known = set(phr)
+    assert all(f <= known for f in SOUND_FAMILIES)
+
+
+def test_phrasings_file_errors_name_the_file(tmp_path):
+    p = tmp_path / "p.toml"
+    p.write_text('[phrasings]\ndog = "a dog"\n')
+    with pytest.raises(AssetError, match=r"\[phrasings\].dog must be a non-empty list"):
+        load_phrasings(p)
+    p.write_text("dog = [1")
+    with pytest.raises(AssetError, match="cannot read sound phrasings"):
+        load_phrasings(p)
+
+
+def test_vocabulary_round_trips_and_refuses_nonsense():
+    assert SoundVocabulary.from_meta(VOCAB.to_meta()) == VOCAB
+    assert SoundVocabulary.from_meta(None) is None
+    assert VOCAB.caption("dog") == "the sound of a dog barking"
+    with pytest.raises(ConfigError, match="at least one category"):
+        SoundVocabulary({})
+    with pytest.raises(ConfigError, match="logit_scale must be > 0"):
+        SoundVocabulary({"dog": ("a dog",)}, logit_scale=0.0)
+    with pytest.raises(AssetError, match="malformed sound vocabulary"):
+        SoundVocabulary.from_meta({"logit_scale": 3})
+
+
+def test_words_reach_their_category_and_unknown_sounds_none():
+    m = SoundMatcher(VOCAB, text_encoder())
+    cats = VOCAB.categories
+    for query, want in [
+        ("a dog woofing", "dog"),
+        ("the phone", "telephone"),
+        ("someone banging nails in", "hammering"),
+        ("an owl at night", "owl"),
+    ]:
+        assert cats[int(np.argmax(m.category_scores(query)))] == want, query
+    far = m.match("a submarine sonar ping", np.zeros((0, 384)))
+    assert not far.known and far.text_score < m.text_min
+
+
+def test_posteriors_and_log_odds_agree():
+    text = text_encoder()
+    m = SoundMatcher(VOCAB, text)
+    emb = text.encode_text(["a dog barking", "a telephone ringing", "a bird singing"])
+    p = m.posteriors(emb)
+    np.testing.assert_allclose(p.sum(axis=1), 1.0, atol=1e-9)
+    q = m.match("the sound of a dog barking", emb)
+    assert q.categories == ("dog",)
+    np.testing.assert_allclose(q.scores, p[:, 0], atol=1e-9)
+    assert int(np.argmax(q.log_odds)) == 0
+    assert np.all(np.argsort(q.log_odds) == np.argsort(q.scores))
+
+
+def _track(spans, seconds, seed=0):
+    rng = np.random.default_rng(seed)
+    x = 0.001 * rng.standard_normal(int(seconds * RATE)).astype(np.float32)
+    for t0, t1 in spans:
+        n = int((t1 - t0) * RATE)
+        t = np.arange(n) / RATE
+        x[int(t0 * RATE) : int(t0 * RATE) + n] += (0.5 * np.sin(2 * np.pi * 440 * t)).astype(
+            np.float32
+        )
+    return x
+
+
+@pytest.fixture(scope="module")
+def module():
+    """A dog heard at x = 0.1 m and again at 0.5 m, a phone at 0.3 m."""
+    text = text_encoder()
+    events = [
+        {"caption": "a dog barking", "onset_s": 1.0, "offset_s": 2.0},
+        {"caption": "a phone ringing", "onset_s": 5.0, "offset_s": 6.0},
+        {"caption": "a dog barking", "onset_s": 9.0, "offset_s": 10.0},
+    ]
+    m = AudioModule(GRID, AudioConfig(), VOCAB)
+    t = np.arange(0, 12.0, 1 / 30)
+    T = np.repeat(np.eye(4)[None], len(t), axis=0)
+    T[:, 0, 3] = np.where(t < 4, 0.1, np.where(t < 8, 0.3, 0.5))
+    T[:, 2, 3] = 0.3
+    m.add(_track([(1, 2), (5, 6), (9, 10)], 12.0), RATE, t, T, OracleAudioEncoder(text, events))
+    return m
+
+
+def test_a_sound_heard_twice_is_hot_in_both_places(module):
+    h = module.heatmap("a barking dog", 10.0, text_encoder(), judge_at(0.5))
+    assert h.found and len(module) == 3
+    z = GRID.shape[2] // 2
+    hot = h.values[:, GRID.shape[1] // 2, z]
+    xs = GRID.axes()[0]
+    at = {x: float(hot[np.argmin(np.abs(xs - x))]) for x in (0.1, 0.3, 0.5)}
+    assert at[0.1] > 0.9 and at[0.5] > 0.9 and at[0.3] < 0.5
+
+
+def test_the_phone_is_found_where_it_rang(module):
+    h = module.heatmap("a ringing telephone", 10.0, text_encoder(), judge_at(0.5))
+    p = max_position(h, np.zeros(GRID.shape, bool))
+    assert h.found and p[0] == pytest.approx(0.3, abs=0.011)
+
+
+def test_known_but_unheard_and_unknown_sounds_are_not_found(module):
+    text = text_encoder()
+    unheard = module.heatmap("the sound of hammering", 10.0, text, judge_at(0.5))
+    assert not unheard.found and "no sound heard here" in unheard.reason
+    assert "hammering" in unheard.reason and unheard.evidence < 0.5
+    unknown = module.heatmap("a submarine sonar ping", 10.0, text, judge_at(0.5))
+    assert not unknown.found and "names no sound the audio encoder knows" in unknown.reason
+    assert float(unknown.values.max()) == 0.0
+
+
+def test_config_errors_name_the_field():
+    with pytest.raises(ConfigError, match="keep_ratio"):
+        AudioConfig(keep_ratio=0.0)
+    with pytest.raises(ConfigError, match="text_min"):
+        AudioConfig(text_min=2.0)
