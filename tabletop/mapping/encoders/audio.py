@@ -354,6 +354,11 @@ class MelCNNAudioEncoder:
         self.vocabulary = SoundVocabulary.from_meta(self.meta.get("vocabulary"))
         """The sound categories the network was trained on (None for older checkpoints)."""
 
+    @property
+    def backbone(self) -> str:
+        """The network design of the loaded weights (``AudioNetConfig.backbone``)."""
+        return self._net.cnn.cfg.backbone
+
     def __repr__(self) -> str:
         return f"MelCNNAudioEncoder(weights={str(self.weights)!r})"
 

@@ -92,17 +92,18 @@ def make_encoders_from_rebuild(name: str, rebuild: dict) -> EncoderSet:
         vision_w = rebuild.get("vision_weights") or str(EFFNET_WEIGHTS_PATH)
         audio_w = rebuild.get("audio_weights") or str(DEFAULT_AUDIO_WEIGHTS)
         image = LSegEncoder(vision_w)  # dense and global embeddings from one network
+        audio = MelCNNAudioEncoder(audio_w)
         return EncoderSet(
             text,
             image,
             image,
-            MelCNNAudioEncoder(audio_w),
+            audio,
             {
                 "set": "default (embedded learned encoders)",
                 "text": "minilm-l6-v2",
                 "dense": f"lseg-style {image.arch} ({_short(vision_w)})",
                 "global_image": f"lseg-style {image.arch}, mean of cell embeddings",
-                "audio": f"mel-cnn ({_short(audio_w)})",
+                "audio": f"log-mel {audio.backbone} ({_short(audio_w)})",
             },
             # None = the committed weights, wherever the package lives when the map is loaded
             {k: rebuild.get(k) for k in ("vision_weights", "audio_weights")},
