@@ -184,9 +184,9 @@ def cmd_demo(args: argparse.Namespace) -> int:
         "tabletop demo: default scene -> teleop scan with inserted sounds -> AVLMap with the "
         f"encoders {encoders} -> the demo suite (object, sound, image, area, ambiguous, "
         "spatial, multimodal spatial and instruction goals) reached by the simulated Panda.\n"
-        "'default' = the embedded learned encoders (MiniLM text, the small LSeg-style image "
-        "network, the mel-CNN audio encoder); 'oracle' = the simulator's ground truth, an upper "
-        "bound.\n",
+        "'default' = the embedded learned encoders (MiniLM text, an EfficientNet-Lite0 image "
+        "network LSeg-style, EfficientNet-Lite0 on log-mel audio with its sound vocabulary); "
+        "'oracle' = the simulator's ground truth, an upper bound.\n",
         flush=True,
     )
     t0 = time.perf_counter()
