@@ -14,7 +14,7 @@ import numpy as np
 
 from tabletop.errors import ConfigError
 
-__all__ = ["GAPS_S", "segmentation_figures"]
+__all__ = ["GAPS_S", "has_own_segment", "segmentation_figures"]
 
 #: Silence [s] between one sound and the next in the measure's tracks.
 GAPS_S = (0.2, 0.4, 0.7, 1.5, 3.0)
@@ -35,15 +35,13 @@ def _track(clips, rng: np.random.Generator, snr_db: float, rate: int, n: int = 5
     return x[: int((t + 1) * rate)].astype(np.float32), truth
 
 
-def _own(segs, i: int, truth) -> bool:
-    a, b = truth[i]
+def has_own_segment(segs, span, others) -> bool:
+    """Whether one of ``segs`` covers at least half of the sound ``span`` = (start, end) [s]
+    (or 0.25 s of a longer one) and less than 50 ms of the ``others`` spans."""
+    a, b = span
     for s in segs:
         cover = min(b, s.end_s) - max(a, s.start_s)
-        spill = sum(
-            max(0.0, min(d, s.end_s) - max(c, s.start_s))
-            for j, (c, d) in enumerate(truth)
-            if j != i
-        )
+        spill = sum(max(0.0, min(d, s.end_s) - max(c, s.start_s)) for c, d in others)
         if cover >= 0.5 * min(b - a, 0.5) and spill < 0.05:
             return True
     return False
@@ -74,7 +72,9 @@ def segmentation_figures(
     for _ in range(int(tracks)):
         x, truth = _track(clips, rng, snr_db, bank.sample_rate)
         segs = segment_audio(x, bank.sample_rate, config)
-        own += sum(_own(segs, i, truth) for i in range(len(truth)))
+        own += sum(
+            has_own_segment(segs, span, truth[:i] + truth[i + 1 :]) for i, span in enumerate(truth)
+        )
         cut += len(segs)
         total += len(truth)
     return {"own_segment": own / total, "segments_per_sound": cut / total, "sounds": total}

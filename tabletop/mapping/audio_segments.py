@@ -200,31 +200,37 @@ def band_activity(audio: np.ndarray, sample_rate: int, cfg: NoiseGateConfig) -> 
     return np.convolve(act, np.ones(3) / 3, mode="same")
 
 
+def _runs(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Start and end (exclusive) frame indices of the runs of True in ``mask``."""
+    edges = np.diff(np.concatenate([[0], mask.astype(int), [0]]))
+    return np.nonzero(edges == 1)[0], np.nonzero(edges == -1)[0]
+
+
+def _merged_spans(mask: np.ndarray, dt: float, cfg: NoiseGateConfig) -> list[list[float]]:
+    """The runs of ``mask`` (frames ``dt`` [s] apart) as [start, end] spans [s]; runs less than
+    ``merge_gap_s`` apart merge, and spans shorter than ``min_segment_s`` are dropped."""
+    spans: list[list[float]] = []
+    starts, ends = _runs(mask)
+    for a, b in zip(starts * dt, ends * dt, strict=True):
+        if spans and a - spans[-1][1] < cfg.merge_gap_s:
+            spans[-1][1] = b
+        else:
+            spans.append([a, b])
+    return [s for s in spans if s[1] - s[0] >= cfg.min_segment_s]
+
+
 def _spectral_segments(audio, sample_rate: int, cfg: NoiseGateConfig) -> list[AudioSegment]:
     act = band_activity(audio, sample_rate, cfg)
     dt = max(1, round(cfg.window_s * sample_rate)) / sample_rate
-    spans: list[list[float]] = []
-    i, n = 0, len(act)
-    while i < n:
-        if act[i] <= cfg.on_db:
-            i += 1
-            continue
-        a = i  # walk back and forward to where the activity falls below off_db
-        while a > 0 and act[a - 1] > cfg.off_db:
-            a -= 1
-        b = i
-        while b < n and act[b] > cfg.off_db:
-            b += 1
-        if spans and a * dt - spans[-1][1] < cfg.merge_gap_s:
-            spans[-1][1] = b * dt
-        else:
-            spans.append([a * dt, b * dt])
-        i = b
+    # Hysteresis: a run above off_db is sound when it rises above on_db somewhere.
+    sound = np.zeros(len(act), bool)
+    for a, b in zip(*_runs(act > cfg.off_db), strict=True):
+        if act[a:b].max() > cfg.on_db:
+            sound[a:b] = True
     end = len(audio) / sample_rate
     return [
         AudioSegment(max(0.0, a - cfg.pad_s), min(end, b + cfg.pad_s))
-        for a, b in spans
-        if b - a >= cfg.min_segment_s
+        for a, b in _merged_spans(sound, dt, cfg)
     ]
 
 
@@ -240,16 +246,5 @@ def segment_audio(
         return _spectral_segments(audio, sample_rate, cfg)
     gated = noise_gate(audio, sample_rate, cfg)
     env, hop = _envelope(gated, sample_rate, cfg.window_s)
-    loud = env > cfg.silence_threshold
-    if not loud.any():
-        return []
-    edges = np.diff(np.concatenate([[0], loud.astype(int), [0]]))
-    starts, ends = np.nonzero(edges == 1)[0], np.nonzero(edges == -1)[0]
-    dt = hop / sample_rate
-    spans: list[list[float]] = []
-    for a, b in zip(starts * dt, ends * dt, strict=True):
-        if spans and a - spans[-1][1] < cfg.merge_gap_s:
-            spans[-1][1] = b
-        else:
-            spans.append([a, b])
-    return [AudioSegment(a, b) for a, b in spans if b - a >= cfg.min_segment_s]
+    spans = _merged_spans(env > cfg.silence_threshold, hop / sample_rate, cfg)
+    return [AudioSegment(a, b) for a, b in spans]

@@ -29,6 +29,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from scipy.special import expit, logsumexp
 
 from tabletop.errors import AssetError, ConfigError
 from tabletop.paths import DATA_DIR
@@ -238,7 +239,7 @@ class SoundMatcher:
         z = self.logits(embeddings)
         if want.all():
             return np.full(len(z), np.inf)
-        return _logsumexp(z[:, want]) - _logsumexp(z[:, ~want])
+        return logsumexp(z[:, want], axis=1) - logsumexp(z[:, ~want], axis=1)
 
     def category_scores(self, query: str) -> np.ndarray:
         """(C,): the query's best cosine with each category's texts."""
@@ -260,11 +261,6 @@ class SoundMatcher:
             )
         want = per >= per[best] - self.text_margin
         lo = self.log_odds(embeddings, want) if n else np.zeros(0)
-        scores = 1.0 / (1.0 + np.exp(-np.clip(lo, -700, 700)))
+        scores = expit(lo)
         chosen = tuple(c for c, w in zip(cats, want, strict=True) if w)
         return SoundQuery(query, chosen, float(per[best]), cats[best], scores, lo)
-
-
-def _logsumexp(z: np.ndarray) -> np.ndarray:
-    m = z.max(axis=1)
-    return m + np.log(np.exp(z - m[:, None]).sum(axis=1))

@@ -140,7 +140,8 @@ def parse_region(text: str) -> TableRegion | None:
                 return None  # "left ... right": not one region
             found[key] = value
             t = rx.sub(" ", t, count=1)
-    if not found or any(w not in _FILLER.split() for w in t.split()):
+    filler = set(_FILLER.split())
+    if not found or any(w not in filler for w in t.split()):
         return None  # nothing geometric, or other words ("the tray area")
     lateral, depth = found.get("lateral"), found.get("depth")
     if "mid" in found:

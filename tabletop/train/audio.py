@@ -23,6 +23,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import numpy as np
+from scipy.special import expit
 
 from tabletop.errors import ConfigError
 from tabletop.mapping.sound_vocabulary import (
@@ -393,7 +394,7 @@ def evaluate_audio(
       (phrasings neither training nor the vocabulary has) instead of the captions.
     - ``audio_absent_rejected``: ``absent_maps`` seeded maps of 6 held-out segments of distinct
       categories; each asked for 2 bank categories it did not play (nor one of their
-      :data:`~tabletop.eval.paraphrase.SOUND_FAMILIES`) by caption and 2 sounds of
+      :data:`~tabletop.mapping.sound_vocabulary.SOUND_FAMILIES`) by caption and 2 sounds of
       :data:`ABSENT_QUERIES`; the share reported not found: best segment score below
       ``threshold`` (default: the shipped default calibration's sound operating point).
       ``audio_present_found`` is the other side: the share of the maps' own categories, asked
@@ -474,8 +475,9 @@ def evaluate_audio(
     if threshold is None:
         threshold = _found_threshold()
     if vocabulary is not None and threshold is not None and len(q) >= 6:
-        out.update(_absent_figures(score, clips, clip_cat, cats, bank, audio_emb, threshold,
-                                   absent_maps, seed, SOUND_FAMILIES))  # fmt: skip
+        out.update(
+            _absent_figures(score, clip_cat, cats, bank, audio_emb, threshold, absent_maps, seed)
+        )
     out.update(
         n_clips=len(clips),
         n_queries=len(q),
@@ -487,13 +489,7 @@ def evaluate_audio(
     return out
 
 
-def _sigmoid(x: np.ndarray) -> np.ndarray:
-    return 1.0 / (1.0 + np.exp(-np.clip(x, -700, 700)))
-
-
-def _absent_figures(
-    score, clips, clip_cat, cats, bank, audio_emb, threshold, n_maps, seed, families
-) -> dict:
+def _absent_figures(score, clip_cat, cats, bank, audio_emb, threshold, n_maps, seed) -> dict:
     """``audio_absent_rejected`` and ``audio_present_found`` (see :func:`evaluate_audio`)."""
     rng = np.random.default_rng([seed, 77])
     held = sorted(set(clip_cat.tolist()))
@@ -503,16 +499,16 @@ def _absent_figures(
         rows = [int(rng.choice(np.nonzero(clip_cat == c)[0])) for c in chosen]
         emb = audio_emb[rows]
         played = {cats[c] for c in chosen}
-        near = played | {x for f in families if f & played for x in f}
+        near = played | {x for f in SOUND_FAMILIES if f & played for x in f}
         others = [c for c in cats if c not in near]
         texts = [
             bank.caption(c) for c in rng.choice(others, size=min(2, len(others)), replace=False)
         ]
         texts += [str(t) for t in rng.choice(ABSENT_QUERIES, size=2, replace=False)]
-        s = _sigmoid(score(texts, emb))
+        s = expit(score(texts, emb))
         rejected += int((s.max(axis=1) < threshold).sum())
         asked += len(texts)
-        s = _sigmoid(score([bank.caption(cats[c]) for c in chosen], emb))
+        s = expit(score([bank.caption(cats[c]) for c in chosen], emb))
         found += int(((s.max(axis=1) >= threshold) & (s.argmax(axis=1) == np.arange(6))).sum())
         present += 6
     return {

@@ -163,6 +163,14 @@ class LogMel(nn.Module):
         return logmel - logmel.mean(dim=dims, keepdim=True)
 
 
+def _pool_and_project(x: torch.Tensor, dropout: nn.Module, proj: nn.Module) -> torch.Tensor:
+    """A feature map (B, C, F', T') -> mean over frequency, mean and max over time, the
+    projection, L2 normalisation: (B, dim) (the tail both audio networks share)."""
+    x = x.mean(dim=2)  # (B, C, T')
+    x = torch.cat([x.mean(dim=2), x.amax(dim=2)], dim=1)
+    return nn.functional.normalize(proj(dropout(x)), dim=1)
+
+
 class AudioCNN(nn.Module):
     """Log-mel CNN: conv blocks (3x3 conv, BN, ReLU, 2x2 average pool), mean over frequency,
     mean + max over time, linear projection to ``dim``, L2 normalisation.
@@ -193,11 +201,7 @@ class AudioCNN(nn.Module):
         )
 
     def forward(self, logmel: torch.Tensor) -> torch.Tensor:
-        x = self.features(logmel[:, None])  # (B, C, F', T')
-        x = x.mean(dim=2)  # (B, C, T')
-        x = torch.cat([x.mean(dim=2), x.amax(dim=2)], dim=1)
-        x = self.proj(self.dropout(x))
-        return nn.functional.normalize(x, dim=1)
+        return _pool_and_project(self.features(logmel[:, None]), self.dropout, self.proj)
 
 
 class EffNetAudio(nn.Module):
@@ -220,12 +224,8 @@ class EffNetAudio(nn.Module):
         )
 
     def forward(self, logmel: torch.Tensor) -> torch.Tensor:
-        x = self.norm(logmel[:, None]).expand(-1, 3, -1, -1)
-        feats = self.backbone(x)
-        x = feats[max(feats)].mean(dim=2)  # (B, C, T')
-        x = torch.cat([x.mean(dim=2), x.amax(dim=2)], dim=1)
-        x = self.proj(self.dropout(x))
-        return nn.functional.normalize(x, dim=1)
+        feats = self.backbone(self.norm(logmel[:, None]).expand(-1, 3, -1, -1))
+        return _pool_and_project(feats[max(feats)], self.dropout, self.proj)
 
 
 class _Net(nn.Module):

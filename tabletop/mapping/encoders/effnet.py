@@ -220,15 +220,7 @@ def _classes():
             top = self.forward(x)[32]
             return self.classifier(self.head(top).mean(dim=(2, 3)))
 
-    def sep(i, o):
-        """Depthwise-separable 3x3 conv + BN + ReLU."""
-        return nn.Sequential(
-            nn.Conv2d(i, i, 3, 1, 1, groups=i, bias=False),
-            nn.BatchNorm2d(i),
-            nn.Conv2d(i, o, 1, bias=False),
-            nn.BatchNorm2d(o),
-            nn.ReLU(inplace=True),
-        )
+    from tabletop.mapping.encoders.lseg import separable_conv as sep
 
     class Net(nn.Module):
         """EfficientNet-Lite0 pyramid -> top-down fusion -> 1x1 projection -> L2 norm."""
