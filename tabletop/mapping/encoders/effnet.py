@@ -35,6 +35,7 @@ __all__ = [
     "imagenet_weights_path",
     "load_imagenet_backbone",
     "reference_to_backbone_keys",
+    "separable_conv",
 ]
 
 EFFNET_ARCH = "effnet-lite0-fpn"
@@ -122,6 +123,19 @@ def _torch():
     import torch
 
     return torch
+
+
+def separable_conv(i: int, o: int):
+    """Depthwise-separable 3x3 conv + BN + ReLU (``i`` -> ``o`` channels), the fusion block of
+    both dense networks (a ``torch.nn.Sequential``: its state-dict keys are 0, 1, 3, 4)."""
+    nn = _torch().nn
+    return nn.Sequential(
+        nn.Conv2d(i, i, 3, 1, 1, groups=i, bias=False),
+        nn.BatchNorm2d(i),
+        nn.Conv2d(i, o, 1, bias=False),
+        nn.BatchNorm2d(o),
+        nn.ReLU(inplace=True),
+    )
 
 
 @functools.cache
@@ -220,7 +234,7 @@ def _classes():
             top = self.forward(x)[32]
             return self.classifier(self.head(top).mean(dim=(2, 3)))
 
-    from tabletop.mapping.encoders.lseg import separable_conv as sep
+    sep = separable_conv
 
     class Net(nn.Module):
         """EfficientNet-Lite0 pyramid -> top-down fusion -> 1x1 projection -> L2 norm."""

@@ -40,7 +40,6 @@ __all__ = [
     "LSegNet",
     "build_lseg_net",
     "build_vision_net",
-    "separable_conv",
 ]
 
 log = logging.getLogger(__name__)
@@ -100,19 +99,6 @@ def _torch():
     return torch
 
 
-def separable_conv(i: int, o: int):
-    """Depthwise-separable 3x3 conv + BN + ReLU (``i`` -> ``o`` channels), the fusion block of
-    both dense networks (a ``torch.nn.Sequential``: its state-dict keys are 0, 1, 3, 4)."""
-    nn = _torch().nn
-    return nn.Sequential(
-        nn.Conv2d(i, i, 3, 1, 1, groups=i, bias=False),
-        nn.BatchNorm2d(i),
-        nn.Conv2d(i, o, 1, bias=False),
-        nn.BatchNorm2d(o),
-        nn.ReLU(inplace=True),
-    )
-
-
 def _make_net_class():
     torch = _torch()
     nn = torch.nn
@@ -125,7 +111,7 @@ def _make_net_class():
             nn.ReLU(inplace=True),
         )
 
-    sep = separable_conv
+    from tabletop.mapping.encoders.effnet import separable_conv as sep
 
     class _LSegNet(nn.Module):
         """A small encoder-decoder: stride-16 context (dilated convs + image pooling) fused
