@@ -186,6 +186,14 @@ class AudioTrainConfig:
     """SpecAugment: one time mask and one frequency mask per segment."""
     mixup_fraction: float = 0.3
     """Share of segments that get a second clip of another category at -10..-20 dB."""
+    label_mix_fraction: float = 0.3
+    """Share of segments mixed with a clip of another category at ``label_mix_snr_db``, the
+    target split between the two categories by their power share (mixup for sounds; 0 = off)."""
+    label_mix_snr_db: tuple[float, float] = (-5.0, 5.0)
+    """Range [dB] of the first clip's power over the second's in a labelled mix."""
+    ema_decay: float = 0.999
+    """Decay of an exponential moving average of the weights, which is what is saved
+    (0 = off: the last step's weights)."""
     text_smoothing: float = 0.0
     """Share of each target spread over the other categories in proportion to
     ``softmax(caption similarity / 0.05)`` (semantic label smoothing; 0 = one-hot)."""
@@ -226,16 +234,18 @@ class AudioTrainConfig:
                 f"need 0 < min_segment_s <= max_segment_s, got {self.min_segment_s}, "
                 f"{self.max_segment_s}"
             )
-        for name in ("snr_db", "gain_db", "speed"):
+        for name in ("snr_db", "gain_db", "speed", "label_mix_snr_db"):
             lo, hi = getattr(self, name)
             if not lo <= hi:
                 raise ConfigError(f"{name} must be a (low, high) range, got {(lo, hi)}")
             object.__setattr__(self, name, (float(lo), float(hi)))
         if not self.speed[0] > 0:
             raise ConfigError(f"speed factors must be > 0, got {self.speed}")
-        for name in ("clean_fraction", "mixup_fraction", "text_smoothing"):
+        for name in ("clean_fraction", "mixup_fraction", "label_mix_fraction", "text_smoothing"):
             if not 0 <= getattr(self, name) <= 1:
                 raise ConfigError(f"{name} must be in [0, 1], got {getattr(self, name)}")
+        if not 0 <= self.ema_decay < 1:
+            raise ConfigError(f"ema_decay must be in [0, 1), got {self.ema_decay}")
         if self.device not in ("cpu", "cuda"):
             raise ConfigError(f"device must be 'cpu' or 'cuda', got {self.device!r}")
         if self.backbone_lr_scale <= 0:
@@ -508,8 +518,9 @@ def _absent_figures(score, clip_cat, cats, bank, audio_emb, threshold, n_maps, s
         s = expit(score(texts, emb))
         rejected += int((s.max(axis=1) < threshold).sum())
         asked += len(texts)
-        s = expit(score([bank.caption(cats[c]) for c in chosen], emb))
-        found += int(((s.max(axis=1) >= threshold) & (s.argmax(axis=1) == np.arange(6))).sum())
+        raw = score([bank.caption(cats[c]) for c in chosen], emb)  # log-odds: no rounding
+        s = expit(raw)
+        found += int(((s.max(axis=1) >= threshold) & (raw.argmax(axis=1) == np.arange(6))).sum())
         present += 6
     return {
         "audio_absent_rejected": rejected / max(asked, 1),
@@ -544,6 +555,38 @@ def _spec_mask(logmel, rng: np.random.Generator):
         s = int(rng.integers(0, m - w + 1))
         out[i, s : s + w, :] = 0.0
     return out
+
+
+def _labelled_mix(seg, k, train_cats, by_cat, audio, rate, length, rng, snr_db):
+    """``seg`` mixed with a segment of another category at a power ratio drawn from
+    ``snr_db``: (the mix, the other category or None when nothing was mixed, the first's power
+    share: the weight of its label)."""
+    other = train_cats[train_cats != k]
+    other_k = int(rng.choice(other))
+    o = make_segment(audio[int(rng.choice(by_cat[other_k]))], rate, length, rng, snr_db=None)
+    po, ps = float(np.mean(o**2)), float(np.mean(seg**2))
+    if po <= 0 or ps <= 0:
+        return seg, None, 1.0
+    snr = float(rng.uniform(*snr_db))
+    g = math.sqrt(ps / po * 10 ** (-snr / 10))
+    share = 1.0 / (1.0 + 10 ** (-snr / 10))
+    return np.clip(seg + g * o, -1, 1).astype(np.float32), other_k, share
+
+
+def _ema_init(net) -> dict:
+    return {k: v.detach().clone() for k, v in net.state_dict().items()}
+
+
+def _ema_update(ema: dict, net, decay: float) -> None:
+    """Move the floating-point entries of ``ema`` towards ``net``'s; copy the others (counters)."""
+    import torch
+
+    with torch.no_grad():
+        for k, v in net.state_dict().items():
+            if v.dtype.is_floating_point:
+                ema[k].mul_(decay).add_(v.detach(), alpha=1 - decay)
+            else:
+                ema[k].copy_(v)
 
 
 def train_audio(config: AudioTrainConfig | None = None) -> Path:
@@ -640,12 +683,14 @@ def train_audio(config: AudioTrainConfig | None = None) -> Path:
             p = (step - cfg.warmup_steps) / max(1, cfg.steps - cfg.warmup_steps)
             return cfg.lr * (0.01 + 0.99 * 0.5 * (1 + math.cos(math.pi * p)))
 
+        ema = _ema_init(net) if cfg.ema_decay else None
         net.train()
         for step in range(cfg.steps):
             length = float(rng.uniform(cfg.min_segment_s, cfg.max_segment_s))
             ks = rng.choice(train_cats, size=cfg.batch_size)  # balanced over categories
             waves = []
-            for k in ks:
+            mixes = []  # (row, other category, share of the first)
+            for row, k in enumerate(ks):
                 i = int(rng.choice(by_cat[int(k)]))
                 clean = rng.random() < cfg.clean_fraction
                 seg = make_segment(
@@ -666,6 +711,12 @@ def train_audio(config: AudioTrainConfig | None = None) -> Path:
                     if po > 0:
                         g = math.sqrt(ps / po * 10 ** (-rng.uniform(10, 20) / 10))
                         seg = np.clip(seg + g * o, -1, 1).astype(np.float32)
+                if cfg.label_mix_fraction and rng.random() < cfg.label_mix_fraction:
+                    seg, other_k, share = _labelled_mix(
+                        seg, k, train_cats, by_cat, audio, rate, length, rng, cfg.label_mix_snr_db
+                    )
+                    if other_k is not None:
+                        mixes.append((row, other_k, share))
                 waves.append(seg)
             x = torch.from_numpy(np.stack(waves)).to(dev)
             with torch.no_grad():
@@ -679,12 +730,18 @@ def train_audio(config: AudioTrainConfig | None = None) -> Path:
             t = torch.stack([pe[int(rng.integers(len(pe)))] for pe in phrase_emb])  # (C, D)
             logits = logit_scale.clamp(max=math.log(100.0)).exp() * emb @ t.T
             target = soft[torch.from_numpy(ks).long().to(dev)]  # (B, C)
+            if mixes:
+                target = target.clone()
+                for row, other_k, share in mixes:
+                    target[row] = share * target[row] + (1 - share) * soft[other_k]
             loss = torch.nn.functional.cross_entropy(logits, target)
             for g in opt.param_groups:
                 g["lr"] = lr_at(step) * g["scale"]
             opt.zero_grad(set_to_none=True)
             loss.backward()
             opt.step()
+            if ema is not None:
+                _ema_update(ema, net, cfg.ema_decay)
             if step % 50 == 0 or step == cfg.steps - 1:
                 acc = float((logits.argmax(1).cpu().numpy() == ks).mean())
                 log.info(
@@ -707,6 +764,8 @@ def train_audio(config: AudioTrainConfig | None = None) -> Path:
                 )
                 net.train()
 
+        if ema is not None:
+            net.load_state_dict(ema)
         net.eval()
         net.to("cpu")
         train_s = time.perf_counter() - t_start
