@@ -105,6 +105,10 @@ def _track(spans, seconds, seed=0):
 
 @pytest.fixture(scope="module")
 def module():
+    return _dogs_and_phone(VOCAB)
+
+
+def _dogs_and_phone(vocabulary, config=None):
     """A dog heard at x = 0.1 m and again at 0.5 m, a phone at 0.3 m."""
     text = text_encoder()
     events = [
@@ -112,7 +116,7 @@ def module():
         {"caption": "a phone ringing", "onset_s": 5.0, "offset_s": 6.0},
         {"caption": "a dog barking", "onset_s": 9.0, "offset_s": 10.0},
     ]
-    m = AudioModule(GRID, AudioConfig(), VOCAB)
+    m = AudioModule(GRID, config or AudioConfig(), vocabulary)
     t = np.arange(0, 12.0, 1 / 30)
     T = np.repeat(np.eye(4)[None], len(t), axis=0)
     T[:, 0, 3] = np.where(t < 4, 0.1, np.where(t < 8, 0.3, 0.5))
@@ -129,6 +133,28 @@ def test_a_sound_heard_twice_is_hot_in_both_places(module):
     xs = GRID.axes()[0]
     at = {x: float(hot[np.argmin(np.abs(xs - x))]) for x in (0.1, 0.3, 0.5)}
     assert at[0.1] > 0.9 and at[0.5] > 0.9 and at[0.3] < 0.5
+
+
+@pytest.mark.parametrize("tie_break", [0.05, 0.0])
+def test_the_surest_of_saturated_segments_is_the_peak_and_both_stay_hot(tie_break):
+    """Two dog segments whose posteriors both round to 1 (a sharp vocabulary): the log-odds
+    tell them apart, so the heat's peak is the surer one, not whichever came first, and both
+    stay hot. Without the tie-break the first (less sure) one wins the tie."""
+    sharp = SoundVocabulary(VOCAB.texts, logit_scale=100.0)
+    m = _dogs_and_phone(sharp, AudioConfig(tie_break=tie_break))
+    e = m.embeddings[0] + 0.1 * m.embeddings[1]  # the first dog, a little like a phone
+    m.embeddings[0] = (e / np.linalg.norm(e)).astype(np.float32)
+    q = m.match("a barking dog", text_encoder())
+    assert q.scores[0] == q.scores[2] == 1.0  # a tie in the posteriors
+    assert q.log_odds[2] > q.log_odds[0]
+    h = m.heatmap("a barking dog", 10.0, text_encoder(), judge_at(0.5))
+    p = max_position(h, np.zeros(GRID.shape, bool))
+    surest = 0.5 if tie_break else 0.1
+    assert p[0] == pytest.approx(surest, abs=0.011)  # 0.5: where the surer segment was heard
+    z = GRID.shape[2] // 2
+    hot = h.values[:, GRID.shape[1] // 2, z]
+    xs = GRID.axes()[0]
+    assert float(hot[np.argmin(np.abs(xs - 0.1))]) > 0.8  # still hot (the phone: < 0.5)
 
 
 def test_the_phone_is_found_where_it_rang(module):

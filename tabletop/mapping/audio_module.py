@@ -70,6 +70,10 @@ class AudioConfig:
     """Categories within this cosine of the query's best one are asked for too."""
     keep_ratio: float = 0.5
     """Segments scoring at least this share of the best stay hot."""
+    tie_break: float = 0.05
+    """Hot segments whose posteriors all round to 1 are told apart by their log-odds: each
+    is cooled by up to this share, ``tie_break * (1 - exp(log-odds - the best's))``, so the
+    heat's peak is the surest segment and the others stay hot (vocabulary path)."""
     join_gap_s: float = 1.0
     """Neighbouring segments closer than this [s] that sound alike are joined into one."""
     join_cosine: float = 0.85
@@ -93,6 +97,8 @@ class AudioConfig:
             )
         if not 0 < self.keep_ratio <= 1:
             raise ConfigError(f"keep_ratio must be in (0, 1], got {self.keep_ratio}")
+        if not 0 <= self.tie_break < 1:
+            raise ConfigError(f"tie_break must be in [0, 1), got {self.tie_break}")
 
 
 class AudioModule:
@@ -223,7 +229,9 @@ class AudioModule:
             )
         s = m.scores
         best = float(s.max())
-        keep = np.where(s >= self.config.keep_ratio * best, s / max(best, 1e-12), 0.0)
+        lo = np.nan_to_num(m.log_odds, nan=-np.inf, posinf=np.finfo(float).max)
+        tie = 1.0 - self.config.tie_break * (1.0 - np.exp(np.minimum(lo - lo.max(), 0.0)))
+        keep = np.where(s >= self.config.keep_ratio * best, s / max(best, 1e-12) * tie, 0.0)
         pos = np.stack(self.positions)[:, :2]
         values = scored_points_heatmap_xy(self.grid, pos, keep, decay)
         conf, found = judge("sound", best)
