@@ -127,6 +127,34 @@ def test_a_shorter_name_may_mean_a_longer_one(scene):
     assert set(m.names) == {"ball", "soccer ball"}
 
 
+def test_the_best_matching_name_ranks_first_among_those_the_words_may_mean():
+    """ "the small rubber ball" may mean the soccer ball too (its head noun is part of the
+    name), but the ball matches its words better: the ball is where the robot goes, and both
+    stay hot only when the words fit both alike."""
+    from module_helpers import coloured_voxels
+
+    from tabletop.mapping.table_regions import fit_table
+
+    balls = {
+        "soccer ball": ((0.10, -0.20, 0.01), (0.16, -0.14, 0.07), (230, 230, 230)),
+        "ball": ((0.40, 0.10, 0.01), (0.46, 0.16, 0.07), (30, 60, 180)),
+    }
+    vm = coloured_voxels(balls)
+    mod = ObjectModule(
+        vm, text_encoder(), ObjectConfig(), VOCAB, {}, lambda: fit_table(GRID, vm.indices)
+    )
+    m = mod.match("the small rubber ball")
+    assert set(m.names) == {"ball", "soccer ball"} and m.nearest == "ball"
+    assert m.scores.min() > 0.9  # both are what the words may mean: the evidence is alike
+    h = mod.heatmap("the small rubber ball", 10.0, judge_at(0.2))
+    p = max_position(h, vm.occupancy())
+    lo, hi, _ = balls["ball"]
+    assert np.all(p[:2] >= np.subtract(lo[:2], 0.01)) and np.all(p[:2] <= np.add(hi[:2], 0.01))
+    lo, hi, _ = balls["soccer ball"]
+    idx, _ = GRID.world_to_index(np.array([np.add(lo, hi) / 2]))
+    assert h.values[tuple(idx[0])] < 1.0  # the soccer ball is not hot
+
+
 def test_instances_off_scores_voxels(scene):
     off = ObjectModule(scene.voxels, text_encoder(), ObjectConfig(instances=False), VOCAB)
     assert not off.uses_instances

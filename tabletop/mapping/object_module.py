@@ -85,6 +85,11 @@ class ObjectConfig:
     """CIELAB ΔE at which a colour's fit falls to 1/e."""
     keep_ratio: float = 0.5
     """Instances scoring at least this fraction of the best stay hot."""
+    name_temperature: float = 0.02
+    """Among the names a query may mean, instances of the names its words match best come
+    first: each name weighs ``exp((its cosine - the best's) / name_temperature)`` when the
+    instances are ranked ("the small rubber ball" prefers the ball to the soccer ball). Whether
+    anything is found is decided on the unweighted scores."""
 
     def __post_init__(self) -> None:
         if not 0 <= self.select_margin <= 1:
@@ -101,7 +106,7 @@ class ObjectConfig:
         for name in ("text_min", "keep_ratio"):
             if not 0 <= getattr(self, name) <= 1:
                 raise ConfigError(f"{name} must be in [0, 1], got {getattr(self, name)}")
-        for name in ("text_margin", "temperature", "colour_scale"):
+        for name in ("text_margin", "temperature", "colour_scale", "name_temperature"):
             if not getattr(self, name) > 0:
                 raise ConfigError(f"{name} must be > 0, got {getattr(self, name)}")
 
@@ -124,10 +129,20 @@ class InstanceMatch:
     """(n_instances,) probability that each instance is one of ``names``."""
     colour_match: np.ndarray
     """(n_instances,) how well each instance's measured colour fits ``colour`` (1 without)."""
+    preference: np.ndarray
+    """(n_instances,) in [0, 1]: each instance's probability mass on ``names`` weighted by how
+    well each name matches the words, over ``kind`` (1 where the best-matching name is all
+    of it)."""
 
     @property
     def scores(self) -> np.ndarray:
+        """(n_instances,) how well each instance is what the query asks: the evidence."""
         return self.kind * self.colour_match
+
+    @property
+    def ranked(self) -> np.ndarray:
+        """(n_instances,) the scores with the better-matching names first: the ranking."""
+        return self.scores * self.preference
 
 
 class ObjectModule:
@@ -250,22 +265,26 @@ class ObjectModule:
             want = per >= per[best] - cfg.text_margin
             want |= np.array([content[-1] in name.split() for name in self.vocabulary])
             names = tuple(str(x) for x in np.array(self.vocabulary)[want])
+            weight = np.exp((per - per[best]) / cfg.name_temperature)
         else:  # "something red": any object
             names, text_score, nearest = self.vocabulary, 1.0, ""
             want = np.ones(nv, bool)
+            weight = np.ones(nv)
         if n:
             z = self.class_scores(inst) / cfg.temperature
             p = np.exp(z - z.max(axis=1, keepdims=True))
             p /= p.sum(axis=1, keepdims=True)
             kind = p[:, :nv][:, want].sum(axis=1)
+            weighted = p[:, :nv][:, want] @ weight[want]
+            preference = np.divide(weighted, kind, out=np.zeros(n), where=kind > 0)
         else:
-            kind = np.zeros(0)
+            kind = preference = np.zeros(0)
         if colour:
             w = self._colour_weights(colour)
             cm = np.maximum(self.colour_match(w, inst), self.learned_colour(w, inst, want))
         else:
             cm = np.ones(n)
-        return InstanceMatch(words, colour, names, text_score, nearest, kind, cm)
+        return InstanceMatch(words, colour, names, text_score, nearest, kind, cm, preference)
 
     def _colour_weights(self, colour: str) -> np.ndarray:
         """(len(COLOR_NAMES),) summing to 1: the lexicon names the colour phrase means (their
@@ -349,10 +368,12 @@ class ObjectModule:
                 grid, query, "object", decay, "no object stands on the map's table", 0.0
             )
         s = m.scores
-        k = int(np.argmax(s))
-        best = float(s[k])
+        r = m.ranked if m.ranked.max() > 0 else s
+        k = int(np.argmax(r))
+        best = float(s.max())
         conf, found = judge("object", best)
         if not found:
+            k = int(np.argmax(s))
             what = f"{m.colour} " if m.colour else ""
             return Heatmap.not_found(
                 grid,
@@ -367,7 +388,7 @@ class ObjectModule:
             )
         mask = np.zeros(grid.size, bool)
         lin = self.voxels.linear_indices
-        for i in np.nonzero(s >= self.config.keep_ratio * best)[0]:
+        for i in np.nonzero(r >= self.config.keep_ratio * float(r[k]))[0]:
             mask[lin[inst[i].rows]] = True
         values = point_heatmap_3d(grid, mask.reshape(grid.shape), decay)
         return Heatmap(grid, values, query, "object", decay, conf, True, "", best)
