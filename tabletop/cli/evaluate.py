@@ -201,6 +201,22 @@ def cmd_demo(args: argparse.Namespace) -> int:
 
 
 # ---------------------------------------------------------------------- calibrate
+def _check_calibration_output(out: Path) -> None:
+    """``out`` may be replaced only when it is a calibration file (its ``format`` says so):
+    never a directory or a file this package did not write."""
+    if not out.exists():
+        return
+    try:
+        ok = out.is_file() and json.loads(out.read_text())["format"] == "tabletop-calibration"
+    except (OSError, ValueError, KeyError, TypeError):
+        ok = False
+    if not ok:
+        raise ConfigError(
+            f"--out {out} exists and is not a calibration file (format 'tabletop-calibration'); "
+            "calibrate only replaces a previous calibration: choose another path"
+        )
+
+
 def cmd_calibrate(args: argparse.Namespace) -> int:
     """Fit the confidence calibration of an encoder set on seeded scenes (first half) and
     report it on the others; writes out/calibration/<set>.json (or --out)."""
@@ -212,6 +228,8 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     if bad:  # before a quarter of an hour of scanning, not after
         print(f"tabletop calibrate: --keep-prior {bad}: valid {list(MODALITIES)}", file=sys.stderr)
         return 2
+    out = args.out if args.out is not None else CALIBRATION_OUT_DIR / f"{args.encoders}.json"
+    _check_calibration_output(Path(out))  # before the scans, not after them
     seeds = list(CALIBRATION_SEEDS)[: args.scenes] if args.scenes else list(CALIBRATION_SEEDS)
     print(f"calibrating {args.encoders!r} on scenes {seeds} ...", file=sys.stderr)
     cal = run_calibration(
@@ -222,7 +240,6 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     )
     if keep_prior:
         cal = cal.keep_prior(keep_prior)
-    out = args.out if args.out is not None else CALIBRATION_OUT_DIR / f"{args.encoders}.json"
     path = cal.save(out)
     print(json.dumps(cal.to_json(), indent=1))
     print(f"written {path}", file=sys.stderr)

@@ -13,8 +13,10 @@ __all__ = ["add_commands", "cmd_build_map", "cmd_query"]
 
 def cmd_build_map(args: argparse.Namespace) -> int:
     from tabletop.eval.harness import build_map, map_config
+    from tabletop.mapping.persistence import check_map_output
     from tabletop.recording import load_recording
 
+    check_map_output(args.out, args.overwrite)  # before the map is built, not after
     print(f"loading {args.recording} ...", file=sys.stderr)
     rec = load_recording(args.recording)
     config = map_config(voxel_size=args.voxel_size, pixel_step=args.pixel_step)
@@ -105,6 +107,7 @@ def add_commands(sub) -> None:
     p = sub.add_parser("build-map", help="fuse a recording into an AVLMap")
     p.add_argument("recording", help="recording directory (tabletop scan --out ...)")
     p.add_argument("--out", required=True, help="map file (.npz)")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing map file")
     p.add_argument(
         "--encoders",
         default="oracle",

@@ -38,6 +38,7 @@ __all__ = [
     "MAP_VERSION",
     "READABLE_VERSIONS",
     "MapFormatError",
+    "check_map_output",
     "read_map_file",
     "save_map",
 ]
@@ -51,14 +52,51 @@ MAP_VERSION = 4
 READABLE_VERSIONS = (1, 2, 3, 4)
 
 
-def save_map(m, path: str | Path, *, rebuild: dict | None = None) -> Path:
-    """Write map ``m`` to ``path`` (``.npz``) atomically. ``rebuild`` is what the encoder set
-    needs to be re-created on load (the registry fills it for the oracle)."""
-    path = Path(path)
+def _is_map_file(path: Path) -> bool:
+    """Whether ``path`` is a file this package wrote as a map (its header names the format);
+    only the header is read."""
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            header = json.loads(z["header"].tobytes().decode())
+        return isinstance(header, dict) and header.get("format") == MAP_FORMAT
+    except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile, UnicodeDecodeError):
+        return False
+
+
+def _check_suffix(path: Path) -> None:
     if path.suffix != ".npz":
-        path = path.with_suffix(".npz")
+        raise ConfigError(
+            f"map path {path} must end in .npz (a map is one .npz file); got suffix "
+            f"{path.suffix or 'none'!r}"
+        )
     if path.is_dir():
         raise ConfigError(f"{path} is a directory; give a .npz file path for the map")
+
+
+def check_map_output(path: str | Path, overwrite: bool = False) -> Path:
+    """Check before any work that a map may be written to ``path``: a ``.npz`` path that does
+    not exist, or (with ``overwrite``) a map file this package wrote. Any other existing file is
+    never replaced: the user's data is not ours to delete."""
+    path = Path(path)
+    _check_suffix(path)
+    if not path.exists():
+        return path
+    if not overwrite:
+        raise ConfigError(f"{path} exists; pass --overwrite to replace it")
+    if not _is_map_file(path):
+        raise ConfigError(
+            f"{path} exists and is not a map (no header of format {MAP_FORMAT!r}); "
+            "--overwrite only replaces a previous map: choose another path"
+        )
+    return path
+
+
+def save_map(m, path: str | Path, *, rebuild: dict | None = None) -> Path:
+    """Write map ``m`` to ``path`` (``.npz``; any other suffix is an error, never renamed)
+    atomically. ``rebuild`` is what the encoder set needs to be re-created on load (the
+    registry fills it for the oracle)."""
+    path = Path(path)
+    _check_suffix(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     sounds, areas = m.sounds, m.areas
     header = {
