@@ -103,6 +103,36 @@ HOSTILE = [
     ("x = b'bytes'", "bytes literals"),
     ("x" * 30_000, "characters"),
     ("robot.move_to((0.4, 0, 0.1))\x00", "NUL"),
+    # expressions nested deeper than any check may recurse: refused before parsing
+    ("x = " + "+".join(["1"] * 9000), "more than 100 operators"),
+    ("x = " + "1+" * 99_999 + "1", "characters"),
+    ("x = " + "-" * 5000 + "1", "more than 100 operators"),
+    ("x = " + "(" * 300 + "1" + ")" * 300, "more than 100 operators"),
+    ("x = " + "[" * 300 + "]" * 300, "more than 100 operators"),
+    ("x = robot" + ".a" * 500, "more than 100 operators"),
+    ("x = robot.current_position" + "()" * 500, "more than 100 operators"),
+    ("p = robot.current_position()\nx = p" + " * p" * 200, "line 2: the statement has more"),
+    # control and format characters: the listing a user reviews must be what runs
+    ("# go north\x1b[2K\rrobot.move_south(0.5)\nrobot.move_north(0.01)", "U+001B (ESC)"),
+    ("robot.move_north(0.01)\rrobot.move_south(0.5)", "U+000D (CR)"),
+    ("robot.move_north(0.01)  # \u202e)5.0(htuos_evom.tobor", "U+202E"),
+    ("robot.move_north(0.01)\u2028robot.move_south(0.5)", "U+2028"),
+    ("x = 'mug\u200b'", "U+200B"),
+    ("x = 1\x0bx = 2", "U+000B"),
+    ("robot.move_north(0.01)\x08\x08\x08", "U+0008 (BS)"),
+    ("\ufeffrobot.move_north(0.01)", "U+FEFF"),
+    ("x = 1\n\nrobot.move_north(0.01) \x7f", "line 3: character U+007F (DEL)"),
+    # numbers and loops too large to be sized
+    ("for i in range(100000000000000000000000000000):\n    pass", "2**63"),
+    ("for i in range(0, 9223372036854775808, 2):\n    pass", "2**63"),
+    ("x = 100000000000000000000000000000000", "beyond 2**63"),
+    ("x = -9223372036854775808", "beyond 2**63"),
+    ("x = '" + "a" * 600 + "'", "longer than 500"),
+    ("x = [" + "0, " * 17 + "]", "at most 16 items"),
+    ("x = (" + "0, " * 17 + ")", "at most 16 items"),
+    ("x = 2 ** 64", "'**'"),
+    ("x = 1 << 64", "'<<'"),
+    ("p = robot.current_position()\nx = p @ p", "'@'"),
 ]
 
 

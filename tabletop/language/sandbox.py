@@ -15,14 +15,22 @@ so imports, attribute access other than ``robot.<method>``, dunder names, ``open
 ``**`` and the like are refused, each with its line. Loops have literal bounds, so the number
 of steps and robot calls is known before anything runs: code over the limits is refused too.
 Refused code raises :class:`CodeRejected` before its first line runs, so the robot never moves.
-While running, :func:`run_code` also counts steps and checks a wall-clock limit between steps.
+Before parsing, control and format characters (all but newline and tab) are refused, so the
+listing a user reviews is what runs, and a statement's operators and brackets are counted, so
+no check recurses deeper than :attr:`SandboxConfig.max_expr_ops`. While running,
+:func:`run_code` also counts steps, checks a wall-clock limit between steps, and a memory
+budget: a list, tuple or array result is sized before it is built (:class:`SandboxLimit` over
+:attr:`SandboxConfig.max_elements`).
 """
 
 from __future__ import annotations
 
 import ast
+import io
 import sys
 import time
+import tokenize
+import unicodedata
 from collections.abc import Callable
 from dataclasses import dataclass
 from numbers import Real
@@ -126,9 +134,23 @@ class SandboxConfig:
     """Wall-clock limit [s] of one run, checked between steps (a motion in progress ends)."""
     max_string: int = 500
     """Longest string literal [characters]."""
+    max_expr_ops: int = 100
+    """Most operators, brackets and dots in one statement (bounds how deep any expression
+    nests, checked before the code is parsed)."""
+    max_elements: int = 2_000_000
+    """Most elements of a list, tuple or array the code builds (nested lists counted through,
+    an array by its size); a heatmap product no larger than its factors is always allowed."""
 
     def __post_init__(self) -> None:
-        for name in ("max_code_chars", "max_loop", "max_steps", "max_calls", "max_moves"):
+        for name in (
+            "max_code_chars",
+            "max_loop",
+            "max_steps",
+            "max_calls",
+            "max_moves",
+            "max_expr_ops",
+            "max_elements",
+        ):
             if getattr(self, name) < 1:
                 raise ConfigError(f"SandboxConfig.{name} must be >= 1, got {getattr(self, name)}")
         if not self.timeout_s > 0:
@@ -238,6 +260,9 @@ class _Checker:
         if any(b is None for b in bounds) or (len(bounds) == 3 and bounds[2] == 0):
             self.refuse(s, "range() bounds must be literal integers (a step other than 0)")
             return 0
+        if any(abs(b) >= _MAX_INT for b in bounds):
+            self.refuse(s, f"range() bounds beyond 2**63; at most {self.config.max_loop} loops")
+            return 0
         n = len(range(*bounds))
         if n > self.config.max_loop:
             self.refuse(s, f"range() gives {n} iterations; at most {self.config.max_loop}")
@@ -262,6 +287,9 @@ class _Checker:
         self.steps += mult
         if isinstance(e, ast.Constant):
             v = e.value
+            if isinstance(v, int) and not isinstance(v, bool) and abs(v) >= _MAX_INT:
+                self.refuse(e, "integer literals beyond 2**63 are not allowed")
+                return
             if isinstance(v, bool) or v is None or isinstance(v, (int, float)):
                 return
             if isinstance(v, str):
@@ -370,6 +398,46 @@ def _literal_int(node: ast.expr) -> int | None:
     return None
 
 
+_CONTROL_NAMES = {0x00: "NUL", 0x08: "BS", 0x0D: "CR", 0x1B: "ESC", 0x7F: "DEL"}
+
+
+def _hidden_characters(code: str) -> list[str]:
+    """One problem per line with a control or format character other than newline and tab:
+    such characters (a carriage return, an escape sequence, a bidirectional override) can
+    make the listing a user reviews differ from the code that runs."""
+    problems = []
+    for n, line in enumerate(code.split("\n"), 1):
+        for ch in line:
+            if ch != "\t" and unicodedata.category(ch) in ("Cc", "Cf", "Zl", "Zp", "Cs"):
+                name = _CONTROL_NAMES.get(ord(ch)) or unicodedata.name(ch, "control character")
+                problems.append(
+                    f"line {n}: character U+{ord(ch):04X} ({name}) is not allowed: only "
+                    "printable characters, newlines and tabs, so the listing shows what runs"
+                )
+                break
+    return problems
+
+
+def _operator_counts(code: str, limit: int) -> list[str]:
+    """One problem per statement with more than ``limit`` operators, brackets and dots (what
+    makes an expression nest), counted on the tokens so that nothing recurses first."""
+    problems, count = [], 0
+    try:
+        for tok in tokenize.generate_tokens(io.StringIO(code).readline):
+            if tok.type == tokenize.NEWLINE:
+                count = 0
+            elif tok.type == tokenize.OP and tok.string not in ",:;=)]}":
+                count += 1
+                if count == limit + 1:
+                    problems.append(
+                        f"line {tok.start[0]}: the statement has more than {limit} operators "
+                        "and brackets (nested too deeply); split it into several assignments"
+                    )
+    except (tokenize.TokenError, SyntaxError):
+        pass  # ast.parse names the syntax error
+    return problems
+
+
 def check_code(code: str, config: SandboxConfig | None = None) -> CheckedCode:
     """Parse and check ``code``; :class:`CodeRejected` lists every refused construct."""
     config = config or SandboxConfig()
@@ -377,12 +445,18 @@ def check_code(code: str, config: SandboxConfig | None = None) -> CheckedCode:
         raise CodeRejected([f"code must be a string, got {type(code).__name__}"])
     if len(code) > config.max_code_chars:
         raise CodeRejected([f"code is {len(code)} characters; at most {config.max_code_chars}"])
-    if "\x00" in code:
-        raise CodeRejected(["code contains a NUL character"])
+    hidden = _hidden_characters(code)
+    if hidden:
+        raise CodeRejected(hidden)
+    deep = _operator_counts(code, config.max_expr_ops)
+    if deep:
+        raise CodeRejected(deep)
     try:
         tree = ast.parse(code, mode="exec")
     except SyntaxError as e:
         raise CodeRejected([f"line {e.lineno}: syntax error: {e.msg}"]) from None
+    except (RecursionError, MemoryError, ValueError) as e:
+        raise CodeRejected([f"the code cannot be parsed: {type(e).__name__}: {e}"]) from None
     checker = _Checker(config)
     checker.body(tree.body, 1)
     c = checker
@@ -420,6 +494,41 @@ class _Interpreter:
         self.calls: list[CallRecord] = []
         self.steps = 0
         self.t0 = time.monotonic()
+        # id -> (list or tuple, its element count): the code cannot change a list it built, so
+        # a count is taken once, from its items' counts (the object is kept so its id stays)
+        self.sizes: dict[int, tuple[object, int]] = {}
+
+    def size(self, v) -> int:
+        """Elements of ``v`` counted through nested lists and tuples (an array or a heatmap
+        by its size); a walk of a sequence the code did not build stops above the budget."""
+        known = self.sizes.get(id(v))
+        if known is not None and known[0] is v:
+            return known[1]
+        if isinstance(v, np.ndarray):
+            return v.size
+        if _is_heatmap(v):
+            return int(np.size(v.values))
+        if not isinstance(v, (list, tuple)):
+            return 1
+        total, stack = 0, [v]
+        while stack and total <= self.config.max_elements:
+            x = stack.pop()
+            if isinstance(x, (list, tuple)) and id(x) not in self.sizes:
+                stack.extend(x)
+            else:
+                total += self.size(x)
+        return total
+
+    def built(self, node: ast.AST, seq: list | tuple):
+        """``seq`` (a list or tuple the code just built), within the memory budget."""
+        n = sum(self.size(x) for x in seq)
+        if n > self.config.max_elements:
+            raise SandboxLimit(
+                f"line {node.lineno}: a list of {n} elements (nested lists counted through); "
+                f"at most {self.config.max_elements}"
+            )
+        self.sizes[id(seq)] = (seq, n)
+        return seq
 
     def tick(self, node: ast.AST) -> None:
         self.steps += 1
@@ -485,9 +594,9 @@ class _Interpreter:
                 raise SandboxError(f"line {e.lineno}: unary minus on {type(v).__name__}")
             return _UNARY[type(e.op)](v)
         if isinstance(e, ast.Tuple):
-            return tuple(self.expr(x) for x in e.elts)
+            return self.built(e, tuple(self.expr(x) for x in e.elts))
         if isinstance(e, ast.List):
-            return [self.expr(x) for x in e.elts]
+            return self.built(e, [self.expr(x) for x in e.elts])
         if isinstance(e, ast.Subscript):
             v = self.lookup(e, e.value.id)
             if not isinstance(v, (tuple, list, np.ndarray)):
@@ -508,6 +617,8 @@ class _Interpreter:
                     f"line {node.lineno}: arithmetic on {type(v).__name__} is not allowed "
                     "(numbers, arrays and heatmaps only)"
                 )
+        if arrays:
+            self.check_broadcast(node, a, b)
         try:
             with np.errstate(all="raise", under="ignore"):  # heat products may underflow to 0
                 out = _BINOPS[type(op)](a, b)
@@ -516,6 +627,20 @@ class _Interpreter:
         if isinstance(out, int) and abs(out) >= _MAX_INT:
             raise SandboxError(f"line {node.lineno}: integer result beyond 2**63")
         return out
+
+    def check_broadcast(self, node: ast.AST, a, b) -> None:
+        """Refuse an array operation whose result would outgrow both operands and the budget
+        (a nested list times an array broadcasts to the product of their shapes)."""
+        try:
+            shape = np.broadcast_shapes(np.shape(a), np.shape(b))
+        except ValueError as err:  # ragged lists, shapes that do not broadcast
+            raise SandboxError(f"line {node.lineno}: ValueError: {err}") from None
+        n = int(np.prod(shape, dtype=object))
+        if n > max(self.config.max_elements, self.size(a), self.size(b)):
+            raise SandboxLimit(
+                f"line {node.lineno}: the result would have {n} elements (shape {shape}); at "
+                f"most {self.config.max_elements}"
+            )
 
     def call(self, c: ast.Call):
         method = c.func.attr

@@ -1,0 +1,102 @@
+"""Hardening of the sandbox at run time: memory bombs are sized before they are built and
+stopped with a typed error naming the line."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from tabletop.errors import ConfigError
+from tabletop.language import SandboxConfig, SandboxError, SandboxLimit, run_code
+from tabletop.robot.api import RobotAPI
+
+
+class PointRobot(RobotAPI):
+    """A robot without a body or a map: it records motions and loaded images."""
+
+    def __init__(self):
+        super().__init__(avlmap=None)
+        self.moves, self.images = [], []
+        self.pos = np.array([0.3, 0.0, 0.3])
+
+    def move_to(self, pos):
+        self.moves.append(np.array(pos, float))
+        return "moved"
+
+    def current_position(self):
+        return self.pos.copy()
+
+    def load_image(self, path):
+        self.images.append(path)
+        return RobotAPI.load_image(path)
+
+    def get_major_map(self, obj=None, sound=None, img=None, area=None, *, primary=None):
+        return img
+
+
+def _nest(levels: int, leaf: str = "[0]") -> str:
+    """Code building a nested list 16 wide per level from ``leaf``: l{levels} at the end."""
+    lines = [f"l0 = {leaf}"]
+    lines += [f"l{i} = [{', '.join([f'l{i - 1}'] * 16)}]" for i in range(1, levels + 1)]
+    return "\n".join(lines) + "\n"
+
+
+# (code, the error's type, a phrase its message must contain); none may allocate its bomb
+BOMBS = [
+    (_nest(6), SandboxLimit, "line 7: a list of 16777216 elements"),
+    (
+        _nest(5) + "p = robot.current_position()\nx = l5 * p\n",
+        SandboxLimit,
+        "line 8: the result would have 3145728 elements",
+    ),
+    (
+        _nest(5) + "p = robot.current_position()\nx = p + l5\nrobot.move_to(x)\n",
+        SandboxLimit,
+        "line 8: the result would have 3145728 elements",
+    ),
+    ("a = [0]\nfor _ in range(40):\n    a = [a, a]\nrobot.move_to(a)\n", SandboxLimit, "line 3"),
+    (
+        "p = robot.current_position()\nq = [p, p]\nfor _ in range(40):\n    q = [q, q]\n",
+        SandboxLimit,
+        "line 4: a list of",
+    ),
+    (_nest(2) + "x = l2 * 1000000000\n", SandboxError, "line 4: arithmetic on list"),
+    ("x = 'ab' * 100000000\n", SandboxError, "line 1: arithmetic on str"),
+    ("x = [0] * 1000000000\n", SandboxError, "line 1: arithmetic on list"),
+    (
+        "x = 9000000000000000000\nfor _ in range(100):\n    x = x * x\n",
+        SandboxError,
+        "line 3: integer result beyond 2**63",
+    ),
+    (
+        "p = robot.current_position()\nx = p * 1e300\nx = x * 1e300\n",
+        SandboxError,
+        "line 3: FloatingPointError",
+    ),
+    (
+        "p = robot.current_position()\nx = p + [[0, 0], [0, 0, 0]]\n",
+        SandboxError,
+        "line 2",
+    ),
+]
+
+
+@pytest.mark.parametrize(("code", "kind", "phrase"), BOMBS, ids=[f"b{i}" for i in range(11)])
+def test_memory_bombs_stop_with_a_typed_error_naming_the_line(code, kind, phrase):
+    robot = PointRobot()
+    with pytest.raises(kind) as e:
+        run_code(code, robot)
+    assert phrase in str(e.value), str(e.value)
+    assert robot.moves == []
+
+
+def test_the_budget_is_configurable_and_heatmap_sized_results_pass():
+    code = _nest(3) + "p = robot.current_position()\nx = l3 * p\n"
+    code += "a = x[0]\nb = a[0]\nrobot.move_to(b[0])\n"
+    with pytest.raises(SandboxLimit, match="at most 1000"):
+        run_code(code, PointRobot(), SandboxConfig(max_elements=1000))
+    robot = PointRobot()
+    run_code(code, robot)  # 12288 elements: within the default budget
+    np.testing.assert_allclose(robot.moves, [[0.0, 0.0, 0.0]])
+    with pytest.raises(ConfigError, match="max_elements"):
+        SandboxConfig(max_elements=0)
