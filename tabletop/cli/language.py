@@ -272,7 +272,11 @@ def add_commands(sub) -> None:
         "robot that jumps to each target",
     )
     p.add_argument("--scene", default="default", help="the scene the map was built from")
-    p.add_argument("--image-dir", help="relative image paths in instructions are read from here")
+    p.add_argument(
+        "--image-dir",
+        help="the directory images in instructions are read from (relative paths from here; "
+        "a path outside it is refused; default: the working directory)",
+    )
     p.add_argument("--timeout", type=float, default=600.0, help="time limit of the run [s]")
     p.add_argument(
         "--suite",

@@ -51,13 +51,14 @@ class TracingRobot:
     -> ``offset(d, 0)``, ``move_to(p)`` -> ``p``), records it, then sends it to the wrapped
     robot's ``move_to`` (or not, in a dry run). Three primitives are the tracer's own
     (:data:`OWN`): ``current_position`` and ``offset`` answer from the traced position (in a dry
-    run the robot never moves), ``load_image`` reads relative paths from ``image_dir``.
+    run the robot never moves), ``load_image`` reads images from ``image_dir`` only (as does
+    ``img=`` given a path): code cannot read any other file, nor learn whether one exists.
 
     Args:
         robot: a :class:`tabletop.robot.RobotAPI` (SimArm, MobileBase, ...).
         execute: send motions to ``robot`` (False: a dry run; nothing moves).
-        image_dir: relative image paths in the code are read from here (default: the working
-            directory).
+        image_dir: the directory images are read from: a relative path in the code is read
+            from here, an absolute one must lie inside it (default: the working directory).
         on_motion: called with each :class:`Motion`: once with ``result=None`` before moving
             (the target), and once more with the result after a real motion.
         start: the traced start point of a dry run (3,) [m] (default: the robot's position).
@@ -77,7 +78,7 @@ class TracingRobot:
     ) -> None:
         self.robot = robot
         self.execute = execute
-        self.image_dir = Path(image_dir) if image_dir is not None else None
+        self.image_dir = Path(image_dir if image_dir is not None else Path.cwd()).resolve()
         self.on_motion = on_motion
         self.motions: list[Motion] = []
         p = robot.current_position() if start is None else start
@@ -120,10 +121,17 @@ class TracingRobot:
         return self._pos + np.array([_distance(dx), _distance(dy), 0.0])
 
     def load_image(self, path):
-        """The wrapped robot's ``load_image``, relative paths under ``image_dir``."""
-        p = Path(path).expanduser()
-        if self.image_dir is not None and not p.is_absolute():
-            p = self.image_dir / p
+        """The wrapped robot's ``load_image`` of a file inside ``image_dir`` (a relative path is
+        read from there). A path that leads outside, by ``..``, a link or an absolute path, is
+        refused whether or not it exists, so the code learns nothing about other files."""
+        if not isinstance(path, (str, Path)) or not str(path).strip():
+            raise ConfigError(f"an image path must be a non-empty string, got {path!r}")
+        p = (self.image_dir / path).resolve()  # an absolute path replaces image_dir
+        if not p.is_relative_to(self.image_dir):
+            raise ConfigError(
+                f"image path {str(path)!r} is outside the image directory {str(self.image_dir)!r}"
+                "; give a path inside it (relative paths are read from it)"
+            )
         return self.robot.load_image(p)
 
 
@@ -150,6 +158,11 @@ def _traced(p: Primitive):
     if not p.moves:
 
         def method(self, *args, **kwargs):
+            if "img" in p.params:  # an image path is read here, inside image_dir
+                bound = sig.bind(self, *args, **kwargs).arguments
+                if isinstance(bound.get("img"), (str, Path)):
+                    bound["img"] = self.load_image(bound["img"])
+                args, kwargs = (), {k: v for k, v in bound.items() if k != "self"}
             return getattr(self.robot, p.name)(*args, **kwargs)
 
     else:
