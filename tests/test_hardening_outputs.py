@@ -1,6 +1,6 @@
-"""Hardening of the commands' outputs: ``--out`` and ``--overwrite`` replace only what this
+"""Hardening of the commands' map files: ``--out`` and ``--overwrite`` replace only what this
 package wrote (a map, a calibration), refuse anything else before any work, and never rename a
-suffix silently."""
+suffix silently; ``query --encoders`` refuses a map built with another encoder set."""
 
 from __future__ import annotations
 
@@ -11,7 +11,12 @@ import pytest
 
 from tabletop.cli import main
 from tabletop.errors import ConfigError
-from tabletop.mapping.persistence import MAP_FORMAT, check_map_output
+from tabletop.mapping.persistence import (
+    MAP_FORMAT,
+    MapFormatError,
+    check_map_encoders,
+    check_map_output,
+)
 
 
 def _fake_map_file(path):
@@ -63,3 +68,18 @@ def test_calibrate_refuses_an_output_that_is_not_a_calibration(tmp_path, monkeyp
     rc = main(["calibrate", "--scenes", "1", "--out", str(notes)])
     assert rc == 2 and "is not a calibration file" in capsys.readouterr().err
     assert notes.read_text() == '{"mine": 1}'
+
+
+def test_query_refuses_a_map_of_another_encoder_set_before_loading_it(tmp_path, capsys):
+    path = tmp_path / "cached.npz"
+    header = {"format": MAP_FORMAT, "version": 4, "encoder_set": "default"}
+    np.savez(path, header=np.frombuffer(json.dumps(header).encode(), np.uint8))
+    rc = main(["query", str(path), "--obj", "mug", "--encoders", "oracle"])
+    err = capsys.readouterr().err
+    assert rc == 2
+    assert f"{path} was built with the encoder set 'default', not 'oracle'" in err
+    assert check_map_encoders(path, "default") == "default"
+    notes = tmp_path / "notes.npz"
+    notes.write_bytes(b"not a map")
+    with pytest.raises(MapFormatError, match="is not a readable tabletop-avlmap file"):
+        check_map_encoders(notes, "oracle")

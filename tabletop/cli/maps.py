@@ -50,6 +50,10 @@ def cmd_query(args: argparse.Namespace) -> int:
     from tabletop.mapping.render import write_heatmap_views
     from tabletop.robot.api import RobotAPI
 
+    if args.encoders is not None:  # before the map is loaded
+        from tabletop.mapping.persistence import check_map_encoders
+
+        check_map_encoders(args.map, args.encoders)
     m = AVLMap.load(args.map)
     parts = []
     for kind, major in (
@@ -128,5 +132,10 @@ def add_commands(sub) -> None:
     p.add_argument("--near-sound", help="sound the target is near (auxiliary)")
     p.add_argument("--near-area", help="area the target is in (auxiliary)")
     p.add_argument("--near-img", help="image of a place the target is near (auxiliary)")
+    p.add_argument(
+        "--encoders",
+        choices=["oracle", "default"],
+        help="the encoder set the map must have been built with (refused otherwise)",
+    )
     p.add_argument("--out", help="picture prefix: writes PREFIX_top.png and PREFIX_side.png")
     p.set_defaults(func=cmd_query)

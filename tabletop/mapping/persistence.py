@@ -38,6 +38,7 @@ __all__ = [
     "MAP_VERSION",
     "READABLE_VERSIONS",
     "MapFormatError",
+    "check_map_encoders",
     "check_map_output",
     "read_map_file",
     "save_map",
@@ -52,14 +53,40 @@ MAP_VERSION = 4
 READABLE_VERSIONS = (1, 2, 3, 4)
 
 
+def _read_header(path: Path) -> dict:
+    """The JSON header of a map file, read without its arrays (:class:`MapFormatError` when
+    there is none)."""
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            header = json.loads(z["header"].tobytes().decode())
+    except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile, UnicodeDecodeError):
+        raise MapFormatError(f"{path} is not a readable {MAP_FORMAT} file") from None
+    if not isinstance(header, dict) or header.get("format") != MAP_FORMAT:
+        raise MapFormatError(f"{path} is not a {MAP_FORMAT} file")
+    return header
+
+
+def check_map_encoders(path: str | Path, expected: str) -> str:
+    """Check, from the header only, that the map at ``path`` was built with the encoder set
+    ``expected`` (``oracle``, ``default``, ...); :class:`MapFormatError` names both when not.
+    Returns the set's name."""
+    path = Path(path)
+    built = _read_header(path).get("encoder_set")
+    if built != expected:
+        raise MapFormatError(
+            f"{path} was built with the encoder set {built!r}, not {expected!r}: build a map "
+            f"with --encoders {expected}, or query this one as {built!r}"
+        )
+    return built
+
+
 def _is_map_file(path: Path) -> bool:
     """Whether ``path`` is a file this package wrote as a map (its header names the format);
     only the header is read."""
     try:
-        with np.load(path, allow_pickle=False) as z:
-            header = json.loads(z["header"].tobytes().decode())
-        return isinstance(header, dict) and header.get("format") == MAP_FORMAT
-    except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile, UnicodeDecodeError):
+        _read_header(path)
+        return True
+    except MapFormatError:
         return False
 
 
