@@ -100,3 +100,14 @@ def test_errors_name_the_problem_and_options(tmp_path):
     bad.write_text("[random]\nseed = 1\ncount = 40\n")
     with pytest.raises(SceneError, match="no free place"):
         load_scene_spec(bad)
+
+
+def test_textured_kinds_take_only_the_colour_their_texture_shows():
+    """A kind that keeps its texture renders the same in any colour: giving it two colours
+    would make labels ("the blue jenga block") that no camera can see."""
+    from tabletop.sim.catalog import OBJECT_KINDS
+
+    textured = {k: v.colors for k, v in OBJECT_KINDS.items() if v.keep_texture}
+    assert textured, "the catalogue has textured kinds (jenga block, domino, ball, tray)"
+    assert {k: c for k, c in textured.items() if len(c) != 1} == {}
+    assert textured["jenga_block"] == ("brown",) and textured["domino"] == ("black",)

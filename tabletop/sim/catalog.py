@@ -61,7 +61,9 @@ class ObjectKind:
     colors: tuple[str, ...]
     """Colours this kind may take; the first is its default."""
     keep_texture: bool = False
-    """Keep the mesh's texture (tray, ball, domino) instead of painting it a flat colour."""
+    """Keep the mesh's texture (tray, ball, domino) instead of painting it a flat colour. Such
+    a kind renders the same whatever colour it is given, so it takes one colour: the one its
+    texture shows (a label the renders contradict would ask the map for what no camera sees)."""
 
 
 OBJECT_KINDS: dict[str, ObjectKind] = {
@@ -105,7 +107,7 @@ OBJECT_KINDS: dict[str, ObjectKind] = {
             "jenga/jenga.obj",
             (0.15, 0.05, 0.03),
             (0, 0, 0),
-            ("brown", "white", "blue"),
+            ("brown",),  # textured: it shows its wood whatever colour it is given
             keep_texture=True,
         ),
         ObjectKind(
@@ -114,7 +116,7 @@ OBJECT_KINDS: dict[str, ObjectKind] = {
             "domino/domino.obj",
             (1.6, 1.6, 1.6),
             (0, 0, 0),
-            ("white", "black"),
+            ("black",),  # textured: its faces render black with white edges
             keep_texture=True,
         ),
         ObjectKind(
