@@ -178,16 +178,21 @@ def test_phrases_and_config():
 
 
 def test_a_labelled_mix_splits_the_target_by_power_and_the_average_follows_the_weights():
-    from tabletop.train.audio import _ema_init, _ema_update, _labelled_mix
+    from tabletop.train.audio import (
+        _add_below,
+        _ema_init,
+        _ema_update,
+        _other_segment,
+        _power_share,
+    )
 
     rng = np.random.default_rng(0)
     t = np.arange(8000) / 16000
     clips = [0.3 * np.sin(2 * np.pi * f * t).astype(np.float32) for f in (300, 1200)]
     by_cat = {0: np.array([0]), 1: np.array([1])}
     seg = clips[0].copy()
-    mix, other, share = _labelled_mix(
-        seg, 0, np.array([0, 1]), by_cat, clips, 16000, 0.5, rng, (3.0, 3.0)
-    )
+    o, other = _other_segment(0, np.array([0, 1]), by_cat, clips, 16000, 0.5, rng)
+    mix, share = _add_below(seg, o, 3.0), _power_share(3.0)
     assert other == 1 and share == pytest.approx(1 / (1 + 10**-0.3))  # 3 dB: about 2/3
     spec = np.abs(np.fft.rfft(mix))
     p1, p2 = spec[150] ** 2, spec[600] ** 2  # 300 Hz and 1200 Hz bins over 0.5 s

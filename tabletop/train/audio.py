@@ -557,20 +557,25 @@ def _spec_mask(logmel, rng: np.random.Generator):
     return out
 
 
-def _labelled_mix(seg, k, train_cats, by_cat, audio, rate, length, rng, snr_db):
-    """``seg`` mixed with a segment of another category at a power ratio drawn from
-    ``snr_db``: (the mix, the other category or None when nothing was mixed, the first's power
-    share: the weight of its label)."""
-    other = train_cats[train_cats != k]
-    other_k = int(rng.choice(other))
-    o = make_segment(audio[int(rng.choice(by_cat[other_k]))], rate, length, rng, snr_db=None)
-    po, ps = float(np.mean(o**2)), float(np.mean(seg**2))
-    if po <= 0 or ps <= 0:
-        return seg, None, 1.0
-    snr = float(rng.uniform(*snr_db))
-    g = math.sqrt(ps / po * 10 ** (-snr / 10))
-    share = 1.0 / (1.0 + 10 ** (-snr / 10))
-    return np.clip(seg + g * o, -1, 1).astype(np.float32), other_k, share
+def _other_segment(k, train_cats, by_cat, audio, rate, length, rng) -> tuple[np.ndarray, int]:
+    """A segment (over silence) of a random clip of a category other than ``k``, and that
+    category."""
+    other_k = int(rng.choice(train_cats[train_cats != k]))
+    clip = audio[int(rng.choice(by_cat[other_k]))]
+    return make_segment(clip, rate, length, rng, snr_db=None), other_k
+
+
+def _add_below(seg: np.ndarray, other: np.ndarray, db: float) -> np.ndarray:
+    """``seg`` plus ``other`` scaled to ``db`` below ``seg``'s power, clipped to [-1, 1]
+    (``other`` must have power)."""
+    po, ps = float(np.mean(other**2)), float(np.mean(seg**2))
+    g = math.sqrt(ps / po * 10 ** (-db / 10))
+    return np.clip(seg + g * other, -1, 1).astype(np.float32)
+
+
+def _power_share(db: float) -> float:
+    """The first clip's share of a mix's power when it is ``db`` above the second."""
+    return 1.0 / (1.0 + 10 ** (-db / 10))
 
 
 def _ema_init(net) -> dict:
@@ -704,19 +709,17 @@ def train_audio(config: AudioTrainConfig | None = None) -> Path:
                     noise=noise,
                 )
                 if cfg.mixup_fraction and rng.random() < cfg.mixup_fraction:
-                    other = [c for c in train_cats if c != k]
-                    j = int(rng.choice(by_cat[int(rng.choice(other))]))
-                    o = make_segment(audio[j], rate, length, rng, snr_db=None)
-                    po, ps = float(np.mean(o**2)), float(np.mean(seg**2))
-                    if po > 0:
-                        g = math.sqrt(ps / po * 10 ** (-rng.uniform(10, 20) / 10))
-                        seg = np.clip(seg + g * o, -1, 1).astype(np.float32)
+                    # a distractor 10-20 dB below; the label stays the first clip's
+                    o, _ = _other_segment(k, train_cats, by_cat, audio, rate, length, rng)
+                    if np.mean(o**2) > 0:
+                        seg = _add_below(seg, o, float(rng.uniform(10, 20)))
                 if cfg.label_mix_fraction and rng.random() < cfg.label_mix_fraction:
-                    seg, other_k, share = _labelled_mix(
-                        seg, k, train_cats, by_cat, audio, rate, length, rng, cfg.label_mix_snr_db
-                    )
-                    if other_k is not None:
-                        mixes.append((row, other_k, share))
+                    # a labelled mix: the target split by the two clips' power shares
+                    o, other_k = _other_segment(k, train_cats, by_cat, audio, rate, length, rng)
+                    if np.mean(o**2) > 0 and np.mean(seg**2) > 0:
+                        db = float(rng.uniform(*cfg.label_mix_snr_db))
+                        seg = _add_below(seg, o, db)
+                        mixes.append((row, other_k, _power_share(db)))
                 waves.append(seg)
             x = torch.from_numpy(np.stack(waves)).to(dev)
             with torch.no_grad():
