@@ -368,8 +368,6 @@ class ObjectModule:
                 grid, query, "object", decay, "no object stands on the map's table", 0.0
             )
         s = m.scores
-        r = m.ranked if m.ranked.max() > 0 else s
-        k = int(np.argmax(r))
         best = float(s.max())
         conf, found = judge("object", best)
         if not found:
@@ -386,9 +384,12 @@ class ObjectModule:
                 f"confidence {conf:.2f})",
                 best,
             )
+        r = m.ranked
+        if not r.max() > 0:  # every preferred name's weight underflowed: rank by the evidence
+            r = s
         mask = np.zeros(grid.size, bool)
         lin = self.voxels.linear_indices
-        for i in np.nonzero(r >= self.config.keep_ratio * float(r[k]))[0]:
+        for i in np.nonzero(r >= self.config.keep_ratio * float(r.max()))[0]:
             mask[lin[inst[i].rows]] = True
         values = point_heatmap_3d(grid, mask.reshape(grid.shape), decay)
         return Heatmap(grid, values, query, "object", decay, conf, True, "", best)
