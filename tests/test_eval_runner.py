@@ -204,3 +204,55 @@ def test_eval_map_refuses_zero_seeds():
 
     with pytest.raises(ConfigError, match="seeds must be a whole number >= 1"):
         run_map_eval(0)
+
+
+def test_noise_is_applied_to_the_cached_clean_scan_and_its_map_is_kept_apart(run, tmp_path):
+    from tabletop.eval.robustness import run_robustness
+
+    path, cache, _, first = run
+    recs = sorted(p.name for p in cache.glob("rec-*"))
+    maps = sorted(p.name for p in cache.glob("map-*"))
+    res = run_robustness(
+        path, encoders="oracle", out_dir=tmp_path / "rob", cache_dir=cache,
+        conditions=["extrinsic"],
+    )  # fmt: skip
+    assert sorted(p.name for p in cache.glob("rec-*")) == recs  # no new scan
+    new = sorted(set(p.name for p in cache.glob("map-*")) - set(maps))
+    assert len(new) == 1  # the clean map was reused, the noisy one is its own
+    clean = res.results["clean"].runs[0]
+    noisy = res.results["extrinsic"].runs[0]
+    assert clean.tasks[0].noise == {} and clean.tasks[0].cached
+    assert noisy.tasks[0].noise["extrinsic_translation_m"] == 0.005 and not noisy.tasks[0].cached
+    assert [g.success for g in clean.goals] == [g.success for g in first.runs[0].goals]
+    drops = res.drops["oracle"]["extrinsic"]
+    assert set(drops) >= {"object", "all"} and res.contacts == 0
+    # a 5 mm / 1 degree extrinsic error moves the oracle's targets, but only by millimetres
+    errs = [
+        (a.target_error_m, b.target_error_m)
+        for a, b in zip(clean.goals, noisy.goals, strict=True)
+        if a.target_error_m is not None and b.target_error_m is not None
+    ]
+    assert errs and any(abs(a - b) > 1e-4 for a, b in errs)
+    assert all(abs(a - b) < 0.03 for a, b in errs)
+    md = (tmp_path / "rob" / "robustness.md").read_text()
+    assert "`extrinsic`: extrinsic_translation 5 mm, extrinsic_rotation 1.0°" in md
+    assert (tmp_path / "rob" / "extrinsic" / "report.md").is_file()
+
+
+@pytest.mark.parametrize(
+    "flags, needle",
+    [
+        (["--noise", "pose=0.1"], "--noise: unknown settings ['pose']"),
+        (["--noise", "drop_frames=nan"], "drop_frames must be a finite number"),
+        (["--noise", "drop_frames=1"], "drop_frames must be in [0, 1)"),
+        (["--robustness", "fog"], "unknown conditions ['fog']; valid: all, or some of"),
+        (["--robustness", "--noise", "drop_frames=0.1"], "exclude each other"),
+    ],
+)
+def test_bad_noise_flags_fail_before_any_scan(flags, needle, capfd, tmp_path):
+    from tabletop.cli import main
+
+    cache = tmp_path / "cache"
+    assert main(["eval", "demo", "--cache-dir", str(cache), *flags]) == 2
+    assert needle in capfd.readouterr().err
+    assert not cache.exists()

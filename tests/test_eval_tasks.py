@@ -154,7 +154,7 @@ def test_valid_file_parses_with_sequences_first():
             ["multimodal_spatial"],
         ),
         (lambda d: d["goals"][3]["query"]["img"].pop("eye"), ["missing required keys ['eye']"]),
-        (lambda d: d["goals"][3]["truth"].update(camera=[1, 2]), ["list of 3 numbers"]),
+        (lambda d: d["goals"][3]["truth"].update(camera=[1, 2]), ["list of 3 finite numbers"]),
         (lambda d: d["goals"][1].update(id="o"), ["goal ids must be unique", "'o'"]),
         (lambda d: d["sequences"][0]["goals"].append("zz"), ["unknown goal id 'zz'"]),
         (lambda d: d["scene"].update(path="x.toml"), ["exactly one of name, path, random"]),
@@ -163,6 +163,23 @@ def test_valid_file_parses_with_sequences_first():
         (lambda d: d["scan"].update(episodes=-1), ["[scan]", "episodes"]),
         (lambda d: d["scan"].update(sped=1), ["unknown keys ['sped']", "speed"]),
         (lambda d: d.update(goals=[]), ["non-empty list"]),
+        # non-finite numbers (TOML has nan and inf) and bad [noise] sections
+        (
+            lambda d: d["goals"][3]["truth"].update(camera=[0.4, float("nan"), 0.4]),
+            ["'i'", "list of 3 finite numbers", "nan"],
+        ),
+        (
+            lambda d: d["goals"][3]["query"]["img"].update(eye=[float("inf"), 0.3, 0.4]),
+            ["img.eye", "finite numbers"],
+        ),
+        (lambda d: d["scan"].update(speed=float("nan")), ["[scan]", "speed must be a finite"]),
+        (lambda d: d.update(noise={"pose": 0.1}), ["[noise]", "unknown settings ['pose']"]),
+        (
+            lambda d: d.update(noise={"drop_frames": float("inf")}),
+            ["[noise]", "drop_frames must be a finite number"],
+        ),
+        (lambda d: d.update(noise=[1]), ["[noise] must be a table"]),
+        (lambda d: d.update(name=7), ["name must be a string, got 7"]),
         # absent goals: one obj= or sound= part, truth { absent = true }, nowhere else
         (
             lambda d: d["goals"][5]["query"].update(sound="a lion roaring"),
@@ -395,3 +412,45 @@ def test_every_relation_is_a_target_primitive_of_the_robot_api():
     for relation, n in RELATIONS.items():
         p = primitive(relation)  # the runner calls robot.<relation>(*landmarks)
         assert p.kind == "target" and len(p.params) == n
+
+
+def test_results_json_is_strict_json_without_nan():
+    from tabletop.eval.results import dumps
+
+    goals = [_g("a", "a", True, err=float("nan"))]
+    run = EncoderRun("oracle", {"set": "oracle"}, True, tasks=[TaskRun("t", "t.toml", "s", goals)])
+    text = dumps(EvalResult(["t.toml"], [run]).to_json() | {"x": np.float32("inf")})
+    assert "NaN" not in text and "Infinity" not in text
+
+    def refuse(word):
+        raise ValueError(f"non-strict JSON constant {word}")
+
+    d = json.loads(text, parse_constant=refuse)
+    assert d["x"] is None
+
+
+def test_robustness_drops_are_points_below_clean_per_goal_type():
+    from tabletop.eval.robustness import RobustnessResult
+
+    def result(successes):
+        goals = [
+            GoalResult(f"g{i}", t, "x", f"g{i}", "done", success=ok, target_error_m=0.01)
+            for i, (t, ok) in enumerate(successes)
+        ]
+        run = EncoderRun("default", {"set": "default"}, True)
+        run.tasks = [TaskRun("t", "t.toml", "s", goals)]
+        return EvalResult(["t.toml"], [run])
+
+    clean = [("object", True)] * 4 + [("sound", True), ("sound", False)]
+    pose = [("object", True)] * 3 + [("object", False), ("sound", True), ("sound", False)]
+    res = RobustnessResult(
+        {"clean": result(clean), "pose": result(pose)}, {"pose": {"pose_translation_m": 0.005}}
+    )
+    d = res.drops["default"]["pose"]
+    assert d["object"]["drop_points"] == pytest.approx(25.0)
+    assert d["sound"]["drop_points"] == pytest.approx(0.0)
+    assert d["all"]["drop_points"] == pytest.approx(100 * (5 / 6 - 4 / 6))
+    assert res.worst_drop == pytest.approx(25.0)
+    md = res.to_markdown()
+    assert "| object | 100 (4/4) | 75 (-25) |" in md
+    assert "pose_translation 5 mm" in md and "default" in md

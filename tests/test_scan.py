@@ -200,3 +200,71 @@ def test_config_errors_name_the_options():
         ScanConfig(episodes=3, repeat_sounds=2)
     with pytest.raises(ConfigError, match="drop_frames must be in"):
         NoiseConfig(drop_frames=1.5)
+
+
+def test_extrinsic_error_is_one_fixed_transform_and_the_clock_offset_delays_the_audio(scan):
+    clean, _ = scan
+    noise = NoiseConfig(
+        extrinsic_translation_m=0.005, extrinsic_rotation_rad=np.radians(1.0), clock_offset_s=0.05
+    )
+    noisy = apply_noise(clean, noise)
+    dT = np.linalg.inv(clean.T_hand_cam) @ noisy.T_hand_cam
+    assert np.linalg.norm(dT[:3, 3]) == pytest.approx(0.005, rel=1e-9)
+    angle = np.arccos(np.clip((np.trace(dT[:3, :3]) - 1) / 2, -1, 1))
+    assert angle == pytest.approx(np.radians(1.0), rel=1e-6)
+    # the images are those of the true camera; only the recorded calibration is off
+    np.testing.assert_array_equal(noisy.rgb, clean.rgb)
+    np.testing.assert_array_equal(noisy.T_world_hand, clean.T_world_hand)
+    shift = round(0.05 * clean.audio_rate)
+    assert len(noisy.audio) == len(clean.audio)
+    np.testing.assert_array_equal(noisy.audio[shift:], clean.audio[:-shift])
+    assert not noisy.audio[:shift].any()
+    early = apply_noise(clean, NoiseConfig(clock_offset_s=-0.05))
+    np.testing.assert_array_equal(early.audio[:-shift], clean.audio[shift:])
+    # another seed, another direction of the same size
+    other = apply_noise(clean, NoiseConfig(seed=1, extrinsic_translation_m=0.005))
+    d2 = (np.linalg.inv(clean.T_hand_cam) @ other.T_hand_cam)[:3, 3]
+    assert np.linalg.norm(d2) == pytest.approx(0.005) and not np.allclose(d2, dT[:3, 3])
+
+
+@pytest.mark.parametrize(
+    "bad, match",
+    [
+        (dict(pose_translation_m=float("nan")), "pose_translation_m must be a finite number"),
+        (dict(clock_offset_s=float("inf")), "clock_offset_s must be a finite number"),
+        (dict(depth_relative="0.1"), "depth_relative must be a finite number"),
+        (dict(extrinsic_rotation_rad=-0.1), "extrinsic_rotation_rad must be >= 0"),
+        (dict(pose_translation_m=5.0), "beyond 0.5: not sensor noise"),
+        (dict(seed=-1), "seed must be an integer >= 0"),
+        (dict(seed=1.5), "seed must be an integer >= 0"),
+    ],
+)
+def test_bad_noise_settings_are_refused_by_name(bad, match):
+    with pytest.raises(ConfigError, match=match):
+        NoiseConfig(**bad)
+
+
+def test_noise_from_a_table_names_unknown_keys_and_the_valid_ones():
+    with pytest.raises(ConfigError, match=r"unknown settings \['pose'\]; valid: \['seed'"):
+        NoiseConfig.from_dict({"pose": 0.1})
+    with pytest.raises(ConfigError, match="must be a table"):
+        NoiseConfig.from_dict([1, 2])
+    assert NoiseConfig.from_dict({"drop_frames": 0.2}).any
+    assert not NoiseConfig.from_dict({"seed": 3}).any
+
+
+@pytest.mark.parametrize(
+    "bad, match",
+    [
+        (dict(speed=float("nan")), "speed must be a finite float"),
+        (dict(episodes=2.5), "episodes must be a finite int"),
+        (dict(seed=True), "seed must be a finite int"),
+        (dict(renderer="gl"), "renderer must be 'auto', 'egl' or 'tiny'"),
+        (dict(noise={"drop_frames": 2}), "drop_frames must be in"),
+        (dict(noise=3), "noise must be a table"),
+        (dict(tremor_m=-1.0), "tremor_m and min_clearance must be >= 0"),
+    ],
+)
+def test_bad_scan_settings_are_refused_by_name(bad, match):
+    with pytest.raises(ConfigError, match=match):
+        ScanConfig(**bad)

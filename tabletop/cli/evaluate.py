@@ -37,9 +37,18 @@ def cmd_eval(args: argparse.Namespace) -> int:
         overrides = parse_map_settings(args.map_set)
         scan_overrides = parse_map_settings(args.scan_set, "--scan-set", "snr_db=5")
         _check_scan_settings(scan_overrides)
+        noise = parse_map_settings(args.noise, "--noise", "pose_translation_m=0.005")
+        _check_noise_settings(noise)
+        conditions = _robustness_conditions(args.robustness)
+        if conditions is not None and noise:
+            raise ConfigError("--noise and --robustness exclude each other")
     except ConfigError as e:
         print(f"tabletop eval: {e}", file=sys.stderr)
         return 2
+    if conditions is not None:
+        return _cmd_robustness(args, encoders, conditions)
+    if noise and not args.json:
+        print(f"sensor noise applied to every task: {noise}")
     if overrides and not args.json:
         print(f"map settings changed for every task: {overrides}")
     if scan_overrides and not args.json:
@@ -59,14 +68,18 @@ def cmd_eval(args: argparse.Namespace) -> int:
             cache_dir=None if args.no_cache else args.cache_dir,
             map_overrides=overrides,
             scan_overrides=scan_overrides,
+            noise=noise,
         )
     wall = time.perf_counter() - t0
     if args.json:
+        from tabletop.eval.results import dumps
+
         d = res.to_json()
         d["wall_s"] = round(wall, 1)
         d["map_overrides"] = overrides
         d["scan_overrides"] = scan_overrides
-        print(json.dumps(d if args.goals else _without_goals(d), indent=1, default=float))
+        d["noise"] = noise
+        print(dumps(d if args.goals else _without_goals(d)))
         return 0
     print_result(res, wall)
     return 0
@@ -82,6 +95,64 @@ def _check_scan_settings(d: dict) -> None:
     bad = sorted(k for k in d if k not in valid)
     if bad:
         raise ConfigError(f"--scan-set: unknown scan fields {bad}; valid: {', '.join(valid)}")
+
+
+def _check_noise_settings(d: dict) -> None:
+    """``--noise`` settings are checked before any scan: unknown fields and bad values."""
+    from tabletop.sim.noise import NoiseConfig
+
+    NoiseConfig.from_dict(d, "--noise")
+
+
+def _robustness_conditions(given: str | None) -> list[str] | None:
+    """``--robustness [all|NAME,...]`` -> condition names (None: not a robustness run)."""
+    from tabletop.eval.robustness import CONDITIONS
+
+    if given is None:
+        return None
+    names = list(CONDITIONS) if given == "all" else [n.strip() for n in given.split(",")]
+    bad = [n for n in names if n not in CONDITIONS]
+    if bad or not names:
+        raise ConfigError(
+            f"--robustness: unknown conditions {bad}; valid: all, or some of {list(CONDITIONS)}"
+        )
+    return names
+
+
+def _cmd_robustness(args: argparse.Namespace, encoders: list[str], conditions: list[str]) -> int:
+    """``tabletop eval TASKS --robustness``: clean and noisy runs, the drop per goal type."""
+    from tabletop.eval.results import dumps
+    from tabletop.eval.robustness import MAX_DROP_POINTS, run_robustness
+
+    log = sys.stderr if args.json else sys.stdout
+    with contextlib.ExitStack() as stack:
+        if args.json:
+            stack.enter_context(stdout_to_stderr())
+            bars = None
+        else:
+            bars = stack.enter_context(ProgressBars())
+        res = run_robustness(
+            args.tasks,
+            encoders=encoders,
+            out_dir=args.out,
+            progress=bars,
+            cache_dir=None if args.no_cache else args.cache_dir,
+            conditions=conditions,
+            on_condition=lambda n: print(f"condition: {n}", file=log, flush=True),
+        )
+    if args.json:
+        d = res.to_json()
+        if not args.goals:
+            d["results"] = {k: _without_goals(v) for k, v in d["results"].items()}
+        print(dumps(d))
+        return 0
+    print(res.table_markdown())
+    print(
+        f"worst drop {res.worst_drop:.0f} points (target <= {MAX_DROP_POINTS:.0f}); "
+        f"contacts under noise {res.contacts}; {res.wall_s:.0f} s"
+    )
+    print(f"report: {Path(args.out) / 'robustness.md'}")
+    return 0
 
 
 def parse_map_settings(
@@ -292,6 +363,25 @@ def add_commands(sub) -> None:
         metavar="FIELD=VALUE",
         help="change a scan setting for every task (repeatable), e.g. snr_db=5: the same scan "
         "with the sounds 10 dB quieter than the default 15 dB",
+    )
+    p.add_argument(
+        "--noise",
+        action="append",
+        default=[],
+        metavar="FIELD=VALUE",
+        help="sensor noise applied to every task's clean scan before mapping (repeatable; "
+        "replaces the task files' [noise]), e.g. pose_translation_m=0.005; fields: seed, "
+        "pose_translation_m, pose_rotation_rad, depth_relative, depth_dropout, drop_frames, "
+        "extrinsic_translation_m, extrinsic_rotation_rad, clock_offset_s",
+    )
+    p.add_argument(
+        "--robustness",
+        nargs="?",
+        const="all",
+        default=None,
+        metavar="CONDITIONS",
+        help="run the tasks clean and under each sensor condition (all, or comma-separated "
+        "names: pose, depth, drop-frames, extrinsic, clock) and print the drop per goal type",
     )
     p.set_defaults(func=cmd_eval)
 

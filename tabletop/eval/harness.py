@@ -24,7 +24,7 @@ import tomllib
 from collections.abc import Callable
 from pathlib import Path
 
-from tabletop.errors import AssetError, TabletopError
+from tabletop.errors import AssetError, ConfigError, TabletopError
 from tabletop.paths import DATA_DIR
 
 __all__ = [
@@ -63,7 +63,10 @@ def map_config(**overrides):
         full = MapConfig.from_dict({k: {**base[k], **v} for k, v in nested.items()})
         kw.update({k: getattr(full, k) for k in nested})
     if "voxel_size" in kw:
-        kw["grid"] = VoxelGrid(voxel_size=float(kw.pop("voxel_size")))
+        v = kw.pop("voxel_size")
+        if isinstance(v, bool) or not isinstance(v, (int, float)):
+            raise ConfigError(f"voxel_size must be a number [m], got {v!r}")
+        kw["grid"] = VoxelGrid(voxel_size=float(v))
     if "categories" not in kw:
         kw["categories"] = (*(k.label for k in OBJECT_KINDS.values()), *BACKGROUND)
         desc = catalog_descriptions()

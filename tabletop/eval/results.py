@@ -22,6 +22,7 @@ leave it out (they are over the goals with a place; ``None`` for a row of absent
 from __future__ import annotations
 
 import json
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -97,6 +98,7 @@ class TaskRun:
     map_s: float = 0.0
     cached: bool = False
     encoder_names: dict = field(default_factory=dict)
+    noise: dict = field(default_factory=dict)  # the sensor noise applied (empty: clean)
 
 
 @dataclass
@@ -208,5 +210,20 @@ def summarize(goals: list[GoalResult], sequences: list[list[GoalResult]]) -> dic
     }
 
 
+def json_safe(obj):
+    """``obj`` with every NaN or infinite float as None and numpy scalars as Python numbers:
+    what strict JSON readers accept (bare ``NaN`` is not JSON)."""
+    if isinstance(obj, dict):
+        return {str(k): json_safe(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [json_safe(v) for v in obj]
+    if isinstance(obj, np.generic):
+        obj = obj.item()
+    if isinstance(obj, float) and not math.isfinite(obj):
+        return None
+    return obj
+
+
 def dumps(obj) -> str:
-    return json.dumps(obj, indent=1, default=float)
+    """Strict JSON (no NaN or Infinity) of a result."""
+    return json.dumps(json_safe(obj), indent=1, default=float, allow_nan=False)

@@ -325,14 +325,18 @@ def evaluate_task_file(
     progress: Progress | None = None,
     map_overrides: dict | None = None,
     scan_overrides: dict | None = None,
+    noise: dict | None = None,
 ) -> TaskRun:
     """Scan (or reuse), map (or reuse), run every goal of ``tf`` with the encoder set
     ``encoders``; write the figures into ``figures_dir`` when given. ``map_overrides``: map
     config fields that replace the task file's ``[map]`` ones (an ablation, e.g.
     ``{"object": {"instances": False}}``); ``scan_overrides``: scan settings that replace the
     task file's ``[scan]`` ones (e.g. ``{"snr_db": 5.0}``: the same scan, sounds 10 dB
-    quieter)."""
+    quieter); ``noise``: :class:`~tabletop.sim.noise.NoiseConfig` fields that replace the task
+    file's ``[noise]`` ones (the clean scan is taken from the cache and the noise applied to
+    it, so a noisy run costs a map, not a scan)."""
     from tabletop.robot import SimArm
+    from tabletop.sim.noise import NoiseConfig, apply_noise
 
     spec = tf.scene.load()
     cache = Path(cache_dir) if cache_dir is not None else None
@@ -344,8 +348,15 @@ def evaluate_task_file(
     except (TypeError, TabletopError) as e:
         raise TaskFileError(f"{tf.path or tf.name} [map]: {e}") from None
     scan = {**dict(tf.scan), **dict(scan_overrides or {})}
+    try:
+        sensor = NoiseConfig.from_dict({**dict(tf.noise), **dict(noise or {})})
+    except ConfigError as e:
+        raise TaskFileError(f"{tf.path or tf.name} [noise]: {e}") from None
     rec, scan_s, rec_cached = cached_recording(tf.name, scan, spec, cache, progress)
     rec_key = recording_key(spec, scan)
+    if sensor.any:
+        rec = apply_noise(rec, sensor)
+        rec_key = f"{rec_key}-noise-{_noise_key(sensor)}"
     m, map_s, map_cached = cached_map(tf.name, settings, rec, encoders, cache, rec_key, progress)
     # Resolve every truth before anything moves: a wrong reference is a task-file error.
     where = str(tf.path or tf.name)
@@ -380,6 +391,7 @@ def evaluate_task_file(
             map_s=map_s,
             cached=rec_cached and map_cached,
             encoder_names=dict(m.encoder_names),
+            noise=sensor.to_dict() if sensor.any else {},
         )
         if figures_dir is not None:
             from tabletop.eval.report import write_task_figures
@@ -391,6 +403,13 @@ def evaluate_task_file(
         ctx.close()
         robot.close()
     return run
+
+
+def _noise_key(noise) -> str:
+    import hashlib
+    import json
+
+    return hashlib.sha1(json.dumps(noise.to_dict(), sort_keys=True).encode()).hexdigest()[:10]
 
 
 def _check_encoder_set(name: str) -> str:
@@ -416,10 +435,11 @@ def run_eval(
     cache_dir: str | Path | None = DEFAULT_CACHE_DIR,
     map_overrides: dict | None = None,
     scan_overrides: dict | None = None,
+    noise: dict | None = None,
 ):
     """Evaluate task files (paths, directories, shipped names or :class:`TaskFile`s) with one
     or more encoder sets; write the report into ``out_dir`` when given. ``map_overrides``,
-    ``scan_overrides``: see :func:`evaluate_task_file`. ``progress`` is called
+    ``scan_overrides``, ``noise``: see :func:`evaluate_task_file`. ``progress`` is called
     as ``progress(stage, done, total)`` (see :data:`Progress`); None reports nothing.
 
     An encoder set that cannot be built here is a row marked unavailable with the reason (no
@@ -451,6 +471,7 @@ def run_eval(
                 progress=cb,
                 map_overrides=map_overrides,
                 scan_overrides=scan_overrides,
+                noise=noise,
             )
             er.tasks.append(tr)
         er.encoder_names = dict(er.tasks[0].encoder_names)

@@ -35,6 +35,7 @@ is given by reference to the recording's ground truth (``object``, ``sound`` [+ 
 from __future__ import annotations
 
 import json
+import math
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -229,6 +230,9 @@ class TaskFile:
     sequences: tuple[tuple[str, tuple[str, ...]], ...]
     description: str = ""
     extra: dict = field(default_factory=dict)
+    noise: dict = field(default_factory=dict)
+    """The ``[noise]`` section: :class:`~tabletop.sim.noise.NoiseConfig` fields applied to the
+    clean scan before mapping (empty: a clean run)."""
 
     def goal(self, goal_id: str) -> Goal:
         for g in self.goals:
@@ -268,8 +272,9 @@ def _vec(v: object, where: str, n: int = 3) -> tuple[float, ...]:
         not isinstance(v, (list, tuple))
         or len(v) != n
         or not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in v)
+        or not all(math.isfinite(x) for x in v)
     ):
-        raise _err(where, f"must be a list of {n} numbers [m], got {v!r}")
+        raise _err(where, f"must be a list of {n} finite numbers [m], got {v!r}")
     return tuple(float(x) for x in v)
 
 
@@ -467,7 +472,7 @@ def parse_tasks(data: dict, source: str = "<tasks>", base_dir: Path | None = Non
         data,
         source,
         ("format", "version", "scene", "goals"),
-        ("name", "description", "scan", "map", "sequences", "generator"),
+        ("name", "description", "scan", "map", "noise", "sequences", "generator"),
     )
     if d["format"] != FORMAT_NAME:
         raise _err(source, f"format is {d['format']!r}; expected {FORMAT_NAME!r}")
@@ -505,6 +510,16 @@ def parse_tasks(data: dict, source: str = "<tasks>", base_dir: Path | None = Non
         _check_scan(scan)
     except ConfigError as e:
         raise _err(f"{source} [scan]", str(e)) from None
+    from tabletop.sim.noise import NoiseConfig
+
+    noise = d.get("noise", {})
+    try:
+        NoiseConfig.from_dict(noise, "[noise]")
+    except ConfigError as e:
+        raise _err(source, str(e)) from None
+    for k in ("name", "description"):
+        if k in d and not isinstance(d[k], str):
+            raise _err(source, f"{k} must be a string, got {d[k]!r}")
     return TaskFile(
         path=None,
         name=str(d.get("name", Path(source).stem)),
@@ -515,6 +530,7 @@ def parse_tasks(data: dict, source: str = "<tasks>", base_dir: Path | None = Non
         sequences=tuple(seqs),
         description=str(d.get("description", "")),
         extra={"generator": d.get("generator", {})},
+        noise=dict(noise),
     )
 
 

@@ -67,8 +67,10 @@ class MapConfig:
     :class:`VisualLocalizationConfig` given here is taken as that module's localization."""
 
     def __post_init__(self) -> None:
-        if self.pixel_step < 1 or self.frame_step < 1:
-            raise ConfigError("pixel_step and frame_step must be >= 1")
+        for name in ("pixel_step", "frame_step"):
+            v = getattr(self, name)
+            if not isinstance(v, int) or isinstance(v, bool) or v < 1:
+                raise ConfigError(f"{name} must be an integer >= 1, got {v!r}")
         object.__setattr__(self, "categories", tuple(self.categories))
         if not isinstance(self.descriptions, Mapping):
             raise ConfigError(f"descriptions must map names to texts, got {self.descriptions!r}")

@@ -1,4 +1,5 @@
-"""Sensor imperfections for robustness tests: noisy poses, noisy and missing depth, lost frames.
+"""Sensor imperfections for robustness tests: noisy poses, noisy and missing depth, lost frames,
+a wrong camera extrinsic, an audio clock that is off.
 
 :func:`apply_noise` works on any :class:`Recording` — a simulated scan or a real one — and
 keeps the clean poses beside the noisy ones, so a test can measure what the noise cost.
@@ -17,6 +18,22 @@ from tabletop.transforms import make_transform
 
 __all__ = ["NoiseConfig", "apply_noise"]
 
+_NONNEGATIVE = (
+    "pose_translation_m",
+    "pose_rotation_rad",
+    "depth_relative",
+    "extrinsic_translation_m",
+    "extrinsic_rotation_rad",
+)
+_LIMITS = {  # far beyond any sensor's noise: a typo in units, refused
+    "pose_translation_m": 0.5,
+    "pose_rotation_rad": np.pi,
+    "depth_relative": 1.0,
+    "extrinsic_translation_m": 0.5,
+    "extrinsic_rotation_rad": np.pi,
+    "clock_offset_s": 10.0,
+}
+
 
 @dataclass(frozen=True)
 class NoiseConfig:
@@ -33,27 +50,57 @@ class NoiseConfig:
     """Fraction of valid depth pixels set to 0 (invalid)."""
     drop_frames: float = 0.0
     """Probability that a frame is lost (it is left out; the timestamps show the gap)."""
+    extrinsic_translation_m: float = 0.0
+    """Size [m] of a fixed error of the recorded wrist-camera extrinsic ``T_hand_cam`` (one
+    seeded direction for the whole recording: a calibration that is off)."""
+    extrinsic_rotation_rad: float = 0.0
+    """Angle [rad] of a fixed rotation error of the recorded ``T_hand_cam`` (seeded axis)."""
+    clock_offset_s: float = 0.0
+    """Offset [s] of the audio clock against the frame clock: the track is shifted so a sound
+    is recorded this much later (negative: earlier) than it was heard."""
 
     def __post_init__(self) -> None:
-        for name in ("pose_translation_m", "pose_rotation_rad", "depth_relative"):
+        if not isinstance(self.seed, int) or isinstance(self.seed, bool) or self.seed < 0:
+            raise ConfigError(f"noise seed must be an integer >= 0, got {self.seed!r}")
+        for f in fields(self):
+            v = getattr(self, f.name)
+            if f.name == "seed":
+                continue
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v):
+                raise ConfigError(f"noise {f.name} must be a finite number, got {v!r}")
+        for name in _NONNEGATIVE:
             if getattr(self, name) < 0:
                 raise ConfigError(f"noise {name} must be >= 0, got {getattr(self, name)}")
         for name in ("depth_dropout", "drop_frames"):
             if not 0 <= getattr(self, name) < 1:
                 raise ConfigError(f"noise {name} must be in [0, 1), got {getattr(self, name)}")
+        for name, top in _LIMITS.items():
+            if abs(getattr(self, name)) > top:
+                raise ConfigError(
+                    f"noise {name} = {getattr(self, name)} is beyond {top}: not sensor noise"
+                )
+
+    @classmethod
+    def from_dict(cls, d: object, where: str = "noise") -> NoiseConfig:
+        """From a task file's ``[noise]`` table or a CLI's ``key=value`` pairs; unknown keys
+        and bad values raise :class:`ConfigError` naming the key and the valid ones."""
+        if not isinstance(d, dict):
+            raise ConfigError(f"{where} must be a table of noise settings, got {d!r}")
+        valid = [f.name for f in fields(cls)]
+        unknown = sorted(set(d) - set(valid))
+        if unknown:
+            raise ConfigError(f"{where}: unknown settings {unknown}; valid: {valid}")
+        try:
+            return cls(**d)
+        except ConfigError as e:
+            raise ConfigError(f"{where}: {e}") from None
+
+    def to_dict(self) -> dict:
+        return {f.name: getattr(self, f.name) for f in fields(self)}
 
     @property
     def any(self) -> bool:
-        return any(
-            getattr(self, n) > 0
-            for n in (
-                "pose_translation_m",
-                "pose_rotation_rad",
-                "depth_relative",
-                "depth_dropout",
-                "drop_frames",
-            )
-        )
+        return any(getattr(self, f.name) != 0 for f in fields(self) if f.name != "seed")
 
 
 def _axis_angle(axis: np.ndarray, angle: float) -> np.ndarray:
@@ -67,13 +114,16 @@ def apply_noise(rec: Recording, noise: NoiseConfig) -> Recording:
     Pose noise perturbs each recorded end-effector pose independently (in the hand frame);
     depth noise is Gaussian with std ``depth_relative * z**2`` and is re-quantised to the
     recording's depth resolution; dropped frames are removed and their segments, sound-event
-    frame ranges and ``meta["dropped_frames"]`` updated.
+    frame ranges and ``meta["dropped_frames"]`` updated; the extrinsic error replaces the
+    recorded ``T_hand_cam`` by ``T_hand_cam @ dT`` (the images stay those of the true camera);
+    the clock offset delays the audio track (zero-filled), so the map ties each sound to the
+    poses of a later (or earlier) moment.
     """
     rng = np.random.default_rng(noise.seed)
     n = len(rec)
     kw = {f.name: getattr(rec, f.name) for f in fields(Recording)}
     truth = None if rec.ground_truth is None else GroundTruth.of(rec)
-    kw["meta"] = {**rec.meta, "noise": {f.name: getattr(noise, f.name) for f in fields(noise)}}
+    kw["meta"] = {**rec.meta, "noise": noise.to_dict()}
     true = rec.T_world_hand if rec.T_world_hand_true is None else rec.T_world_hand_true
     noisy = np.array(rec.T_world_hand)
     if noise.pose_translation_m > 0 or noise.pose_rotation_rad > 0:
@@ -86,6 +136,23 @@ def apply_noise(rec: Recording, noise: NoiseConfig) -> Recording:
             )
             noisy[i] = noisy[i] @ dT
     kw["T_world_hand"], kw["T_world_hand_true"] = noisy, true
+    if noise.extrinsic_translation_m > 0 or noise.extrinsic_rotation_rad > 0:
+        # Its own generator: the extrinsic error does not change with the other settings.
+        ext = np.random.default_rng([noise.seed, 1])
+        axis, direction = ext.normal(size=3), ext.normal(size=3)
+        dT = make_transform(
+            _axis_angle(axis / np.linalg.norm(axis), noise.extrinsic_rotation_rad),
+            direction / np.linalg.norm(direction) * noise.extrinsic_translation_m,
+        )
+        kw["T_hand_cam"] = np.asarray(rec.T_hand_cam) @ dT
+    if noise.clock_offset_s != 0 and rec.audio is not None:
+        shift = round(noise.clock_offset_s * rec.audio_rate)
+        audio = np.zeros_like(rec.audio)
+        if shift >= 0:
+            audio[shift:] = rec.audio[: len(audio) - shift]
+        else:
+            audio[:shift] = rec.audio[-shift:]
+        kw["audio"] = audio
 
     depth = rec.depth.astype(np.float64)
     valid = depth > 0

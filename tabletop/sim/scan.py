@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import functools
 import logging
+import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
@@ -76,6 +77,37 @@ class ScanConfig:
     """"auto" (EGL if it works), "egl" or "tiny"."""
 
     def __post_init__(self) -> None:
+        from dataclasses import fields
+
+        if isinstance(self.noise, dict):  # from a task file or JSON
+            object.__setattr__(self, "noise", NoiseConfig.from_dict(self.noise, "scan noise"))
+        if isinstance(self.camera, dict):
+            try:
+                object.__setattr__(self, "camera", WristCameraConfig(**self.camera))
+            except TypeError as e:
+                raise ConfigError(f"scan camera: {e}") from None
+        for f in fields(self):
+            v = getattr(self, f.name)
+            if f.type in ("int", "float") and (
+                isinstance(v, bool)
+                or not isinstance(v, (int, float) if f.type == "float" else int)
+                or not math.isfinite(v)
+            ):
+                raise ConfigError(f"scan {f.name} must be a finite {f.type}, got {v!r}")
+            if f.type == "str" and not isinstance(v, str):
+                raise ConfigError(f"scan {f.name} must be a string, got {v!r}")
+        if not isinstance(self.noise, NoiseConfig):
+            raise ConfigError(f"scan noise must be a table of noise settings, got {self.noise!r}")
+        if not isinstance(self.camera, WristCameraConfig):
+            raise ConfigError(
+                f"scan camera must be a table of camera settings, got {self.camera!r}"
+            )
+        if self.seed < 0:
+            raise ConfigError(f"scan seed must be >= 0, got {self.seed}")
+        if self.tremor_m < 0 or self.min_clearance < 0:
+            raise ConfigError("tremor_m and min_clearance must be >= 0 [m]")
+        if self.renderer not in ("auto", "egl", "tiny"):
+            raise ConfigError(f"renderer must be 'auto', 'egl' or 'tiny', not {self.renderer!r}")
         if self.rate_hz <= 0 or self.speed <= 0:
             raise ConfigError("rate_hz and speed must be positive")
         if self.episodes < 0 or self.episode_s < 1.0:
