@@ -130,23 +130,50 @@ class Recording:
                 raise RecordingError(
                     f"{name} has {len(getattr(self, name))} frames, timestamps has {n}"
                 )
+        if not np.all(np.isfinite(t)):
+            bad = np.flatnonzero(~np.isfinite(t))
+            raise RecordingError(f"timestamps must be finite [s]; frame {bad[0]} is {t[bad[0]]}")
         if n and np.any(np.diff(t) <= 0):
-            raise RecordingError("timestamps must be strictly increasing")
+            i = int(np.flatnonzero(np.diff(t) <= 0)[0])
+            raise RecordingError(
+                f"timestamps must be strictly increasing; frame {i + 1} ({t[i + 1]} s) does "
+                f"not follow frame {i} ({t[i]} s)"
+            )
         K = np.array(self.K, dtype=np.float64)
         if K.shape != (3, 3):
             raise RecordingError(f"K must be (3, 3), got {K.shape}")
+        if (
+            not np.all(np.isfinite(K))
+            or K[0, 0] <= 0
+            or K[1, 1] <= 0
+            or not np.allclose(K[2], (0.0, 0.0, 1.0))
+            or K[1, 0] != 0
+        ):
+            raise RecordingError(
+                f"K must be a pinhole matrix [[fx, s, cx], [0, fy, cy], [0, 0, 1]] with finite "
+                f"fx, fy > 0 [px], got {K.tolist()}"
+            )
         K.setflags(write=False)
         object.__setattr__(self, "K", K)
-        T = np.array(self.T_hand_cam, dtype=np.float64)
-        if T.shape != (4, 4):
-            raise RecordingError(f"T_hand_cam must be (4, 4), got {T.shape}")
-        T.setflags(write=False)
-        object.__setattr__(self, "T_hand_cam", T)
-        T = np.array(self.T_hand_mic, dtype=np.float64)
-        if T.shape != (4, 4) or not np.all(np.isfinite(T)):
-            raise RecordingError(f"T_hand_mic must be a finite (4, 4) transform, got {T.shape}")
-        T.setflags(write=False)
-        object.__setattr__(self, "T_hand_mic", T)
+        for name in ("T_hand_cam", "T_hand_mic"):
+            T = np.array(getattr(self, name), dtype=np.float64)
+            if T.shape != (4, 4):
+                raise RecordingError(f"{name} must be a (4, 4) transform, got {T.shape}")
+            _check_rigid(T[None], name)
+            T.setflags(write=False)
+            object.__setattr__(self, name, T)
+        _check_rigid(self.T_world_hand, "T_world_hand")
+        if not np.all(np.isfinite(self.joint_positions)):
+            raise RecordingError("joint_positions must be finite [rad]")
+        if (
+            isinstance(self.depth_resolution, bool)
+            or not isinstance(self.depth_resolution, (int, float, np.floating))
+            or not 1e-6 <= self.depth_resolution <= 0.01
+        ):
+            raise RecordingError(
+                f"depth_resolution must be in [1e-6, 0.01] m per depth unit, got "
+                f"{self.depth_resolution!r}"
+            )
         if np.any(self.depth < 0) or not np.all(np.isfinite(self.depth)):
             raise RecordingError("depth must be finite and >= 0 (0 = invalid)")
         if self.segmentation is not None:
@@ -157,11 +184,26 @@ class Recording:
             arr("T_world_hand_true", np.float64, (4, 4), 3)
             if len(self.T_world_hand_true) != n:
                 raise RecordingError("T_world_hand_true must have one pose per frame")
+            _check_rigid(self.T_world_hand_true, "T_world_hand_true")
         if self.audio is not None:
             arr("audio", np.float32, (), 1)
-            if self.audio_rate <= 0:
-                raise RecordingError(f"audio_rate must be positive [Hz], got {self.audio_rate}")
+            if (
+                isinstance(self.audio_rate, bool)
+                or not isinstance(self.audio_rate, (int, np.integer))
+                or not 1000 <= self.audio_rate <= 384000
+            ):
+                raise RecordingError(
+                    f"audio_rate must be an integer in [1000, 384000] Hz, got {self.audio_rate!r}"
+                )
+            if not np.all(np.isfinite(self.audio)):
+                raise RecordingError("audio must be finite samples in [-1, 1]")
         for s in self.segments:
+            if not isinstance(s, Segment) or not all(
+                isinstance(v, int) and not isinstance(v, bool) for v in (s.start, s.stop)
+            ):
+                raise RecordingError(
+                    f"segments must be Segment(name, kind, start, stop), got {s!r}"
+                )
             if not 0 <= s.start < s.stop <= n:
                 raise RecordingError(f"segment {s.name!r} [{s.start}, {s.stop}) outside 0..{n}")
 
@@ -212,6 +254,34 @@ class Recording:
     def duration(self) -> float:
         """[s] from the first to the last frame."""
         return float(self.timestamps[-1] - self.timestamps[0]) if len(self) else 0.0
+
+
+MAX_POSE_DISTANCE_M = 100.0
+"""The farthest [m] a recorded pose may lie from the base frame's origin: an arm reaches about
+1 m and a mobile base crosses a building; farther is a unit or frame error."""
+
+
+def _check_rigid(T: np.ndarray, name: str, tol: float = 1e-4) -> None:
+    """(N, 4, 4) finite rigid transforms near the origin, else :class:`RecordingError` naming
+    the first bad frame."""
+    if not T.size:
+        return
+    finite = np.isfinite(T).all(axis=(1, 2))
+    R = np.where(finite[:, None, None], T[:, :3, :3], np.eye(3))
+    ortho = np.abs(R @ np.swapaxes(R, 1, 2) - np.eye(3)).max(axis=(1, 2)) < tol
+    proper = np.linalg.det(R) > 0
+    bottom = np.abs(np.nan_to_num(T[:, 3]) - (0.0, 0.0, 0.0, 1.0)).max(axis=1) < tol
+    t = np.where(finite[:, None], T[:, :3, 3], 0.0)
+    near = np.linalg.norm(t, axis=1) <= MAX_POSE_DISTANCE_M
+    for ok, what in (
+        (finite, "finite"),
+        (ortho & proper & bottom, "a rigid transform (orthonormal rotation, last row 0 0 0 1)"),
+        (near, f"within {MAX_POSE_DISTANCE_M:.0f} m of the base frame (a unit error?)"),
+    ):
+        if not ok.all():
+            i = int(np.flatnonzero(~ok)[0])
+            where = f"frame {i}" if len(T) > 1 else "it"
+            raise RecordingError(f"{name} must be {what}; {where} is {np.round(T[i], 4).tolist()}")
 
 
 # ---------------------------------------------------------------------- writing
@@ -333,6 +403,97 @@ def _write_into(rec: Recording, out: Path, workers: int) -> None:
 
 
 # ---------------------------------------------------------------------- reading
+def _header_error(header_path: Path, field: str, value: object, valid: str) -> RecordingError:
+    shown = repr(value)
+    if len(shown) > 80:
+        shown = shown[:77] + "..."
+    return RecordingError(f"{header_path}: {field} is {shown}; valid: {valid}")
+
+
+def _is_int(v: object) -> bool:
+    return isinstance(v, int) and not isinstance(v, bool)
+
+
+def _check_header(h: dict, header_path: Path) -> None:
+    """Types, ranges and consistency of a recording header's fields, before any file is read:
+    a :class:`RecordingError` names the field, its value and what is valid."""
+    if not isinstance(h, dict):
+        raise RecordingError(f"{header_path}: must hold a JSON object, got {type(h).__name__}")
+    required = ["n_frames", "width", "height", "K", "T_hand_cam", "depth_resolution", "files"]
+    missing = [k for k in required if k not in h]
+    if missing:
+        raise RecordingError(f"{header_path}: missing fields {missing}")
+    if not _is_int(h["n_frames"]) or not 0 <= h["n_frames"] <= 10**6:
+        raise _header_error(header_path, "n_frames", h["n_frames"], "an integer in [0, 1e6]")
+    for k in ("width", "height"):
+        if not _is_int(h[k]) or not 1 <= h[k] <= 8192:
+            raise _header_error(header_path, k, h[k], "an integer in [1, 8192] px")
+    for k, shape in (("K", (3, 3)), ("T_hand_cam", (4, 4)), ("T_hand_mic", (4, 4))):
+        if k not in h:
+            continue
+        v = h[k]
+        ok = (
+            isinstance(v, list)
+            and len(v) == shape[0]
+            and all(
+                isinstance(r, list)
+                and len(r) == shape[1]
+                and all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in r)
+                for r in v
+            )
+        )
+        if not ok:
+            raise _header_error(header_path, k, v, f"a {shape[0]}x{shape[1]} list of numbers")
+    r = h["depth_resolution"]
+    if isinstance(r, bool) or not isinstance(r, (int, float)) or not 1e-6 <= r <= 0.01:
+        raise _header_error(header_path, "depth_resolution", r, "a number in [1e-6, 0.01] m")
+    files = h["files"]
+    if not isinstance(files, dict) or not all(
+        isinstance(k, str) and _is_int(v) and v >= 0 for k, v in files.items()
+    ):
+        raise _header_error(header_path, "files", files, "an object of file name -> byte size")
+    for rel in files:
+        parts = Path(rel).parts
+        if not parts or Path(rel).is_absolute() or ".." in parts:
+            raise _header_error(header_path, "files", rel, "paths inside the recording directory")
+    segs = h.setdefault("segments", [])
+    keys = {"name", "kind", "start", "stop"}
+    if not isinstance(segs, list) or not all(
+        isinstance(x, dict)
+        and set(x) == keys
+        and isinstance(x["name"], str)
+        and isinstance(x["kind"], str)
+        and _is_int(x["start"])
+        and _is_int(x["stop"])
+        for x in segs
+    ):
+        raise _header_error(
+            header_path, "segments", segs, "a list of {name, kind, start, stop} objects"
+        )
+    audio = h.get("audio")
+    if audio is not None:
+        if not (
+            isinstance(audio, dict)
+            and set(audio) == {"file", "sample_rate", "n_samples"}
+            and isinstance(audio["file"], str)
+            and audio["file"] in files
+            and _is_int(audio["sample_rate"])
+            and _is_int(audio["n_samples"])
+            and audio["n_samples"] >= 0
+        ):
+            raise _header_error(
+                header_path,
+                "audio",
+                audio,
+                "null, or {file (one of the listed files), sample_rate, n_samples (integers)}",
+            )
+    for k in ("meta", "ground_truth"):
+        if h.get(k) is not None and not isinstance(h[k], dict):
+            raise _header_error(header_path, k, h[k], "an object or null")
+    if not isinstance(h.get("has_segmentation", False), bool):
+        raise _header_error(header_path, "has_segmentation", h["has_segmentation"], "true or false")
+
+
 def _read_png(path: Path, flags: int) -> np.ndarray:
     img = cv2.imread(str(path), flags)
     if img is None:
@@ -361,10 +522,7 @@ def load_recording(path: str | Path, *, workers: int = 2) -> Recording:
             f"{header_path}: version {h.get('version')!r} is not supported; "
             f"this tabletop reads versions {list(READABLE_VERSIONS)}"
         )
-    required = ["n_frames", "width", "height", "K", "T_hand_cam", "depth_resolution", "files"]
-    missing = [k for k in required if k not in h]
-    if missing:
-        raise RecordingError(f"{header_path}: missing fields {missing}")
+    _check_header(h, header_path)
     for rel, size in h["files"].items():
         f = path / rel
         if not f.is_file():
@@ -382,6 +540,10 @@ def load_recording(path: str | Path, *, workers: int = 2) -> Recording:
     for k in ("timestamps", "joint_positions", "T_world_hand"):
         if k not in poses:
             raise RecordingError(f"{path / _POSES} lacks array {k!r}")
+        if np.ndim(poses[k]) == 0 or len(poses[k]) != n:
+            raise RecordingError(
+                f"{path / _POSES}: {k} has shape {np.shape(poses[k])}, the header {n} frames"
+            )
 
     scale = float(h["depth_resolution"])
 
@@ -412,12 +574,15 @@ def load_recording(path: str | Path, *, workers: int = 2) -> Recording:
     audio_rate = 16000
     if h.get("audio"):
         try:
-            audio = np.load(path / h["audio"]["file"])
+            audio = np.load(path / h["audio"]["file"], allow_pickle=False)
         except Exception as e:
             raise RecordingError(f"{path / h['audio']['file']} is unreadable: {e}") from None
-        audio_rate = int(h["audio"]["sample_rate"])
-        if len(audio) != h["audio"]["n_samples"]:
-            raise RecordingError(f"{path / h['audio']['file']}: sample count differs from header")
+        audio_rate = h["audio"]["sample_rate"]
+        if getattr(audio, "ndim", 0) != 1 or len(audio) != h["audio"]["n_samples"]:
+            raise RecordingError(
+                f"{path / h['audio']['file']}: must hold the header's {h['audio']['n_samples']} "
+                f"mono samples, holds an array of shape {getattr(audio, 'shape', None)}"
+            )
     try:
         return Recording(
             timestamps=poses["timestamps"],
@@ -431,7 +596,7 @@ def load_recording(path: str | Path, *, workers: int = 2) -> Recording:
             depth_resolution=scale,
             audio=audio,
             audio_rate=audio_rate,
-            segments=tuple(Segment(**s) for s in h.get("segments", [])),
+            segments=tuple(Segment(**s) for s in h["segments"]),
             segmentation=seg,
             T_world_hand_true=poses.get("T_world_hand_true"),
             ground_truth=h.get("ground_truth"),

@@ -355,3 +355,54 @@ def test_an_area_named_after_an_object_is_around_its_instance(avlmap, rec):
         h = avlmap.area_heatmap(q)
         assert h.found and h.modality == "area" and h.query == q
         assert box_distance(avlmap.get_max_pos_3d(h), tray) <= 0.02
+
+
+def _with_array(path, out, name, fn):
+    with np.load(path) as z:
+        arrays = {k: z[k] for k in z.files}
+    arrays[name] = fn(arrays[name].copy())
+    np.savez(out, **arrays)
+    return out
+
+
+def test_a_map_with_bad_arrays_or_another_encoder_set_is_refused_by_name(avlmap, tmp_path):
+    from tabletop.mapping.persistence import MapFormatError
+
+    path = avlmap.save(tmp_path / "map.npz")
+    assert AVLMap.load(path, encoders="oracle").encoder_set == "oracle"
+    with pytest.raises(MapFormatError, match="built with the encoder set 'oracle', not 'default'"):
+        AVLMap.load(path, encoders="default")
+
+    def nan(a):
+        a[0, 0] = np.nan
+        return a
+
+    cases = [
+        ("voxel_feature_sums", nan, "'voxel_feature_sums' holds NaN or infinite values"),
+        ("frame_poses", lambda a: a + np.inf, "'frame_poses' holds NaN or infinite"),
+        ("voxel_linear", lambda a: np.full_like(a, a[0]), "repeats voxel indices"),
+        ("voxel_counts", lambda a: a * 0, "'voxel_counts' must be > 0"),
+        ("voxel_linear", lambda a: a.astype(np.float64), "'voxel_linear' has dtype float64"),
+    ]
+    for i, (name, fn, needle) in enumerate(cases):
+        bad = _with_array(path, tmp_path / f"bad{i}.npz", name, fn)
+        with pytest.raises(MapFormatError) as e:
+            AVLMap.load(bad)
+        assert needle in str(e.value)
+
+
+def test_a_recording_that_puts_nothing_in_the_grid_builds_no_map(rec):
+    from dataclasses import fields
+
+    from tabletop.errors import RecordingError
+    from tabletop.recording import Recording
+
+    kw = {f.name: getattr(rec, f.name) for f in fields(Recording)}
+    n = 20
+    far = np.array(rec.T_world_hand[:n])
+    far[:, :3, 3] += (50.0, 0.0, 0.0)  # 50 m away: legal poses, but no point lands in the grid
+    for k in ("timestamps", "rgb", "depth", "joint_positions", "segmentation"):
+        kw[k] = kw[k][:n]
+    kw.update(T_world_hand=far, T_world_hand_true=None, segments=(), audio=None)
+    with pytest.raises(RecordingError, match="no depth point of the recording's 20 frames fell"):
+        build_map(Recording(**kw), "oracle")

@@ -168,3 +168,100 @@ def test_arrays_are_read_only_copies():
     np.testing.assert_array_equal(f.T_world_cam, rec2.T_world_hand[0] @ rec2.T_hand_cam)
     with pytest.raises(IndexError, match="out of range"):
         rec2.frame(5)
+
+
+def _with(rec, **changes):
+    return Recording(**{**vars_of(rec), **changes})
+
+
+def _poses(rec, fn):
+    T = np.array(rec.T_world_hand)
+    fn(T)
+    return T
+
+
+@pytest.mark.parametrize(
+    "change, needle",
+    [
+        (
+            lambda r: {"timestamps": np.array([0, np.nan, 0.2, 0.3, 0.4])},
+            "timestamps must be finite",
+        ),
+        (lambda r: {"timestamps": np.array([0, 0.1, 0.1, 0.3, 0.4])}, "frame 2 (0.1 s) does not"),
+        (lambda r: {"depth_resolution": 0.0}, "depth_resolution must be in [1e-6, 0.01]"),
+        (lambda r: {"depth_resolution": float("nan")}, "depth_resolution must be in"),
+        (
+            lambda r: {"T_world_hand": _poses(r, lambda T: T[3, :3, 3].__iadd__(1e6))},
+            "within 100 m of the base frame (a unit error?); frame 3",
+        ),
+        (
+            lambda r: {"T_world_hand": _poses(r, lambda T: T[1, :3, :3].__imul__(2.0))},
+            "T_world_hand must be a rigid transform",
+        ),
+        (
+            lambda r: {"T_world_hand": _poses(r, lambda T: T.__setitem__((2, 0, 3), np.inf))},
+            "T_world_hand must be finite; frame 2",
+        ),
+        (lambda r: {"T_hand_cam": np.diag([1.0, 1.0, -1.0, 1.0])}, "T_hand_cam must be a rigid"),
+        (lambda r: {"K": np.array([[0.0, 0, 1], [0, 1, 1], [0, 0, 1]])}, "K must be a pinhole"),
+        (lambda r: {"joint_positions": np.full((5, 7), np.nan)}, "joint_positions must be finite"),
+        (lambda r: {"audio_rate": 0}, "audio_rate must be an integer in [1000, 384000]"),
+        (lambda r: {"audio_rate": 16000.5}, "audio_rate must be an integer"),
+    ],
+)
+def test_bad_recordings_are_refused_with_the_field_named(change, needle):
+    rec = make_recording()
+    with pytest.raises(RecordingError) as e:
+        _with(rec, **change(rec))
+    assert needle in str(e.value)
+
+
+def _rewrite_header(path, fn):
+    header = path / "recording.json"
+    h = json.loads(header.read_text())
+    fn(h)
+    header.write_text(json.dumps(h))
+
+
+@pytest.mark.parametrize(
+    "fn, needle",
+    [
+        (lambda h: h.update(n_frames="5"), "n_frames is '5'; valid: an integer"),
+        (lambda h: h.update(n_frames=-1), "n_frames is -1"),
+        (lambda h: h.update(width=3.5), "width is 3.5; valid: an integer in [1, 8192] px"),
+        (lambda h: h.update(K=[[1, 2], [3, 4]]), "K is [[1, 2], [3, 4]]; valid: a 3x3 list"),
+        (lambda h: h.update(T_hand_cam="eye"), "T_hand_cam is 'eye'"),
+        (lambda h: h.update(depth_resolution=0), "depth_resolution is 0; valid: a number"),
+        (lambda h: h.update(files=["rgb/000000.png"]), "files is ['rgb/000000.png']"),
+        (lambda h: h["files"].update({"../../etc/passwd": 1}), "valid: paths inside"),
+        (lambda h: h.update(segments=[{"name": "x"}]), "segments is [{'name': 'x'}]"),
+        (lambda h: h.update(segments="all"), "valid: a list of {name, kind, start, stop}"),
+        (lambda h: h["audio"].update(file="../x.npy"), "audio is"),
+        (lambda h: h["audio"].update(sample_rate="16k"), "audio is"),
+        (lambda h: h.update(meta=[1]), "meta is [1]; valid: an object or null"),
+        (lambda h: h.update(has_segmentation="yes"), "has_segmentation is 'yes'"),
+        (lambda h: h["segments"][0].update(stop=99), "segment 'mapping' [0, 99) outside 0..5"),
+    ],
+)
+def test_malformed_headers_are_named_before_any_file_is_read(tmp_path, fn, needle):
+    path = save_recording(make_recording(), tmp_path / "rec")
+    _rewrite_header(path, fn)
+    with pytest.raises(RecordingError) as e:
+        load_recording(path)
+    assert needle in str(e.value), str(e.value)
+
+
+def test_a_poses_file_with_fewer_frames_than_the_header_is_named(tmp_path):
+    rec = make_recording()
+    path = save_recording(rec, tmp_path / "rec")
+    np.savez(
+        path / "poses.npz",
+        timestamps=rec.timestamps[:3],
+        joint_positions=rec.joint_positions,
+        T_world_hand=rec.T_world_hand,
+    )
+    _rewrite_header(
+        path, lambda h: h["files"].update({"poses.npz": (path / "poses.npz").stat().st_size})
+    )
+    with pytest.raises(RecordingError, match=r"timestamps has shape \(3,\), the header 5 frames"):
+        load_recording(path)

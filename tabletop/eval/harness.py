@@ -189,10 +189,7 @@ def cached_map(
     path = cache / f"map-{encoders}-{key}.npz" if cache else None
     if path is not None and path.is_file():
         try:
-            m = AVLMap.load(path)
-            if m.encoder_set != encoders:
-                raise TabletopError(f"it was built with {m.encoder_set!r}, not {encoders!r}")
-            return m, 0.0, True
+            return AVLMap.load(path, encoders=encoders), 0.0, True
         except TabletopError as e:
             log.warning("cached map %s is unusable (%s); building again", path, e)
     t0 = time.perf_counter()

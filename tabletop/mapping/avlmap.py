@@ -29,7 +29,7 @@ from typing import Protocol
 
 import numpy as np
 
-from tabletop.errors import ConfigError, TabletopError
+from tabletop.errors import ConfigError, RecordingError, TabletopError
 from tabletop.mapping.area_module import AreaModule
 from tabletop.mapping.audio_module import AudioModule
 from tabletop.mapping.audio_segments import AudioSegment
@@ -288,6 +288,13 @@ class AVLMap:
             )
             if progress is not None:
                 progress(i + 1, len(recording))
+        if len(recording) and m.voxels.n == 0:
+            lo, hi = list(m.grid.lower), list(m.grid.upper)
+            raise RecordingError(
+                f"no depth point of the recording's {len(recording)} frames fell inside the "
+                f"map's grid ({lo} .. {hi} m in the base frame): check that the poses are in "
+                "metres in the robot's base frame and that the depth is valid"
+            )
         if recording.audio is not None and m.audio_encoder is not None:
             m.add_audio(
                 recording.audio, recording.audio_rate, recording.timestamps, recording.T_world_mic
@@ -299,14 +306,23 @@ class AVLMap:
         return save_map(self, path)
 
     @classmethod
-    def load(cls, path, *, calibration: Calibration | None = None) -> AVLMap:
+    def load(
+        cls, path, *, calibration: Calibration | None = None, encoders: str | None = None
+    ) -> AVLMap:
         """Load a map saved by :meth:`save`, re-creating its encoder set (file format:
         :mod:`tabletop.mapping.persistence`). ``calibration`` replaces the calibration saved with
         the map (a map of format 1-2 saved none: it gets the uncalibrated prior unless one is
-        given). What an older file lacks is listed in :attr:`lacks`."""
+        given). ``encoders``: the encoder set the caller expects; a map built with another
+        raises :class:`MapFormatError` naming both. What an older file lacks is listed in
+        :attr:`lacks`."""
         from tabletop.mapping.encoders.registry import make_encoders_from_rebuild
 
         h, a = read_map_file(path)
+        if encoders is not None and h.get("encoder_set") != encoders:
+            raise MapFormatError(
+                f"{path} was built with the encoder set {h.get('encoder_set')!r}, not "
+                f"{encoders!r}"
+            )
         lacks: list[str] = []
         try:
             c = dict(h["config"])

@@ -220,6 +220,16 @@ def read_map_file(path: str | Path) -> tuple[dict, dict[str, np.ndarray]]:
             raise MapFormatError(
                 f"{path}: array {name!r} has shape {arrays[name].shape}, header says {shape}"
             )
+        kind = arrays[name].dtype.kind
+        if kind not in ("iu" if name in ("voxel_linear", "voxel_instance") else "fiu"):
+            raise MapFormatError(f"{path}: array {name!r} has dtype {arrays[name].dtype}")
+        if kind == "f" and not np.all(np.isfinite(arrays[name])):
+            raise MapFormatError(f"{path}: array {name!r} holds NaN or infinite values")
+    lin = arrays["voxel_linear"]
+    if len(np.unique(lin)) != len(lin):
+        raise MapFormatError(f"{path}: array 'voxel_linear' repeats voxel indices")
+    if np.any(arrays["voxel_counts"] <= 0):
+        raise MapFormatError(f"{path}: array 'voxel_counts' must be > 0 for every stored voxel")
     segs = h.get("segments")
     if not isinstance(segs, list) or len(segs) != h["n_segments"]:
         raise MapFormatError(f"{path}: header 'segments' must list {h['n_segments']} [start, end]")
