@@ -100,3 +100,21 @@ def test_the_budget_is_configurable_and_heatmap_sized_results_pass():
     np.testing.assert_allclose(robot.moves, [[0.0, 0.0, 0.0]])
     with pytest.raises(ConfigError, match="max_elements"):
         SandboxConfig(max_elements=0)
+
+
+def test_lists_nested_deeper_than_the_limit_stop_as_they_are_built():
+    # a list wrapped in another 6000 times: the robot API's error message (its repr) raised
+    # RecursionError, an untyped crash, from robot.move_to(a)
+    deep = "a = [0]\nfor _ in range(100):\n    for _ in range(60):\n        a = [a]\n"
+    for use in ("robot.move_to(a)", "robot.get_pos(a)", "p = robot.current_position()\nx = p * a"):
+        robot = PointRobot()
+        with pytest.raises(SandboxLimit, match="line 4: lists nested 33 deep; at most 32"):
+            run_code(deep + use, robot)
+        assert robot.moves == []
+    shallow = SandboxConfig(max_depth=3)  # an array counts its dimensions
+    run_code("a = [[[0]]]\np = robot.current_position()\nb = [[p]]\n", PointRobot(), shallow)
+    for code in ("a = [[[[0]]]]", "p = robot.current_position()\nb = [[[p]]]"):
+        with pytest.raises(SandboxLimit, match="nested 4 deep; at most 3"):
+            run_code(code, PointRobot(), shallow)
+    with pytest.raises(ConfigError, match="max_depth"):
+        SandboxConfig(max_depth=0)

@@ -20,7 +20,8 @@ listing a user reviews is what runs, and a statement's operators and brackets ar
 no check recurses deeper than :attr:`SandboxConfig.max_expr_ops`. While running,
 :func:`run_code` also counts steps, checks a wall-clock limit between steps, and a memory
 budget: a list, tuple or array result is sized before it is built (:class:`SandboxLimit` over
-:attr:`SandboxConfig.max_elements`).
+:attr:`SandboxConfig.max_elements`), and lists nested deeper than
+:attr:`SandboxConfig.max_depth` are refused as they are built.
 """
 
 from __future__ import annotations
@@ -140,6 +141,10 @@ class SandboxConfig:
     max_elements: int = 2_000_000
     """Most elements of a list, tuple or array the code builds (nested lists counted through,
     an array by its size); a heatmap product no larger than its factors is always allowed."""
+    max_depth: int = 32
+    """Deepest nesting of the lists and tuples the code builds (an array counts its
+    dimensions): a list a loop wraps in another thousands of times is refused while it is
+    built, before converting it to an array or showing it in an error message recurses."""
 
     def __post_init__(self) -> None:
         for name in (
@@ -150,6 +155,7 @@ class SandboxConfig:
             "max_moves",
             "max_expr_ops",
             "max_elements",
+            "max_depth",
         ):
             if getattr(self, name) < 1:
                 raise ConfigError(f"SandboxConfig.{name} must be >= 1, got {getattr(self, name)}")
@@ -494,9 +500,9 @@ class _Interpreter:
         self.calls: list[CallRecord] = []
         self.steps = 0
         self.t0 = time.monotonic()
-        # id -> (list or tuple, its element count): the code cannot change a list it built, so
-        # a count is taken once, from its items' counts (the object is kept so its id stays)
-        self.sizes: dict[int, tuple[object, int]] = {}
+        # id -> (list or tuple, its element count, its depth): the code cannot change a list it
+        # built, so both are taken once, from its items' (the object is kept so its id stays)
+        self.sizes: dict[int, tuple[object, int, int]] = {}
 
     def size(self, v) -> int:
         """Elements of ``v`` counted through nested lists and tuples (an array or a heatmap
@@ -519,15 +525,32 @@ class _Interpreter:
                 total += self.size(x)
         return total
 
+    def depth(self, v) -> int:
+        """How deep lists and tuples nest in ``v`` (an array: its dimensions; a sequence the
+        code did not build: 1)."""
+        known = self.sizes.get(id(v))
+        if known is not None and known[0] is v:
+            return known[2]
+        if isinstance(v, np.ndarray):
+            return v.ndim
+        return 1 if isinstance(v, (list, tuple)) else 0
+
     def built(self, node: ast.AST, seq: list | tuple):
-        """``seq`` (a list or tuple the code just built), within the memory budget."""
+        """``seq`` (a list or tuple the code just built), within the memory budget and the
+        nesting limit (a list wrapped in another thousands of times made the robot API's
+        error message, a repr, raise RecursionError)."""
         n = sum(self.size(x) for x in seq)
         if n > self.config.max_elements:
             raise SandboxLimit(
                 f"line {node.lineno}: a list of {n} elements (nested lists counted through); "
                 f"at most {self.config.max_elements}"
             )
-        self.sizes[id(seq)] = (seq, n)
+        depth = 1 + max((self.depth(x) for x in seq), default=0)
+        if depth > self.config.max_depth:
+            raise SandboxLimit(
+                f"line {node.lineno}: lists nested {depth} deep; at most {self.config.max_depth}"
+            )
+        self.sizes[id(seq)] = (seq, n, depth)
         return seq
 
     def tick(self, node: ast.AST) -> None:
