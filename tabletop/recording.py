@@ -13,7 +13,6 @@ import json
 import logging
 import os
 import shutil
-import tempfile
 from collections.abc import Iterator
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
@@ -22,6 +21,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from tabletop.atomic import atomic_path
 from tabletop.errors import RecordingError
 
 __all__ = [
@@ -327,20 +327,21 @@ def save_recording(
     """
     path = Path(path)
     check_output(path, overwrite)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{path.name}.", dir=path.parent))
-    try:
+    if not path.exists():
+        with atomic_path(path, directory=True) as tmp:
+            _write_into(rec, tmp, workers)
+        return path
+    staged = path.with_name(f".{path.name}.new-{os.getpid()}")
+    old = path.with_name(f".{path.name}.old-{os.getpid()}")
+    with atomic_path(staged, directory=True) as tmp:
         _write_into(rec, tmp, workers)
-        if path.exists():
-            old = path.with_name(f".{path.name}.old-{os.getpid()}")
-            path.rename(old)
-            tmp.rename(path)
-            shutil.rmtree(old)
-        else:
-            tmp.rename(path)
+    try:  # the previous recording is replaced only once the new one is whole
+        path.rename(old)
+        staged.rename(path)
     except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
+        shutil.rmtree(staged, ignore_errors=True)
         raise
+    shutil.rmtree(old)
     return path
 
 

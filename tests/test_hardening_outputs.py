@@ -83,3 +83,50 @@ def test_query_refuses_a_map_of_another_encoder_set_before_loading_it(tmp_path, 
     notes.write_bytes(b"not a map")
     with pytest.raises(MapFormatError, match="is not a readable tabletop-avlmap file"):
         check_map_encoders(notes, "oracle")
+
+
+_SLOW_SAVE = r"""
+import sys, time
+import numpy as np
+from tabletop.atomic import exit_on_signals
+from tabletop.recording import Recording, save_recording
+
+n = 400
+rng = np.random.default_rng(0)
+rec = Recording(
+    timestamps=np.arange(n) / 30.0,
+    rgb=rng.integers(0, 256, (n, 240, 320, 3), dtype=np.uint8),
+    depth=np.full((n, 240, 320), 0.5, np.float32),
+    joint_positions=np.zeros((n, 7)),
+    T_world_hand=np.tile(np.eye(4), (n, 1, 1)),
+    K=np.array([[200.0, 0, 160], [0, 200.0, 120], [0, 0, 1]]),
+    T_hand_cam=np.eye(4),
+)
+print("ready", flush=True)
+with exit_on_signals():
+    save_recording(rec, sys.argv[1], workers=1)
+"""
+
+
+@pytest.mark.parametrize("sig", ["SIGTERM", "SIGINT"])
+def test_a_killed_write_leaves_no_hidden_temporary_directory(tmp_path, sig):
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    out = tmp_path / "rec"
+    proc = subprocess.Popen(
+        [sys.executable, "-c", _SLOW_SAVE, str(out)], stdout=subprocess.PIPE, text=True
+    )
+    assert proc.stdout.readline().strip() == "ready"
+    deadline = time.monotonic() + 60
+    while not any(p.name.startswith(".rec.") for p in tmp_path.iterdir()):
+        assert time.monotonic() < deadline and proc.poll() is None, "the write never started"
+        time.sleep(0.02)
+    time.sleep(0.3)  # some frames are written
+    proc.send_signal(getattr(signal, sig))
+    rc = proc.wait(timeout=60)
+    # SIGTERM: SystemExit(143); SIGINT: KeyboardInterrupt, which Python ends by the signal
+    assert rc == (128 + signal.SIGTERM if sig == "SIGTERM" else -signal.SIGINT)
+    assert list(tmp_path.iterdir()) == []  # neither the recording nor its temporary directory

@@ -7,6 +7,7 @@ import contextlib
 import logging
 import sys
 
+from tabletop.atomic import exit_on_signals
 from tabletop.cli import bench, encoders, evaluate, language, maps, scan
 from tabletop.cli.progress import interactive, no_library_bars
 from tabletop.errors import TabletopError
@@ -41,7 +42,8 @@ def main(argv: list[str] | None = None) -> int:
     try:
         # without a terminal (a log file, a pipe) no bars at all: ours are summary lines
         # (ProgressBars), the libraries' are switched off
-        with contextlib.nullcontext() if interactive() else no_library_bars():
+        # a kill unwinds like Ctrl-C: partial outputs are removed
+        with exit_on_signals(), contextlib.nullcontext() if interactive() else no_library_bars():
             return args.func(args)
     except TabletopError as e:
         print(f"tabletop {args.command}: error: {e}", file=sys.stderr)

@@ -320,8 +320,7 @@ class AVLMap:
         h, a = read_map_file(path)
         if encoders is not None and h.get("encoder_set") != encoders:
             raise MapFormatError(
-                f"{path} was built with the encoder set {h.get('encoder_set')!r}, not "
-                f"{encoders!r}"
+                f"{path} was built with the encoder set {h.get('encoder_set')!r}, not {encoders!r}"
             )
         lacks: list[str] = []
         try:

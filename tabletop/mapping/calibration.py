@@ -23,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
+from tabletop.atomic import atomic_path
 from tabletop.errors import AssetError, ConfigError
 from tabletop.paths import DATA_DIR
 
@@ -150,9 +151,8 @@ class Calibration:
         :data:`CALIBRATION_DIR`; pass that path explicitly to replace one)."""
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_suffix(".tmp")
-        tmp.write_text(json.dumps(self.to_json(), indent=1) + "\n")
-        tmp.replace(path)
+        with atomic_path(path) as tmp:
+            tmp.write_text(json.dumps(self.to_json(), indent=1) + "\n")
         return path
 
 

@@ -23,13 +23,12 @@ from __future__ import annotations
 
 import json
 import logging
-import os
-import tempfile
 import zipfile
 from pathlib import Path
 
 import numpy as np
 
+from tabletop.atomic import atomic_path
 from tabletop.errors import ConfigError
 from tabletop.mapping.errors import MapFormatError
 
@@ -160,15 +159,8 @@ def save_map(m, path: str | Path, *, rebuild: dict | None = None) -> Path:
         header["visual"], visual = m.visual.state()
         arrays.update({f"visual_{k}": v for k, v in visual.items()})
     arrays["header"] = np.frombuffer(json.dumps(header).encode(), dtype=np.uint8)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
-    os.close(fd)
-    try:
-        with open(tmp, "wb") as f:
-            np.savez(f, **arrays)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    with atomic_path(path) as tmp, open(tmp, "wb") as f:
+        np.savez(f, **arrays)
     return path
 
 

@@ -36,6 +36,7 @@ from pathlib import Path
 
 import numpy as np
 
+from tabletop.atomic import atomic_path
 from tabletop.errors import ConfigError, SceneError
 
 __all__ = [
@@ -791,10 +792,8 @@ def train_vision(config: VisionTrainConfig | None = None, progress=None) -> Path
         }
         if cfg.backbone == "small":
             ckpt["width"] = cfg.width  # what loaders before the arch record read
-        out.parent.mkdir(parents=True, exist_ok=True)
-        tmp = out.with_suffix(".tmp")
-        torch.save(ckpt, tmp)
-        tmp.replace(out)
+        with atomic_path(out) as tmp:
+            torch.save(ckpt, tmp)
         from tabletop.mapping.encoders import lseg
 
         lseg._load.cache_clear()
@@ -802,8 +801,8 @@ def train_vision(config: VisionTrainConfig | None = None, progress=None) -> Path
             weights=out, layouts=cfg.eval_layouts, views=cfg.eval_views, seed=cfg.seed
         )
         ckpt["metrics"] = metrics
-        torch.save(ckpt, tmp)
-        tmp.replace(out)
+        with atomic_path(out) as tmp:
+            torch.save(ckpt, tmp)
         lseg._load.cache_clear()
         log.info("held-out: %s", metrics)
         return out

@@ -21,6 +21,7 @@ import numpy as np
 import torch
 from torch import nn
 
+from tabletop.atomic import atomic_path
 from tabletop.errors import AssetError, ConfigError
 from tabletop.mapping.encoders.base import l2_normalize, torch_threads
 from tabletop.mapping.encoders.minilm import MINILM_SPACE
@@ -257,9 +258,8 @@ def save_audio_checkpoint(
         "state_dict": state,
         "meta": dict(meta or {}),
     }
-    tmp = path.with_suffix(path.suffix + ".tmp")
-    torch.save(blob, tmp)
-    tmp.replace(path)
+    with atomic_path(path) as tmp:
+        torch.save(blob, tmp)
     return path
 
 
