@@ -7,7 +7,14 @@ import numpy as np
 import pytest
 
 from tabletop.errors import ConfigError
-from tabletop.language import SandboxConfig, SandboxError, SandboxLimit, run_code
+from tabletop.language import (
+    CodeRejected,
+    SandboxConfig,
+    SandboxError,
+    SandboxLimit,
+    check_code,
+    run_code,
+)
 from tabletop.robot.api import RobotAPI
 
 
@@ -118,3 +125,12 @@ def test_lists_nested_deeper_than_the_limit_stop_as_they_are_built():
             run_code(code, PointRobot(), shallow)
     with pytest.raises(ConfigError, match="max_depth"):
         SandboxConfig(max_depth=0)
+
+
+@pytest.mark.parametrize("word", ["not", "lambda:", "await", "-"])
+def test_keywords_count_as_operators_before_the_checker_recurses(word):
+    # 'x = not not ... 1' with a thousand 'not's: the checker raised RecursionError
+    with pytest.raises(CodeRejected, match="line 2: the statement has more than 100 operators"):
+        check_code("x = 1\nx = " + f"{word} " * 1000 + "1\n")
+    with pytest.raises(CodeRejected, match="unary operator Not is not allowed"):
+        check_code("x = " + "not " * 90 + "1")  # below the limit: refused for what it is

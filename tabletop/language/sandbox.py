@@ -424,15 +424,25 @@ def _hidden_characters(code: str) -> list[str]:
     return problems
 
 
+# Keywords that nest expressions as operators do: 'x = not not ... 1' with a thousand 'not's
+# made the checker recurse past Python's limit (RecursionError) when only symbols were counted.
+_KEYWORD_OPERATORS = frozenset(
+    ("not", "and", "or", "in", "is", "if", "else", "for", "lambda", "await", "yield", "async")
+)
+
+
 def _operator_counts(code: str, limit: int) -> list[str]:
-    """One problem per statement with more than ``limit`` operators, brackets and dots (what
-    makes an expression nest), counted on the tokens so that nothing recurses first."""
+    """One problem per statement with more than ``limit`` operators (keywords such as ``not``
+    included), brackets and dots (what makes an expression nest), counted on the tokens so that
+    nothing recurses first."""
     problems, count = [], 0
     try:
         for tok in tokenize.generate_tokens(io.StringIO(code).readline):
             if tok.type == tokenize.NEWLINE:
                 count = 0
-            elif tok.type == tokenize.OP and tok.string not in ",:;=)]}":
+            elif (tok.type == tokenize.OP and tok.string not in ",:;=)]}") or (
+                tok.type == tokenize.NAME and tok.string in _KEYWORD_OPERATORS
+            ):
                 count += 1
                 if count == limit + 1:
                     problems.append(
