@@ -134,3 +134,23 @@ def test_keywords_count_as_operators_before_the_checker_recurses(word):
         check_code("x = 1\nx = " + f"{word} " * 1000 + "1\n")
     with pytest.raises(CodeRejected, match="unary operator Not is not allowed"):
         check_code("x = " + "not " * 90 + "1")  # below the limit: refused for what it is
+
+
+@pytest.mark.parametrize(
+    "call",
+    [
+        "robot.load_image('goal\\x00.png')",
+        "robot.get_major_map(img='a\\x00b')",
+        "robot.get_pos('\\ud800')",
+    ],
+)
+def test_arguments_the_robot_api_cannot_take_are_a_sandbox_error_naming_the_line(call, tmp_path):
+    # a NUL in an image path raised ValueError ('embedded null byte') out of run_code
+    from tabletop.language.run import TracingRobot
+    from tabletop.language.suite import PointRobot as MapRobot
+    from tabletop.language.suite import load_suite, reference_map
+
+    suite = load_suite()
+    robot = MapRobot(reference_map(suite), suite.start)
+    with pytest.raises(SandboxError, match=r"line 2: robot\.\w+: \w+Error: "):
+        run_code("x = 1\n" + call, TracingRobot(robot, image_dir=tmp_path))

@@ -686,8 +686,12 @@ class _Interpreter:
             result = fn(*args, **kwargs)
         except TabletopError:
             raise
-        except TypeError as err:
-            raise SandboxError(f"line {c.lineno}: robot.{method}: {err}") from None
+        except (TypeError, ValueError, ArithmeticError, LookupError) as err:
+            # arguments the code chose that the robot API could not take (a path with a NUL
+            # in it raised ValueError from the file system): the code's error, on its line
+            raise SandboxError(
+                f"line {c.lineno}: robot.{method}: {type(err).__name__}: {err}"
+            ) from None
         rec = CallRecord(c.lineno, method, args, kwargs, result)
         self.calls.append(rec)
         if self.on_call is not None:
