@@ -154,3 +154,21 @@ def test_arguments_the_robot_api_cannot_take_are_a_sandbox_error_naming_the_line
     robot = MapRobot(reference_map(suite), suite.start)
     with pytest.raises(SandboxError, match=r"line 2: robot\.\w+: \w+Error: "):
         run_code("x = 1\n" + call, TracingRobot(robot, image_dir=tmp_path))
+
+
+def test_lists_handed_to_the_robot_are_bounded():
+    # 65536 positions in nested lists handed to move_to: its error message showed them all,
+    # seconds of work for a message of megabytes, in one step the time limit cannot stop
+    code = _nest(4, leaf="robot.current_position()") + "robot.move_to(l4)\n"
+    robot = PointRobot()
+    with pytest.raises(SandboxLimit, match=r"line 6: robot.move_to given a list of 196608 el"):
+        run_code(code, robot)
+    assert robot.moves == []
+    with pytest.raises(SandboxLimit, match="line 5: robot.get_pos given a list of 4096 elements"):
+        run_code(_nest(3, leaf="0") + "robot.get_pos(l3)\n", robot)
+    p = "p = robot.current_position()\n"
+    run_code(p + "robot.move_to(p * [[1.0], [2.0]])\n", robot)  # an array: not a list
+    run_code(p + "robot.move_to([p[0], p[1], 0.1])\n", robot)
+    assert len(robot.moves) == 2
+    with pytest.raises(ConfigError, match="max_arg_elements"):
+        SandboxConfig(max_arg_elements=0)

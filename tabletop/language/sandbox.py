@@ -21,7 +21,8 @@ no check recurses deeper than :attr:`SandboxConfig.max_expr_ops`. While running,
 :func:`run_code` also counts steps, checks a wall-clock limit between steps, and a memory
 budget: a list, tuple or array result is sized before it is built (:class:`SandboxLimit` over
 :attr:`SandboxConfig.max_elements`), and lists nested deeper than
-:attr:`SandboxConfig.max_depth` are refused as they are built.
+:attr:`SandboxConfig.max_depth` are refused as they are built, as are lists of more than
+:attr:`SandboxConfig.max_arg_elements` handed to a robot method.
 """
 
 from __future__ import annotations
@@ -141,6 +142,11 @@ class SandboxConfig:
     max_elements: int = 2_000_000
     """Most elements of a list, tuple or array the code builds (nested lists counted through,
     an array by its size); a heatmap product no larger than its factors is always allowed."""
+    max_arg_elements: int = 1_000
+    """Most elements of a list or tuple handed to a robot method (nested lists counted
+    through; arrays and heatmaps are not lists): robot methods take names, numbers, points and
+    heatmaps, and their error messages show what they were given (a list of 65536 positions
+    took seconds to show, a message of megabytes)."""
     max_depth: int = 32
     """Deepest nesting of the lists and tuples the code builds (an array counts its
     dimensions): a list a loop wraps in another thousands of times is refused while it is
@@ -156,6 +162,7 @@ class SandboxConfig:
             "max_expr_ops",
             "max_elements",
             "max_depth",
+            "max_arg_elements",
         ):
             if getattr(self, name) < 1:
                 raise ConfigError(f"SandboxConfig.{name} must be >= 1, got {getattr(self, name)}")
@@ -682,6 +689,14 @@ class _Interpreter:
         fn = getattr(self.robot, method, None)
         if fn is None or not callable(fn):
             raise SandboxError(f"line {c.lineno}: this robot has no method {method!r}")
+        for v in (*args, *kwargs.values()):
+            n = self.size(v) if isinstance(v, (list, tuple)) else 0
+            if n > self.config.max_arg_elements:
+                raise SandboxLimit(
+                    f"line {c.lineno}: robot.{method} given a list of {n} elements; at most "
+                    f"{self.config.max_arg_elements} (robot methods take names, numbers, "
+                    "points and heatmaps)"
+                )
         try:
             result = fn(*args, **kwargs)
         except TabletopError:
