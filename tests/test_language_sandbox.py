@@ -133,10 +133,145 @@ HOSTILE = [
     ("x = 2 ** 64", "'**'"),
     ("x = 1 << 64", "'<<'"),
     ("p = robot.current_position()\nx = p @ p", "'@'"),
+    # memory bombs that the static check refuses (those it cannot see are stopped at run time:
+    # tests/test_hardening_sandbox.py)
+    ("x = [0] * 10**9", "'**'"),
+    ("x = 'x' * 10**10", "'**'"),
+    ("x = bytes(10**10)", "calling 'bytes'"),
+    ("x = bytearray(10000000000)", "calling 'bytearray'"),
+    ("x = 2**10**10", "'**'"),
+    ("x = 9**9**9", "'**'"),
+    ("x = 1 << 10**9", "'<<'"),
+    ("x = 1 << 1000000000", "'<<'"),
+    ("x = [0 for _ in range(10**9)]", "comprehensions"),
+    ("x = {i: i for i in range(10**9)}", "comprehensions"),
+    ("x = {i for i in range(10**9)}", "comprehensions"),
+    ("x = [*range(1000000000)]", "starred"),
+    ("x = list(range(1000000000))", "calling 'list'"),
+    ("x = sum(range(10**18))", "calling 'sum'"),
+    ("x = [0] * 9223372036854775808", "beyond 2**63"),
+    ("x = 'ab' * 10000000000000000000000", "beyond 2**63"),
+    ("x = '{:>9999999999}'.format(1)", "attribute access '.format'"),
+    ("x = f'{1:>9999999999}'", "f-strings"),
+    ("x = {0: [0] * 1000000}", "dict literals"),
+    ("x = {0} * 1000000", "set literals"),
+    ("x = 'x'\nfor _ in range(100):\n    for _ in range(100):\n        x = x + x", "steps"),
+    ("h = robot.get_map(obj='mug')\nx = [[h] * 16] * 16 ** 6", "'**'"),
+    ("x = 0x8000000000000000", "beyond 2**63"),
+    ("x = 1_000_000_000_000_000_000_000", "beyond 2**63"),
+    ("x = '" + "\\x41" * 501 + "'", "longer than 500"),
+    ("x = [" + "[0] * 10, " * 17 + "]", "at most 16 items"),
+    # expressions nested deeper than any check may recurse
+    ("+".join(["1"] * 10_000), "more than 100 operators"),
+    ("x = " + "(" * 1000 + "1" + ")" * 1000, "more than 100 operators"),
+    ("x = " + "[" * 1000 + "]" * 1000, "more than 100 operators"),
+    ("x = " + "lambda: " * 1000 + "0", "more than 100 operators"),
+    ("x = " + "not " * 1000 + "1", "more than 100 operators"),
+    ("x = " + "-(" * 600 + "1" + ")" * 600, "more than 100 operators"),
+    ("x = " + "{0: " * 500 + "0" + "}" * 500, "more than 100 operators"),
+    ("x = " + "robot.get_pos(" * 400 + "'mug'" + ")" * 400, "more than 100 operators"),
+    ("x = robot.current_position()\ny = x" + "[0]" * 1000, "more than 100 operators"),
+    ("x = " + " if 1 else ".join(["1"] * 1000), "more than 100 operators"),
+    ("x = " + " and ".join(["1"] * 2000), "more than 100 operators"),
+    ("".join(" " * i + "for _ in range(1):\n" for i in range(101)) + " " * 101 + "pass", "syntax"),
+    # control and format characters in comments and strings: the listing must be what runs
+    ("x = 'mug'  # \u2066 robot.move_south(0.5) \u2069", "U+2066"),
+    ("# \u202e )5.0(htuos_evom.tobor\nrobot.move_north(0.01)", "line 1: character U+202E"),
+    ("x = 'mug\u200f'", "U+200F"),
+    ("robot.move_north(0.01)\x0crobot.move_south(0.5)", "U+000C"),
+    ("robot.move_north(0.01)\x85robot.move_south(0.5)", "U+0085"),
+    ("robot.move_north(0.01)\u2029robot.move_south(0.5)", "U+2029"),
+    ("x = 1  # \x1b]8;;http://example.invalid\x1b\\link", "U+001B (ESC)"),
+    ("x = 'a\ud800'", "U+D800"),
+    ("x = 'mug\U000e0041'", "U+E0041"),
+    ("robot.move_north(0.01)\r\nrobot.move_south(0.5)", "U+000D (CR)"),
+    ("x = 1\x1a", "U+001A"),
+    ('x = 1\n# fine\n\n\n"""\u202a"""', "line 5: character U+202A"),
+    # escapes through attributes, format strings and frames
+    ("x = robot.move_to.__self__", "dunder"),
+    ("x = robot.get_pos.__func__.__globals__['os']", "indexing only"),
+    ("x = ().__class__.__base__.__subclasses__()", "dunder"),
+    ("x = robot.get_pos('mug').__class__", "dunder"),
+    ("x = (i for i in []).gi_frame.f_back", "attribute access '.gi_frame'"),
+    ("x = (i for i in []).gi_frame.f_back", "attribute access '.f_back'"),
+    ("x = '{0.__class__}'.format(robot)", "attribute access '.format'"),
+    ("x = '{0.__init__.__globals__}'.format(robot.move_to)", "attribute access"),
+    ("x = '%s' % robot", "'robot' may only"),
+    ("x = robot.current_position().tofile('/tmp/x')", "attribute access '.tofile'"),
+    ("x = robot.get_major_map(obj='mug').values", "attribute access '.values'"),
+    ("x = robot.move_to", "attribute access '.move_to'"),
+    ("x = robot.spatial", "attribute access '.spatial'"),
+    ("robot.map.voxels = None", "assign only to names"),
+    ("robot.move_to = print", "assign only to names"),
+    ("x = robot.current_position()\nx[0] = 5", "assign only to names"),
+    ("x = getattr(robot, '__cl' + 'ass__')", "calling 'getattr'"),
+    ("x = vars(robot)", "calling 'vars'"),
+    ("x = globals()", "calling 'globals'"),
+    ("x = locals()", "calling 'locals'"),
+    ("x = type(robot)", "calling 'type'"),
+    ("x = __builtins__.__dict__['eval']", "indexing only"),
+    ("x = robot._heatmap({}, {})", "not part of the robot API"),
+    ("robot.__init__(None)", "dunder"),
+    ("robot.get_major_map(obj='mug', **{'sound': 'dog'})", "keyword unpacking"),
+    ("robot.get_pos(__class__='mug')", "dunder"),
+    # imports in all spellings
+    ("import os as o", "import"),
+    ("import os.path", "import"),
+    ("from os import *", "import"),
+    ("from . import sandbox", "import"),
+    ("import importlib\nimportlib.import_module('os')", "import"),
+    ("x = __import__('subprocess')", "dunder"),
+    ("x = __loader__.load_module('os')", "attribute access"),
+    ("import\tos", "import"),
+    ("from os import (path,\n    sep)", "import"),
+    ("x = 1; import os", "import"),
+    ("if True: import os", "if statements"),
+    # exec, eval, compile, open and friends
+    ("exec(compile('import os', 's', 'exec'))", "calling 'exec'"),
+    ("x = eval(input())", "calling 'eval'"),
+    ("x = open", "name 'open' is not defined"),
+    ("f = exec\nf('import os')", "name 'exec' is not defined"),
+    ("x = breakpoint()", "calling 'breakpoint'"),
+    ("x = memoryview(b'x')", "calling 'memoryview'"),
+    # loops that do not end, recursion
+    ("while 1:\n    pass", "while"),
+    (
+        "for i in range(100):\n    for j in range(100):\n        for k in range(100):\n"
+        "            pass",
+        "evaluation steps",
+    ),
+    ("def f():\n    return f()\nf()", "function definitions"),
+    ("f = lambda f: f(f)\nf(f)", "lambda"),
+    ("for _ in iter(int, 1):\n    pass", "range"),
+    ("for _ in range(-1, -10**9, -1):\n    pass", "literal"),
+    ("for _ in range(0, 1000, 1):\n    pass", "at most 100"),
+    ("for _ in range(0, 10, 0):\n    pass", "other than 0"),
+    ("for _ in range(3):\n    pass\nelse:\n    robot.move_north(0.1)", "for ... else"),
+    # generator tricks
+    ("def g():\n    yield 1\nx = g()", "function definitions"),
+    ("x = (yield)", "yield"),
+    ("x = (i for i in range(3)).gi_frame", "generator"),
+    ("async def f():\n    async for x in y:\n        pass", "function definitions"),
+    # exceptions that leak frames or run code on the way out
+    ("try:\n    x = 1 / 0\nexcept Exception as e:\n    x = e.__traceback__.tb_frame", "try"),
+    ("raise Exception(robot)", "raise"),
+    ("assert robot.get_pos('mug'), robot", "assert"),
+    ("with robot as r:\n    pass", "with"),
+    ("try:\n    pass\nfinally:\n    robot.move_north(0.1)", "try"),
+    # other statements and literals
+    ("match robot:\n    case _:\n        pass", "match"),
+    ("x: int = 1", "AnnAssign"),
+    ("x = 1j", "complex literals"),
+    ("x = ...", "ellipsis literals"),
+    ("del robot", "del"),
+    ("nonlocal x", "nonlocal"),
+    ("robot = robot", "cannot be assigned"),
+    ("for robot in range(3):\n    pass", "cannot be assigned"),
+    ("x, robot = 1, 2", "cannot be assigned"),
 ]
 
 
-@pytest.mark.parametrize("snippet, word", HOSTILE, ids=[f"h{i:02d}" for i in range(len(HOSTILE))])
+@pytest.mark.parametrize("snippet, word", HOSTILE, ids=[f"h{i:03d}" for i in range(len(HOSTILE))])
 def test_hostile_code_is_refused_and_the_robot_does_not_move(snippet, word):
     robot = CountingRobot()
     with pytest.raises(CodeRejected) as e:
@@ -146,8 +281,8 @@ def test_hostile_code_is_refused_and_the_robot_does_not_move(snippet, word):
     assert robot.moves == []
 
 
-def test_there_are_at_least_twenty_hostile_snippets():
-    assert len(HOSTILE) >= 20
+def test_there_are_at_least_a_hundred_hostile_snippets():
+    assert len(HOSTILE) >= 100
 
 
 def test_a_refusal_after_valid_lines_still_runs_nothing():
