@@ -373,7 +373,7 @@ _GOAL_COMMON = ("id", "type", "text", "truth")
 
 def _relation(rel: object, items: object, where: str, what: str) -> tuple[str, list]:
     """A known relation and a list of as many items as it takes."""
-    if rel not in RELATIONS:
+    if not isinstance(rel, str) or rel not in RELATIONS:
         raise _err(where, f"unknown relation {rel!r}; valid: {list(RELATIONS)}")
     if not isinstance(items, list) or len(items) != RELATIONS[rel]:
         raise _err(where, f"relation {rel!r} takes {RELATIONS[rel]} {what}, got {items!r}")

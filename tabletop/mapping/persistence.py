@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import json
 import logging
+import math
 import zipfile
 from pathlib import Path
 
@@ -225,4 +226,35 @@ def read_map_file(path: str | Path) -> tuple[dict, dict[str, np.ndarray]]:
     segs = h.get("segments")
     if not isinstance(segs, list) or len(segs) != h["n_segments"]:
         raise MapFormatError(f"{path}: header 'segments' must list {h['n_segments']} [start, end]")
+    for s in segs:
+        if not (
+            isinstance(s, list)
+            and len(s) == 2
+            and all(isinstance(t, (int, float)) and not isinstance(t, bool) for t in s)
+            and all(math.isfinite(t) for t in s)
+            and s[0] <= s[1]
+        ):
+            raise MapFormatError(
+                f"{path}: header 'segments' entry {s!r:.60} is not [start, end] seconds"
+            )
+    from tabletop.mapping.encoders.registry import ENCODER_SETS
+
+    fields = (
+        ("config", dict, "an object of map config fields"),
+        ("encoders", dict, "an object naming the encoders"),
+        ("encoder_set", str, f"one of {list(ENCODER_SETS)}"),
+        ("rebuild", dict, "an object"),
+        ("space", str, "the text embedding space's name"),
+    )
+    for k, kind, valid in fields:
+        if not isinstance(h.get(k), kind):
+            raise MapFormatError(f"{path}: header field {k!r} is {h.get(k)!r:.60}; valid: {valid}")
+    if h["encoder_set"] not in ENCODER_SETS:
+        raise MapFormatError(
+            f"{path}: header field 'encoder_set' is {h['encoder_set']!r:.60}; valid: "
+            f"{list(ENCODER_SETS)}"
+        )
+    for k in ("calibration", "visual"):
+        if h.get(k) is not None and not isinstance(h[k], dict):
+            raise MapFormatError(f"{path}: header field {k!r} must be an object or null")
     return h, arrays

@@ -200,9 +200,16 @@ class VisualDatabase:
         try:
             config = VisualLocalizationConfig(**header["config"])
             m, p, dim = header["n_frames"], header["n_keypoints"], header["descriptor_dim"]
-            frames_seen = int(header["frames_seen"])
+            frames_seen = header["frames_seen"]
         except (KeyError, TypeError, ConfigError) as e:
             raise VisualDatabaseError(f"visual database header is invalid: {e}") from None
+        for name, v in (("n_frames", m), ("n_keypoints", p), ("frames_seen", frames_seen)):
+            if not isinstance(v, int) or isinstance(v, bool) or v < 0:
+                raise VisualDatabaseError(
+                    f"visual database header {name!r} must be a count >= 0, got {v!r}"
+                )
+        if dim not in DESCRIPTOR_DIMS.values():
+            raise VisualDatabaseError(f"visual database descriptor_dim {dim!r} is not a matcher's")
         if dim != DESCRIPTOR_DIMS[config.matcher]:
             raise VisualDatabaseError(
                 f"visual database descriptors are {dim}-d, but matcher {config.matcher!r} "
@@ -247,7 +254,7 @@ class VisualDatabase:
             try:
                 db.K = _check_K(header["K"])
                 db.image_size = tuple(int(v) for v in header["image_size"])
-            except (KeyError, TypeError, ConfigError) as e:
+            except (KeyError, TypeError, ValueError) as e:  # ConfigError is a ValueError
                 raise VisualDatabaseError(f"visual database camera is invalid: {e}") from None
             db.K.setflags(write=False)
         for j in range(m):

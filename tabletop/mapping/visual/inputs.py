@@ -25,7 +25,11 @@ def check_rgb(rgb: object, name: str = "rgb") -> np.ndarray:
 
 
 def _check_K(K: object) -> np.ndarray:
-    K = np.array(K, dtype=np.float64)
+    given = K
+    try:
+        K = np.array(K, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ConfigError(f"K must be a (3, 3) matrix of numbers, got {given!r:.80}") from None
     if K.shape != (3, 3) or not np.all(np.isfinite(K)) or K[0, 0] <= 0 or K[1, 1] <= 0:
         raise ConfigError(f"K must be a finite (3, 3) pinhole matrix with fx, fy > 0, got {K}")
     if not np.allclose(K[2], [0.0, 0.0, 1.0]):
