@@ -20,6 +20,9 @@ from tabletop.transforms import invert, make_transform, rotation_about
 
 __all__ = ["RobotSelfFilter"]
 
+HAND_FRAME = "panda_hand"
+"""The frame whose pose a recording stores (``T_world_hand``)."""
+
 
 def _rpy(r: float, p: float, y: float) -> np.ndarray:
     return rotation_about("z", y) @ rotation_about("y", p) @ rotation_about("x", r)
@@ -75,9 +78,19 @@ class RobotSelfFilter:
         self.center = (self.lo + self.hi) / 2  # (L, 3) box centres in the link frames
         self.radius = np.linalg.norm(self.hi - self.lo, axis=1) / 2  # bounding spheres
 
-    def mask(self, points_world: np.ndarray, q: np.ndarray) -> np.ndarray:
-        """Boolean (P,) mask of the points (world frame [m]) on the robot at joints ``q``."""
-        poses = self.model.fk_frames(q, self.links)
+    def mask(
+        self, points_world: np.ndarray, q: np.ndarray, T_world_hand: np.ndarray | None = None
+    ) -> np.ndarray:
+        """Boolean (P,) mask of the points (world frame [m]) on the robot at joints ``q``.
+
+        ``T_world_hand``: the hand pose the points were projected with (the recorded one). When
+        given, the links are placed relative to it rather than where forward kinematics puts
+        them, so an error in the recorded pose moves the robot's boxes with its points: the
+        gripper seen by the wrist camera is filtered however wrong the pose is."""
+        poses = self.model.fk_frames(q, [*self.links, HAND_FRAME])
+        if T_world_hand is not None:
+            anchor = np.asarray(T_world_hand, np.float64) @ invert(poses[HAND_FRAME])
+            poses = {k: anchor @ v for k, v in poses.items()}
         on = np.zeros(len(points_world), bool)
         for k, link in enumerate(self.links):
             T_world_link = poses[link]

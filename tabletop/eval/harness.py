@@ -57,7 +57,11 @@ def map_config(**overrides):
     from tabletop.sim.catalog import OBJECT_KINDS
 
     kw = dict(overrides)
-    nested = {k: kw.pop(k) for k in ("object", "area", "audio") if isinstance(kw.get(k), dict)}
+    nested = {
+        k: kw.pop(k)
+        for k in ("object", "area", "audio", "registration")
+        if isinstance(kw.get(k), dict)
+    }
     if nested:  # module configs given as dicts of the fields that change
         base = MapConfig().to_dict()
         full = MapConfig.from_dict({k: {**base[k], **v} for k, v in nested.items()})

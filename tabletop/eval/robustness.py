@@ -48,6 +48,12 @@ MAX_DROP_POINTS = 10.0
 """The largest drop [percentage points] below clean that a condition may cost a goal type."""
 
 
+def _signed(points: float) -> str:
+    """``+5``, ``-12``, ``0`` (never ``-0``)."""
+    v = round(points)
+    return f"{v:+d}" if v else "0"
+
+
 def _noise_description(noise: dict) -> str:
     parts = []
     for k, v in noise.items():
@@ -148,9 +154,10 @@ class RobustnessResult:
                 cells = []
                 for n in names:
                     r = per[n].get(t)
-                    cells.append(
-                        "–" if r is None else f"{100 * r['noisy']:.0f} ({-r['drop_points']:+.0f})"
-                    )
+                    if r is None:
+                        cells.append("–")
+                    else:
+                        cells.append(f"{100 * r['noisy']:.0f} ({_signed(-r['drop_points'])})")
                 name = f"**{t}**" if t == "all" else t
                 lines.append(
                     f"| {name} | {100 * v['success_rate']:.0f} ({v['successes']}/"

@@ -40,6 +40,7 @@ from tabletop.mapping.errors import MapFormatError
 from tabletop.mapping.heatmaps import Heatmap
 from tabletop.mapping.object_module import ObjectModule
 from tabletop.mapping.persistence import read_map_file, save_map
+from tabletop.mapping.registration import table_corrections
 from tabletop.mapping.table_regions import (
     TableFit,
     area_subject,
@@ -74,7 +75,9 @@ class SelfFilter(Protocol):
     :class:`tabletop.arm.RobotSelfFilter`): ``mask(points_world (P, 3) [m], q (7,) [rad])``
     -> (P,) bool."""
 
-    def mask(self, points_world: np.ndarray, q: np.ndarray) -> np.ndarray: ...
+    def mask(
+        self, points_world: np.ndarray, q: np.ndarray, T_world_hand: np.ndarray | None = None
+    ) -> np.ndarray: ...
 
 
 @dataclass(frozen=True)
@@ -147,6 +150,9 @@ class AVLMap:
         self.encoder_set = encoder_set
         self.rebuild_info = dict(rebuild_info or {})
         self.self_filter = self_filter
+        self.registration = None
+        """The table registration :meth:`build` applied (a :class:`TableCorrections`; None for
+        a map built frame by frame or loaded)."""
         self.voxels = VoxelMap(self.grid, text.dim)
         self.objects = ObjectModule(
             self.voxels, text, config.object, config.objects, config.descriptions, self.table
@@ -187,10 +193,13 @@ class AVLMap:
         T_world_cam,
         context: dict | None = None,
         joint_positions: np.ndarray | None = None,
+        T_world_hand: np.ndarray | None = None,
     ) -> None:
         """Fuse one RGB-D frame (online). ``context`` feeds the encoders (oracle: segmentation);
-        with ``joint_positions`` and a self-filter the robot's own points are dropped. Every
-        ``config.visual.localization.stride``-th frame is kept as a visual reference frame."""
+        with ``joint_positions`` and a self-filter the robot's own points are dropped (placed
+        relative to ``T_world_hand``, the hand pose ``T_world_cam`` came from, when given).
+        Every ``config.visual.localization.stride``-th frame is kept as a visual reference
+        frame."""
         i = self._frames_seen
         self._frames_seen += 1
         if self.visual is not None:
@@ -219,7 +228,7 @@ class AVLMap:
             and self.self_filter is not None
             and self.config.self_filter_margin is not None
         ):
-            keep = ~self.self_filter.mask(pts, joint_positions)
+            keep = ~self.self_filter.mask(pts, joint_positions, T_world_hand)
             pts, px = pts[keep], px[keep]
         s = self.dense.stride
         cell = feats[
@@ -273,7 +282,13 @@ class AVLMap:
             calibration=calibration,
             self_filter=self_filter,
         )
-        T_cam = recording.T_world_cam
+        T_hand = recording.T_world_hand
+        m.registration = table_corrections(
+            recording.depth, recording.K, recording.T_world_cam, config.registration
+        )
+        if m.registration.any:  # the recorded poses, corrected onto the table
+            T_hand = m.registration.C @ T_hand
+        T_cam = T_hand @ recording.T_hand_cam
         for i in range(len(recording)):
             ctx = None
             if recording.segmentation is not None:
@@ -285,6 +300,7 @@ class AVLMap:
                 T_cam[i],
                 ctx,
                 recording.joint_positions[i],
+                T_hand[i],
             )
             if progress is not None:
                 progress(i + 1, len(recording))
@@ -297,7 +313,10 @@ class AVLMap:
             )
         if recording.audio is not None and m.audio_encoder is not None:
             m.add_audio(
-                recording.audio, recording.audio_rate, recording.timestamps, recording.T_world_mic
+                recording.audio,
+                recording.audio_rate,
+                recording.timestamps,
+                T_hand @ recording.T_hand_mic,
             )
         return m
 
@@ -330,7 +349,7 @@ class AVLMap:
             if h["version"] < 3:
                 lacks.append("its image target's size and the area module's config (defaults)")
             config = MapConfig.from_dict({**c, "visual": None})  # visual: with its frames below
-        except (KeyError, TypeError, ConfigError) as e:
+        except (KeyError, TypeError, AttributeError, ValueError) as e:  # ConfigError included
             raise MapFormatError(f"{path}: config is invalid: {e}") from None
         if calibration is None:
             if h.get("calibration") is not None:

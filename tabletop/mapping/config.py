@@ -18,6 +18,7 @@ from tabletop.mapping.audio_segments import NoiseGateConfig
 from tabletop.mapping.heatmaps import AUX_DECAY, MAJOR_DECAY
 from tabletop.mapping.instances import InstanceConfig
 from tabletop.mapping.object_module import BACKGROUND, ObjectConfig
+from tabletop.mapping.registration import RegistrationConfig
 from tabletop.mapping.visual.localization import VisualLocalizationConfig
 from tabletop.mapping.visual.module import VisualModuleConfig
 
@@ -62,6 +63,9 @@ class MapConfig:
     """The area module."""
     audio: AudioConfig = field(default_factory=AudioConfig)
     """The audio module (noise gate, segmentation)."""
+    registration: RegistrationConfig = field(default_factory=RegistrationConfig)
+    """How :meth:`AVLMap.build` corrects recorded poses onto the table (see
+    :mod:`tabletop.mapping.registration`)."""
     visual: VisualModuleConfig | None = field(default_factory=VisualModuleConfig)
     """The visual localization module (None: no image goals). A
     :class:`VisualLocalizationConfig` given here is taken as that module's localization."""
@@ -92,7 +96,12 @@ class MapConfig:
                 raise ConfigError(f"{name} must be a positive rate in 1/m, got {v}")
         if isinstance(self.visual, VisualLocalizationConfig):
             object.__setattr__(self, "visual", VisualModuleConfig(localization=self.visual))
-        for name, cls in (("object", ObjectConfig), ("area", AreaConfig), ("audio", AudioConfig)):
+        for name, cls in (
+            ("object", ObjectConfig),
+            ("area", AreaConfig),
+            ("audio", AudioConfig),
+            ("registration", RegistrationConfig),
+        ):
             if not isinstance(getattr(self, name), cls):
                 raise ConfigError(
                     f"{name} must be {cls.__name__}, got {type(getattr(self, name)).__name__}"
@@ -111,7 +120,7 @@ class MapConfig:
         out["grid"] = self.grid.to_dict()
         out["categories"] = list(self.categories)
         out["descriptions"] = {k: list(v) for k, v in self.descriptions.items()}
-        for name in ("object", "area", "audio", "visual"):
+        for name in ("object", "area", "audio", "registration", "visual"):
             v = getattr(self, name)
             out[name] = None if v is None else _lists(asdict(v))
         return out
@@ -142,6 +151,7 @@ class MapConfig:
                 obj["background"] = tuple(obj["background"])
             kw["object"] = ObjectConfig(**obj)
             kw["area"] = AreaConfig(**(kw.get("area") or {}))
+            kw["registration"] = RegistrationConfig(**(kw.get("registration") or {}))
             audio = dict(kw.get("audio") or {})
             if "gate" in d:
                 audio["gate"] = d["gate"]

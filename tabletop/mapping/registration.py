@@ -1,0 +1,221 @@
+"""Table registration: correct each frame's recorded pose so that the table it sees lies on the
+table every other frame sees.
+
+Recorded end-effector poses carry errors (joint encoders, timing, a mobile base's odometry).
+Fused as they are, a few millimetres and a degree of error per frame smear the table top into
+a slab centimetres thick, which then swallows the low objects standing on it. A wrist camera
+over a table sees the table in most frames, and the table is one plane: a strong constraint on
+three of a pose's six degrees of freedom (height, roll, pitch).
+
+:func:`table_corrections` works in two passes over the depth images alone (no encoder runs):
+
+1. each frame's dominant plane is fitted to its depth points in the world frame (RANSAC, then
+   least squares on the inliers); the table's height is the one most frames' horizontal
+   planes agree on (the floor past the table's edge is another), and each frame's plane is
+   fitted again to its points near that height: a plane within ``max_tilt_rad`` of
+   horizontal is the frame's view of the table;
+2. the reference table is the median of those planes (height and normal); a frame whose plane
+   differs from it is corrected by the rigid transform that rotates its plane onto the
+   reference about the plane's centroid and lifts it onto the reference height.
+
+Corrections smaller than the fit's own noise (``deadband_m``, ``deadband_rad``) are not
+applied, so exact poses (the simulator's) are left exactly as they are; corrections larger than
+``max_correction_m``/``max_correction_rad`` are refused as fits to something else (a box top,
+a tray). Horizontal position and yaw are not observable from a plane and stay as recorded.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from tabletop.errors import ConfigError
+from tabletop.transforms import backproject, make_transform
+
+__all__ = ["RegistrationConfig", "TableCorrections", "table_corrections"]
+
+
+@dataclass(frozen=True)
+class RegistrationConfig:
+    """How frames are registered to the table (see the module)."""
+
+    enabled: bool = True
+    samples: int = 3000
+    """Depth points sampled per frame for the plane fit."""
+    inlier_m: float = 0.001
+    """RANSAC inlier distance [m] from a plane."""
+    iterations: int = 150
+    """RANSAC hypotheses per frame."""
+    min_inlier_fraction: float = 0.3
+    """A frame's plane must explain this share of its sampled points to be the table."""
+    max_tilt_rad: float = math.radians(10.0)
+    """A plane tilted more than this from horizontal is not the table."""
+    deadband_m: float = 0.0015
+    """Height corrections below this [m] are fit noise: not applied (unless the tilt is)."""
+    deadband_rad: float = math.radians(0.15)
+    """Tilt corrections below this [rad] are fit noise: not applied (unless the height is)."""
+    max_correction_m: float = 0.04
+    """A frame whose table lies farther [m] from the reference is not corrected."""
+    max_correction_rad: float = math.radians(5.0)
+    """A frame whose table is tilted more [rad] against the reference is not corrected."""
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        for name in ("samples", "iterations"):
+            v = getattr(self, name)
+            if not isinstance(v, int) or isinstance(v, bool) or v < 3:
+                raise ConfigError(f"registration {name} must be an integer >= 3, got {v!r}")
+        for name in (
+            "inlier_m",
+            "max_tilt_rad",
+            "deadband_m",
+            "deadband_rad",
+            "max_correction_m",
+            "max_correction_rad",
+        ):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not 0 <= v < 10:
+                raise ConfigError(f"registration {name} must be a number in [0, 10), got {v!r}")
+        if not 0 < self.min_inlier_fraction <= 1:
+            raise ConfigError(
+                f"registration min_inlier_fraction must be in (0, 1], got "
+                f"{self.min_inlier_fraction!r}"
+            )
+
+
+@dataclass(frozen=True)
+class TableCorrections:
+    """Per-frame world-frame corrections: a frame's corrected pose is ``C[i] @ T_world_x[i]``
+    for its camera, hand and microphone alike."""
+
+    C: np.ndarray
+    """(N, 4, 4) rigid corrections (identity where nothing was corrected)."""
+    corrected: np.ndarray
+    """(N,) bool: frames whose pose was corrected."""
+    table_frames: int
+    """Frames that saw the table (a plane fit)."""
+    height_m: float | None
+    """The reference table height [m] (None: no frame saw a table)."""
+
+    @property
+    def any(self) -> bool:
+        return bool(self.corrected.any())
+
+
+def _fit_plane(p: np.ndarray, cfg: RegistrationConfig, rng) -> tuple | None:
+    """(unit normal with n_z > 0, centroid, inlier fraction) of the dominant plane of ``p``:
+    RANSAC, then least squares on inliers re-selected around each fit with a band that
+    shrinks to three robust standard deviations of the residuals (so the edge of a low object
+    inside the first band does not tilt the plane)."""
+    n = len(p)
+    if n < 50:
+        return None
+    tri = rng.integers(0, n, size=(cfg.iterations, 3))
+    a, b, c = p[tri[:, 0]], p[tri[:, 1]], p[tri[:, 2]]
+    normals = np.cross(b - a, c - a)
+    norm = np.linalg.norm(normals, axis=1)
+    ok = norm > 1e-9
+    if not ok.any():
+        return None
+    normals, a = normals[ok] / norm[ok, None], a[ok]
+    dist = np.abs((p[None] - a[:, None]) @ normals[..., None])[..., 0]  # (H, n)
+    best = int(np.argmax((dist < cfg.inlier_m).sum(axis=1)))
+    inl = dist[best] < cfg.inlier_m
+    if inl.sum() < cfg.min_inlier_fraction * n or inl.sum() < 20:
+        return None
+    frac = float(inl.mean())
+    for _ in range(3):
+        q = p[inl]
+        centroid = q.mean(axis=0)
+        _, _, vt = np.linalg.svd(q - centroid, full_matrices=False)
+        normal = vt[2] if vt[2, 2] >= 0 else -vt[2]
+        r = np.abs((p - centroid) @ normal)
+        sigma = 1.4826 * float(np.median(r[inl]))
+        band = min(cfg.inlier_m, max(3.0 * sigma, 0.0005))
+        inl = r < band
+        if inl.sum() < 20:
+            return None
+    return normal, centroid, frac
+
+
+def _rotation_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """The smallest rotation taking unit vector ``a`` onto unit vector ``b``."""
+    v = np.cross(a, b)
+    s, c = np.linalg.norm(v), float(np.dot(a, b))
+    if s < 1e-12:
+        return np.eye(3)
+    k = v / s
+    K = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
+    angle = math.atan2(s, c)
+    return np.eye(3) + math.sin(angle) * K + (1 - math.cos(angle)) * K @ K
+
+
+def table_corrections(
+    depth: np.ndarray,
+    K: np.ndarray,
+    T_world_cam: np.ndarray,
+    config: RegistrationConfig | None = None,
+) -> TableCorrections:
+    """Corrections (see the module) for frames with depth images ``depth`` (N, H, W) [m],
+    intrinsics ``K`` and recorded camera poses ``T_world_cam`` (N, 4, 4)."""
+    cfg = config or RegistrationConfig()
+    n = len(depth)
+    C = np.tile(np.eye(4), (n, 1, 1))
+    corrected = np.zeros(n, bool)
+    if not cfg.enabled or n == 0:
+        return TableCorrections(C, corrected, 0, None)
+    rng = np.random.default_rng(cfg.seed)
+    cos_tilt = math.cos(cfg.max_tilt_rad)
+    points: list[np.ndarray | None] = []
+    first: list[float] = []  # the heights of the frames' dominant horizontal planes
+    for i in range(n):
+        valid = np.flatnonzero(depth[i].ravel() > 0)
+        if len(valid) < 50:
+            points.append(None)
+            continue
+        pick = valid[rng.choice(len(valid), min(cfg.samples, len(valid)), replace=False)]
+        mask = np.zeros(depth[i].size, bool)
+        mask[pick] = True
+        pc = backproject(depth[i], K, mask.reshape(depth[i].shape))
+        pw = pc @ T_world_cam[i][:3, :3].T + T_world_cam[i][:3, 3]
+        points.append(pw)
+        fit = _fit_plane(pw, cfg, rng)
+        if fit is not None and fit[0][2] >= cos_tilt:
+            first.append(float(fit[1][2]))
+    if not first:
+        return TableCorrections(C, corrected, 0, None)
+    # The table: the height most frames' dominant planes agree on (the floor, seen past the
+    # table's edge, is another horizontal plane).
+    h = np.array(first)
+    votes = [(np.abs(h - x) < cfg.max_correction_m).sum() for x in h]
+    table_h = float(np.median(h[np.abs(h - h[int(np.argmax(votes))]) < cfg.max_correction_m]))
+    planes: list[tuple[int, np.ndarray, np.ndarray]] = []
+    for i, pw in enumerate(points):
+        if pw is None:
+            continue
+        near = pw[np.abs(pw[:, 2] - table_h) < cfg.max_correction_m]
+        fit = _fit_plane(near, cfg, rng) if len(near) >= cfg.min_inlier_fraction * len(pw) else None
+        if fit is not None and fit[0][2] >= cos_tilt:
+            planes.append((i, fit[0], fit[1]))
+    if not planes:
+        return TableCorrections(C, corrected, 0, None)
+    normals = np.stack([p[1] for p in planes])
+    ref_n = np.median(normals, axis=0)
+    ref_n /= np.linalg.norm(ref_n)
+    heights = np.array([float(np.dot(ref_n, p[2])) for p in planes])
+    ref_h = float(np.median(heights))
+    for (i, normal, centroid), h in zip(planes, heights, strict=True):
+        dz = ref_h - h
+        tilt = math.acos(min(1.0, float(np.dot(normal, ref_n))))
+        if abs(dz) > cfg.max_correction_m or tilt > cfg.max_correction_rad:
+            continue  # another plane (a box top, a tray), or a pose too wrong to trust
+        if abs(dz) < cfg.deadband_m and tilt < cfg.deadband_rad:
+            continue
+        R = _rotation_between(normal, ref_n)
+        # rotate about the plane's centroid, then lift the centroid onto the reference plane
+        t = centroid - R @ centroid + dz * ref_n
+        C[i] = make_transform(R, t)
+        corrected[i] = True
+    return TableCorrections(C, corrected, len(planes), ref_h)
