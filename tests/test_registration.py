@@ -1,0 +1,106 @@
+"""Table registration: frames whose recorded poses are off in height and tilt are corrected onto
+the table the other frames see; exact poses are left exactly as they are."""
+
+import math
+
+import numpy as np
+import pytest
+
+from tabletop.errors import ConfigError
+from tabletop.mapping.registration import RegistrationConfig, table_corrections
+from tabletop.transforms import make_transform, rotation_about
+
+K = np.array([[200.0, 0, 80], [0, 200.0, 60], [0, 0, 1]])
+H, W = 120, 160
+
+
+def _look_down(x, y, z, yaw=0.0):
+    """A camera at (x, y, z) looking straight down (optical z along world -z)."""
+    R = rotation_about("z", yaw) @ np.diag([1.0, -1.0, -1.0])
+    return make_transform(R, [x, y, z])
+
+
+def _render(T_world_cam, box=((0.45, 0.0), 0.04, 0.03)):
+    """Depth of a table at z = 0 with a box (centre, half-size, height) on it."""
+    v, u = np.mgrid[0:H, 0:W].astype(float)
+    rays = np.stack([(u - K[0, 2]) / K[0, 0], (v - K[1, 2]) / K[1, 1], np.ones_like(u)], -1)
+    R, t = T_world_cam[:3, :3], T_world_cam[:3, 3]
+    d_world = rays @ R.T
+    depth = -t[2] / d_world[..., 2]  # along the optical axis (rays have z = 1)
+    (cx, cy), half, top = box
+    hit_top = (top - t[2]) / d_world[..., 2]
+    p = t + hit_top[..., None] * d_world
+    on_box = (np.abs(p[..., 0] - cx) < half) & (np.abs(p[..., 1] - cy) < half)
+    return np.where(on_box, hit_top, depth).astype(np.float32)
+
+
+def _scan(n=40, seed=0):
+    rng = np.random.default_rng(seed)
+    poses = [
+        _look_down(0.35 + 0.2 * rng.random(), -0.1 + 0.2 * rng.random(), 0.4, rng.uniform(-1, 1))
+        for _ in range(n)
+    ]
+    return np.stack(poses), np.stack([_render(T) for T in poses])
+
+
+def test_exact_poses_are_left_exactly_as_they_are():
+    T, depth = _scan()
+    c = table_corrections(depth, K, T)
+    assert c.table_frames == len(T) and not c.any
+    assert c.height_m == pytest.approx(0.0, abs=1e-4)
+    np.testing.assert_array_equal(c.C, np.tile(np.eye(4), (len(T), 1, 1)))
+
+
+def test_height_and_tilt_errors_are_corrected_onto_the_table():
+    T, depth = _scan(n=100)
+    rng = np.random.default_rng(1)
+    noisy = T.copy()
+    for i in range(len(T)):
+        err = make_transform(
+            rotation_about("x", rng.normal(0, math.radians(1)))
+            @ rotation_about("y", rng.normal(0, math.radians(1))),
+            rng.normal(0, 0.005, 3),
+        )
+        noisy[i] = noisy[i] @ err
+    c = table_corrections(depth, K, noisy)
+    assert c.corrected.mean() > 0.9
+    fixed = c.C @ noisy
+
+    def tilt_deg(A):
+        return np.degrees(
+            np.arccos(np.clip(np.einsum("ni,ni->n", A[:, :3, 2], T[:, :3, 2]), -1, 1))
+        )
+
+    before_dz = np.abs(noisy[:, 2, 3] - T[:, 2, 3]).mean()
+    after_dz = np.abs(fixed[:, 2, 3] - T[:, 2, 3]).mean()
+    assert before_dz > 0.002 and after_dz < 0.0005, (before_dz, after_dz)
+    # every frame now agrees on the table (a thin table); the reference is the frames' median,
+    # within a fraction of a degree of level
+    assert tilt_deg(noisy).mean() > 0.7 and tilt_deg(fixed).std() < 0.02
+    assert tilt_deg(fixed).mean() < 0.4
+    # the correction is rigid
+    R = c.C[:, :3, :3]
+    np.testing.assert_allclose(
+        R @ np.swapaxes(R, 1, 2), np.tile(np.eye(3), (len(T), 1, 1)), atol=1e-9
+    )
+
+
+def test_a_frame_whose_dominant_plane_is_another_surface_is_not_moved_onto_it():
+    T, depth = _scan(n=30)
+    high = _look_down(0.45, 0.0, 0.12)  # close over the box: its top fills the view
+    d = _render(high, box=((0.45, 0.0), 0.2, 0.08))
+    c = table_corrections(np.concatenate([depth, d[None]]), K, np.concatenate([T, high[None]]))
+    assert not c.corrected[-1]  # 8 cm above the table: not the table, not corrected
+    assert c.height_m == pytest.approx(0.0, abs=1e-4)
+
+
+def test_disabled_registration_corrects_nothing_and_bad_settings_are_named():
+    T, depth = _scan(n=5)
+    noisy = T.copy()
+    noisy[:, 2, 3] += 0.01
+    c = table_corrections(depth, K, noisy, RegistrationConfig(enabled=False))
+    assert not c.any and c.height_m is None
+    with pytest.raises(ConfigError, match="min_inlier_fraction must be in"):
+        RegistrationConfig(min_inlier_fraction=0)
+    with pytest.raises(ConfigError, match="inlier_m must be a number"):
+        RegistrationConfig(inlier_m=float("nan"))
