@@ -268,37 +268,50 @@ def test_paths_that_are_missing_or_of_the_wrong_kind_fail_fast(case):
     assert left == [], f"{argv} left {left} behind"
 
 
-# ---------------------------------------------------------------------- known failures
-# Inputs the CLI does not validate before real work (or at all) today: each is expected to
-# fail the same check until validation moves where the flag enters.
-KNOWN_FAILURES = [
+# ---------------------------------------------------------------------- late validation
+# Inputs the CLI once checked only after real work had started (or not at all): each now fails
+# where the flag enters, before any scan, map or training.
+CHECKED_BEFORE_WORK = [
+    # (argv, words the message names the flag and its value by)
     (["eval", "default", "--out", "TMP/o", "--cache-dir", AFILE_JSON],
-     "--cache-dir naming a file: FileExistsError with a traceback"),
+     ("--cache-dir", "afile.json", "directory")),
     (["eval", "default", "--out", AFILE_JSON, "--cache-dir", "TMP/c"],
-     "--out naming a file: the scans start before the output is checked"),
+     ("--out", "afile.json", "directory")),
+    (["eval", "default", "--out", "TMP/afile.json/o", "--cache-dir", "TMP/c"],
+     ("--out", "afile.json", "directory")),
+    (["eval", "default", "--out", "TMP/o", "--cache-dir", "TMP/c", "--map-set", "voxel_size=nan"],
+     ("--map-set", "voxel_size", "nan")),
     (["calibrate", "--encoders", "nope", "--out", "TMP/c.json"],
-     "an unknown --encoders set: the scans start before it is checked"),
-    (["calibrate", "--scenes", "-1", "--out", "TMP/c.json"],
-     "--scenes -1 is taken as 'all but the last' and the scans start"),
+     ("--encoders", "'nope'", "oracle", "default")),
+    (["calibrate", "--scenes", "-1", "--out", "TMP/c.json"], ("--scenes", "-1", "0 (all")),
+    (["calibrate", "--scenes", "99", "--out", "TMP/c.json"], ("--scenes", "99", "1..")),
+    (["calibrate", "--cache-dir", AFILE_JSON, "--out", "TMP/c.json"],
+     ("--cache-dir", "afile.json", "directory")),
     (["scan", "--out", "TMP/rec", "--width", "100000000"],
-     "--width has no upper bound: a 100000000-pixel-wide scan starts"),
-    (["bench", "--arm-targets", "-1"],
-     "--arm-targets -1: the scan starts before the count is checked"),
-    (["train", "vision", "--max-minutes", "-1"],
-     "--max-minutes -1 is accepted and training starts"),
-    (["train", "audio", "--out", ADIR],
-     "--out naming a directory: training starts before the output is checked"),
+     ("--width", "100000000", "at most 1920x1440")),
+    (["scan", "--out", "TMP/rec", "--height", "100000000"],
+     ("--height", "100000000", "at most 1920x1440")),
+    (["bench", "--arm-targets", "-1"], ("--arm-targets", "-1", ">= 1")),
+    (["bench", "--arm-targets", "0"], ("--arm-targets", "0", ">= 1")),
+    (["train", "vision", "--max-minutes", "-1"], ("--max-minutes", "-1", "> 0")),
+    (["train", "vision", "--max-minutes", "0"], ("--max-minutes", "0", "> 0")),
+    (["train", "vision", "--max-minutes", "nan"], ("--max-minutes", "nan", "> 0")),
+    (["train", "audio", "--out", ADIR], ("--out", "adir", "directory")),
+    (["train", "audio", "--out", AFILE_NPZ], ("--out", "afile.npz", "not a torch checkpoint")),
+    (["train", "vision", "--out", "TMP/afile.npz/w.pt"], ("--out", "afile.npz", "directory")),
 ]  # fmt: skip
 
 
 @pytest.mark.parametrize(
-    "argv",
-    [pytest.param(a, marks=pytest.mark.xfail(strict=True, reason=r)) for a, r in KNOWN_FAILURES],
-    ids=[f"k{i}" for i in range(len(KNOWN_FAILURES))],
+    "argv, words", CHECKED_BEFORE_WORK, ids=[f"c{i}" for i in range(len(CHECKED_BEFORE_WORK))]
 )
-def test_known_late_or_missing_validation(argv):
+def test_flags_once_checked_late_fail_before_any_work(argv, words):
     status, text, left = run_cli(argv)  # HeavyWorkStarted propagates: the test fails
-    assert "Traceback" not in text and status == 2 and left == [], (status, text[-300:])
+    assert "Traceback" not in text, text
+    assert status == 2, (argv, status, text[-500:])
+    missing = [w for w in words if w not in text]
+    assert not missing, (missing, text[-500:])
+    assert left == [], f"{argv} left {left} behind"
 
 
 def test_the_harness_sees_heavy_work_and_leftovers():

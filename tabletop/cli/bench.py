@@ -24,6 +24,12 @@ def _machine() -> dict:
 
 
 def cmd_bench(args: argparse.Namespace) -> int:
+    if args.arm_targets < 1:  # before the scan and the map, not after them
+        print(
+            f"tabletop bench: --arm-targets {args.arm_targets}: valid an integer >= 1",
+            file=sys.stderr,
+        )
+        return 2
     # --json: native libraries' banners (the EGL plugin's) must not reach stdout
     with stdout_to_stderr() if args.json else contextlib.nullcontext():
         results = _bench(args)
@@ -110,5 +116,5 @@ def add_commands(sub) -> None:
     """Register ``bench`` on the ``tabletop`` sub-command parser."""
     p = sub.add_parser("bench", help="performance figures of every part, in one run")
     p.add_argument("--json", action="store_true", help="machine-readable output")
-    p.add_argument("--arm-targets", type=int, default=200, help="reach targets (default 200)")
+    p.add_argument("--arm-targets", type=int, default=200, help="reach targets, >= 1 (default 200)")
     p.set_defaults(func=cmd_bench)

@@ -6,10 +6,12 @@ from __future__ import annotations
 import argparse
 import contextlib
 import json
-import sys
+import math
+import zipfile
 from pathlib import Path
 
 from tabletop.cli.output import stdout_to_stderr
+from tabletop.errors import ConfigError
 
 __all__ = ["TRAIN_OUT", "add_commands", "cmd_check_encoders", "cmd_train"]
 
@@ -57,6 +59,39 @@ def cmd_check_encoders(args: argparse.Namespace) -> int:
     return 0
 
 
+def _is_checkpoint(path: Path) -> bool:
+    """Whether ``path`` is a file ``torch.save`` wrote (a zip archive holding a ``data.pkl``),
+    told without importing torch or unpickling anything."""
+    try:
+        if not zipfile.is_zipfile(path):
+            return False
+        with zipfile.ZipFile(path) as z:
+            return any(n.endswith("/data.pkl") for n in z.namelist())
+    except (OSError, zipfile.BadZipFile):
+        return False
+
+
+def _check_weights_output(out: Path) -> None:
+    """``train --out`` is a weights file: a new path, or a checkpoint to replace (training
+    only replaces a previous checkpoint), never a directory or a file this package did not
+    write; checked before training, not after it."""
+    valid = "give a weights file path (e.g. out/weights/audio.pt): a new file or a checkpoint"
+    if str(out) in ("", "."):
+        raise ConfigError(f"--out {str(out)!r} is not a file path; {valid}")
+    if out.is_dir():
+        raise ConfigError(f"--out {str(out)!r} is a directory; {valid}")
+    if out.exists() and not _is_checkpoint(out):
+        raise ConfigError(
+            f"--out {str(out)!r} exists and is not a torch checkpoint; train only replaces a "
+            "previous checkpoint: choose another path"
+        )
+    for parent in out.parents:
+        if parent.exists():
+            if not parent.is_dir():
+                raise ConfigError(f"--out {str(out)!r}: {str(parent)!r} is not a directory")
+            break
+
+
 def cmd_train(args: argparse.Namespace) -> int:
     if args.out is not None:
         out = Path(args.out)
@@ -64,6 +99,16 @@ def cmd_train(args: argparse.Namespace) -> int:
         out = TRAIN_OUT["vision (--backbone small)"]
     else:
         out = TRAIN_OUT[args.what]
+    # every flag and the output before training, not after it
+    if args.what == "audio" and args.max_minutes is not None:
+        raise ConfigError(f"--max-minutes {args.max_minutes}: for vision only")
+    if args.what == "vision" and args.device != "cpu":
+        raise ConfigError(f"--device {args.device!r}: for audio only (vision trains on the CPU)")
+    if args.max_minutes is not None and not (
+        math.isfinite(args.max_minutes) and args.max_minutes > 0
+    ):
+        raise ConfigError(f"--max-minutes {args.max_minutes}: valid a finite number > 0")
+    _check_weights_output(out)
     opts = {}
     if args.steps is not None:
         opts["steps"] = args.steps
@@ -72,17 +117,11 @@ def cmd_train(args: argparse.Namespace) -> int:
     if args.what == "audio":
         from tabletop.train.audio import AudioTrainConfig, train_audio
 
-        if args.max_minutes is not None:
-            print("tabletop train: --max-minutes is for vision only", file=sys.stderr)
-            return 2
         backbone = {"small": "cnn"}.get(args.backbone, args.backbone)
         path = train_audio(AudioTrainConfig(out=out, backbone=backbone, device=args.device, **opts))
     else:
         from tabletop.train.vision import VisionTrainConfig, train_vision
 
-        if args.device != "cpu":
-            print("tabletop train: --device is for audio only", file=sys.stderr)
-            return 2
         if args.max_minutes is not None:
             opts["max_minutes"] = args.max_minutes
         path = train_vision(VisionTrainConfig(out=out, backbone=args.backbone, **opts))
@@ -124,7 +163,7 @@ def add_commands(sub) -> None:
         "--max-minutes",
         type=float,
         default=None,
-        help="vision: stop training after this many minutes (the weights are still saved)",
+        help="vision: stop training after this many minutes, > 0 (the weights are still saved)",
     )
     p.set_defaults(func=cmd_train)
 

@@ -42,11 +42,15 @@ def cmd_eval(args: argparse.Namespace) -> int:
         conditions = _robustness_conditions(args.robustness)
         if conditions is not None and noise:
             raise ConfigError("--noise and --robustness exclude each other")
+        _check_directory_flag("--out", args.out)
+        if not args.no_cache:
+            _check_directory_flag("--cache-dir", args.cache_dir)
     except ConfigError as e:
         print(f"tabletop eval: {e}", file=sys.stderr)
         return 2
     if conditions is not None:
         return _cmd_robustness(args, encoders, conditions)
+    tasks = _tasks_with_map_settings(args.tasks, overrides)  # before the cache is created
     if noise and not args.json:
         print(f"sensor noise applied to every task: {noise}")
     if overrides and not args.json:
@@ -61,7 +65,7 @@ def cmd_eval(args: argparse.Namespace) -> int:
         else:
             bars = stack.enter_context(ProgressBars())
         res = run_eval(
-            args.tasks,
+            tasks,
             encoders=encoders,
             out_dir=args.out,
             progress=bars,
@@ -83,6 +87,44 @@ def cmd_eval(args: argparse.Namespace) -> int:
         return 0
     print_result(res, wall)
     return 0
+
+
+def _check_directory_flag(flag: str, path: str | Path) -> None:
+    """A directory flag's value must be a directory or not exist yet (it is created), and what
+    of it exists must be directories: checked before any scan, so no work is lost to it."""
+    p = Path(path)
+    if str(path) == "":
+        raise ConfigError(f"{flag} is empty: give a directory (created if missing)")
+    if p.exists() and not p.is_dir():
+        raise ConfigError(
+            f"{flag} {str(path)!r} exists and is not a directory: give a directory "
+            "(created if missing)"
+        )
+    for parent in p.parents:
+        if parent.exists():
+            if not parent.is_dir():
+                raise ConfigError(
+                    f"{flag} {str(path)!r}: {str(parent)!r} is not a directory: give a "
+                    "directory (created if missing)"
+                )
+            break
+
+
+def _tasks_with_map_settings(tasks, overrides: dict) -> list:
+    """The task files of ``tasks`` with every file's map settings (its ``[map]`` changed by
+    ``--map-set``) checked, before the cache directory is created and before any scan."""
+    from tabletop.errors import TabletopError
+    from tabletop.eval.harness import map_config
+    from tabletop.eval.runner import collect_task_files
+
+    files = collect_task_files(tasks)
+    if overrides:
+        for tf in files:
+            try:
+                map_config(**{**dict(tf.map), **overrides})
+            except (TypeError, TabletopError) as e:
+                raise ConfigError(f"--map-set {overrides} ({tf.path or tf.name}): {e}") from None
+    return files
 
 
 def _check_scan_settings(d: dict) -> None:
@@ -293,14 +335,25 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     report it on the others; writes out/calibration/<set>.json (or --out)."""
     from tabletop.eval.calibration import CALIBRATION_SEEDS, run_calibration
     from tabletop.mapping.calibration import MODALITIES
+    from tabletop.mapping.encoders.registry import ENCODER_SETS
 
+    # every flag before a quarter of an hour of scanning, not after
     keep_prior = [m.strip() for m in args.keep_prior.split(",") if m.strip()]
     bad = sorted(set(keep_prior) - set(MODALITIES))
-    if bad:  # before a quarter of an hour of scanning, not after
+    if bad:
         print(f"tabletop calibrate: --keep-prior {bad}: valid {list(MODALITIES)}", file=sys.stderr)
         return 2
+    if args.encoders not in ENCODER_SETS:
+        raise ConfigError(f"--encoders {args.encoders!r}: unknown set; valid: {list(ENCODER_SETS)}")
+    n = len(CALIBRATION_SEEDS)
+    if not 0 <= args.scenes <= n:
+        raise ConfigError(
+            f"--scenes {args.scenes}: valid 0 (all {n} calibration scenes) or 1..{n} (the first N)"
+        )
+    if not args.no_cache:
+        _check_directory_flag("--cache-dir", args.cache_dir)
     out = args.out if args.out is not None else CALIBRATION_OUT_DIR / f"{args.encoders}.json"
-    _check_calibration_output(Path(out))  # before the scans, not after them
+    _check_calibration_output(Path(out))
     seeds = list(CALIBRATION_SEEDS)[: args.scenes] if args.scenes else list(CALIBRATION_SEEDS)
     print(f"calibrating {args.encoders!r} on scenes {seeds} ...", file=sys.stderr)
     cal = run_calibration(

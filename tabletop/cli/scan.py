@@ -22,8 +22,8 @@ def _add_scan_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--seed", type=int, default=0, help="seed of the sweep and sound placement")
     p.add_argument("--episodes", type=int, default=6, help="audio episodes after the sweep")
     p.add_argument("--renderer", default="auto", choices=["auto", "egl", "tiny"])
-    p.add_argument("--width", type=int, default=320, help="image width [px] (>= 320)")
-    p.add_argument("--height", type=int, default=240, help="image height [px] (>= 240)")
+    p.add_argument("--width", type=int, default=320, help="image width [px] (320 to 1920)")
+    p.add_argument("--height", type=int, default=240, help="image height [px] (240 to 1440)")
     p.add_argument(
         "--pose-noise",
         type=float,
@@ -63,6 +63,7 @@ def _add_scan_args(p: argparse.ArgumentParser) -> None:
 
 
 def _scan_config(args: argparse.Namespace):
+    from tabletop.errors import ConfigError
     from tabletop.sim.camera import WristCameraConfig
     from tabletop.sim.scan import NoiseConfig, ScanConfig
 
@@ -74,7 +75,10 @@ def _scan_config(args: argparse.Namespace):
         depth_dropout=args.depth_dropout,
         drop_frames=args.drop_frames,
     )
-    camera = WristCameraConfig(width=args.width, height=args.height)
+    try:
+        camera = WristCameraConfig(width=args.width, height=args.height)
+    except ConfigError as e:
+        raise ConfigError(f"--width {args.width} --height {args.height}: {e}") from None
     return ScanConfig(
         seed=args.seed,
         episodes=args.episodes,

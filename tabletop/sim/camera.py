@@ -92,6 +92,12 @@ def default_T_hand_cam() -> np.ndarray:
 class WristCameraConfig:
     """The wrist camera: image size, field of view, range, extrinsic, sensor model."""
 
+    MIN_SIZE = (320, 240)
+    """Smallest image (width, height) [px]: the maps' and the encoders' working resolution."""
+    MAX_SIZE = (1920, 1440)
+    """Largest image (width, height) [px], six times the smallest on each side: a frame's
+    colour, depth and labels are then some 25 MB, and a scan holds all its frames in memory."""
+
     width: int = 320
     """Image width [px]."""
     height: int = 240
@@ -108,9 +114,16 @@ class WristCameraConfig:
     """(4, 4) pose of the camera optical frame in ``panda_hand``."""
 
     def __post_init__(self) -> None:
-        if self.width < 320 or self.height < 240:
+        (w_min, h_min), (w_max, h_max) = self.MIN_SIZE, self.MAX_SIZE
+        if self.width < w_min or self.height < h_min:
             raise ConfigError(
-                f"wrist camera needs at least 320x240, got {self.width}x{self.height}"
+                f"wrist camera needs at least {w_min}x{h_min} (width x height, at most "
+                f"{w_max}x{h_max}), got {self.width}x{self.height}"
+            )
+        if self.width > w_max or self.height > h_max:
+            raise ConfigError(
+                f"wrist camera takes at most {w_max}x{h_max} (width x height, at least "
+                f"{w_min}x{h_min}), got {self.width}x{self.height}"
             )
         if not 0 < self.near < self.far:
             raise ConfigError(f"need 0 < near < far [m], got near={self.near}, far={self.far}")
