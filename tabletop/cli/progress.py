@@ -98,6 +98,7 @@ class ProgressBars:
                     unit=self._unit(stage),
                     dynamic_ncols=True,
                     file=self.file,
+                    disable=False,  # ours: drawn even where the libraries' are switched off
                 )
         self._done, self._total = int(done), int(total)
         if self._bar is not None:
