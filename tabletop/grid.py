@@ -11,6 +11,10 @@ from tabletop.errors import ConfigError
 __all__ = ["VoxelGrid"]
 
 
+MAX_CELLS = 50_000_000
+"""The most cells a grid may have (its index table takes 4 bytes a cell)."""
+
+
 @dataclass(frozen=True)
 class VoxelGrid:
     """Voxels of ``voxel_size`` [m] filling ``[lower, upper)`` [m], world frame.
@@ -24,11 +28,35 @@ class VoxelGrid:
     voxel_size: float = 0.01
 
     def __post_init__(self) -> None:
+        def numbers(v) -> bool:
+            return isinstance(v, (tuple, list, np.ndarray)) and all(
+                isinstance(x, (int, float, np.number)) and not isinstance(x, bool) for x in v
+            )
+
+        if not numbers(self.lower) or not numbers(self.upper):
+            raise ConfigError(
+                f"grid bounds must be 3-vectors of numbers [m], got {self.lower!r}, {self.upper!r}"
+            )
         lo, hi = np.asarray(self.lower, float), np.asarray(self.upper, float)
-        if lo.shape != (3,) or hi.shape != (3,) or np.any(hi <= lo):
-            raise ConfigError(f"grid bounds must be 3-vectors with lower < upper, got {lo}, {hi}")
-        if not 0.001 <= self.voxel_size <= 0.2:
-            raise ConfigError(f"voxel_size must be in [0.001, 0.2] m, got {self.voxel_size}")
+        if (
+            lo.shape != (3,)
+            or hi.shape != (3,)
+            or not np.all(np.isfinite(lo) & np.isfinite(hi))
+            or np.any(hi <= lo)
+        ):
+            raise ConfigError(
+                f"grid bounds must be finite 3-vectors with lower < upper, got {lo}, {hi}"
+            )
+        v = self.voxel_size
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not 0.001 <= v <= 0.2:
+            raise ConfigError(f"voxel_size must be in [0.001, 0.2] m, got {v!r}")
+        object.__setattr__(self, "lower", tuple(float(x) for x in lo))
+        object.__setattr__(self, "upper", tuple(float(x) for x in hi))
+        if self.size > MAX_CELLS:
+            raise ConfigError(
+                f"a grid of {lo.tolist()} .. {hi.tolist()} m at {v} m has {self.size:.3g} cells; "
+                f"at most {MAX_CELLS:.0e} (a larger box or coarser voxels)"
+            )
 
     @property
     def shape(self) -> tuple[int, int, int]:

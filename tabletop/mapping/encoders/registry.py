@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 from tabletop.errors import ConfigError
@@ -69,8 +70,26 @@ def make_encoders_from_rebuild(name: str, rebuild: dict) -> EncoderSet:
         try:
             labels = {int(k): v for k, v in rebuild["labels"].items()}
             events = list(rebuild["sound_events"])
-        except (KeyError, AttributeError, ValueError) as e:
+        except (KeyError, AttributeError, ValueError, TypeError) as e:
             raise ConfigError(f"oracle encoders: rebuild info is incomplete ({e})") from None
+        if not all(0 <= k < 65536 and isinstance(v, str) and v for k, v in labels.items()):
+            raise ConfigError(
+                "oracle encoders: rebuild labels must map instance ids 0..65535 to names"
+            )
+
+        def event_ok(e) -> bool:
+            if not isinstance(e, dict) or not isinstance(e.get("caption"), str):
+                return False
+            t = (e.get("onset_s"), e.get("offset_s"))
+            return all(
+                isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
+                for x in t
+            )
+
+        if not all(event_ok(e) for e in events):
+            raise ConfigError(
+                "oracle encoders: rebuild sound_events must be {caption, onset_s, offset_s, ...}"
+            )
         return EncoderSet(
             text,
             OracleDenseEncoder(text, labels, stride=1),
