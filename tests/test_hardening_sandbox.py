@@ -172,3 +172,11 @@ def test_lists_handed_to_the_robot_are_bounded():
     assert len(robot.moves) == 2
     with pytest.raises(ConfigError, match="max_arg_elements"):
         SandboxConfig(max_arg_elements=0)
+
+
+def test_an_index_beyond_any_c_integer_is_a_typed_error():
+    robot = PointRobot()
+    code = "p = robot.current_position()\nx = p[9223372036854775808]"
+    with pytest.raises(SandboxError, match="line 2: index out of range"):
+        run_code(code, robot)
+    assert robot.moves == []

@@ -643,8 +643,8 @@ class _Interpreter:
                 raise SandboxError(f"line {e.lineno}: {type(v).__name__} cannot be indexed")
             try:
                 return v[_literal_int(e.slice)]
-            except IndexError as err:
-                raise SandboxError(f"line {e.lineno}: {err}") from None
+            except (IndexError, OverflowError) as err:  # an index beyond any C integer
+                raise SandboxError(f"line {e.lineno}: index out of range ({err})") from None
         return self.call(e)
 
     def binop(self, node: ast.AST, op: ast.operator, a, b):
