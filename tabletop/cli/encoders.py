@@ -10,7 +10,7 @@ import math
 import zipfile
 from pathlib import Path
 
-from tabletop.cli.output import stdout_to_stderr
+from tabletop.cli.output import check_parents_are_directories, stdout_to_stderr
 from tabletop.errors import ConfigError
 
 __all__ = ["TRAIN_OUT", "add_commands", "cmd_check_encoders", "cmd_train"]
@@ -85,11 +85,7 @@ def _check_weights_output(out: Path) -> None:
             f"--out {str(out)!r} exists and is not a torch checkpoint; train only replaces a "
             "previous checkpoint: choose another path"
         )
-    for parent in out.parents:
-        if parent.exists():
-            if not parent.is_dir():
-                raise ConfigError(f"--out {str(out)!r}: {str(parent)!r} is not a directory")
-            break
+    check_parents_are_directories("--out", out)
 
 
 def cmd_train(args: argparse.Namespace) -> int:

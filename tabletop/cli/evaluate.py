@@ -11,7 +11,7 @@ import time
 import tomllib
 from pathlib import Path
 
-from tabletop.cli.output import stdout_to_stderr
+from tabletop.cli.output import check_parents_are_directories, stdout_to_stderr
 from tabletop.cli.progress import ProgressBars
 from tabletop.errors import ConfigError
 
@@ -100,14 +100,7 @@ def _check_directory_flag(flag: str, path: str | Path) -> None:
             f"{flag} {str(path)!r} exists and is not a directory: give a directory "
             "(created if missing)"
         )
-    for parent in p.parents:
-        if parent.exists():
-            if not parent.is_dir():
-                raise ConfigError(
-                    f"{flag} {str(path)!r}: {str(parent)!r} is not a directory: give a "
-                    "directory (created if missing)"
-                )
-            break
+    check_parents_are_directories(flag, path, ": give a directory (created if missing)")
 
 
 def _tasks_with_map_settings(tasks, overrides: dict) -> list:

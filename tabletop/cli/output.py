@@ -5,8 +5,22 @@ from __future__ import annotations
 import contextlib
 import os
 import sys
+from pathlib import Path
 
-__all__ = ["stdout_to_stderr"]
+from tabletop.errors import ConfigError
+
+__all__ = ["check_parents_are_directories", "stdout_to_stderr"]
+
+
+def check_parents_are_directories(flag: str, path: str | Path, hint: str = "") -> None:
+    """The nearest existing ancestor of ``path`` must be a directory (a path through a file can
+    never be created): :class:`ConfigError` naming the flag, the path and that ancestor, with
+    ``hint`` appended, checked before any work."""
+    for parent in Path(path).parents:
+        if parent.exists():
+            if not parent.is_dir():
+                raise ConfigError(f"{flag} {str(path)!r}: {str(parent)!r} is not a directory{hint}")
+            return
 
 
 @contextlib.contextmanager

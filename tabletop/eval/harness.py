@@ -143,8 +143,11 @@ def _key(obj) -> str:
     return hashlib.sha1(json.dumps(obj, sort_keys=True, default=str).encode()).hexdigest()[:12]
 
 
-def recording_key(spec, scan: dict) -> str:
-    return _key({"scene": spec.to_dict(), "scan": scan, "sim": _fingerprint("sim")})
+def recording_key(spec, scan: dict, noise: dict | None = None) -> str:
+    """The cache key of the recording of ``spec`` scanned with ``scan``, with the sensor
+    ``noise`` (:class:`~tabletop.sim.noise.NoiseConfig` fields) applied when given."""
+    key = {"scene": spec.to_dict(), "scan": scan, "sim": _fingerprint("sim")}
+    return _key({**key, "noise": noise} if noise else key)
 
 
 def cached_recording(name: str, scan: dict, spec, cache: Path | None, progress: Progress | None):

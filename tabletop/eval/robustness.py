@@ -146,9 +146,8 @@ class RobustnessResult:
         for enc, per in self.drops.items():
             head = "| goal type | clean % | " + " | ".join(f"{n} % (drop)" for n in names) + " |"
             lines += [f"**{enc}** encoders", "", head, "|" + "---|" * (len(names) + 2)]
-            types = list(self._rates("clean", enc))
-            for t in types:
-                v = self._rates("clean", enc)[t]
+            base = self._rates("clean", enc)
+            for t, v in base.items():
                 if v["success_rate"] is None:
                     continue
                 cells = []
@@ -164,8 +163,7 @@ class RobustnessResult:
                     f"{v['attempted']}) | " + " | ".join(cells) + " |"
                 )
             contacts = " | ".join(str(per[n].get("all", {}).get("contacts", "–")) for n in names)
-            clean_contacts = self._rates("clean", enc)["all"]["contacts"]
-            lines += [f"| contacts | {clean_contacts} | {contacts} |", ""]
+            lines += [f"| contacts | {base['all']['contacts']} | {contacts} |", ""]
         return "\n".join(lines)
 
     def to_markdown(self) -> str:

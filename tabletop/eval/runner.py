@@ -353,10 +353,9 @@ def evaluate_task_file(
     except ConfigError as e:
         raise TaskFileError(f"{tf.path or tf.name} [noise]: {e}") from None
     rec, scan_s, rec_cached = cached_recording(tf.name, scan, spec, cache, progress)
-    rec_key = recording_key(spec, scan)
+    rec_key = recording_key(spec, scan, sensor.to_dict() if sensor.any else None)
     if sensor.any:
         rec = apply_noise(rec, sensor)
-        rec_key = f"{rec_key}-noise-{_noise_key(sensor)}"
     m, map_s, map_cached = cached_map(tf.name, settings, rec, encoders, cache, rec_key, progress)
     # Resolve every truth before anything moves: a wrong reference is a task-file error.
     where = str(tf.path or tf.name)
@@ -403,13 +402,6 @@ def evaluate_task_file(
         ctx.close()
         robot.close()
     return run
-
-
-def _noise_key(noise) -> str:
-    import hashlib
-    import json
-
-    return hashlib.sha1(json.dumps(noise.to_dict(), sort_keys=True).encode()).hexdigest()[:10]
 
 
 def _check_encoder_set(name: str) -> str:
