@@ -81,6 +81,16 @@ def test_where_you_heard_makes_the_constraint_a_sound():
     assert step.action.goal.near == (Part("sound", "alarm clock"),)
 
 
+def test_a_sound_description_may_hold_commas_but_not_structure():
+    # The sound bank's own captions have commas ("splashing, dripping water").
+    step = only("move to the sound of splashing, dripping water")
+    assert step.action == GoTo(Goal(Part("sound", "splashing, dripping water")))
+    step = only("go to the duck near the sound of splashing, dripping water")
+    assert step.action.goal.near == (Part("sound", "splashing, dripping water"),)
+    with pytest.raises(ParseError, match="'left,'"):
+        parse_instruction("go to the sound of water, left, of the mug")
+
+
 def test_between_splits_at_the_first_valid_and():
     step = only("move in between the image ./006899.png and the backpack near the sound of glass")
     assert step.action == Between(

@@ -397,9 +397,11 @@ class _Parser:
         if not words:
             self.fail(text, f"the {kind} description is empty")
         bad = [w for w in words if w in _RESERVED or not re.fullmatch(r"[a-z][a-z0-9'-]*", w)]
-        if kind == "sound":  # sounds are free text, but not spatial structure
+        if kind == "sound":  # sounds are free text ("splashing, dripping water"), not structure
             bad = [
-                w for w in bad if w in _RESERVED_SOUND or not re.fullmatch(r"[a-z][a-z0-9'-]*", w)
+                w
+                for w in bad
+                if w.rstrip(",") in _RESERVED_SOUND or not re.fullmatch(r"[a-z][a-z0-9'-]*,?", w)
             ]
         if bad:
             self.fail(
