@@ -110,6 +110,42 @@ def test_cli_json_second_run_reuses_the_cached_scan_and_map(run, capfd, tmp_path
     assert a == [(g["goal_id"], g["success"]) for g in task["goals"]]
 
 
+def test_a_cached_map_is_judged_by_the_committed_calibration(run):
+    from tabletop.eval.harness import scene_map
+    from tabletop.eval.tasks import scene_ref
+    from tabletop.mapping import AVLMap, load_calibration
+    from tabletop.mapping.calibration import Calibration
+
+    _, cache, _, _ = run
+    (path,) = cache.glob("map-oracle-*.npz")
+    m = AVLMap.load(path)
+    committed = load_calibration("oracle")
+    assert committed.thresholds  # so that a calibration without any differs from it
+    m.calibration = Calibration("oracle", {}, {})  # as a map saved before a recalibration
+    m.save(path)
+    spec = scene_ref(SCENE).load()
+    _, again = scene_map(spec, SCAN, "oracle", map_settings={"frame_step": 4}, cache_dir=cache)
+    assert again.calibration.thresholds == committed.thresholds
+    assert again.calibration.models == committed.models
+
+
+def test_query_time_modules_do_not_invalidate_cached_maps(tmp_path, monkeypatch):
+    import tabletop.paths
+    from tabletop.eval.harness import QUERY_TIME_SOURCES, _fingerprint
+
+    real = tabletop.paths.PACKAGE_DIR
+    assert all((real / f).is_file() for f in QUERY_TIME_SOURCES)  # no stale entry
+    (tmp_path / "mapping").mkdir()
+    for f in ("mapping/object_module.py", "mapping/voxel_map.py"):
+        (tmp_path / f).write_text("x = 1\n")
+    monkeypatch.setattr(tabletop.paths, "PACKAGE_DIR", tmp_path)
+    before = _fingerprint("mapping")
+    (tmp_path / "mapping/object_module.py").write_text("x = 2\n")
+    assert _fingerprint("mapping") == before  # answers queries only
+    (tmp_path / "mapping/voxel_map.py").write_text("x = 2\n")
+    assert _fingerprint("mapping") != before  # builds maps
+
+
 def test_bad_inputs_to_the_runner():
     with pytest.raises(TaskFileError, match="shipped suites"):
         collect_task_files("no-such-suite")

@@ -117,14 +117,31 @@ def build_map(recording, encoders: str, config=None, progress=None, **kwargs):
     )
 
 
+#: Modules that only answer queries on a built map: nothing a saved map holds comes from them,
+#: so editing them keeps cached maps (the calibration, also read at query time, is applied
+#: afresh to every map taken from the cache).
+QUERY_TIME_SOURCES = frozenset(
+    (
+        "mapping/object_module.py",
+        "mapping/shape.py",
+        "mapping/heatmaps.py",
+        "mapping/targets.py",
+        "mapping/render.py",
+        "mapping/bench.py",
+    )
+)
+
+
 def _fingerprint(*packages: str) -> str:
     """Hash of the Python source (and the shipped weights, texts and sound bank manifest) a
-    cached artefact depends on."""
+    cached artefact depends on (not :data:`QUERY_TIME_SOURCES`)."""
     from tabletop.paths import DATA_DIR, PACKAGE_DIR
 
     h = hashlib.sha1()
     for pkg in packages:
         for f in sorted((PACKAGE_DIR / pkg).rglob("*.py")):
+            if f.relative_to(PACKAGE_DIR).as_posix() in QUERY_TIME_SOURCES:
+                continue
             h.update(f.name.encode())
             h.update(f.read_bytes())
     data = []
@@ -189,14 +206,16 @@ def cached_map(
 ):
     """(AVLMap, map seconds, cached?) of a recording with the encoder set and ``map_settings``
     (:func:`map_config` overrides), through the cache."""
-    from tabletop.mapping import AVLMap
+    from tabletop.mapping import AVLMap, load_calibration
 
     config = map_config(**map_settings)
     key = _key({"rec": rec_key, "map": config.to_dict(), "mapping": _fingerprint("mapping", "arm")})
     path = cache / f"map-{encoders}-{key}.npz" if cache else None
     if path is not None and path.is_file():
         try:
-            return AVLMap.load(path, encoders=encoders), 0.0, True
+            m = AVLMap.load(path, encoders=encoders)
+            m.calibration = load_calibration(encoders)  # the committed one, as built today
+            return m, 0.0, True
         except TabletopError as e:
             log.warning("cached map %s is unusable (%s); building again", path, e)
     t0 = time.perf_counter()
