@@ -37,3 +37,15 @@ def test_every_name_belongs_to_a_basic_colour_term():
         assert family in BASIC_COLOURS, name
         assert len(rgb) == 3 and all(0 <= c <= 255 for c in rgb), name
         assert COLOR_NAMES[family][1] == family  # a basic term is its own family
+
+
+def test_shaded_lab_darkens_a_colour_and_keeps_it_at_full_light():
+    from tabletop.mapping.colors import shaded_lab
+
+    rgb = np.array([[230.0, 110.0, 20.0], [128.0, 128.0, 128.0]])
+    lab = shaded_lab(rgb, [1.0, 0.5])
+    assert lab.shape == (2, 2, 3)
+    np.testing.assert_allclose(lab[0], rgb_to_lab(rgb), atol=1e-9)
+    assert np.all(lab[1, :, 0] < lab[0, :, 0] - 10)  # darker
+    hue = np.arctan2(lab[:, 0, 2], lab[:, 0, 1])
+    assert abs(hue[1] - hue[0]) < 0.1  # the same hue

@@ -119,3 +119,18 @@ def test_config_is_checked():
         InstanceConfig(min_voxels=0)
     with pytest.raises(ConfigError, match="split_cos"):
         InstanceConfig(split_cos=2.0)
+
+
+def test_the_palette_separates_two_colours_but_not_one_colour_shaded():
+    from tabletop.mapping.colors import rgb_to_lab, shaded_lab
+    from tabletop.mapping.instances import colour_palette
+
+    black_white = rgb_to_lab(np.array([(20, 20, 20)] * 7 + [(230, 230, 230)] * 3, float))
+    pal, share = colour_palette(black_white, np.ones(10))
+    assert share == pytest.approx([0.7, 0.3])
+    assert pal[0][0] < 10 and pal[1][0] > 85  # black first (the larger share), then white
+    # One orange, lit and shaded to 60 % of the light: one colour, no palette.
+    orange = shaded_lab(np.array([(230, 110, 20)] * 6, float), [1.0, 0.6]).reshape(-1, 3)
+    pal, share = colour_palette(orange, np.ones(12))
+    assert pal.shape == (0, 3) and share.shape == (0,)
+    assert colour_palette(black_white[:1], np.ones(1))[0].shape == (0, 3)

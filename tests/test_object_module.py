@@ -169,3 +169,37 @@ def test_instance_config_is_checked():
         ObjectConfig(temperature=0.0)
     with pytest.raises(ConfigError, match="segmentation"):
         ObjectConfig(segmentation=3)
+
+
+def _instance(rgb, palette=(), share=()):
+    from tabletop.mapping.colors import rgb_to_lab
+    from tabletop.mapping.instances import ObjectInstance
+
+    z = np.zeros(3)
+    pal = rgb_to_lab(np.array(palette, float)) if palette else np.zeros((0, 3))
+    return ObjectInstance(
+        0, np.arange(1), z, z, z, np.array(rgb, float), rgb_to_lab(np.array(rgb, float)),
+        np.zeros(384, np.float32), 1, pal, np.array(share, float),
+    )  # fmt: skip
+
+
+def test_a_shaded_colour_keeps_its_name_and_a_neighbouring_term_does_not_take_it(scene):
+    fits = {}
+    for q in ("yellow", "green", "orange", "white", "grey"):
+        w = scene._colour_weights(q)
+        fits[q] = scene.colour_match(w, [_instance((201, 179, 32)), _instance((190, 190, 190))])
+    # A yellow mug as the wrist camera sees it: darker and duller than "yellow", still yellow.
+    assert fits["yellow"][0] > 0.8 > 0.3 > max(fits["green"][0], fits["orange"][0])
+    # Light grey and shaded white are the same pixels: both names fit, no chromatic one does.
+    assert min(fits["white"][1], fits["grey"][1]) > 0.6 and fits["yellow"][1] < 0.3
+
+
+def test_a_two_coloured_object_fits_either_of_its_colours_but_no_other(scene):
+    # A domino: black faces, white edges; its mean colour is a grey neither of them is.
+    domino = _instance((100, 100, 100), [(25, 25, 25), (225, 225, 225)], [0.7, 0.3])
+    plain_grey = _instance((100, 100, 100))
+    for q in ("black", "white"):
+        w = scene._colour_weights(q)
+        fit, plain = scene.colour_match(w, [domino, plain_grey])
+        assert fit > 0.8 and fit > plain + 0.3, q
+    assert scene.colour_match(scene._colour_weights("red"), [domino])[0] < 0.1

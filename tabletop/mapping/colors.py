@@ -31,6 +31,7 @@ __all__ = [
     "FILLER_WORDS",
     "delta_e",
     "rgb_to_lab",
+    "shaded_lab",
     "split_color_words",
 ]
 
@@ -123,6 +124,19 @@ def delta_e(a, b) -> np.ndarray:
     it across one object, and a colour's name depends more on its hue and chroma."""
     d = np.asarray(a, dtype=np.float64) - np.asarray(b, dtype=np.float64)
     return np.sqrt((0.5 * d[..., 0]) ** 2 + d[..., 1] ** 2 + d[..., 2] ** 2)
+
+
+def shaded_lab(rgb, gains) -> np.ndarray:
+    """CIELAB (len(gains), ..., 3) of sRGB colours (..., 3) in 0-255 lit at each gain (a factor
+    on linear light, 1 = as named): how a colour looks on a face the light reaches less."""
+    c = np.asarray(rgb, dtype=np.float64) / 255.0
+    lin = np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
+    out = []
+    for g in np.asarray(gains, dtype=np.float64).reshape(-1):
+        x = np.clip(lin * g, 0.0, 1.0)
+        srgb = np.where(x <= 0.0031308, 12.92 * x, 1.055 * x ** (1 / 2.4) - 0.055)
+        out.append(rgb_to_lab(255.0 * srgb))
+    return np.stack(out)
 
 
 def rgb_to_lab(rgb) -> np.ndarray:

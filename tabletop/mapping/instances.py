@@ -23,7 +23,7 @@ change.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.sparse import coo_matrix
@@ -35,9 +35,11 @@ from tabletop.mapping.table_regions import TableFit
 from tabletop.mapping.voxel_map import VoxelMap
 
 __all__ = [
+    "PALETTE_MIN_DELTA_E",
     "InstanceConfig",
     "InstanceSet",
     "ObjectInstance",
+    "colour_palette",
     "instances_from_labels",
     "segment_instances",
 ]
@@ -91,6 +93,11 @@ class ObjectInstance:
     """(dim,) unit: the mean of every pixel feature fused into it."""
     points: int
     """Pixels fused into it."""
+    palette: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    """(k, 3) CIELAB: its distinct colours (k <= 2), largest share first
+    (:func:`colour_palette`); empty where one colour describes it."""
+    palette_share: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    """(k,) the share of its pixels in each palette colour."""
 
     @property
     def extent(self) -> np.ndarray:
@@ -263,6 +270,9 @@ def instances_from_labels(voxels: VoxelMap, labels: np.ndarray) -> list[ObjectIn
         e = e / max(float(np.linalg.norm(e)), 1e-12)
         c = state["color_sums"][rows].sum(axis=0) / max(pts, 1)
         ctr = centers[rows]
+        counts = state["counts"][rows].astype(np.float64)
+        vox_rgb = state["color_sums"][rows] / np.maximum(counts[:, None], 1)
+        palette, share = colour_palette(rgb_to_lab(vox_rgb), counts)
         out.append(
             ObjectInstance(
                 k,
@@ -274,6 +284,46 @@ def instances_from_labels(voxels: VoxelMap, labels: np.ndarray) -> list[ObjectIn
                 rgb_to_lab(c),
                 e.astype(np.float32),
                 pts,
+                palette,
+                share,
             )
         )
     return out
+
+
+#: Two colour clusters of an instance closer than this CIELAB ΔE (:func:`delta_e`) are one
+#: colour under shading, not two colours.
+PALETTE_MIN_DELTA_E = 25.0
+
+
+def colour_palette(lab: np.ndarray, weights: np.ndarray, iters: int = 10):
+    """((k, 3) CIELAB, (k,) shares): the distinct colours of an object's voxels (``lab``,
+    (n, 3), weighted by ``weights``): two clusters (weighted 2-means in the :func:`delta_e`
+    metric, started from the darker and the lighter half) when they lie at least
+    :data:`PALETTE_MIN_DELTA_E` apart — a domino's black faces and white edges, a soccer
+    ball's panels — and none otherwise (one colour, shaded: the mean says it)."""
+    lab = np.asarray(lab, np.float64).reshape(-1, 3)
+    w = np.asarray(weights, np.float64).reshape(-1)
+    if len(lab) < 2 or not w.sum() > 0:
+        return np.zeros((0, 3)), np.zeros(0)
+    scale = np.array([0.5, 1.0, 1.0])  # the metric of delta_e
+    x = lab * scale
+    dark = lab[:, 0] <= np.median(lab[:, 0])
+    if dark.all():
+        return np.zeros((0, 3)), np.zeros(0)
+    c = np.stack(
+        [np.average(x[dark], 0, w[dark] + 1e-12), np.average(x[~dark], 0, w[~dark] + 1e-12)]
+    )
+    assign = np.zeros(len(x), np.int64)
+    for _ in range(iters):
+        assign = ((x[:, None] - c[None]) ** 2).sum(-1).argmin(1)
+        for j in range(2):
+            m = assign == j
+            if m.any() and w[m].sum() > 0:
+                c[j] = np.average(x[m], 0, w[m])
+    share = np.array([w[assign == j].sum() for j in range(2)]) / w.sum()
+    centres = c / scale
+    if float(delta_e(centres[0], centres[1])) < PALETTE_MIN_DELTA_E or share.min() == 0:
+        return np.zeros((0, 3)), np.zeros(0)
+    order = np.argsort(-share, kind="stable")
+    return centres[order], share[order]

@@ -48,7 +48,7 @@ from tabletop.mapping.colors import (
     COLOR_NAMES,
     FILLER_WORDS,
     delta_e,
-    rgb_to_lab,
+    shaded_lab,
     split_color_words,
 )
 from tabletop.mapping.heatmaps import Heatmap, Judge, point_heatmap_3d
@@ -81,8 +81,14 @@ class ObjectConfig:
     temperature: float = 0.02
     """Softmax temperature of an instance's scores against the vocabulary (and of its colour
     variants)."""
-    colour_scale: float = 20.0
-    """CIELAB ΔE at which a colour's fit falls to 1/e."""
+    colour_scale: float = 12.0
+    """CIELAB ΔE by which another basic colour term lying nearer than the asked one cuts the
+    fit to 1/e (a blue mug is not the purple one)."""
+    colour_abs_scale: float = 60.0
+    """CIELAB ΔE from the asked colour itself at which the fit falls to 1/e."""
+    shading_gain_min: float = 0.6
+    """A measured colour may be a named colour lit down to this factor of linear light (a
+    shaded face of a yellow mug is darker and less saturated than "yellow")."""
     keep_ratio: float = 0.5
     """Instances scoring at least this fraction of the best stay hot."""
     name_temperature: float = 0.02
@@ -106,9 +112,17 @@ class ObjectConfig:
         for name in ("text_min", "keep_ratio"):
             if not 0 <= getattr(self, name) <= 1:
                 raise ConfigError(f"{name} must be in [0, 1], got {getattr(self, name)}")
-        for name in ("text_margin", "temperature", "colour_scale", "name_temperature"):
+        for name in (
+            "text_margin",
+            "temperature",
+            "colour_scale",
+            "colour_abs_scale",
+            "name_temperature",
+        ):
             if not getattr(self, name) > 0:
                 raise ConfigError(f"{name} must be > 0, got {getattr(self, name)}")
+        if not 0 < self.shading_gain_min <= 1:
+            raise ConfigError(f"shading_gain_min must be in (0, 1], got {self.shading_gain_min}")
 
 
 @dataclass(frozen=True)
@@ -291,10 +305,12 @@ class ObjectModule:
         text embeddings' cosine with the phrase's, sharpened)."""
         if self._lexicon is None:
             names = list(COLOR_NAMES)
-            lab = rgb_to_lab(np.array([v[0] for v in COLOR_NAMES.values()], float))
+            gains = np.linspace(self.config.shading_gain_min, 1.0, 8)
+            lab = shaded_lab(np.array([v[0] for v in COLOR_NAMES.values()], float), gains)
             self._lexicon = (self.text.encode_text(names), lab)
             self._basic = [names.index(c) for c in BASIC_COLOURS]
             self._family = [names.index(v[1]) for v in COLOR_NAMES.values()]
+            self._family_id = np.array([BASIC_COLOURS.index(v[1]) for v in COLOR_NAMES.values()])
         sim = self._lexicon[0] @ self.text.encode_text([colour])[0]
         w = np.exp((sim - sim.max()) / 0.02)
         return w / w.sum()
@@ -323,25 +339,41 @@ class ObjectModule:
             out = np.maximum(out, p @ fam)
         return out
 
+    def colour_fit(self, lab: np.ndarray) -> np.ndarray:
+        """(m, len(COLOR_NAMES)) in [0, 1]: how well measured colours ``lab`` ((m, 3) CIELAB)
+        fit each lexicon name (call :meth:`_colour_weights` first).
+
+        A name's distance is the ΔE (:func:`delta_e`) from the measured colour to the name's
+        colour lit at any gain down to ``shading_gain_min``, and never more than the distance
+        to the nearest name of its basic colour term ("navy" asks for a blue). The fit is
+        ``exp(-(that - the nearest basic term's) / colour_scale)``, how much nearer another
+        basic colour term lies, times ``exp(-distance / colour_abs_scale)``."""
+        cfg = self.config
+        de = delta_e(np.asarray(lab)[None, :, None, :], self._lexicon[1][:, None, :, :]).min(0)
+        fam = self._family_id
+        per_term = np.stack([de[:, fam == f].min(axis=1) for f in range(len(BASIC_COLOURS))], 1)
+        own = per_term[:, fam]  # each name's basic colour term
+        rel = np.maximum(own - per_term.min(axis=1, keepdims=True), 0.0)
+        return np.exp(-rel / cfg.colour_scale - np.minimum(de, own) / cfg.colour_abs_scale)
+
     def colour_match(self, weights: np.ndarray, instances: list[ObjectInstance]) -> np.ndarray:
         """(n,) in [0, 1]: how well each instance's measured colour fits the colour phrase
         (``weights``: the lexicon names it means, :meth:`_colour_weights`).
 
-        The fit falls off with the
-        CIELAB distance ΔE (lightness at half weight: shading darkens a whole object) from the
-        instance's measured colour to those names' colours, ``exp(-ΔE / colour_scale)``, and
-        again with how much nearer another basic colour term lies than the name's own (its
-        nearest basic term: "scarlet" is a red): a blue mug is not the purple one even though
-        blue and purple are neighbours."""
+        The instance's mean colour is scored by :meth:`colour_fit`; an instance of two
+        distinct colours (its palette: a domino's black faces and white edges) also fits a
+        colour that one of them fits, scaled down where that colour covers less than a third
+        of it (under a quarter: not at all)."""
         if not instances:
             return np.zeros(0)
-        lab = self._lexicon[1]
-        de = delta_e(np.stack([i.lab for i in instances])[:, None, :], lab[None, :, :])
-        fam = de[:, self._family]  # to each name's basic colour term ("scarlet" -> red)
-        best_basic = de[:, self._basic].min(axis=1, keepdims=True)
-        sc = self.config.colour_scale
-        near = np.exp(-np.minimum(de, fam) / sc)
-        return (near * np.exp(-np.maximum(fam - best_basic, 0.0) / sc)) @ weights
+        fit = self.colour_fit(np.stack([i.lab for i in instances])) @ weights
+        for k, inst in enumerate(instances):
+            big = inst.palette_share >= 0.25
+            if big.any():
+                part = self.colour_fit(inst.palette[big]) @ weights
+                share = np.minimum(inst.palette_share[big] / (1 / 3), 1.0)
+                fit[k] = max(fit[k], float((part * share).max()))
+        return fit
 
     def heatmap(self, query: str, decay: float, judge: Judge) -> Heatmap:
         """Heat around the instances (or voxels) that best match ``query``; not found, with the
