@@ -19,12 +19,14 @@ TRAIN_OUT = {
     "audio": Path("out/weights/audio.pt"),
     "vision": Path("out/weights/vision_dense_effnet.pt"),
     "vision (--backbone small)": Path("out/weights/vision_dense.pt"),
+    "shape": Path("out/weights/shape_prior.json"),
 }
 """Where ``tabletop train WHAT`` writes its weights unless given ``--out``."""
 _SHIPPED = {
     "audio": "tabletop/data/weights/audio.pt",
     "vision": "tabletop/data/weights/vision_dense.pt",
     "vision (effnet-lite0)": "tabletop/data/weights/vision_dense_effnet.pt",
+    "shape": "tabletop/data/weights/shape_prior.json",
 }
 
 
@@ -88,7 +90,45 @@ def _check_weights_output(out: Path) -> None:
     check_parents_are_directories("--out", out)
 
 
+def _check_shape_output(out: Path) -> None:
+    """``train shape --out``: a new path or a shape prior to replace, nothing else."""
+    valid = "give a file path (e.g. out/weights/shape_prior.json): a new file or a shape prior"
+    if str(out) in ("", ".") or out.is_dir():
+        raise ConfigError(f"--out {str(out)!r} is not a file path; {valid}")
+    if out.exists():
+        try:
+            ok = "features" in json.loads(out.read_text())
+        except (OSError, ValueError, TypeError):
+            ok = False
+        if not ok:
+            raise ConfigError(
+                f"--out {str(out)!r} exists and is not a shape prior; train only replaces a "
+                "previous one: choose another path"
+            )
+    check_parents_are_directories("--out", out)
+
+
 def cmd_train(args: argparse.Namespace) -> int:
+    if args.what == "shape":
+        given = [
+            flag
+            for flag, value, default in (
+                ("--steps", args.steps, None),
+                ("--threads", args.threads, None),
+                ("--device", args.device, "cpu"),
+                ("--max-minutes", args.max_minutes, None),
+                ("--backbone", args.backbone, "effnet-lite0"),
+            )
+            if value != default
+        ]
+        if given:
+            raise ConfigError(f"{', '.join(given)}: not for shape (it takes --out only)")
+        out = Path(args.out) if args.out is not None else TRAIN_OUT["shape"]
+        _check_shape_output(out)
+        from tabletop.train.shape import train_shape
+
+        print(f"shape prior written: {train_shape(out)}")
+        return 0
     if args.out is not None:
         out = Path(args.out)
     elif args.what == "vision" and args.backbone == "small":
@@ -127,8 +167,10 @@ def cmd_train(args: argparse.Namespace) -> int:
 
 def add_commands(sub) -> None:
     """Register ``train`` and ``check-encoders`` on the ``tabletop`` sub-command parser."""
-    p = sub.add_parser("train", help="train an embedded default encoder (seeded)")
-    p.add_argument("what", choices=["audio", "vision"])
+    p = sub.add_parser(
+        "train", help="train an embedded default encoder or the object shape prior (seeded)"
+    )
+    p.add_argument("what", choices=["audio", "vision", "shape"])
     p.add_argument(
         "--out",
         default=None,

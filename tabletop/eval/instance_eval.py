@@ -6,8 +6,8 @@ generated scenes (generator seeds no training, calibration, tuning or evaluation
 builds each map with an encoder set, segments its instances and matches each to the scene's
 object holding most of its voxels. Per matched instance:
 
-- ``kind``: the instance's best vocabulary class (:meth:`ObjectModule.class_scores`: catalog
-  names and the background) is its object's kind;
+- ``kind``: the instance's most probable class (:meth:`ObjectModule.kind_probabilities`:
+  catalog names and the background) is its object's kind;
 - ``label``: that, and the basic colour term nearest its measured colour is its object's
   colour (painted objects only; textured ones count on the kind).
 
@@ -49,7 +49,7 @@ def evaluate_instances(
         truth = GroundTruth.of(rec)
         names = list(m.objects.vocabulary) + list(m.config.object.background)
         inst = m.objects.instances.items
-        scores = m.objects.class_scores(inst)
+        scores = m.objects.kind_probabilities(inst)
         centers = m.voxels.centers
         owner_count: dict[str, int] = {}
         for i, s in zip(inst, scores, strict=True):

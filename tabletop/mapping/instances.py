@@ -219,6 +219,10 @@ class InstanceSet:
             self._labels = None
             self._key = key
 
+    def table(self):
+        """The table the instances stand on (the map's fit; None without one)."""
+        return self._table()
+
     def restore(self, labels: np.ndarray) -> None:
         """Take a saved segmentation (per voxel row: its instance id, -1 for none) for the
         current voxels instead of segmenting them again."""

@@ -89,6 +89,9 @@ class ObjectConfig:
     shading_gain_min: float = 0.6
     """A measured colour may be a named colour lit down to this factor of linear light (a
     shaded face of a yellow mug is darker and less saturated than "yellow")."""
+    shape: bool = False
+    """Multiply each instance's kind probabilities by the shape prior's
+    (:mod:`tabletop.mapping.shape`: what its voxels' geometry says it is)."""
     keep_ratio: float = 0.5
     """Instances scoring at least this fraction of the best stay hot."""
     name_temperature: float = 0.02
@@ -193,6 +196,7 @@ class ObjectModule:
         self._background: np.ndarray | None = None
         self._targets: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None = None
         self._lexicon: tuple[np.ndarray, np.ndarray] | None = None
+        self._shape_prior = None
 
     # ------------------------------------------------------------------ single voxels
     def _refresh(self) -> None:
@@ -260,6 +264,41 @@ class ObjectModule:
             out[:, c] = s[:, vowner == c].max(axis=1)
         return out
 
+    def kind_probabilities(self, instances: list[ObjectInstance] | None = None) -> np.ndarray:
+        """(n_instances, vocabulary + background): how much each instance looks like each class
+        (a softmax of :meth:`class_scores` at ``temperature``), times the shape prior's
+        probability of each vocabulary name (the background classes: its uniform share) and
+        normalised again when ``config.shape``."""
+        inst = self.instances.items if instances is None else instances
+        z = self.class_scores(inst) / self.config.temperature
+        p = np.exp(z - z.max(axis=1, keepdims=True))
+        if self.config.shape and len(inst):
+            prior = self.shape_prior()
+            nv = len(self.vocabulary)
+            g = prior.for_names(self.shape_features(inst), self.vocabulary)
+            p[:, :nv] *= g
+            p[:, nv:] *= 1.0 / len(prior.kinds)
+        return p / p.sum(axis=1, keepdims=True)
+
+    def shape_prior(self):
+        """The committed :class:`~tabletop.mapping.shape.ShapePrior` (read once)."""
+        from tabletop.mapping.shape import ShapePrior
+
+        if self._shape_prior is None:
+            self._shape_prior = ShapePrior.load()
+        return self._shape_prior
+
+    def shape_features(self, instances: list[ObjectInstance]) -> np.ndarray:
+        """(n, F) :func:`~tabletop.mapping.shape.shape_features` of ``instances`` on the map's
+        fitted table."""
+        from tabletop.mapping.shape import FEATURES, shape_features
+
+        table = self.instances.table()
+        if table is None or not instances:
+            return np.zeros((len(instances), len(FEATURES)))
+        centers, vs = self.voxels.centers, self.voxels.grid.voxel_size
+        return np.stack([shape_features(centers[i.rows], vs, table.z) for i in instances])
+
     def match(self, query: str) -> InstanceMatch:
         """Score ``query`` against every instance (see the module docstring)."""
         cfg = self.config
@@ -285,9 +324,7 @@ class ObjectModule:
             want = np.ones(nv, bool)
             weight = np.ones(nv)
         if n:
-            z = self.class_scores(inst) / cfg.temperature
-            p = np.exp(z - z.max(axis=1, keepdims=True))
-            p /= p.sum(axis=1, keepdims=True)
+            p = self.kind_probabilities(inst)
             kind = p[:, :nv][:, want].sum(axis=1)
             weighted = p[:, :nv][:, want] @ weight[want]
             preference = np.divide(weighted, kind, out=np.zeros(n), where=kind > 0)
