@@ -186,7 +186,7 @@ def _instance(rgb, palette=(), share=()):
 def test_a_shaded_colour_keeps_its_name_and_a_neighbouring_term_does_not_take_it(scene):
     fits = {}
     for q in ("yellow", "green", "orange", "white", "grey"):
-        w = scene._colour_weights(q)
+        w = scene.colour_weights(q)
         fits[q] = scene.colour_match(w, [_instance((201, 179, 32)), _instance((190, 190, 190))])
     # A yellow mug as the wrist camera sees it: darker and duller than "yellow", still yellow.
     assert fits["yellow"][0] > 0.8 > 0.3 > max(fits["green"][0], fits["orange"][0])
@@ -199,7 +199,7 @@ def test_a_two_coloured_object_fits_either_of_its_colours_but_no_other(scene):
     domino = _instance((100, 100, 100), [(25, 25, 25), (225, 225, 225)], [0.7, 0.3])
     plain_grey = _instance((100, 100, 100))
     for q in ("black", "white"):
-        w = scene._colour_weights(q)
+        w = scene.colour_weights(q)
         fit, plain = scene.colour_match(w, [domino, plain_grey])
         assert fit > 0.8 and fit > plain + 0.3, q
-    assert scene.colour_match(scene._colour_weights("red"), [domino])[0] < 0.1
+    assert scene.colour_match(scene.colour_weights("red"), [domino])[0] < 0.1

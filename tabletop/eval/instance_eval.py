@@ -8,8 +8,9 @@ object holding most of its voxels. Per matched instance:
 
 - ``kind``: the instance's most probable class (:meth:`ObjectModule.kind_probabilities`:
   catalog names and the background) is its object's kind;
-- ``label``: that, and the basic colour term nearest its measured colour is its object's
-  colour (painted objects only; textured ones count on the kind).
+- ``label``: that, and the basic colour term its measured colour fits best
+  (:meth:`ObjectModule.colour_match`) is its object's colour (painted objects only; textured
+  ones count on the kind).
 
 Also reported: how many objects came out as exactly one instance (segmentation).
 """
@@ -36,11 +37,10 @@ def evaluate_instances(
     docstring); scans and maps are reused from ``cache_dir`` (None: none kept). ``scan``:
     ``ScanConfig`` fields beside the seed (default: speed 0.3, as the suites scan)."""
     from tabletop.eval.harness import generated_scene, scene_map
-    from tabletop.mapping.colors import BASIC_COLOURS, COLOR_NAMES, delta_e, rgb_to_lab
+    from tabletop.mapping.colors import BASIC_COLOURS
     from tabletop.sim.catalog import OBJECT_KINDS
     from tabletop.sim.ground_truth import GroundTruth
 
-    basic_lab = rgb_to_lab(np.array([COLOR_NAMES[c][0] for c in BASIC_COLOURS], float))
     kind_ok = label_ok = n = objects = single = 0
     for seed in seeds:
         spec = generated_scene(seed, f"instances-{seed}")
@@ -49,6 +49,7 @@ def evaluate_instances(
         truth = GroundTruth.of(rec)
         names = list(m.objects.vocabulary) + list(m.config.object.background)
         inst = m.objects.instances.items
+        colour_weights = [m.objects.colour_weights(c) for c in BASIC_COLOURS]
         scores = m.objects.kind_probabilities(inst)
         centers = m.voxels.centers
         owner_count: dict[str, int] = {}
@@ -69,8 +70,8 @@ def evaluate_instances(
             if OBJECT_KINDS[o.kind].keep_texture:
                 label_ok += ok
             else:
-                de = delta_e(basic_lab, i.lab)
-                label_ok += ok and BASIC_COLOURS[int(np.argmin(de))] == o.color
+                fit = [m.objects.colour_match(w, [i])[0] for w in colour_weights]
+                label_ok += ok and BASIC_COLOURS[int(np.argmax(fit))] == o.color
         objects += len(truth.objects)
         single += sum(1 for o in truth.objects if owner_count.get(o.name) == 1)
     frac = lambda a, b: float(a / b) if b else float("nan")  # noqa: E731

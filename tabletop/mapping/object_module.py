@@ -14,15 +14,20 @@ steps, each with its own reason when it fails:
 2. **Instances to the vocabulary.** Each instance's fused embedding is scored against every
    vocabulary name (the name alone and with each basic colour term, as the image encoder was
    trained) and the background concepts; a softmax at ``temperature`` gives how much the
-   instance looks like each. An instance's kind score is the probability of the query's names.
+   instance looks like each. With ``shape``, those probabilities are multiplied by the shape
+   prior's (:mod:`tabletop.mapping.shape`: what the instance's voxels' geometry says it is) to
+   the prior's fitted weight. An instance's kind score is the probability of the query's names.
 3. **Colour, composed.** A colour phrase is compared with the instance's *measured* colour:
    the colour words are matched by the text encoder to the colour lexicon's names
-   (:data:`~tabletop.mapping.colors.COLOR_NAMES`), and the instance scores
-   ``exp(-ΔE / colour_scale)`` to those names' colours (CIELAB), less where another basic
-   colour term lies nearer. Any colour word the text encoder knows works ("scarlet", "navy"),
-   not a list of the simulator's colours. Where the image encoder did learn the colour (its
-   embedding prefers "red mug" to the other colour variants of "mug"), that counts too: the
-   colour score is the better of the two.
+   (:data:`~tabletop.mapping.colors.COLOR_NAMES`), and each name's colour, lit at any gain
+   down to ``shading_gain_min`` (shaded faces are darker and duller), is compared with the
+   instance's by ΔE (CIELAB); a basic colour term means its whole family of names. The fit
+   falls with how much nearer another basic colour term lies (``colour_scale``) and with the
+   distance itself (``colour_abs_scale``). A two-coloured instance (its palette: a domino's
+   black faces and white edges) also fits what either of its colours fits. Any colour word
+   the text encoder knows works ("scarlet", "navy"), not a list of the simulator's colours.
+   Where the image encoder did learn the colour (its embedding prefers "red mug" to the other
+   colour variants of "mug"), that counts too: the colour score is the better of the two.
 
 An instance's score is kind score x colour score; the best is the query's evidence (the map's
 calibration makes it a confidence and decides found). A colour word no object of the kind
@@ -267,8 +272,8 @@ class ObjectModule:
     def kind_probabilities(self, instances: list[ObjectInstance] | None = None) -> np.ndarray:
         """(n_instances, vocabulary + background): how much each instance looks like each class
         (a softmax of :meth:`class_scores` at ``temperature``), times the shape prior's
-        probability of each vocabulary name (the background classes: its uniform share) and
-        normalised again when ``config.shape``."""
+        probability of each vocabulary name (the background classes: its uniform share) to
+        its fitted weight, normalised again, when ``config.shape``."""
         inst = self.instances.items if instances is None else instances
         z = self.class_scores(inst) / self.config.temperature
         p = np.exp(z - z.max(axis=1, keepdims=True))
@@ -276,8 +281,8 @@ class ObjectModule:
             prior = self.shape_prior()
             nv = len(self.vocabulary)
             g = prior.for_names(self.shape_features(inst), self.vocabulary)
-            p[:, :nv] *= g
-            p[:, nv:] *= 1.0 / len(prior.kinds)
+            p[:, :nv] *= g**prior.weight
+            p[:, nv:] *= (1.0 / len(prior.kinds)) ** prior.weight
         return p / p.sum(axis=1, keepdims=True)
 
     def shape_prior(self):
@@ -331,13 +336,13 @@ class ObjectModule:
         else:
             kind = preference = np.zeros(0)
         if colour:
-            w = self._colour_weights(colour)
+            w = self.colour_weights(colour)
             cm = np.maximum(self.colour_match(w, inst), self.learned_colour(w, inst, want))
         else:
             cm = np.ones(n)
         return InstanceMatch(words, colour, names, text_score, nearest, kind, cm, preference)
 
-    def _colour_weights(self, colour: str) -> np.ndarray:
+    def colour_weights(self, colour: str) -> np.ndarray:
         """(len(COLOR_NAMES),) summing to 1: the lexicon names the colour phrase means (their
         text embeddings' cosine with the phrase's, sharpened)."""
         if self._lexicon is None:
@@ -378,7 +383,7 @@ class ObjectModule:
 
     def colour_fit(self, lab: np.ndarray) -> np.ndarray:
         """(m, len(COLOR_NAMES)) in [0, 1]: how well measured colours ``lab`` ((m, 3) CIELAB)
-        fit each lexicon name (call :meth:`_colour_weights` first).
+        fit each lexicon name (call :meth:`colour_weights` first).
 
         A name's distance is the ΔE (:func:`delta_e`) from the measured colour to the name's
         colour lit at any gain down to ``shading_gain_min``, and never more than the distance
@@ -395,7 +400,7 @@ class ObjectModule:
 
     def colour_match(self, weights: np.ndarray, instances: list[ObjectInstance]) -> np.ndarray:
         """(n,) in [0, 1]: how well each instance's measured colour fits the colour phrase
-        (``weights``: the lexicon names it means, :meth:`_colour_weights`).
+        (``weights``: the lexicon names it means, :meth:`colour_weights`).
 
         The instance's mean colour is scored by :meth:`colour_fit`; an instance of two
         distinct colours (its palette: a domino's black faces and white edges) also fits a

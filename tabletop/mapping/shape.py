@@ -13,7 +13,8 @@ the mean and spread of its column heights).
 :class:`ShapePrior` is a multinomial logistic regression from those features to the kinds it
 was trained on (``tabletop train shape``: instances of maps of generated scenes that no
 evaluation, calibration or tuning uses, matched to the simulator's objects). The object module
-multiplies an instance's image-based kind probabilities by the prior's (a product of experts);
+multiplies an instance's image-based kind probabilities by the prior's raised to a fitted
+weight (a product of experts);
 a vocabulary name the prior was not trained on gets the prior's uniform share, neither
 favoured nor penalised. The weights are a small JSON file (:data:`SHAPE_PRIOR_PATH`).
 """
@@ -96,6 +97,9 @@ class ShapePrior:
     weights: np.ndarray
     """(2F + 1, K): linear, squared and bias terms of the standardised features."""
     meta: dict
+    weight: float = 1.0
+    """The exponent of its probabilities against the image encoder's (fitted by
+    ``tabletop train shape``: 0 ignores the shape)."""
 
     @staticmethod
     def design(z: np.ndarray) -> np.ndarray:
@@ -127,6 +131,7 @@ class ShapePrior:
             "mean": self.mean.tolist(),
             "std": self.std.tolist(),
             "weights": self.weights.tolist(),
+            "weight": self.weight,
             "meta": self.meta,
         }
 
@@ -146,6 +151,7 @@ class ShapePrior:
             std = np.asarray(d["std"], np.float64)
             w = np.asarray(d["weights"], np.float64)
             features = tuple(d["features"])
+            weight = float(d["weight"])
         except (OSError, ValueError, KeyError, TypeError) as e:
             raise AssetError(
                 f"cannot read the shape prior {path} ({e}); `tabletop train shape` writes it"
@@ -158,12 +164,13 @@ class ShapePrior:
             or w.shape != (2 * nf + 1, len(kinds))
             or not len(kinds)
             or not (np.all(np.isfinite(w)) and np.all(np.isfinite(mean)) and np.all(std > 0))
+            or not (np.isfinite(weight) and weight >= 0)
         ):
             raise AssetError(
                 f"the shape prior {path} does not fit this version's features {list(FEATURES)}; "
                 "`tabletop train shape` writes it"
             )
-        return cls(kinds, mean, std, w, dict(d.get("meta", {})))
+        return cls(kinds, mean, std, w, dict(d.get("meta", {})), weight)
 
 
 def fit_shape_prior(
