@@ -94,7 +94,7 @@ class ObjectConfig:
     shading_gain_min: float = 0.6
     """A measured colour may be a named colour lit down to this factor of linear light (a
     shaded face of a yellow mug is darker and less saturated than "yellow")."""
-    shape: bool = False
+    shape: bool = True
     """Multiply each instance's kind probabilities by the shape prior's
     (:mod:`tabletop.mapping.shape`: what its voxels' geometry says it is)."""
     keep_ratio: float = 0.5
