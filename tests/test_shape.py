@@ -1,6 +1,7 @@
 """The shape prior: features of an instance's voxels, the logistic regression, its file, and
 the object module using it."""
 
+import dataclasses
 import json
 
 import numpy as np
@@ -145,6 +146,9 @@ def test_the_object_module_lets_geometry_decide_what_pixels_cannot():
     assert plain[1] > 0.5 > plain[0]  # the pixels alone: a prism
     assert shaped[0] > 0.5 > shaped[1]  # with its shape: a cube
     assert shaped.sum() == pytest.approx(1.0)
+    # A prior trained on maps of another resolution does not judge this one.
+    prior = dataclasses.replace(prior, voxel_size=0.005)
+    np.testing.assert_allclose(module(True).kind_probabilities([inst])[0], plain)
 
 
 def _scenes(rng, n, lean):

@@ -273,12 +273,13 @@ class ObjectModule:
         """(n_instances, vocabulary + background): how much each instance looks like each class
         (a softmax of :meth:`class_scores` at ``temperature``), times the shape prior's
         probability of each vocabulary name (the background classes: its uniform share) to
-        its fitted weight, normalised again, when ``config.shape``."""
+        its fitted weight, normalised again, when ``config.shape`` (and the prior was trained
+        on maps of this map's voxel size)."""
         inst = self.instances.items if instances is None else instances
         z = self.class_scores(inst) / self.config.temperature
         p = np.exp(z - z.max(axis=1, keepdims=True))
-        if self.config.shape and len(inst):
-            prior = self.shape_prior()
+        prior = self.shape_prior() if self.config.shape and len(inst) else None
+        if prior is not None and prior.applies_to(self.voxels.grid.voxel_size):
             nv = len(self.vocabulary)
             g = prior.for_names(self.shape_features(inst), self.vocabulary)
             p[:, :nv] *= g**prior.weight

@@ -16,7 +16,9 @@ evaluation, calibration or tuning uses, matched to the simulator's objects). The
 multiplies an instance's image-based kind probabilities by the prior's raised to a fitted
 weight (a product of experts);
 a vocabulary name the prior was not trained on gets the prior's uniform share, neither
-favoured nor penalised. The weights are a small JSON file (:data:`SHAPE_PRIOR_PATH`).
+favoured nor penalised, and a map of another voxel size than the prior's training maps is
+judged by its pixels alone (the features depend on the resolution). The weights are a small
+JSON file (:data:`SHAPE_PRIOR_PATH`).
 """
 
 from __future__ import annotations
@@ -100,6 +102,13 @@ class ShapePrior:
     weight: float = 1.0
     """The exponent of its probabilities against the image encoder's (fitted by
     ``tabletop train shape``: 0 ignores the shape)."""
+    voxel_size: float = 0.01
+    """[m] the voxel size of the maps it was trained on: the features of another resolution
+    are not what it learned (:meth:`applies_to`)."""
+
+    def applies_to(self, voxel_size: float) -> bool:
+        """Whether a map of ``voxel_size`` [m] is one it can judge (within 5 % of its own)."""
+        return abs(float(voxel_size) - self.voxel_size) <= 0.05 * self.voxel_size
 
     @staticmethod
     def design(z: np.ndarray) -> np.ndarray:
@@ -132,6 +141,7 @@ class ShapePrior:
             "std": self.std.tolist(),
             "weights": self.weights.tolist(),
             "weight": self.weight,
+            "voxel_size": self.voxel_size,
             "meta": self.meta,
         }
 
@@ -152,6 +162,7 @@ class ShapePrior:
             w = np.asarray(d["weights"], np.float64)
             features = tuple(d["features"])
             weight = float(d["weight"])
+            voxel_size = float(d["voxel_size"])
         except (OSError, ValueError, KeyError, TypeError) as e:
             raise AssetError(
                 f"cannot read the shape prior {path} ({e}); `tabletop train shape` writes it"
@@ -165,12 +176,13 @@ class ShapePrior:
             or not len(kinds)
             or not (np.all(np.isfinite(w)) and np.all(np.isfinite(mean)) and np.all(std > 0))
             or not (np.isfinite(weight) and weight >= 0)
+            or not (np.isfinite(voxel_size) and voxel_size > 0)
         ):
             raise AssetError(
                 f"the shape prior {path} does not fit this version's features {list(FEATURES)}; "
                 "`tabletop train shape` writes it"
             )
-        return cls(kinds, mean, std, w, dict(d.get("meta", {})), weight)
+        return cls(kinds, mean, std, w, dict(d.get("meta", {})), weight, voxel_size)
 
 
 def fit_shape_prior(

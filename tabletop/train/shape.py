@@ -78,7 +78,13 @@ def collect_scene(seed: int, cache_dir=None) -> dict:
     rec, m = scene_map(spec, {"seed": seed, "speed": 0.3}, "default", cache_dir=cache_dir)
     x, y, cos = instance_shapes(m, GroundTruth.of(rec))
     log.info("shape scene %d: %d instances", seed, len(y))
-    return {"x": x, "y": y, "cos": cos, "vocabulary": list(m.objects.vocabulary)}
+    return {
+        "x": x,
+        "y": y,
+        "cos": cos,
+        "vocabulary": list(m.objects.vocabulary),
+        "voxel_size": m.grid.voxel_size,
+    }
 
 
 def fused_probabilities(prior, scene: dict, weight: float, temperature: float) -> np.ndarray:
@@ -185,7 +191,10 @@ def fit_from_scenes(train: list[dict], val: list[dict], temperature: float, out,
         "temperature": temperature,
         "seconds": round(time.monotonic() - t0, 1),
     }
-    prior = ShapePrior(prior.kinds, prior.mean, prior.std, prior.weights, meta, weight)
+    sizes = {float(s.get("voxel_size", 0.01)) for s in train + val}
+    if len(sizes) != 1:
+        raise ConfigError(f"the scenes' maps have different voxel sizes {sorted(sizes)}")
+    prior = ShapePrior(prior.kinds, prior.mean, prior.std, prior.weights, meta, weight, *sizes)
     prior.save(out)
     log.info("shape prior: weight %.2f, validation top-1 image %.3f -> fused %.3f",
              weight, meta["image_only_val_top1"], meta["fused_val_top1"])  # fmt: skip
