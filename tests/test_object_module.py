@@ -203,3 +203,36 @@ def test_a_two_coloured_object_fits_either_of_its_colours_but_no_other(scene):
         fit, plain = scene.colour_match(w, [domino, plain_grey])
         assert fit > 0.8 and fit > plain + 0.3, q
     assert scene.colour_match(scene.colour_weights("red"), [domino])[0] < 0.1
+
+
+def test_of_two_objects_a_colour_fits_the_nearer_one_is_meant():
+    # A grey teddy bear and a white one in shadow: "grey" fits both (light grey is a grey),
+    # but the grey one is what a person means, and "white" means the other.
+    from module_helpers import coloured_voxels
+
+    from tabletop.mapping.table_regions import fit_table
+
+    bears = {
+        "grey teddy bear": ((0.10, 0.10, 0.01), (0.17, 0.17, 0.12), (120, 120, 120)),
+        "white teddy bear": ((0.35, -0.2, 0.01), (0.42, -0.13, 0.12), (200, 200, 200)),
+    }
+    vm = coloured_voxels(bears)
+    m = ObjectModule(
+        vm, text_encoder(), ObjectConfig(), VOCAB, {}, lambda: fit_table(GRID, vm.indices)
+    )
+    for q, name in (("the grey teddy bear", "grey teddy bear"), ("the white teddy bear",
+                                                                  "white teddy bear")):  # fmt: skip
+        h = m.heatmap(q, 10.0, judge_at(0.2))
+        lo, hi, _ = bears[name]
+        p = max_position(h, m.voxels.occupancy())
+        assert h.found and np.all(p[:2] >= np.subtract(lo[:2], 0.01)), (q, p)
+        assert np.all(p[:2] <= np.add(hi[:2], 0.01)), (q, p)
+        other = next(n for n in bears if n != name)
+        olo, ohi, _ = bears[other]
+        idx, _ = GRID.world_to_index(np.array([np.add(olo, ohi) / 2]))
+        assert h.values[tuple(idx[0])] < 1.0, (q, "the other bear stays hot")
+    # Without a colour, both bears are the teddy bear.
+    both = m.heatmap("the teddy bear", 10.0, judge_at(0.2))
+    for lo, hi, _ in bears.values():
+        idx, _ = GRID.world_to_index(np.array([np.add(lo, hi) / 2]))
+        assert both.values[tuple(idx[0])] == pytest.approx(1.0)

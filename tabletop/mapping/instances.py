@@ -97,7 +97,7 @@ class ObjectInstance:
     """(k, 3) CIELAB: its distinct colours (k <= 2), largest share first
     (:func:`colour_palette`); empty where one colour describes it."""
     palette_share: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    """(k,) the share of its pixels in each palette colour."""
+    """(k,) the share of its surface (voxels) in each palette colour."""
 
     @property
     def extent(self) -> np.ndarray:
@@ -276,7 +276,9 @@ def instances_from_labels(voxels: VoxelMap, labels: np.ndarray) -> list[ObjectIn
         ctr = centers[rows]
         counts = state["counts"][rows].astype(np.float64)
         vox_rgb = state["color_sums"][rows] / np.maximum(counts[:, None], 1)
-        palette, share = colour_palette(rgb_to_lab(vox_rgb), counts)
+        # Shares of its surface (voxels), not of its pixels: a domino's dark faces return
+        # fewer pixels than its bright edges, yet are most of what it looks like.
+        palette, share = colour_palette(rgb_to_lab(vox_rgb), np.ones(len(rows)))
         out.append(
             ObjectInstance(
                 k,

@@ -91,6 +91,10 @@ class ObjectConfig:
     fit to 1/e (a blue mug is not the purple one)."""
     colour_abs_scale: float = 60.0
     """CIELAB ΔE from the asked colour itself at which the fit falls to 1/e."""
+    closeness_scale: float = 5.0
+    """Among instances that fit a colour phrase, one whose colour lies this much CIELAB ΔE
+    farther from the asked colour itself than the nearest one's ranks 1/e as high (both mugs
+    fit "grey" when one is grey and one white in shadow; the grey one is meant)."""
     shading_gain_min: float = 0.6
     """A measured colour may be a named colour lit down to this factor of linear light (a
     shaded face of a yellow mug is darker and less saturated than "yellow")."""
@@ -125,6 +129,7 @@ class ObjectConfig:
             "temperature",
             "colour_scale",
             "colour_abs_scale",
+            "closeness_scale",
             "name_temperature",
         ):
             if not getattr(self, name) > 0:
@@ -155,6 +160,9 @@ class InstanceMatch:
     """(n_instances,) in [0, 1]: each instance's probability mass on ``names`` weighted by how
     well each name matches the words, over ``kind`` (1 where the best-matching name is all
     of it)."""
+    closeness: np.ndarray | None = None
+    """(n_instances,) in [0, 1]: how near each instance's colour is to the asked colour
+    itself, against the nearest instance (1 without a colour phrase)."""
 
     @property
     def scores(self) -> np.ndarray:
@@ -163,8 +171,10 @@ class InstanceMatch:
 
     @property
     def ranked(self) -> np.ndarray:
-        """(n_instances,) the scores with the better-matching names first: the ranking."""
-        return self.scores * self.preference
+        """(n_instances,) the scores with the better-matching names, and the colours nearer the
+        asked one, first: the ranking."""
+        r = self.scores * self.preference
+        return r if self.closeness is None else r * self.closeness
 
 
 class ObjectModule:
@@ -336,12 +346,16 @@ class ObjectModule:
             preference = np.divide(weighted, kind, out=np.zeros(n), where=kind > 0)
         else:
             kind = preference = np.zeros(0)
+        close = None
         if colour:
             w = self.colour_weights(colour)
             cm = np.maximum(self.colour_match(w, inst), self.learned_colour(w, inst, want))
+            if n:
+                d = self.colour_distance(w, inst)
+                close = np.exp(-(d - d.min()) / cfg.closeness_scale)
         else:
             cm = np.ones(n)
-        return InstanceMatch(words, colour, names, text_score, nearest, kind, cm, preference)
+        return InstanceMatch(words, colour, names, text_score, nearest, kind, cm, preference, close)
 
     def colour_weights(self, colour: str) -> np.ndarray:
         """(len(COLOR_NAMES),) summing to 1: the lexicon names the colour phrase means (their
@@ -398,6 +412,23 @@ class ObjectModule:
         own = per_term[:, fam]  # each name's basic colour term
         rel = np.maximum(own - per_term.min(axis=1, keepdims=True), 0.0)
         return np.exp(-rel / cfg.colour_scale - np.minimum(de, own) / cfg.colour_abs_scale)
+
+    def colour_distance(self, weights: np.ndarray, instances: list[ObjectInstance]) -> np.ndarray:
+        """(n,) CIELAB ΔE from each instance's colour (its mean, or the nearer of its palette
+        colours) to the colours the phrase names themselves, lit at any allowed gain (not their
+        whole family: "grey" is nearer a grey teddy bear than a white one that looks light
+        grey), weighted by ``weights``."""
+        lab = self._lexicon[1]
+
+        def dist(x: np.ndarray) -> np.ndarray:
+            return delta_e(np.asarray(x)[None, :, None, :], lab[:, None, :, :]).min(0) @ weights
+
+        out = dist(np.stack([i.lab for i in instances]))
+        for k, inst in enumerate(instances):
+            big = inst.palette_share >= 0.25
+            if big.any():
+                out[k] = min(out[k], float(dist(inst.palette[big]).min()))
+        return out
 
     def colour_match(self, weights: np.ndarray, instances: list[ObjectInstance]) -> np.ndarray:
         """(n,) in [0, 1]: how well each instance's measured colour fits the colour phrase
