@@ -7,6 +7,7 @@ import argparse
 import contextlib
 import json
 import math
+import time
 import zipfile
 from pathlib import Path
 
@@ -125,9 +126,26 @@ def cmd_train(args: argparse.Namespace) -> int:
             raise ConfigError(f"{', '.join(given)}: not for shape (it takes --out only)")
         out = Path(args.out) if args.out is not None else TRAIN_OUT["shape"]
         _check_shape_output(out)
-        from tabletop.train.shape import train_shape
+        from tabletop.eval.shape_data import (
+            SHAPE_SCENE_OBJECTS,
+            SHAPE_TRAIN_SEEDS,
+            SHAPE_VAL_SEEDS,
+            collect_scene,
+        )
+        from tabletop.mapping.object_module import ObjectConfig
+        from tabletop.train.shape import fit_from_scenes
 
-        print(f"shape prior written: {train_shape(out)}")
+        t0 = time.monotonic()
+        train = [collect_scene(s, "out/eval-cache") for s in SHAPE_TRAIN_SEEDS]
+        val = [collect_scene(s, "out/eval-cache") for s in SHAPE_VAL_SEEDS]
+        about = {
+            "train_seeds": list(SHAPE_TRAIN_SEEDS),
+            "val_seeds": list(SHAPE_VAL_SEEDS),
+            "objects_per_scene": SHAPE_SCENE_OBJECTS,
+            "encoders": "default",
+        }
+        path = fit_from_scenes(train, val, ObjectConfig().temperature, out, t0, about)
+        print(f"shape prior written: {path}")
         return 0
     if args.out is not None:
         out = Path(args.out)

@@ -1,12 +1,11 @@
-"""``tabletop train shape``: the object module's shape prior (:mod:`tabletop.mapping.shape`).
+"""Fitting the object module's shape prior (:mod:`tabletop.mapping.shape`) from scenes'
+matched instances (``tabletop train shape``; the instances come from maps of generated scenes,
+:mod:`tabletop.eval.shape_data`).
 
-Generated scenes (seeds :data:`SHAPE_TRAIN_SEEDS` and :data:`SHAPE_VAL_SEEDS`, used by no
-evaluation, calibration or tuning) are scanned and mapped with the default encoders exactly as
-the evaluation maps its scenes; each map's object instances are matched to the simulator's
-objects (the object holding most of an instance's voxels, at least half of them) and described
-by :func:`~tabletop.mapping.shape.shape_features`. A logistic regression is fitted on the
-training scenes and measured on the validation scenes (top-1 kind from shape alone); both
-figures go into the file's ``meta``.
+:func:`fit_from_scenes` fits a logistic regression on the training scenes, chooses its weight
+against the image encoder by leaving one training scene out at a time, and measures top-1 kind
+(image alone, shape alone, both) on the validation scenes; the figures go into the file's
+``meta``.
 """
 
 from __future__ import annotations
@@ -19,72 +18,9 @@ import numpy as np
 
 from tabletop.errors import ConfigError
 
-__all__ = [
-    "SHAPE_TRAIN_SEEDS",
-    "SHAPE_VAL_SEEDS",
-    "collect_scene",
-    "fit_from_scenes",
-    "fused_probabilities",
-    "instance_shapes",
-    "train_shape",
-]
+__all__ = ["WEIGHTS", "fit_from_scenes", "fused_probabilities"]
 
 log = logging.getLogger(__name__)
-
-#: Generator seeds of the training scenes (no other experiment uses 400-439).
-SHAPE_TRAIN_SEEDS = tuple(range(400, 412))
-#: Generator seeds of the validation scenes.
-SHAPE_VAL_SEEDS = tuple(range(430, 434))
-#: Objects per generated scene (more than the suites' 9: more instances per scan).
-SHAPE_SCENE_OBJECTS = 12
-
-
-def instance_shapes(m, truth) -> tuple[np.ndarray, list[str], np.ndarray]:
-    """((n, F) features, n kind labels, (n, V) image cosines with the map's vocabulary) of the
-    instances of map ``m`` matched to the objects of ``truth``
-    (:class:`~tabletop.sim.ground_truth.GroundTruth`)."""
-    from tabletop.mapping.shape import FEATURES, shape_features
-    from tabletop.sim.catalog import OBJECT_KINDS
-
-    nv = len(m.objects.vocabulary)
-    table = m.table()
-    if table is None:
-        return np.zeros((0, len(FEATURES))), [], np.zeros((0, nv))
-    centers = m.voxels.centers
-    feats, labels, rows = [], [], []
-    items = m.objects.instances.items
-    for i, inst in enumerate(items):
-        pts = centers[inst.rows]
-        inside = [
-            np.all((pts >= o.aabb_min - 0.01) & (pts <= o.aabb_max + 0.01), axis=1).mean()
-            for o in truth.objects
-        ]
-        k = int(np.argmax(inside)) if inside else -1
-        if k < 0 or inside[k] < 0.5:
-            continue
-        feats.append(shape_features(pts, m.grid.voxel_size, table.z))
-        labels.append(OBJECT_KINDS[truth.objects[k].kind].label)
-        rows.append(i)
-    cos = m.objects.class_scores([items[i] for i in rows])[:, :nv] if rows else np.zeros((0, nv))
-    return np.array(feats).reshape(-1, len(FEATURES)), labels, cos
-
-
-def collect_scene(seed: int, cache_dir=None) -> dict:
-    """One generated scene's matched instances: ``{"x", "y", "cos", "vocabulary"}``."""
-    from tabletop.eval.harness import generated_scene, scene_map
-    from tabletop.sim.ground_truth import GroundTruth
-
-    spec = generated_scene(seed, f"shape-{seed}", count=SHAPE_SCENE_OBJECTS)
-    rec, m = scene_map(spec, {"seed": seed, "speed": 0.3}, "default", cache_dir=cache_dir)
-    x, y, cos = instance_shapes(m, GroundTruth.of(rec))
-    log.info("shape scene %d: %d instances", seed, len(y))
-    return {
-        "x": x,
-        "y": y,
-        "cos": cos,
-        "vocabulary": list(m.objects.vocabulary),
-        "voxel_size": m.grid.voxel_size,
-    }
 
 
 def fused_probabilities(prior, scene: dict, weight: float, temperature: float) -> np.ndarray:
@@ -103,32 +39,14 @@ def fused_probabilities(prior, scene: dict, weight: float, temperature: float) -
 WEIGHTS = (0.0, 0.25, 0.5, 0.75, 1.0, 1.5, 2.0, 3.0, 4.0, 6.0)
 
 
-def train_shape(
-    out: str | Path | None = None,
-    train_seeds=SHAPE_TRAIN_SEEDS,
-    val_seeds=SHAPE_VAL_SEEDS,
-    cache_dir: str | Path | None = "out/eval-cache",
-    progress=None,
-) -> Path:
-    """Collect, fit, measure and save the shape prior; returns the path written."""
-    from tabletop.mapping.object_module import ObjectConfig
-    from tabletop.mapping.shape import SHAPE_PRIOR_PATH
-
-    t0 = time.monotonic()
-    out = Path(out) if out is not None else SHAPE_PRIOR_PATH
-    train = [collect_scene(s, cache_dir) for s in train_seeds]
-    val = [collect_scene(s, cache_dir) for s in val_seeds]
-    for scene in train + val:
-        if progress is not None:
-            progress(scene)
-    return fit_from_scenes(train, val, ObjectConfig().temperature, out, t0)
-
-
-def fit_from_scenes(train: list[dict], val: list[dict], temperature: float, out, t0=None):
+def fit_from_scenes(
+    train: list[dict], val: list[dict], temperature: float, out, t0=None, about=None
+):
     """Fit the prior on ``train`` scenes and its weight against the image encoder (the
     smallest of :data:`WEIGHTS` within one nat of the best log-likelihood of the true kinds,
     each training scene judged by a prior fitted without it), measure both on ``val``, save to
-    ``out``."""
+    ``out``. Scenes are :func:`tabletop.eval.shape_data.collect_scene` dicts; ``about``: more
+    ``meta`` (where the scenes came from)."""
     from tabletop.mapping.shape import ShapePrior, fit_shape_prior
 
     t0 = time.monotonic() if t0 is None else t0
@@ -179,8 +97,7 @@ def fit_from_scenes(train: list[dict], val: list[dict], temperature: float, out,
     meta = {
         "train_scenes": len(train),
         "val_scenes": len(val),
-        "objects_per_scene": SHAPE_SCENE_OBJECTS,
-        "encoders": "default",
+        **(about or {}),
         "train_instances": len(labels(train)),
         "val_instances": len(labels(val)),
         "shape_only_val_top1": shape_top1(val),
