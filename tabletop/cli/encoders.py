@@ -74,38 +74,34 @@ def _is_checkpoint(path: Path) -> bool:
         return False
 
 
-def _check_weights_output(out: Path) -> None:
-    """``train --out`` is a weights file: a new path, or a checkpoint to replace (training
-    only replaces a previous checkpoint), never a directory or a file this package did not
-    write; checked before training, not after it."""
-    valid = "give a weights file path (e.g. out/weights/audio.pt): a new file or a checkpoint"
+def _is_shape_prior(path: Path) -> bool:
+    """Whether ``path`` is a shape prior ``tabletop train shape`` wrote (a JSON object with
+    its ``features``)."""
+    try:
+        return "features" in json.loads(path.read_text())
+    except (OSError, ValueError, TypeError):
+        return False
+
+
+def _check_weights_output(
+    out: Path,
+    example: str = "out/weights/audio.pt",
+    what: str = "a torch checkpoint",
+    ours=_is_checkpoint,
+) -> None:
+    """``train --out`` is a weights file: a new path, or ``what`` to replace (training only
+    replaces what it wrote itself: ``ours(path)``), never a directory or a file this package
+    did not write; checked before training, not after it."""
+    valid = f"give a weights file path (e.g. {example}): a new file or {what}"
     if str(out) in ("", "."):
         raise ConfigError(f"--out {str(out)!r} is not a file path; {valid}")
     if out.is_dir():
         raise ConfigError(f"--out {str(out)!r} is a directory; {valid}")
-    if out.exists() and not _is_checkpoint(out):
+    if out.exists() and not ours(out):
         raise ConfigError(
-            f"--out {str(out)!r} exists and is not a torch checkpoint; train only replaces a "
-            "previous checkpoint: choose another path"
+            f"--out {str(out)!r} exists and is not {what}; train only replaces a previous "
+            "one: choose another path"
         )
-    check_parents_are_directories("--out", out)
-
-
-def _check_shape_output(out: Path) -> None:
-    """``train shape --out``: a new path or a shape prior to replace, nothing else."""
-    valid = "give a file path (e.g. out/weights/shape_prior.json): a new file or a shape prior"
-    if str(out) in ("", ".") or out.is_dir():
-        raise ConfigError(f"--out {str(out)!r} is not a file path; {valid}")
-    if out.exists():
-        try:
-            ok = "features" in json.loads(out.read_text())
-        except (OSError, ValueError, TypeError):
-            ok = False
-        if not ok:
-            raise ConfigError(
-                f"--out {str(out)!r} exists and is not a shape prior; train only replaces a "
-                "previous one: choose another path"
-            )
     check_parents_are_directories("--out", out)
 
 
@@ -125,7 +121,8 @@ def cmd_train(args: argparse.Namespace) -> int:
         if given:
             raise ConfigError(f"{', '.join(given)}: not for shape (it takes --out only)")
         out = Path(args.out) if args.out is not None else TRAIN_OUT["shape"]
-        _check_shape_output(out)
+        _check_weights_output(out, str(TRAIN_OUT["shape"]), "a shape prior", _is_shape_prior)
+        from tabletop.eval.harness import DEFAULT_CACHE_DIR
         from tabletop.eval.shape_data import (
             SHAPE_SCENE_OBJECTS,
             SHAPE_TRAIN_SEEDS,
@@ -136,8 +133,8 @@ def cmd_train(args: argparse.Namespace) -> int:
         from tabletop.train.shape import fit_from_scenes
 
         t0 = time.monotonic()
-        train = [collect_scene(s, "out/eval-cache") for s in SHAPE_TRAIN_SEEDS]
-        val = [collect_scene(s, "out/eval-cache") for s in SHAPE_VAL_SEEDS]
+        train = [collect_scene(s, DEFAULT_CACHE_DIR) for s in SHAPE_TRAIN_SEEDS]
+        val = [collect_scene(s, DEFAULT_CACHE_DIR) for s in SHAPE_VAL_SEEDS]
         about = {
             "train_seeds": list(SHAPE_TRAIN_SEEDS),
             "val_seeds": list(SHAPE_VAL_SEEDS),

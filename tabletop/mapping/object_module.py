@@ -212,6 +212,7 @@ class ObjectModule:
         self._targets: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None = None
         self._lexicon: tuple[np.ndarray, np.ndarray] | None = None
         self._shape_prior = None
+        self._shape_cache: tuple[tuple[int, int] | None, dict] = (None, {})
 
     # ------------------------------------------------------------------ single voxels
     def _refresh(self) -> None:
@@ -287,13 +288,10 @@ class ObjectModule:
         on maps of this map's voxel size)."""
         inst = self.instances.items if instances is None else instances
         z = self.class_scores(inst) / self.config.temperature
-        p = np.exp(z - z.max(axis=1, keepdims=True))
         prior = self.shape_prior() if self.config.shape and len(inst) else None
         if prior is not None and prior.applies_to(self.voxels.grid.voxel_size):
-            nv = len(self.vocabulary)
-            g = prior.for_names(self.shape_features(inst), self.vocabulary)
-            p[:, :nv] *= g**prior.weight
-            p[:, nv:] *= (1.0 / len(prior.kinds)) ** prior.weight
+            return prior.fuse(z, self.shape_features(inst), self.vocabulary)
+        p = np.exp(z - z.max(axis=1, keepdims=True))
         return p / p.sum(axis=1, keepdims=True)
 
     def shape_prior(self):
@@ -312,8 +310,15 @@ class ObjectModule:
         table = self.instances.table()
         if table is None or not instances:
             return np.zeros((len(instances), len(FEATURES)))
+        key = (self.voxels.n, self.voxels.version)
+        if self._shape_cache[0] != key:  # once per instance until the voxels change
+            self._shape_cache = (key, {})
+        done = self._shape_cache[1]
         centers, vs = self.voxels.centers, self.voxels.grid.voxel_size
-        return np.stack([shape_features(centers[i.rows], vs, table.z) for i in instances])
+        for i in instances:
+            if i not in done:
+                done[i] = shape_features(centers[i.rows], vs, table.z)
+        return np.stack([done[i] for i in instances])
 
     def match(self, query: str) -> InstanceMatch:
         """Score ``query`` against every instance (see the module docstring)."""
@@ -406,7 +411,7 @@ class ObjectModule:
         ``exp(-(that - the nearest basic term's) / colour_scale)``, how much nearer another
         basic colour term lies, times ``exp(-distance / colour_abs_scale)``."""
         cfg = self.config
-        de = delta_e(np.asarray(lab)[None, :, None, :], self._lexicon[1][:, None, :, :]).min(0)
+        de = self._lexicon_distance(lab)
         fam = self._family_id
         per_term = np.stack([de[:, fam == f].min(axis=1) for f in range(len(BASIC_COLOURS))], 1)
         own = per_term[:, fam]  # each name's basic colour term
@@ -418,17 +423,17 @@ class ObjectModule:
         colours) to the colours the phrase names themselves, lit at any allowed gain (not their
         whole family: "grey" is nearer a grey teddy bear than a white one that looks light
         grey), weighted by ``weights``."""
-        lab = self._lexicon[1]
-
-        def dist(x: np.ndarray) -> np.ndarray:
-            return delta_e(np.asarray(x)[None, :, None, :], lab[:, None, :, :]).min(0) @ weights
-
-        out = dist(np.stack([i.lab for i in instances]))
+        out = self._lexicon_distance(np.stack([i.lab for i in instances])) @ weights
         for k, inst in enumerate(instances):
-            big = inst.palette_share >= 0.25
-            if big.any():
-                out[k] = min(out[k], float(dist(inst.palette[big]).min()))
+            colours, _ = _palette_parts(inst)
+            if len(colours):
+                out[k] = min(out[k], float((self._lexicon_distance(colours) @ weights).min()))
         return out
+
+    def _lexicon_distance(self, lab: np.ndarray) -> np.ndarray:
+        """(m, len(COLOR_NAMES)): ΔE from colours ``lab`` ((m, 3) CIELAB) to each lexicon
+        name's colour lit at the nearest allowed gain."""
+        return delta_e(np.asarray(lab)[None, :, None, :], self._lexicon[1][:, None, :, :]).min(0)
 
     def colour_match(self, weights: np.ndarray, instances: list[ObjectInstance]) -> np.ndarray:
         """(n,) in [0, 1]: how well each instance's measured colour fits the colour phrase
@@ -442,11 +447,10 @@ class ObjectModule:
             return np.zeros(0)
         fit = self.colour_fit(np.stack([i.lab for i in instances])) @ weights
         for k, inst in enumerate(instances):
-            big = inst.palette_share >= 0.25
-            if big.any():
-                part = self.colour_fit(inst.palette[big]) @ weights
-                share = np.minimum(inst.palette_share[big] / (1 / 3), 1.0)
-                fit[k] = max(fit[k], float((part * share).max()))
+            colours, shares = _palette_parts(inst)
+            if len(colours):
+                part = self.colour_fit(colours) @ weights
+                fit[k] = max(fit[k], float((part * np.minimum(shares / (1 / 3), 1.0)).max()))
         return fit
 
     def heatmap(self, query: str, decay: float, judge: Judge) -> Heatmap:
@@ -521,3 +525,14 @@ class ObjectModule:
         conf, found = judge("object", margin)
         reason = "" if found else f"best match {best:.2f} is weak (confidence {conf:.2f})"
         return Heatmap(grid, values, query, "object", decay, conf, found, reason, margin)
+
+
+#: A palette colour covering less of an instance than this share does not speak for it.
+PALETTE_MIN_SHARE = 0.25
+
+
+def _palette_parts(inst: ObjectInstance) -> tuple[np.ndarray, np.ndarray]:
+    """((k, 3) CIELAB, (k,) shares): the instance's palette colours that cover at least
+    :data:`PALETTE_MIN_SHARE` of it."""
+    big = inst.palette_share >= PALETTE_MIN_SHARE
+    return inst.palette[big], inst.palette_share[big]

@@ -133,6 +133,21 @@ class ShapePrior:
                 out[:, j] = p[:, self.kinds.index(name)]
         return out
 
+    def fuse(self, logits: np.ndarray, features: np.ndarray, names, weight=None) -> np.ndarray:
+        """(n, C) the object module's kind probabilities: the softmax of the image ``logits``
+        ((n, C); the first ``len(names)`` columns are ``names``, any others background
+        classes) times this prior's probabilities (:meth:`for_names`; the background
+        classes: its uniform share) to ``weight`` (default :attr:`weight`), normalised."""
+        w = self.weight if weight is None else float(weight)
+        logp = np.asarray(logits, np.float64)
+        logp = logp - logp.max(axis=1, keepdims=True)
+        if w:
+            g = np.full(logp.shape, 1.0 / len(self.kinds))
+            g[:, : len(names)] = self.for_names(features, names)
+            logp = logp + w * np.log(np.maximum(g, 1e-300))
+        p = np.exp(logp - logp.max(axis=1, keepdims=True))
+        return p / p.sum(axis=1, keepdims=True)
+
     def to_dict(self) -> dict:
         return {
             "features": list(FEATURES),

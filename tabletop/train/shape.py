@@ -24,15 +24,10 @@ log = logging.getLogger(__name__)
 
 
 def fused_probabilities(prior, scene: dict, weight: float, temperature: float) -> np.ndarray:
-    """(n, V) the object module's kind probabilities over a scene's vocabulary: the image
-    cosines' softmax at ``temperature`` times the prior's probabilities to the ``weight``."""
-    z = scene["cos"] / temperature
-    logp = z - z.max(axis=1, keepdims=True)
-    if weight:
-        g = prior.for_names(scene["x"], scene["vocabulary"])
-        logp = logp + weight * np.log(np.maximum(g, 1e-300))
-    p = np.exp(logp - logp.max(axis=1, keepdims=True))
-    return p / p.sum(axis=1, keepdims=True)
+    """(n, V) the object module's kind probabilities over a scene's vocabulary
+    (:meth:`~tabletop.mapping.shape.ShapePrior.fuse` of the image cosines at ``temperature``)
+    with the prior at ``weight``."""
+    return prior.fuse(scene["cos"] / temperature, scene["x"], scene["vocabulary"], weight)
 
 
 #: Exponents of the prior tried when fitting how much it counts against the image encoder.
