@@ -25,6 +25,17 @@ def test_lab_of_reference_colours():
         ("the orange", "", "the orange"),  # a colour name alone is the thing asked for
         ("the orange cube", "orange", "the cube"),
         ("an off-white bear", "off-white", "an bear"),
+        # compounds ending in a colour name are one colour phrase
+        ("the round toy pillar in grass-green", "grass-green", "the round toy pillar"),
+        ("the jet-black domino", "jet-black", "the domino"),
+        ("the little snow-white duck", "snow-white", "the little duck"),
+        # words that only tie the colour to the thing go with it
+        ("the cube toy in red", "red", "the cube toy"),
+        ("red coloured cube-shaped toy", "red", "cube shaped toy"),
+        ("the block painted blue", "blue", "the block"),
+        # ... and only there
+        ("the red mug in the corner", "red", "the mug in the corner"),
+        ("the red brick", "red", "the brick"),
     ],
 )
 def test_colour_words_are_split_from_the_rest(text, colour, rest):

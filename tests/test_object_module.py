@@ -122,6 +122,44 @@ def test_absent_things_are_not_found_with_a_reason(scene):
     assert not kind.found and "teddy bear" in kind.reason
 
 
+def test_a_thing_outside_the_vocabulary_is_refused_by_rank_not_by_a_high_bar(scene):
+    from tabletop.eval.harness import catalog_descriptions
+    from tabletop.mapping.table_regions import fit_table
+
+    vm = scene.voxels
+    desc = {k.replace("_", " "): v for k, v in catalog_descriptions().items()}
+    desc = {k: v for k, v in desc.items() if k in VOCAB}
+
+    def module(config):
+        return ObjectModule(
+            vm, scene.text, config, VOCAB, desc, lambda: fit_table(GRID, vm.indices)
+        )
+
+    ours, plain = module(ObjectConfig()), module(ObjectConfig(others=()))
+    # "wine bottle" reads near "a drinking vessel" (the mug's description), nearer a bottle
+    assert ours.match("wine bottle").text_score >= ObjectConfig().text_min
+    bottle = ours.heatmap("wine bottle", 10.0, judge_at(0.2))
+    assert not bottle.found and "reads as 'wine bottle'" in bottle.reason and bottle.peak == 0.0
+    # without the other things the same query reaches the mugs
+    assert plain.heatmap("wine bottle", 10.0, judge_at(0.2)).found
+    # looser words for a mug than its label are still found
+    cup = ours.heatmap("the thing you drink tea from", 10.0, judge_at(0.2))
+    assert cup.found and (_lands_on(ours, cup, "red mug") or _lands_on(ours, cup, "blue mug"))
+
+
+def test_no_catalog_description_reads_as_one_of_the_other_things():
+    from tabletop.eval.harness import catalog_descriptions
+    from tabletop.sim.catalog import OBJECT_KINDS
+
+    text = text_encoder()
+    others = text.encode_text(list(ObjectConfig().others))
+    for kind, texts in catalog_descriptions().items():
+        label = OBJECT_KINDS[kind].label
+        for t, e in zip((label, *texts), text.encode_text([label, *texts]), strict=True):
+            # none of the other things is another word for a catalog kind
+            assert float((others @ e).max()) < 0.75, (kind, t)
+
+
 def test_a_shorter_name_may_mean_a_longer_one(scene):
     m = scene.match("the ball")
     assert set(m.names) == {"ball", "soccer ball"}

@@ -8,8 +8,14 @@ steps, each with its own reason when it fails:
    (:func:`~tabletop.mapping.colors.split_color_words`). The rest is scored by the text encoder
    against every name of the map's vocabulary and that name's descriptions (what it is, its
    shape, material, use): a person's word for a thing ("coffee cup", "plush bear") lands on the
-   name ("mug", "teddy bear") even where the image network never saw that word. When its best
-   cosine is below ``text_min`` the query names nothing this map knows: not found. Every name
+   name ("mug", "teddy bear") even where the image network never saw that word. The words are
+   also scored against ``others``, everyday things none of the vocabulary is
+   (``tabletop/data/other_objects.toml``: "bottle", "laptop", "teapot", ...). The query names
+   nothing this map knows — not found — when its best vocabulary cosine is below ``text_min``,
+   or when one of those other things lies nearer its words than every vocabulary name and
+   description does ("the wine bottle" is a bottle, though "a drinking vessel" describes the
+   mug too). Deciding by rank rather than by a high absolute cosine keeps a person's looser
+   words ("the round thing you kick") while refusing things that are not there. Every name
    within ``text_margin`` of the best is what the query may mean.
 2. **Instances to the vocabulary.** Each instance's fused embedding is scored against every
    vocabulary name (the name alone and with each basic colour term, as the image encoder was
@@ -42,12 +48,14 @@ before instances existed: the voxels where the query beats the background and sc
 
 from __future__ import annotations
 
+import tomllib
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
-from tabletop.errors import ConfigError
+from tabletop.errors import AssetError, ConfigError
 from tabletop.mapping.colors import (
     BASIC_COLOURS,
     COLOR_NAMES,
@@ -59,11 +67,34 @@ from tabletop.mapping.colors import (
 from tabletop.mapping.heatmaps import Heatmap, Judge, point_heatmap_3d
 from tabletop.mapping.instances import InstanceConfig, InstanceSet, ObjectInstance
 from tabletop.mapping.voxel_map import VoxelMap
+from tabletop.paths import DATA_DIR
 
-__all__ = ["BACKGROUND", "InstanceMatch", "ObjectConfig", "ObjectModule"]
+__all__ = [
+    "BACKGROUND",
+    "OTHER_OBJECTS_PATH",
+    "InstanceMatch",
+    "ObjectConfig",
+    "ObjectModule",
+    "load_other_objects",
+]
 
 #: Concepts every object query competes against: what a tabletop map holds besides objects.
 BACKGROUND = ("table", "floor", "robot arm", "other")
+OTHER_OBJECTS_PATH = DATA_DIR / "other_objects.toml"
+
+
+def load_other_objects(path: str | Path = OTHER_OBJECTS_PATH) -> tuple[str, ...]:
+    """The everyday things of ``path`` (``others = [...]``) that a query's words are compared
+    with besides the map's vocabulary (see :class:`ObjectConfig`)."""
+    p = Path(path)
+    try:
+        d = tomllib.loads(p.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as e:
+        raise AssetError(f"cannot read the other objects {p}: {e}") from None
+    others = d.get("others")
+    if not isinstance(others, list) or not all(isinstance(t, str) and t for t in others):
+        raise AssetError(f"{p}: expected others = [non-empty texts]")
+    return tuple(dict.fromkeys(others))
 
 
 @dataclass(frozen=True)
@@ -79,8 +110,14 @@ class ObjectConfig:
     """Score object instances (False: single voxels)."""
     segmentation: InstanceConfig = field(default_factory=InstanceConfig)
     """How the voxels are split into instances."""
-    text_min: float = 0.56
+    text_min: float = 0.5
     """A query's words must reach this cosine with some vocabulary name or description."""
+    others: tuple[str, ...] = field(default_factory=load_other_objects)
+    """Everyday things none of the vocabulary is: a query whose words lie nearer one of them
+    (by more than ``other_margin``) than every vocabulary name and description names nothing
+    in the map. Empty: no such check."""
+    other_margin: float = 0.0
+    """How much nearer [cosine] one of ``others`` must lie than the vocabulary's best."""
     text_margin: float = 0.04
     """Vocabulary names within this cosine of the query's best are all what it may mean."""
     temperature: float = 0.02
@@ -115,6 +152,11 @@ class ObjectConfig:
         if not self.background or not all(isinstance(b, str) and b for b in self.background):
             raise ConfigError(f"background must be non-empty strings, got {self.background!r}")
         object.__setattr__(self, "background", tuple(self.background))
+        if isinstance(self.others, str) or not all(isinstance(t, str) and t for t in self.others):
+            raise ConfigError(f"others must be non-empty strings, got {self.others!r}")
+        object.__setattr__(self, "others", tuple(self.others))
+        if not -1 <= self.other_margin <= 1:
+            raise ConfigError(f"other_margin must be in [-1, 1], got {self.other_margin}")
         if isinstance(self.segmentation, Mapping):
             object.__setattr__(self, "segmentation", InstanceConfig(**self.segmentation))
         if not isinstance(self.segmentation, InstanceConfig):
@@ -163,6 +205,10 @@ class InstanceMatch:
     closeness: np.ndarray | None = None
     """(n_instances,) in [0, 1]: how near each instance's colour is to the asked colour
     itself, against the nearest instance (1 without a colour phrase)."""
+    other: str = ""
+    """The nearest of the config's ``others`` to the words ("" for none)."""
+    other_score: float = -1.0
+    """The words' cosine with ``other``."""
 
     @property
     def scores(self) -> np.ndarray:
@@ -211,6 +257,7 @@ class ObjectModule:
         self._background: np.ndarray | None = None
         self._targets: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None = None
         self._lexicon: tuple[np.ndarray, np.ndarray] | None = None
+        self._others: np.ndarray | None = None
         self._shape_prior = None
         self._shape_cache: tuple[tuple[int, int] | None, dict] = (None, {})
 
@@ -340,8 +387,10 @@ class ObjectModule:
             want |= np.array([content[-1] in name.split() for name in self.vocabulary])
             names = tuple(str(x) for x in np.array(self.vocabulary)[want])
             weight = np.exp((per - per[best]) / cfg.name_temperature)
+            other, other_score = self._nearest_other(e)
         else:  # "something red": any object
             names, text_score, nearest = self.vocabulary, 1.0, ""
+            other, other_score = "", -1.0
             want = np.ones(nv, bool)
             weight = np.ones(nv)
         if n:
@@ -360,7 +409,30 @@ class ObjectModule:
                 close = np.exp(-(d - d.min()) / cfg.closeness_scale)
         else:
             cm = np.ones(n)
-        return InstanceMatch(words, colour, names, text_score, nearest, kind, cm, preference, close)
+        return InstanceMatch(
+            words,
+            colour,
+            names,
+            text_score,
+            nearest,
+            kind,
+            cm,
+            preference,
+            close,
+            other,
+            other_score,
+        )
+
+    def _nearest_other(self, embedding: np.ndarray) -> tuple[str, float]:
+        """The config's ``others`` nearest the words' ``embedding``, and its cosine."""
+        others = self.config.others
+        if not others:
+            return "", -1.0
+        if self._others is None:
+            self._others = self.text.encode_text(list(others))
+        c = self._others @ embedding
+        j = int(np.argmax(c))
+        return others[j], float(c[j])
 
     def colour_weights(self, colour: str) -> np.ndarray:
         """(len(COLOR_NAMES),) summing to 1: the lexicon names the colour phrase means (their
@@ -470,6 +542,16 @@ class ObjectModule:
                 decay,
                 f"{m.words!r} is like nothing in this map's vocabulary (nearest: "
                 f"{m.nearest!r}, cosine {m.text_score:.2f} < {self.config.text_min})",
+                0.0,
+            )
+        if m.other and m.other_score > m.text_score + self.config.other_margin:
+            return Heatmap.not_found(
+                grid,
+                query,
+                "object",
+                decay,
+                f"{m.words!r} reads as {m.other!r} (cosine {m.other_score:.2f}), which this "
+                f"map's vocabulary does not have (nearest: {m.nearest!r}, {m.text_score:.2f})",
                 0.0,
             )
         inst = self.instances.items
