@@ -33,12 +33,66 @@ def only(instruction):
         "Please head to the red mug.",
         "navigate to the red mug",
         "move the gripper to the red mug",
+        # requests as people word them
+        "could you move to the red mug",
+        "Can you go to the red mug, please?",
+        "I want you to go to the red mug",
+        "okay, now go over to the red mug",
+        "move your hand to the red mug",
+        "steer the gripper to the red mug",
+        "go and touch the red mug",
+        "make your way to the red mug",
+        "move closer to the red mug",
+        "point at the red mug",
     ],
 )
 def test_motion_verbs_give_the_same_object_goal(text):
     step = only(text)
     assert step.action == GoTo(Goal(Part("obj", "red mug")))
     assert step.times == 1
+
+
+@pytest.mark.parametrize(
+    "text, action",
+    [
+        ("move to the spot between the mug and the duck", Between),
+        ("go to a point between the tray and the ball", Between),
+        ("move to the space behind the mug", Side),
+        ("go to the place just left of the mug", Side),
+        ("go to the mug's left", Side),
+        ("move to the mug's back side", Side),
+        ("hover over the mug", Above),
+        ("position the gripper above the mug", Above),
+    ],
+)
+def test_places_named_by_a_relation(text, action):
+    step = only(text)
+    assert isinstance(step.action, action)
+    if action is Side:
+        assert step.action.landmark == "mug"
+        assert step.action.side in ("behind", "left")
+
+
+@pytest.mark.parametrize(
+    "text, goal",
+    [
+        ("go to where the dog barked", Goal(Part("sound", "dog barked"))),
+        ("go to the spot where the alarm went off", Goal(Part("sound", "alarm went off"))),
+        ("go to where the mug is", Goal(Part("obj", "mug"))),
+        (
+            "go to the mug near where the dog barked",
+            Goal(Part("obj", "mug"), (Part("sound", "dog barked"),)),
+        ),
+    ],
+)
+def test_where_something_was_heard_is_a_sound(text, goal):
+    assert only(text).action == GoTo(goal)
+
+
+def test_a_polite_wrapper_keeps_steps_and_repeats():
+    steps = parse_instruction("could you hover over the duck twice, then go to the mug please")
+    assert [type(s.action) for s in steps] == [Above, GoTo]
+    assert steps[0].times == 2 and steps[1].action == GoTo(Goal(Part("obj", "mug")))
 
 
 @pytest.mark.parametrize(

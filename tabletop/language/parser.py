@@ -3,8 +3,14 @@
 No model is involved: a small grammar over the instruction families of the paper's prompts
 (object, sound, image and area goals; "X near Y" for any two modalities; "between A and B";
 left/right/front/behind of an object; compass moves; sequences with "then"; repetition with
-"twice" or "3 times"; back and forth between two goals). The plan (:mod:`tabletop.language.plan`)
-becomes robot code in :mod:`tabletop.language.codegen`, the code a prompted LLM writes against
+"twice" or "3 times"; back and forth between two goals). Requests are read as people word
+them: a polite wrapper ("could you ...", "I want you to ...", "..., please"), the arm named or
+not ("move your hand to"), a place named by its relation ("the spot between A and B", "the
+duck's left", "hover over X") and a sound by what was heard ("where the dog barked"). Manner
+words the robot cannot honour ("slowly") are refused, not dropped.
+
+The plan (:mod:`tabletop.language.plan`) becomes robot code in
+:mod:`tabletop.language.codegen`, the code a prompted LLM writes against
 :class:`tabletop.robot.RobotAPI`, and goes through the same sandbox. Anything outside the grammar
 raises :class:`ParseError` naming the part it did not understand; the parser never guesses.
 
@@ -112,11 +118,41 @@ _ARTICLES = re.compile(r"^(?:(?:the|a|an|some|any|that|this)\s+)+")
 
 _VERB = re.compile(
     r"^(?:please\s+)?(?:now\s+)?(?:"
-    r"(?:go|move|head|navigate|travel|get|come|drive|bring|take|send|guide)"
-    r"(?:\s+(?:the\s+)?(?:arm|gripper|hand|robot|end[\s-]effector|tcp))?"
-    r"(?:\s+back\s+to|\s+over\s+to|\s+up\s+to|\s+straight\s+to|\s+to|\s+towards?|\s+into|\s+onto)?"
-    r"|return\s+to|reach(?:\s+for)?|approach|visit|find|locate"
+    r"(?:go|move|head|navigate|travel|get|come|drive|bring|take|send|guide|steer|position|"
+    r"put|place|lead|direct)"
+    r"(?:\s+(?:(?:the|your)\s+)?(?:arm|gripper|hand|robot|end[\s-]effector|tcp)|\s+yourself"
+    r"|\s+your\s+way)?"
+    r"(?:\s+back\s+to|\s+over\s+to|\s+up\s+to|\s+straight\s+to|\s+(?:closer|close|near)"
+    r"(?:\s+to)?|\s+to|\s+towards?|\s+into|\s+onto)?"
+    r"|(?:make|find)\s+your\s+way\s+to|return\s+to|reach(?:\s+for)?|approach|visit|find|"
+    r"locate|touch|point\s+(?:at|to)"
     r")(?:\s+|$)"
+)
+#: What a request may be wrapped in: "could you ...", "I want you to ...", "..., please".
+_POLITE_HEAD = re.compile(
+    r"^(?:(?:ok(?:ay)?|alright|now|hey|robot)\s*,?\s+)*"
+    r"(?:(?:could|can|would|will)\s+you\s+(?:please\s+)?|please\s+|"
+    r"i(?:\s+would|'d)?\s+(?:want|like|need)\s+you\s+to\s+|you\s+(?:should|must|need\s+to)\s+|"
+    r"(?:try|be\s+sure|make\s+sure)\s+to\s+)?"
+)
+_POLITE_TAIL = re.compile(r"(?:\s*,?\s+(?:please|for\s+me|now|right\s+away|if\s+you\s+can))+$")
+#: "go and touch the ball", "go ahead and reach the mug": the second verb is the step's.
+_GO_AND = re.compile(r"^(?:go|come)\s+(?:ahead\s+)?and\s+")
+#: "the spot between A and B", "a point behind the mug": a place named by a relation.
+_PLACE_OF = re.compile(
+    r"^(?:(?:the|a|an)\s+)?(?:spot|place|point|space|area|position|location)\s+"
+    r"(?:(?:just|right|directly|somewhere)\s+)?"
+    r"(?=(?:in\s+)?between\b|halfway\b|left\b|right\b|(?:in\s+)?front\b|behind\b|"
+    r"(?:to|on)\s+the\s+(?:left|right)\b|above\b|over\b)"
+)
+#: "the duck's left (side)": a side of an object, said the other way round.
+_POSSESSIVE_SIDE = re.compile(r"^(?:the\s+)?(.+?)'s\s+(left|right|front|back|rear)(?:\s+side)?$")
+_HOVER = re.compile(r"^(?:hover|stop|stay|hold)\s+(?=(?:(?:right|just)\s+)?(?:over|above)\s)")
+#: "where the dog barked", "the spot where the alarm went off": a sound, told by what was heard
+#: ("where the mug is" is the mug).
+_WHERE = re.compile(
+    r"^(?:(?:the\s+)?(?:place|spot|point|location)\s+)?where\s+(?!(?:you|i|we)\s)(.+?)"
+    r"(\s+(?:is|are|sits|stands|lies|was\s+put|was\s+left))?$"
 )
 _STEP_SPLIT = re.compile(
     r"\s*(?:[,;.]\s*)?(?:\band\s+)?\b(?:then|after\s+that|afterwards|finally|lastly)\b\s*,?\s*"
@@ -247,6 +283,9 @@ class _Parser:
     # --------------------------------------------------------------- one step
     def step(self, clause: str, first: bool) -> Step:
         body = _FIRST.sub("", clause)
+        body = _POLITE_TAIL.sub("", _POLITE_HEAD.sub("", body, count=1)).strip(" ,")
+        body = _GO_AND.sub("", body)
+        body = _HOVER.sub("move ", body)
         times = 1
         m = _REPEAT.search(body)
         if m:
@@ -299,6 +338,11 @@ class _Parser:
                 return Compass(_DIRECTIONS[direction], round(d, 6))
         if re.match(rf"^(?:to(?:wards)?\s+(?:the\s+)?)?{_DIR}(?:wards?)?$", rest):
             self.fail(rest, "a compass move needs a distance, e.g. 'move 10 cm north'")
+        rest = _PLACE_OF.sub("", rest)
+        m = _POSSESSIVE_SIDE.match(rest)
+        if m:
+            side = {"back": "behind", "rear": "behind"}.get(m.group(2), m.group(2))
+            return Side(side, self.landmark(m.group(1), side))
         m = _BETWEEN.match(rest)
         if m:
             try:
@@ -370,6 +414,11 @@ class _Parser:
             m = _SOUND_OF.match(text) or _SOUND_SUFFIX.match(text)
             return Part("sound", self.description(m.group(1) if m else text, "sound"))
         m = _HEARD.match(text)
+        if m:
+            return Part("sound", self.description(m.group(1), "sound"))
+        m = _WHERE.match(text)
+        if m and m.group(2):  # "where the mug is"
+            return Part("obj", self.description(m.group(1), "object"))
         if m:
             return Part("sound", self.description(m.group(1), "sound"))
         m = _SOUND_OF.match(text) or _SOUND_SUFFIX.match(text)
