@@ -9,8 +9,9 @@ from tabletop.arm.diffik import MinkDiffIK
 from tabletop.arm.driver import KinematicDriver
 from tabletop.arm.model import HOME_Q, PandaModel
 from tabletop.arm.obstacles import Box, Cylinder, table_box
-from tabletop.arm.reach import ReachConfig, ReachController, ReachReason
+from tabletop.arm.reach import ReachConfig, ReachController, ReachReason, ReachRoute
 from tabletop.arm.success import reach_success
+from tabletop.arm.trajectory import check_trajectory
 from tabletop.errors import ConfigError
 
 CUBE = Box([0.4, 0.3, 0.06], [0.04, 0.04, 0.06], name="cube")
@@ -136,3 +137,37 @@ def test_invalid_target_and_config():
 def test_non_finite_target_is_refused(ctrl):
     with pytest.raises(ConfigError, match=r"target must be a finite \(3,\) point"):
         ctrl.move_to([np.nan, 0.0, 0.1])
+
+
+# Benchmark targets (seed 0) where the local controller stalls beside objects (76: low between
+# box5 and the base, 109: far out, the joints at their limits) but a path exists.
+STALLING_TARGETS = [[0.3496, 0.011, 0.0084], [0.7292, 0.1949, 0.3432]]
+
+
+@pytest.mark.parametrize("target", STALLING_TARGETS)
+def test_global_planner_takes_over_where_the_local_controller_stalls(model, target):
+    bench_ctrl = ReachController(model, KinematicDriver(HOME_Q), BENCH_SCENE)
+    local_only = ReachController(
+        model, KinematicDriver(HOME_Q), BENCH_SCENE, ReachConfig(fallback=False)
+    ).move_to(target)
+    assert not local_only.reached and local_only.route == ReachRoute.LOCAL
+    assert local_only.reason in (ReachReason.BLOCKED, ReachReason.NO_PROGRESS)
+    res = bench_ctrl.move_to(target)
+    assert res.reached and res.error_m <= bench_ctrl.config.tolerance
+    assert res.route == ReachRoute.PLANNED and res.local_reason == local_only.reason
+    assert res.plan.ok and res.plan.planning_time_s > 0
+    assert res.min_clearance_m >= bench_ctrl.config.clearance_margin
+    (traj,) = bench_ctrl.driver.trajectories  # exactly one trajectory went to the driver
+    assert res.trajectory_samples == len(traj)
+    assert check_trajectory(traj).ok
+    np.testing.assert_array_equal(traj.waypoints[-1], res.plan.path[-1])
+
+
+def test_reach_route_is_local_when_nothing_stalls(ctrl):
+    res = ctrl.move_to([0.35, -0.35, 0.12])
+    assert res.route == ReachRoute.LOCAL and res.plan is None and res.local_reason is None
+    assert ctrl.driver.trajectories == []
+    far = ctrl.move_to([0.8, 0.6, 0.7])
+    assert far.reason == ReachReason.UNREACHABLE and far.route == ReachRoute.NONE
+    with pytest.raises(ConfigError, match="ReachConfig.planner must be a PlannerConfig"):
+        ReachConfig(planner={"step": 0.1})

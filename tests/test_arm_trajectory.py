@@ -124,5 +124,7 @@ def test_kinematic_driver_records_and_lands_on_the_last_sample():
     assert d.trajectories == [traj]
     np.testing.assert_array_equal(d.read_state().q, traj.q[-1])
     assert d.read_state().time_s == pytest.approx(traj.duration)
-    with pytest.raises(DriverError, match="starts 0.2000 rad from the arm's configuration"):
+    with pytest.raises(
+        DriverError, match=r"starts 0.2000 rad from the arm.s configuration \(allowed 0.01"
+    ):
         d.execute_trajectory(traj)  # the arm is at the end now

@@ -38,7 +38,8 @@ from tabletop.arm.obstacles import (
     table_box,
 )
 from tabletop.arm.panda_py_driver import PandaPyDriver
-from tabletop.arm.reach import ReachConfig, ReachController, ReachReason, ReachResult
+from tabletop.arm.planner import JointPlanner, PlannerConfig, PlanReason, PlanResult
+from tabletop.arm.reach import ReachConfig, ReachController, ReachReason, ReachResult, ReachRoute
 from tabletop.arm.self_filter import RobotSelfFilter
 from tabletop.arm.success import SUCCESS_RADIUS_M, ReachSuccess, distance_to_box, reach_success
 from tabletop.arm.trajectory import (
@@ -73,6 +74,7 @@ __all__ = [
     "FrameError",
     "IKResult",
     "JointLimits",
+    "JointPlanner",
     "JointState",
     "JointTrajectory",
     "KinematicDriver",
@@ -81,11 +83,15 @@ __all__ = [
     "Obstacle",
     "PandaModel",
     "PandaPyDriver",
+    "PlanReason",
+    "PlanResult",
+    "PlannerConfig",
     "PyBulletDriver",
     "ReachConfig",
     "ReachController",
     "ReachReason",
     "ReachResult",
+    "ReachRoute",
     "ReachSuccess",
     "RobotSelfFilter",
     "SafetyError",

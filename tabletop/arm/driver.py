@@ -112,7 +112,7 @@ class KinematicDriver:
         self.commands += 1
 
     def execute_trajectory(self, trajectory: JointTrajectory) -> None:
-        _check_trajectory_start(trajectory, self._q, 1e-6)
+        _check_trajectory_start(trajectory, self._q, 0.01)
         self.trajectories.append(trajectory)
         self._q = trajectory.q[-1].copy()
         self._dq = trajectory.dq[-1].copy()
