@@ -39,7 +39,14 @@ from tabletop.arm.obstacles import (
 )
 from tabletop.arm.panda_py_driver import PandaPyDriver
 from tabletop.arm.planner import JointPlanner, PlannerConfig, PlanReason, PlanResult
-from tabletop.arm.reach import ReachConfig, ReachController, ReachReason, ReachResult, ReachRoute
+from tabletop.arm.reach import (
+    GoalChoice,
+    ReachConfig,
+    ReachController,
+    ReachReason,
+    ReachResult,
+    ReachRoute,
+)
 from tabletop.arm.self_filter import RobotSelfFilter
 from tabletop.arm.success import SUCCESS_RADIUS_M, ReachSuccess, distance_to_box, reach_success
 from tabletop.arm.trajectory import (
@@ -72,6 +79,7 @@ __all__ = [
     "DiffIKStep",
     "DriverError",
     "FrameError",
+    "GoalChoice",
     "IKResult",
     "JointLimits",
     "JointPlanner",

@@ -47,12 +47,20 @@ from tabletop.arm.ik import solve_ik
 from tabletop.arm.model import HOME_Q, PandaModel
 from tabletop.arm.obstacles import Box, Cylinder, obstacle_aabb
 from tabletop.arm.planner import JointPlanner, PlannerConfig, PlanResult
+from tabletop.arm.success import SUCCESS_RADIUS_M
 from tabletop.arm.trajectory import PANDA_LIMITS, TrajectoryConfig, time_parametrize
 from tabletop.arm.workspace import Workspace
 from tabletop.errors import ConfigError
 from tabletop.transforms import make_transform, rotation_about
 
-__all__ = ["ReachConfig", "ReachController", "ReachReason", "ReachResult", "ReachRoute"]
+__all__ = [
+    "GoalChoice",
+    "ReachConfig",
+    "ReachController",
+    "ReachReason",
+    "ReachResult",
+    "ReachRoute",
+]
 
 log = logging.getLogger(__name__)
 
@@ -66,6 +74,14 @@ class ReachReason(enum.StrEnum):
     BLOCKED = "blocked"  # obstacles keep the arm from getting there without contact
     NO_PROGRESS = "no_progress"  # the controller stalled away from obstacles (limits)
     TIMEOUT = "timeout"  # the step budget ran out while still moving
+
+
+class GoalChoice(enum.StrEnum):
+    """Which point a reach commanded."""
+
+    TARGET = "target"  # the target itself
+    STANDOFF = "standoff"  # the target lifted above the object it was in or on
+    ALTERNATIVE = "alternative"  # another point within goal_radius of the target (selection)
 
 
 class ReachRoute(enum.StrEnum):
@@ -114,6 +130,13 @@ class ReachConfig:
     goal_posture: bool = True
     """During the move, the mink posture task pulls towards the goal configuration the check
     found (instead of the controller's own posture), so the arm ends where the check looked."""
+    goal_radius: float = 0.08
+    """When no configuration with clearance reaches the goal, points within this distance
+    [m] of the target are tried instead (0 = never); below the 10 cm success radius."""
+    goal_candidates: int = 36
+    """Most candidate points tried by the goal selection."""
+    goal_candidate_search_iters: int = 10
+    """Clearance-search solves per candidate point (``clearance_search_iters`` for the goal)."""
     fallback: bool = True
     """When the local move ends blocked, without progress or out of steps, plan a path to the
     goal configuration with the global planner, execute it as a trajectory, finish locally."""
@@ -130,6 +153,15 @@ class ReachConfig:
             raise ConfigError(f"clearance_margin must be >= 0 [m], got {self.clearance_margin}")
         if self.max_steps < 1 or self.stall_steps < 1 or self.ik_seeds < 1 or self.yaw_sweep < 1:
             raise ConfigError("max_steps, stall_steps, ik_seeds and yaw_sweep must be >= 1")
+        if not 0 <= self.goal_radius < SUCCESS_RADIUS_M:
+            raise ConfigError(
+                f"ReachConfig.goal_radius must be in [0, {SUCCESS_RADIUS_M}) m, got "
+                f"{self.goal_radius}"
+            )
+        if self.goal_candidates < 1:
+            raise ConfigError(
+                f"ReachConfig.goal_candidates must be >= 1, got {self.goal_candidates}"
+            )
         if not isinstance(self.planner, PlannerConfig):
             raise ConfigError(f"ReachConfig.planner must be a PlannerConfig, got {self.planner!r}")
         if not isinstance(self.trajectory, TrajectoryConfig):
@@ -162,6 +194,8 @@ class ReachResult:
     standoff_applied: bool = False  # the target was inside an obstacle / on a surface
     goal_search_s: float = 0.0  # wall time of the pre-motion goal search [s]
     route: ReachRoute = ReachRoute.NONE  # which way the arm went
+    goal_choice: GoalChoice = GoalChoice.TARGET  # which point was commanded
+    goal_candidates_tried: int = 0  # candidate points checked by the goal selection
     local_reason: ReachReason | None = None  # why the local move handed over to the planner
     plan: PlanResult | None = None  # the global planner's answer, when it was asked
     trajectory_samples: int = 0  # samples of the planned trajectory sent to the driver
@@ -256,6 +290,35 @@ class ReachController:
                 break
         return goal, moved
 
+    def goal_candidates(self, target: object, goal: object) -> list[np.ndarray]:
+        """Alternative goals [(3,) m] for a blocked ``goal``, nearest to ``target`` first.
+
+        Points around the goal (8 directions in the horizontal plane and straight up, at 2-8 cm
+        steps of 2 cm), each lifted to the standoff above any object it is in or on, kept when
+        inside the workspace and within ``goal_radius`` of the target (so a TCP on one of them
+        is within the success radius), at most ``goal_candidates`` of them.
+        """
+        c = self.config
+        target = np.asarray(target, dtype=np.float64)
+        goal = np.asarray(goal, dtype=np.float64)
+        az = np.arange(8) * (np.pi / 4)
+        dirs = [np.array([np.cos(a), np.sin(a), 0.0]) for a in az] + [np.array([0.0, 0, 1])]
+        out: list[np.ndarray] = []
+        for r in np.arange(0.02, c.goal_radius + 1e-9, 0.02):
+            for d in dirs:
+                p, _ = self.standoff_goal(goal + r * d)
+                if not self.workspace.contains(p):
+                    continue
+                if np.linalg.norm(p - target) > c.goal_radius:
+                    continue
+                if any(np.linalg.norm(p - o) < 0.01 for o in out) or (
+                    np.linalg.norm(p - goal) < 0.01
+                ):
+                    continue
+                out.append(p)
+        out.sort(key=lambda p: float(np.linalg.norm(p - target)))
+        return out[: c.goal_candidates]
+
     def _transit_height(self, goal: np.ndarray) -> float:
         tops = [obstacle_aabb(ob)[1][2] for ob in self.obstacles]
         z = max(
@@ -265,7 +328,12 @@ class ReachController:
         return float(min(z, self.workspace.upper[2] - 0.05))
 
     def _goal_configuration(
-        self, goal: np.ndarray, R: np.ndarray, q_now: np.ndarray, free_yaw: bool = True
+        self,
+        goal: np.ndarray,
+        R: np.ndarray,
+        q_now: np.ndarray,
+        free_yaw: bool = True,
+        search_iters: int | None = None,
     ) -> tuple[str, np.ndarray | None]:
         """(status, q) of the reachability check: 'ok', 'unreachable' or 'blocked'.
 
@@ -318,7 +386,7 @@ class ReachController:
                 for seed in seeds[:2]:
                     if solve(rotation_about("z", dyaw) @ R, seed, False):
                         return "ok", best_q
-        for _ in range(c.clearance_search_iters):
+        for _ in range(c.clearance_search_iters if search_iters is None else search_iters):
             seed = self.model.clip(best_q + rng.normal(0.0, c.clearance_search_sigma, 7))
             if solve(R, seed, True, posture=seed):
                 return "ok", best_q
@@ -337,6 +405,7 @@ class ReachController:
         """
         wall0 = time.perf_counter()
         goal_search_s = 0.0
+        choice, tried = GoalChoice.TARGET, 0
         target = np.array(target, dtype=np.float64)
         if target.shape != (3,) or not np.all(np.isfinite(target)):
             raise ConfigError(f"target must be a finite (3,) point [m], got {target.tolist()}")
@@ -378,6 +447,8 @@ class ReachController:
                 standoff_applied=moved,
                 goal_search_s=goal_search_s,
                 route=route,
+                goal_choice=choice,
+                goal_candidates_tried=tried,
                 local_reason=local_reason,
                 plan=plan,
                 trajectory_samples=samples,
@@ -394,8 +465,25 @@ class ReachController:
             R = np.asarray(orientation, dtype=np.float64)
             if R.shape != (3, 3):
                 raise ConfigError(f"orientation must be a (3, 3) rotation, got {R.shape}")
+        if moved:
+            choice = GoalChoice.STANDOFF
         t_search = time.perf_counter()
         status, q_goal = self._goal_configuration(goal, R, q, free_yaw=orientation is None)
+        if status == "blocked" and c.goal_radius > 0:
+            for cand in self.goal_candidates(target, goal):
+                tried += 1
+                st, qc = self._goal_configuration(
+                    cand, R, q, orientation is None, c.goal_candidate_search_iters
+                )
+                if st == "ok":
+                    status, q_goal, goal, choice = st, qc, cand, GoalChoice.ALTERNATIVE
+                    log.info(
+                        "goal selection: %s instead of %s (%.3f m from the target)",
+                        np.round(goal, 3).tolist(),
+                        np.round(target, 3).tolist(),
+                        float(np.linalg.norm(goal - target)),
+                    )
+                    break
         goal_search_s = time.perf_counter() - t_search
         if status == "unreachable":
             return result(ReachReason.UNREACHABLE, goal, moved=moved)
