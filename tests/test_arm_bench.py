@@ -27,6 +27,12 @@ KEYS = {
     "infeasible_by_audit",
     "goal_search_ms_median",
     "goal_search_ms_p95",
+    "routes",
+    "fallback_share",
+    "fallback_reached",
+    "alternative_goals",
+    "planning_ms_median",
+    "planning_ms_p95",
 }
 
 
@@ -46,6 +52,8 @@ def test_small_benchmark_reports_every_key():
     assert out["contacts"] == 0
     assert out["probes_right_reason"] == "6/6"
     assert sum(out["reasons"].values()) == 8
+    assert sum(out["routes"].values()) == 8
+    assert 0.0 <= out["fallback_share"] <= 1.0
     assert out["reach_within_1cm"] >= 0.85
     assert out["reachable"] == out["reachable_by_audit"]
     assert out["reachable_by_audit"] == out["reachable_by_controller"] + out["missed_reachable"]

@@ -9,6 +9,7 @@ from tabletop.arm.errors import DriverError
 from tabletop.arm.model import HOME_Q, PandaModel
 from tabletop.arm.obstacles import Box, table_box
 from tabletop.arm.reach import ReachController, ReachReason
+from tabletop.arm.trajectory import check_trajectory, time_parametrize
 from tabletop.errors import ConfigError
 from tabletop.paths import panda_urdf_path
 
@@ -67,6 +68,28 @@ def test_pybullet_driver_tracks_position_commands_with_physics(world):
     assert np.abs(st.q - goal).max() < 5e-3
     assert st.time_s == pytest.approx(0.8, abs=0.01)
     assert d.steps == round(0.8 * 240)
+
+
+def test_pybullet_driver_tracks_a_trajectory_sample_by_sample(world):
+    cid, robot, _ = world
+    _reset(cid, robot, HOME_Q)
+    steps = []
+    d = PyBulletDriver(cid, robot, on_step=lambda: steps.append(1))
+    mid = HOME_Q + np.array([0.4, 0.2, -0.2, 0.3, 0.1, -0.2, 0.5])
+    traj = time_parametrize([HOME_Q, mid, HOME_Q + 0.05])
+    assert check_trajectory(traj).ok
+    d.execute_trajectory(traj)
+    # One physics step per 1/240 s of trajectory, each tracked against its own sample.
+    assert len(steps) == len(d.tracking) == int(np.ceil(traj.duration * 240 - 1e-9))
+    t, err = np.array(d.tracking).T
+    assert t[-1] == pytest.approx(traj.duration, abs=1 / 240)
+    assert err.max() < 0.01  # [rad] worst tracking error along the way
+    assert np.abs(d.read_state().q - traj.q[-1]).max() < 1e-3
+    # Passing the middle waypoint: the arm went there, it did not cut the corner.
+    k = int(np.argmin(np.abs(traj.q - mid).max(axis=1)))
+    assert np.abs(traj.q[k] - mid).max() == 0.0
+    with pytest.raises(DriverError, match="starts .* rad from the arm's configuration"):
+        d.execute_trajectory(traj)  # planned from HOME_Q, the arm is elsewhere now
 
 
 def test_pybullet_driver_velocity_and_stop(world):

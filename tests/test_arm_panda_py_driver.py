@@ -9,6 +9,13 @@ import pytest
 from tabletop.arm.errors import DriverError, SafetyError
 from tabletop.arm.model import HOME_Q, PandaModel
 from tabletop.arm.panda_py_driver import PandaPyDriver
+from tabletop.arm.trajectory import (
+    PANDA_LIMITS,
+    JointTrajectory,
+    TrajectoryConfig,
+    check_trajectory,
+    time_parametrize,
+)
 
 
 class FakeController:
@@ -30,11 +37,32 @@ class FakeControllers:
         return FakeController("JointVelocity", self.log)
 
 
+class FakeContext:
+    """panda-py's control-loop context: ``ok()`` is true for as many ticks as the runtime."""
+
+    def __init__(self, log, frequency, max_runtime):
+        self.log, self.ticks = log, round(frequency * max_runtime)
+        log.append(("create_context", frequency, max_runtime))
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.log.append(("context_exit",))
+
+    def ok(self):
+        self.ticks -= 1
+        return self.ticks >= 0
+
+
 class FakePanda:
     """Records calls; its state is whatever the test puts in ``q``."""
 
     def __init__(self, log, q):
         self.log, self.q = log, np.array(q, dtype=float)
+
+    def create_context(self, frequency, max_runtime):
+        return FakeContext(self.log, frequency, max_runtime)
 
     def get_state(self):
         return SimpleNamespace(q=self.q.copy(), dq=np.zeros(7))
@@ -120,3 +148,62 @@ def test_missing_panda_py_names_the_package(monkeypatch, model):
     monkeypatch.setitem(sys.modules, "panda_py", None)
     with pytest.raises(DriverError, match="pip install panda-python"):
         PandaPyDriver("172.16.0.2", model=model)
+
+
+def _streamed(log, kind="JointPosition.set_control"):
+    """The (q, dq) samples the robot received, as (N, 7) arrays."""
+    sent = [e for e in log if e[0] == kind]
+    return np.array([e[1] for e in sent]), np.array([e[2] for e in sent])
+
+
+def test_trajectory_is_streamed_sample_by_sample_within_every_limit(rig):
+    drv, _, log, sleeps = rig
+    goal = HOME_Q + np.array([0.3, 0.2, -0.2, 0.3, 0.2, -0.2, 0.4])
+    traj = time_parametrize([HOME_Q, goal, HOME_Q + 0.02])
+    drv.execute_trajectory(traj)
+    assert log[0] == ("start_controller", "JointPosition")
+    assert log[1] == ("create_context", 1000.0, pytest.approx(traj.duration + 1.0))
+    assert log[-1] == ("context_exit",)
+    q, dq = _streamed(log)
+    np.testing.assert_array_equal(q, traj.q)  # exactly the trajectory, every sample
+    np.testing.assert_array_equal(dq, traj.dq)
+    assert sleeps == []  # paced by the robot's control loop, not by sleeping
+    # What reached the robot, checked on every sample: limits and continuity.
+    h = traj.period
+    assert np.all(q >= PANDA_LIMITS.q_lower) and np.all(q <= PANDA_LIMITS.q_upper)
+    assert np.all(np.abs(dq) <= drv.v_limit + 1e-9)
+    ddq = np.diff(dq, axis=0) / h
+    assert np.all(np.abs(ddq) <= PANDA_LIMITS.a_max * (1 + 1e-6))
+    assert np.all(np.abs(np.diff(q, axis=0)) <= PANDA_LIMITS.v_max * h)
+    recorded = JointTrajectory(h, q, dq, traj.ddq, traj.waypoints)
+    assert check_trajectory(recorded).ok
+
+
+def test_unsafe_trajectories_never_reach_the_robot(rig, model):
+    drv, panda, log, _ = rig
+    fast = time_parametrize(
+        [HOME_Q, HOME_Q + 0.6], config=TrajectoryConfig(velocity_scale=1, acceleration_scale=1)
+    )
+    with pytest.raises(SafetyError, match=r"velocity of joint 1 at sample \d+ is .* above"):
+        drv.execute_trajectory(fast)
+    traj = time_parametrize([HOME_Q, HOME_Q + 0.2])
+    jerky = traj.ddq.copy()
+    jerky[10, 1] = 7.0  # joint 2: within 7.5 rad/s^2 but a jump of 7 in 1 ms
+    with pytest.raises(SafetyError, match="jerk of joint 2 at sample"):
+        drv.execute_trajectory(JointTrajectory(traj.period, traj.q, traj.dq, jerky, traj.waypoints))
+    low = np.array([0.0, 1.7, 0.0, -0.2, 0.0, 2.0, 0.8])  # TCP below the table top
+    assert model.fk(low)[2, 3] < 0
+    with pytest.raises(SafetyError, match=r"trajectory sample \d+ puts .* outside the workspace"):
+        drv.execute_trajectory(time_parametrize([HOME_Q, low]))
+    panda.q = HOME_Q + 0.05
+    with pytest.raises(SafetyError, match="starts 0.0500 rad from the measured configuration"):
+        drv.execute_trajectory(traj)
+    assert log == []
+
+
+def test_a_control_loop_that_ends_early_is_a_driver_error(rig):
+    drv, panda, log, _ = rig
+    traj = time_parametrize([HOME_Q, HOME_Q + 0.2])
+    panda.create_context = lambda frequency, max_runtime: FakeContext(log, frequency, 0.1)
+    with pytest.raises(DriverError, match=r"ended after 100 of \d+ samples"):
+        drv.execute_trajectory(traj)

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from tabletop.errors import SceneError
-from tabletop.sim.generator import PLACEMENT_REGION
+from tabletop.sim.generator import CLUTTER_REGION, LOW_KINDS, PLACEMENT_REGION, TALL_KINDS
 from tabletop.sim.scene import (
     ObjectSpec,
     SceneSpec,
@@ -62,6 +62,56 @@ def test_generated_objects_are_placeable_and_apart(tmp_path, seed):
         lo, hi = o.aabb()
         assert PLACEMENT_REGION["x"][0] <= lo[0] and hi[0] <= PLACEMENT_REGION["x"][1]
         assert np.hypot(hi[0], max(abs(lo[1]), abs(hi[1]))) <= PLACEMENT_REGION["r"][1] + 1e-9
+
+
+def _clutter(seed: int, count: int = 12) -> SceneSpec:
+    r = {"seed": seed, "count": count, "duplicates": 3, "profile": "clutter"}
+    return SceneSpec.from_dict({"random": r}, source=f"clutter-{seed}")
+
+
+def _gap(a: ObjectSpec, b: ObjectSpec) -> float:
+    """Horizontal distance [m] between two objects' boxes (0 when they touch)."""
+    (la, ha), (lb, hb) = a.aabb(), b.aabb()
+    return float(np.linalg.norm(np.maximum(0.0, np.maximum(la[:2] - hb[:2], lb[:2] - ha[:2]))))
+
+
+@pytest.mark.parametrize("seed", [950, 951, 952, 953, 5])
+def test_clutter_profile_packs_a_dense_table_with_tall_objects_beside_low_ones(seed):
+    spec = _clutter(seed)  # SceneSpec itself rejects overlaps and overhangs
+    objs = spec.objects
+    kinds = [o.kind for o in objs]
+    assert len(objs) == 12
+    assert sum(kinds.count(k) == 2 for k in set(kinds)) >= 3  # duplicated kinds
+    tall = [o for o in objs if o.kind in TALL_KINDS]
+    low = [o for o in objs if o.kind in LOW_KINDS]
+    assert len(tall) >= 3 and len(low) >= 3 and "tray" not in kinds
+    for o in objs:
+        lo, hi = o.aabb()
+        assert CLUTTER_REGION["x"][0] <= lo[0] and hi[0] <= CLUTTER_REGION["x"][1]
+        assert max(abs(lo[1]), abs(hi[1])) <= CLUTTER_REGION["y_abs"]
+    # dense: every object has a neighbour within 7 cm, and a low one stands beside a tall one
+    assert max(min(_gap(a, b) for b in objs if b is not a) for a in objs) < 0.07
+    assert min(_gap(a, b) for a in low for b in tall) < 0.05
+    # the same seed draws the same table; another seed another one
+    assert _clutter(seed).objects == objs and _clutter(seed + 1).objects != objs
+
+
+def test_clutter_profile_is_denser_than_the_table_profile():
+    def spread(spec) -> float:
+        """Area [m^2] of the bounding box of the objects' centres."""
+        xy = np.array([o.position for o in spec.objects])
+        return float(np.prod(xy.max(axis=0) - xy.min(axis=0)))
+
+    table = [
+        SceneSpec.from_dict({"random": {"seed": s, "count": 12, "duplicates": 3}}) for s in range(4)
+    ]
+    clutter = [_clutter(s) for s in range(4)]
+    assert max(map(spread, clutter)) < 0.7 * min(map(spread, table))
+
+
+def test_unknown_profile_names_the_field_and_the_profiles():
+    with pytest.raises(SceneError, match="random.profile: unknown profile 'dense'.*'clutter'"):
+        SceneSpec.from_dict({"random": {"seed": 1, "profile": "dense"}})
 
 
 def test_spec_round_trips_through_dict(tmp_path):

@@ -38,15 +38,33 @@ from tabletop.arm.obstacles import (
     table_box,
 )
 from tabletop.arm.panda_py_driver import PandaPyDriver
-from tabletop.arm.reach import ReachConfig, ReachController, ReachReason, ReachResult
+from tabletop.arm.planner import JointPlanner, PlannerConfig, PlanReason, PlanResult
+from tabletop.arm.reach import (
+    GoalChoice,
+    ReachConfig,
+    ReachController,
+    ReachReason,
+    ReachResult,
+    ReachRoute,
+)
 from tabletop.arm.self_filter import RobotSelfFilter
 from tabletop.arm.success import SUCCESS_RADIUS_M, ReachSuccess, distance_to_box, reach_success
+from tabletop.arm.trajectory import (
+    PANDA_LIMITS,
+    JointLimits,
+    JointTrajectory,
+    TrajectoryCheck,
+    TrajectoryConfig,
+    check_trajectory,
+    time_parametrize,
+)
 from tabletop.arm.workspace import Workspace
 
 __all__ = [
     "ARM_JOINT_NAMES",
     "FINGER_JOINT_NAMES",
     "HOME_Q",
+    "PANDA_LIMITS",
     "SELF_COLLISION_DISABLED",
     "SUCCESS_RADIUS_M",
     "TCP_FRAME",
@@ -61,32 +79,44 @@ __all__ = [
     "DiffIKStep",
     "DriverError",
     "FrameError",
+    "GoalChoice",
     "IKResult",
+    "JointLimits",
+    "JointPlanner",
     "JointState",
+    "JointTrajectory",
     "KinematicDriver",
     "MinkDiffIK",
     "MotionCheck",
     "Obstacle",
     "PandaModel",
     "PandaPyDriver",
+    "PlanReason",
+    "PlanResult",
+    "PlannerConfig",
     "PyBulletDriver",
     "ReachConfig",
     "ReachController",
     "ReachReason",
     "ReachResult",
+    "ReachRoute",
     "ReachSuccess",
     "RobotSelfFilter",
     "SafetyError",
+    "TrajectoryCheck",
+    "TrajectoryConfig",
     "Workspace",
     "as_arm_q",
     "boxes_from_voxels",
     "build_mujoco_model",
+    "check_trajectory",
     "distance_to_box",
     "obstacle_aabb",
     "pose_error",
     "reach_success",
     "solve_ik",
     "table_box",
+    "time_parametrize",
     "top_down_rotation",
     "urdf_for_mujoco",
 ]

@@ -14,8 +14,14 @@ position control) and the :class:`ReachController`, and reports:
   controller's verdict;
 - ``object_within_10cm``: share of object targets whose final TCP is within 10 cm of the
   object's ground-truth box;
-- ``contacts``: PyBullet contact points between the robot and the table/objects, counted over
-  every control step of every reach;
+- ``contacts``: PyBullet contact points between the robot and the table/objects, counted after
+  every physics step of every reach (local control steps and planned trajectories alike);
+- ``routes``: how many reaches moved the arm with the local controller alone (``local``), with
+  the global planner's fallback (``planned``), or not at all (``none``); ``fallback_share`` is
+  the planned share of the reaches that moved, ``fallback_reached`` how many of those reached;
+  ``planning_ms_median`` / ``_p95``: wall time of the global planner per fallback;
+  ``alternative_goals``: reaches whose goal selection commanded another point than the goal
+  (never counted within 1 cm);
 - median / 95th percentile of the mink IK step and of the collision check [ms], their sum per
   executed step, and the damped-least-squares reference per iteration (``dls_iter_ms_median``);
 - ``goal_search_ms_median`` / ``_p95``: wall time of the controller's pre-motion goal search
@@ -40,7 +46,7 @@ from tabletop.arm.driver import PyBulletDriver
 from tabletop.arm.ik import solve_ik
 from tabletop.arm.model import ARM_JOINT_NAMES, HOME_Q, PandaModel
 from tabletop.arm.obstacles import Box, Cylinder, table_box
-from tabletop.arm.reach import ReachConfig, ReachController, ReachReason
+from tabletop.arm.reach import GoalChoice, ReachConfig, ReachController, ReachReason
 from tabletop.arm.success import reach_success
 from tabletop.errors import ConfigError
 from tabletop.paths import panda_urdf_path
@@ -273,21 +279,21 @@ def run_arm_benchmark(
         arm = [joint_idx[n] for n in ARM_JOINT_NAMES]
 
         contacts = 0
-        orig_command = driver.command_positions
 
-        def counted(q, duration):  # count contacts after every executed control step
+        def count_contacts():  # after every physics step, local steps and trajectories alike
             nonlocal contacts
-            orig_command(q, duration)
             for b in bodies:
                 contacts += len(pb.getContactPoints(robot, b, physicsClientId=cid))
 
-        driver.command_positions = counted
+        driver.on_step = count_contacts
 
         reasons: dict[str, int] = {}
         reachable = within_1cm = by_controller = missed = infeasible = 0
         audit_checker = None  # built on first use: its timings stay out of the step figures
         audit_s = 0.0
-        goal_search, reach_times = [], []
+        goal_search, reach_times, planning = [], [], []
+        routes: dict[str, int] = {}
+        fallback_reached = alternatives = 0
         obj_total = obj_ok = 0
         errors = []
         for i, (target, ob) in enumerate(benchmark_targets(rng, objects, n_targets)):
@@ -299,6 +305,11 @@ def run_arm_benchmark(
             reach_times.append(time.perf_counter() - t_reach)
             reasons[res.reason.value] = reasons.get(res.reason.value, 0) + 1
             goal_search.append(res.goal_search_s)
+            routes[res.route.value] = routes.get(res.route.value, 0) + 1
+            alternatives += res.goal_choice == GoalChoice.ALTERNATIVE
+            if res.plan is not None:
+                planning.append(res.plan.planning_time_s)
+                fallback_reached += res.reached
             refused = res.reason in (ReachReason.UNREACHABLE, ReachReason.BLOCKED) and (
                 res.steps == 0 and res.refused_steps == 0
             )
@@ -333,7 +344,8 @@ def run_arm_benchmark(
             if feasible:
                 reachable += 1
                 errors.append(res.error_m)
-                within_1cm += res.error_m <= 0.01
+                # A reach to an alternative goal is not within 1 cm of the goal asked for.
+                within_1cm += res.error_m <= 0.01 and res.goal_choice != GoalChoice.ALTERNATIVE
             if is_object:
                 obj_total += 1
                 gt = (
@@ -370,6 +382,8 @@ def run_arm_benchmark(
         cc_med, cc_p95 = _percentiles(checker.timings_s)
         dls_med, _ = _percentiles(dls_times)
         gs_med, gs_p95 = _percentiles(goal_search)
+        pl_med, pl_p95 = _percentiles(planning)
+        moved = routes.get("local", 0) + routes.get("planned", 0)
         return {
             "n_targets": n_targets,
             "seed": seed,
@@ -396,6 +410,12 @@ def run_arm_benchmark(
             "mink_over_dls_ratio": ik_med / dls_med if dls_med else float("nan"),
             "goal_search_ms_median": gs_med,
             "goal_search_ms_p95": gs_p95,
+            "routes": routes,
+            "fallback_share": len(planning) / moved if moved else float("nan"),
+            "fallback_reached": fallback_reached,
+            "alternative_goals": alternatives,
+            "planning_ms_median": pl_med,
+            "planning_ms_p95": pl_p95,
             "physics_steps": driver.steps,
             "reach_s_median": float(np.median(reach_times)) if reach_times else float("nan"),
             "reach_s_p95": float(np.percentile(reach_times, 95)) if reach_times else float("nan"),

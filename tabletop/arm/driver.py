@@ -1,14 +1,16 @@
 """Drivers: what the reach controller talks to, simulated or real, behind one protocol.
 
-A driver reads the arm's joint state and executes joint position or velocity commands for a
-given duration; ``stop`` brings the arm to rest. Implementations here: :class:`PyBulletDriver`
-(physics stepping with position control, on a client and body someone else built),
-:class:`KinematicDriver` (an ideal arm, for planning and tests), and in
+A driver reads the arm's joint state, executes joint position or velocity commands for a
+given duration, and executes a whole time-parametrised :class:`JointTrajectory` sample by
+sample (``execute_trajectory``); ``stop`` brings the arm to rest. Implementations here:
+:class:`PyBulletDriver` (physics stepping with position control, on a client and body someone
+else built), :class:`KinematicDriver` (an ideal arm, for planning and tests), and in
 :mod:`tabletop.arm.panda_py_driver` an adapter for a real Panda through panda-py.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Protocol, runtime_checkable
 
@@ -16,6 +18,7 @@ import numpy as np
 
 from tabletop.arm.errors import DriverError
 from tabletop.arm.model import ARM_JOINT_NAMES, FINGER_JOINT_NAMES, HOME_Q, as_arm_q
+from tabletop.arm.trajectory import JointTrajectory
 from tabletop.errors import ConfigError
 
 __all__ = ["ArmDriver", "JointState", "KinematicDriver", "PyBulletDriver"]
@@ -55,19 +58,40 @@ class ArmDriver(Protocol):
         """Hold the (7,) joint velocities ``dq`` [rad/s] for ``duration`` [s], then return."""
         ...
 
+    def execute_trajectory(self, trajectory: JointTrajectory) -> None:
+        """Follow ``trajectory`` sample by sample (it starts where the arm is, at rest)."""
+        ...
+
     def stop(self) -> None:
         """Bring the arm to rest where it is."""
         ...
 
 
+def _check_trajectory_start(traj: JointTrajectory, q_now: np.ndarray, tol: float) -> None:
+    if not isinstance(traj, JointTrajectory):
+        raise ConfigError(f"trajectory must be a JointTrajectory, got {type(traj).__name__}")
+    gap = float(np.abs(traj.q[0] - q_now).max())
+    if gap > tol:
+        raise DriverError(
+            f"the trajectory starts {gap:.4f} rad from the arm's configuration "
+            f"(allowed {tol} rad): plan it from the measured state"
+        )
+
+
 class KinematicDriver:
-    """An ideal arm: commanded positions are reached exactly, instantly (no physics)."""
+    """An ideal arm: commanded positions are reached exactly, instantly (no physics).
+
+    Attributes:
+        commands: commands executed (a trajectory counts one per sample after the first).
+        trajectories: every trajectory executed, in order (the recording).
+    """
 
     def __init__(self, q0: object = HOME_Q) -> None:
         self._q = as_arm_q(q0, "q0")
         self._dq = np.zeros(7)
         self._t = 0.0
         self.commands: int = 0
+        self.trajectories: list[JointTrajectory] = []
 
     def read_state(self) -> JointState:
         return JointState(q=self._q.copy(), dq=self._dq.copy(), time_s=self._t)
@@ -86,6 +110,14 @@ class KinematicDriver:
         self._q = self._q + self._dq * duration
         self._t += duration
         self.commands += 1
+
+    def execute_trajectory(self, trajectory: JointTrajectory) -> None:
+        _check_trajectory_start(trajectory, self._q, 0.01)
+        self.trajectories.append(trajectory)
+        self._q = trajectory.q[-1].copy()
+        self._dq = trajectory.dq[-1].copy()
+        self._t += trajectory.duration
+        self.commands += len(trajectory) - 1
 
     def stop(self) -> None:
         self._dq = np.zeros(7)
@@ -106,6 +138,7 @@ class PyBulletDriver:
         finger_opening: set both fingers to this opening [m] first; give the model's
             ``finger_opening`` so the collision checker's fingers are where the real ones are
             (default: hold the fingers where they are).
+        on_step: called after every physics step (a benchmark counts contacts with it).
     """
 
     def __init__(
@@ -116,6 +149,7 @@ class PyBulletDriver:
         timestep: float = 1.0 / 240.0,
         position_gain: float = 0.3,
         finger_opening: float | None = None,
+        on_step: Callable[[], None] | None = None,
     ) -> None:
         import pybullet as pb
 
@@ -153,6 +187,9 @@ class PyBulletDriver:
         self._t = 0.0  # simulated time [s]
         self._t_cmd = 0.0  # commanded time [s]
         self.steps = 0  # physics steps taken [count]
+        self.on_step = on_step
+        #: tracking of the last executed trajectory: (time [s], |q - q_ref| max [rad]) per step
+        self.tracking: list[tuple[float, float]] = []
 
     def read_state(self) -> JointState:
         states = self._pb.getJointStates(self.body_id, self._arm, physicsClientId=self.client_id)
@@ -180,25 +217,47 @@ class PyBulletDriver:
         n = max(1, round((self._t_cmd - self._t) / self.timestep))
         for _ in range(n):
             self._pb.stepSimulation(physicsClientId=self.client_id)
+            if self.on_step is not None:
+                self.on_step()
         self.steps += n
         self._t += n * self.timestep
 
-    def command_positions(self, q: np.ndarray, duration: float) -> None:
-        duration = _check_duration(duration)
-        q = as_arm_q(q)
-        q_now = self.read_state().q
+    def _set_arm(self, q: np.ndarray, dq: np.ndarray) -> None:
         self._pb.setJointMotorControlArray(
             self.body_id,
             self._arm,
             self._pb.POSITION_CONTROL,
             targetPositions=q.tolist(),
-            targetVelocities=((q - q_now) / duration).tolist(),
+            targetVelocities=dq.tolist(),
             forces=list(TORQUE_LIMITS),
             positionGains=[self.position_gain] * 7,
             physicsClientId=self.client_id,
         )
         self._hold_fingers()
+
+    def command_positions(self, q: np.ndarray, duration: float) -> None:
+        duration = _check_duration(duration)
+        q = as_arm_q(q)
+        q_now = self.read_state().q
+        self._set_arm(q, (q - q_now) / duration)
         self._run(duration)
+
+    def execute_trajectory(self, trajectory: JointTrajectory) -> None:
+        """Follow the trajectory: at every physics step the motors get the sample (position and
+        velocity) at that step's end time, so every sample period's motion is tracked even when
+        the trajectory is sampled faster than the physics (1 kHz against 240 Hz); then the last
+        sample is held. ``tracking`` records the error to the reference after every step."""
+        _check_trajectory_start(trajectory, self.read_state().q, 0.05)
+        self.tracking = []
+        n_steps = max(1, int(np.ceil(trajectory.duration / self.timestep - 1e-9)))
+        last = len(trajectory) - 1
+        for k in range(1, n_steps + 1):
+            i = min(last, round(k * self.timestep / trajectory.period))
+            self._set_arm(trajectory.q[i], trajectory.dq[i])
+            self._t_cmd = self._t  # exactly one physics step per sample time
+            self._run(self.timestep)
+            err = float(np.abs(self.read_state().q - trajectory.q[i]).max())
+            self.tracking.append((self._t, err))
 
     def command_velocities(self, dq: np.ndarray, duration: float) -> None:
         duration = _check_duration(duration)

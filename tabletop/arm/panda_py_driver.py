@@ -6,6 +6,13 @@ enforced here, on our side, before anything reaches the robot: every command is 
 the Panda's), or would put the TCP outside the workspace box. libfranka's own limits still
 apply on top.
 
+A time-parametrised :class:`~tabletop.arm.trajectory.JointTrajectory` is checked whole (every
+sample within the Panda's published position, velocity, acceleration and jerk limits, the
+velocity also within ``velocity_scale``, every sample's hand and TCP inside the workspace,
+starting where the arm is) before its first sample is sent; then its samples are streamed to
+panda-py's ``JointPosition`` controller (position and velocity), one per tick of a
+``create_context`` loop at the trajectory's rate (1 kHz for the default 1 ms period).
+
 Exercised here against a recording test double only (``tests/test_arm_panda_py_driver.py``);
 nothing in this module has run on hardware.
 """
@@ -20,6 +27,7 @@ import numpy as np
 from tabletop.arm.driver import JointState
 from tabletop.arm.errors import DriverError, SafetyError
 from tabletop.arm.model import PandaModel, as_arm_q
+from tabletop.arm.trajectory import PANDA_LIMITS, JointLimits, JointTrajectory, check_trajectory
 from tabletop.arm.workspace import Workspace
 from tabletop.errors import ConfigError
 
@@ -37,6 +45,9 @@ class PandaPyDriver:
         panda: an already connected ``panda_py.Panda`` (or a test double).
         controllers: the ``panda_py.controllers`` module (or a test double).
         sleep: the function that waits out a command's duration (``time.sleep``).
+        limits: the limits every trajectory sample must keep (the Panda's published ones).
+        start_tolerance: largest gap [rad] between a trajectory's first sample and the measured
+            configuration (a larger jump would trip libfranka's discontinuity reflex).
     """
 
     def __init__(
@@ -49,6 +60,8 @@ class PandaPyDriver:
         panda: object | None = None,
         controllers: object | None = None,
         sleep: Callable[[float], None] = time.sleep,
+        limits: JointLimits = PANDA_LIMITS,
+        start_tolerance: float = 0.01,
     ) -> None:
         if not 0 < velocity_scale <= 1:
             raise ConfigError(f"velocity_scale must be in (0, 1], got {velocity_scale}")
@@ -72,6 +85,8 @@ class PandaPyDriver:
         self.v_limit = self.model.v_max * velocity_scale  # (7,) [rad/s]
         self.workspace = workspace or Workspace()
         self._sleep = sleep
+        self.limits = limits
+        self.start_tolerance = float(start_tolerance)
         self._active: str | None = None  # "position" / "velocity" / None
         self._ctrl = None
         self._t0 = time.monotonic()
@@ -142,6 +157,55 @@ class PandaPyDriver:
         self._check_target(q_end, "joint velocity command")
         self._use("velocity").set_control(dq)
         self._sleep(duration)
+
+    def check_trajectory(self, trajectory: JointTrajectory) -> None:
+        """Raise :class:`SafetyError` unless every sample of ``trajectory`` is safe to send."""
+        if not isinstance(trajectory, JointTrajectory):
+            raise ConfigError(
+                f"trajectory must be a JointTrajectory, got {type(trajectory).__name__}"
+            )
+        check = check_trajectory(trajectory, self.limits)
+        if not check.ok:
+            raise SafetyError("trajectory refused: " + "; ".join(check.violations))
+        over = np.abs(trajectory.dq) > self.v_limit + 1e-9
+        if over.any():
+            k, j = np.argwhere(over)[0]
+            raise SafetyError(
+                f"trajectory refused: velocity of joint {j + 1} at sample {k} is "
+                f"{trajectory.dq[k, j]:.3f} rad/s, above velocity_scale x limit "
+                f"{self.v_limit[j]:.3f} rad/s"
+            )
+        for k, q in enumerate(trajectory.q):
+            self._check_target(q, f"trajectory sample {k}")
+        gap = float(np.abs(trajectory.q[0] - self.read_state().q).max())
+        if gap > self.start_tolerance:
+            raise SafetyError(
+                f"trajectory refused: it starts {gap:.4f} rad from the measured configuration "
+                f"(allowed {self.start_tolerance} rad)"
+            )
+
+    def execute_trajectory(self, trajectory: JointTrajectory) -> None:
+        """Check the whole trajectory, then stream its samples at its own rate.
+
+        Sample ``k`` (position and velocity) goes to the ``JointPosition`` controller on tick
+        ``k`` of ``panda.create_context(frequency=1 / period)``; the context's ``ok()`` paces the
+        loop. Raises :class:`SafetyError` before anything is sent when a sample breaks a limit,
+        and :class:`DriverError` when the robot's loop ends before the last sample.
+        """
+        self.check_trajectory(trajectory)
+        ctrl = self._use("position")
+        ctx = self.panda.create_context(
+            frequency=1.0 / trajectory.period, max_runtime=trajectory.duration + 1.0
+        )
+        sent = 0
+        with ctx:
+            while sent < len(trajectory) and ctx.ok():
+                ctrl.set_control(trajectory.q[sent], trajectory.dq[sent])
+                sent += 1
+        if sent < len(trajectory):
+            raise DriverError(
+                f"the robot's control loop ended after {sent} of {len(trajectory)} samples"
+            )
 
     def stop(self) -> None:
         """Command zero velocity (if a velocity controller runs) and stop the controller."""

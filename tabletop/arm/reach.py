@@ -13,18 +13,29 @@
 4. moves through waypoints — a lift to the transit height, a pre-approach point above the goal,
    then a vertical descent — with the mink controller tracking a point that slides along each
    segment at a bounded speed;
-5. checks every commanded step before it is sent (swept clearance bound, see
+5. keeps every commanded step inside the Panda's published joint limits
+   (:data:`~tabletop.arm.trajectory.PANDA_LIMITS`, tighter than the URDF's) and checks it
+   before it is sent (swept clearance bound, see
    :meth:`CollisionChecker.check_motion`): a step that would go below the margin is halved,
-   quartered, then refused; repeated refusals or a stall end the move as ``blocked``
-   (obstacle in the way) or ``no_progress``.
+   quartered, then refused; repeated refusals or a stall end the local move as ``blocked``
+   (obstacle in the way) or ``no_progress`` (or ``timeout``);
+6. then, when the local move ended so (``fallback``), the global planner
+   (:class:`~tabletop.arm.planner.JointPlanner`, RRT-Connect in joint space with the same
+   collision checker) plans from where the arm stopped to the goal configuration of step 3; the
+   path is time-parametrised within the Panda's limits
+   (:func:`~tabletop.arm.trajectory.time_parametrize`), executed by the driver
+   (``execute_trajectory``), and the local controller finishes the last centimetres. The
+   result's ``route`` says which way the arm went (``local`` or ``planned``) and
+   ``local_reason`` why the local move handed over.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import enum
 import logging
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from pinocchio import log3 as pin_log3
@@ -35,11 +46,21 @@ from tabletop.arm.driver import ArmDriver
 from tabletop.arm.ik import solve_ik
 from tabletop.arm.model import HOME_Q, PandaModel
 from tabletop.arm.obstacles import Box, Cylinder, obstacle_aabb
+from tabletop.arm.planner import JointPlanner, PlannerConfig, PlanResult
+from tabletop.arm.success import SUCCESS_RADIUS_M
+from tabletop.arm.trajectory import PANDA_LIMITS, TrajectoryConfig, time_parametrize
 from tabletop.arm.workspace import Workspace
 from tabletop.errors import ConfigError
 from tabletop.transforms import make_transform, rotation_about
 
-__all__ = ["ReachConfig", "ReachController", "ReachReason", "ReachResult"]
+__all__ = [
+    "GoalChoice",
+    "ReachConfig",
+    "ReachController",
+    "ReachReason",
+    "ReachResult",
+    "ReachRoute",
+]
 
 log = logging.getLogger(__name__)
 
@@ -53,6 +74,22 @@ class ReachReason(enum.StrEnum):
     BLOCKED = "blocked"  # obstacles keep the arm from getting there without contact
     NO_PROGRESS = "no_progress"  # the controller stalled away from obstacles (limits)
     TIMEOUT = "timeout"  # the step budget ran out while still moving
+
+
+class GoalChoice(enum.StrEnum):
+    """Which point a reach commanded."""
+
+    TARGET = "target"  # the target itself
+    STANDOFF = "standoff"  # the target lifted above the object it was in or on
+    ALTERNATIVE = "alternative"  # another point within goal_radius of the target (selection)
+
+
+class ReachRoute(enum.StrEnum):
+    """Which way a reach moved the arm."""
+
+    NONE = "none"  # nothing moved (refused before moving)
+    LOCAL = "local"  # the differential-IK controller alone
+    PLANNED = "planned"  # the local move stalled; the global planner's trajectory, then local
 
 
 @dataclass(frozen=True)
@@ -93,6 +130,20 @@ class ReachConfig:
     goal_posture: bool = True
     """During the move, the mink posture task pulls towards the goal configuration the check
     found (instead of the controller's own posture), so the arm ends where the check looked."""
+    goal_radius: float = 0.08
+    """When no configuration with clearance reaches the goal, points within this distance
+    [m] of the target are tried instead (0 = never); below the 10 cm success radius."""
+    goal_candidates: int = 36
+    """Most candidate points tried by the goal selection."""
+    goal_candidate_search_iters: int = 10
+    """Clearance-search solves per candidate point (``clearance_search_iters`` for the goal)."""
+    fallback: bool = True
+    """When the local move ends blocked, without progress or out of steps, plan a path to the
+    goal configuration with the global planner, execute it as a trajectory, finish locally."""
+    planner: PlannerConfig = field(default_factory=PlannerConfig)
+    """The global planner's parameters (its margin is replaced by ``clearance_margin``)."""
+    trajectory: TrajectoryConfig = field(default_factory=TrajectoryConfig)
+    """Limits scaling and sample period of the planned trajectory."""
 
     def __post_init__(self) -> None:
         for name in ("tolerance", "waypoint_tolerance", "standoff", "max_speed"):
@@ -102,6 +153,21 @@ class ReachConfig:
             raise ConfigError(f"clearance_margin must be >= 0 [m], got {self.clearance_margin}")
         if self.max_steps < 1 or self.stall_steps < 1 or self.ik_seeds < 1 or self.yaw_sweep < 1:
             raise ConfigError("max_steps, stall_steps, ik_seeds and yaw_sweep must be >= 1")
+        if not 0 <= self.goal_radius < SUCCESS_RADIUS_M:
+            raise ConfigError(
+                f"ReachConfig.goal_radius must be in [0, {SUCCESS_RADIUS_M}) m, got "
+                f"{self.goal_radius}"
+            )
+        if self.goal_candidates < 1:
+            raise ConfigError(
+                f"ReachConfig.goal_candidates must be >= 1, got {self.goal_candidates}"
+            )
+        if not isinstance(self.planner, PlannerConfig):
+            raise ConfigError(f"ReachConfig.planner must be a PlannerConfig, got {self.planner!r}")
+        if not isinstance(self.trajectory, TrajectoryConfig):
+            raise ConfigError(
+                f"ReachConfig.trajectory must be a TrajectoryConfig, got {self.trajectory!r}"
+            )
         if self.clearance_search_iters < 0 or not self.clearance_search_sigma > 0:
             raise ConfigError(
                 "clearance_search_iters must be >= 0 and clearance_search_sigma positive, got "
@@ -127,6 +193,22 @@ class ReachResult:
     wall_time_s: float  # wall-clock time of the call [s]
     standoff_applied: bool = False  # the target was inside an obstacle / on a surface
     goal_search_s: float = 0.0  # wall time of the pre-motion goal search [s]
+    route: ReachRoute = ReachRoute.NONE  # which way the arm went
+    goal_choice: GoalChoice = GoalChoice.TARGET  # which point was commanded
+    goal_candidates_tried: int = 0  # candidate points checked by the goal selection
+    local_reason: ReachReason | None = None  # why the local move handed over to the planner
+    plan: PlanResult | None = None  # the global planner's answer, when it was asked
+    trajectory_samples: int = 0  # samples of the planned trajectory sent to the driver
+
+
+@dataclass
+class _Run:
+    """Counters of one move, shared by its local and planned parts."""
+
+    min_clear: float  # [m] smallest swept clearance bound so far
+    steps: int = 0  # control steps executed
+    refused: int = 0  # steps refused by the collision check
+    steps_left: int = 0  # step budget of the current local part (set by move_to)
 
 
 def _yaw_offsets(n: int) -> np.ndarray:
@@ -146,6 +228,7 @@ class ReachController:
         workspace: the allowed TCP box.
         diffik: a prepared :class:`MinkDiffIK` (built from ``obstacles`` when omitted).
         checker: a prepared :class:`CollisionChecker` (built from ``obstacles`` when omitted).
+        planner: a prepared :class:`JointPlanner` (built on ``checker`` when omitted).
     """
 
     def __init__(
@@ -157,6 +240,7 @@ class ReachController:
         workspace: Workspace | None = None,
         diffik: MinkDiffIK | None = None,
         checker: CollisionChecker | None = None,
+        planner: JointPlanner | None = None,
     ) -> None:
         self.model = model
         self.driver = driver
@@ -165,6 +249,11 @@ class ReachController:
         self.obstacles = tuple(obstacles)
         self.diffik = diffik or MinkDiffIK(model, self.obstacles)
         self.checker = checker or CollisionChecker(model, self.obstacles)
+        self.planner = planner or JointPlanner(
+            model,
+            self.checker,
+            dataclasses.replace(self.config.planner, margin=self.config.clearance_margin),
+        )
         self._rng = np.random.default_rng(0)
 
     def set_obstacles(self, obstacles) -> None:
@@ -201,6 +290,35 @@ class ReachController:
                 break
         return goal, moved
 
+    def goal_candidates(self, target: object, goal: object) -> list[np.ndarray]:
+        """Alternative goals [(3,) m] for a blocked ``goal``, nearest to ``target`` first.
+
+        Points around the goal (8 directions in the horizontal plane and straight up, at 2-8 cm
+        steps of 2 cm), each lifted to the standoff above any object it is in or on, kept when
+        inside the workspace and within ``goal_radius`` of the target (so a TCP on one of them
+        is within the success radius), at most ``goal_candidates`` of them.
+        """
+        c = self.config
+        target = np.asarray(target, dtype=np.float64)
+        goal = np.asarray(goal, dtype=np.float64)
+        az = np.arange(8) * (np.pi / 4)
+        dirs = [np.array([np.cos(a), np.sin(a), 0.0]) for a in az] + [np.array([0.0, 0, 1])]
+        out: list[np.ndarray] = []
+        for r in np.arange(0.02, c.goal_radius + 1e-9, 0.02):
+            for d in dirs:
+                p, _ = self.standoff_goal(goal + r * d)
+                if not self.workspace.contains(p):
+                    continue
+                if np.linalg.norm(p - target) > c.goal_radius:
+                    continue
+                if any(np.linalg.norm(p - o) < 0.01 for o in out) or (
+                    np.linalg.norm(p - goal) < 0.01
+                ):
+                    continue
+                out.append(p)
+        out.sort(key=lambda p: float(np.linalg.norm(p - target)))
+        return out[: c.goal_candidates]
+
     def _transit_height(self, goal: np.ndarray) -> float:
         tops = [obstacle_aabb(ob)[1][2] for ob in self.obstacles]
         z = max(
@@ -210,7 +328,12 @@ class ReachController:
         return float(min(z, self.workspace.upper[2] - 0.05))
 
     def _goal_configuration(
-        self, goal: np.ndarray, R: np.ndarray, q_now: np.ndarray, free_yaw: bool = True
+        self,
+        goal: np.ndarray,
+        R: np.ndarray,
+        q_now: np.ndarray,
+        free_yaw: bool = True,
+        search_iters: int | None = None,
     ) -> tuple[str, np.ndarray | None]:
         """(status, q) of the reachability check: 'ok', 'unreachable' or 'blocked'.
 
@@ -263,7 +386,7 @@ class ReachController:
                 for seed in seeds[:2]:
                     if solve(rotation_about("z", dyaw) @ R, seed, False):
                         return "ok", best_q
-        for _ in range(c.clearance_search_iters):
+        for _ in range(c.clearance_search_iters if search_iters is None else search_iters):
             seed = self.model.clip(best_q + rng.normal(0.0, c.clearance_search_sigma, 7))
             if solve(R, seed, True, posture=seed):
                 return "ok", best_q
@@ -282,6 +405,7 @@ class ReachController:
         """
         wall0 = time.perf_counter()
         goal_search_s = 0.0
+        choice, tried = GoalChoice.TARGET, 0
         target = np.array(target, dtype=np.float64)
         if target.shape != (3,) or not np.all(np.isfinite(target)):
             raise ConfigError(f"target must be a finite (3,) point [m], got {target.tolist()}")
@@ -293,7 +417,16 @@ class ReachController:
         min_clear0 = self.checker.clearance(q).distance
 
         def result(
-            reason: ReachReason, goal, steps=0, refused=0, min_clear=min_clear0, moved=False
+            reason: ReachReason,
+            goal,
+            steps=0,
+            refused=0,
+            min_clear=min_clear0,
+            moved=False,
+            route=ReachRoute.NONE,
+            local_reason=None,
+            plan=None,
+            samples=0,
         ):
             tcp = self.model.fk(self.driver.read_state().q)[:3, 3]
             err = float(np.linalg.norm(tcp - goal))
@@ -313,6 +446,12 @@ class ReachController:
                 wall_time_s=time.perf_counter() - wall0,
                 standoff_applied=moved,
                 goal_search_s=goal_search_s,
+                route=route,
+                goal_choice=choice,
+                goal_candidates_tried=tried,
+                local_reason=local_reason,
+                plan=plan,
+                trajectory_samples=samples,
             )
 
         if not self.workspace.contains(target):
@@ -326,8 +465,25 @@ class ReachController:
             R = np.asarray(orientation, dtype=np.float64)
             if R.shape != (3, 3):
                 raise ConfigError(f"orientation must be a (3, 3) rotation, got {R.shape}")
+        if moved:
+            choice = GoalChoice.STANDOFF
         t_search = time.perf_counter()
         status, q_goal = self._goal_configuration(goal, R, q, free_yaw=orientation is None)
+        if status == "blocked" and c.goal_radius > 0:
+            for cand in self.goal_candidates(target, goal):
+                tried += 1
+                st, qc = self._goal_configuration(
+                    cand, R, q, orientation is None, c.goal_candidate_search_iters
+                )
+                if st == "ok":
+                    status, q_goal, goal, choice = st, qc, cand, GoalChoice.ALTERNATIVE
+                    log.info(
+                        "goal selection: %s instead of %s (%.3f m from the target)",
+                        np.round(goal, 3).tolist(),
+                        np.round(target, 3).tolist(),
+                        float(np.linalg.norm(goal - target)),
+                    )
+                    break
         goal_search_s = time.perf_counter() - t_search
         if status == "unreachable":
             return result(ReachReason.UNREACHABLE, goal, moved=moved)
@@ -349,67 +505,135 @@ class ReachController:
             if z_tr - goal[2] > 0.02:
                 waypoints.append((np.array([goal[0], goal[1], z_tr]), c.waypoint_tolerance))
             waypoints.append((goal, c.tolerance))
-
-            steps = refused = 0
-            min_clear = self.checker.clearance(q).distance
-            dt = self.diffik.config.dt
-            step_len = c.max_speed * dt
-            for wp, tol in waypoints:
-                start = self.model.fk(q)[:3, 3]
-                seg = wp - start
-                seg_len = float(np.linalg.norm(seg))
-                s = 0.0
-                best, since_best, consecutive_refusals = np.inf, 0, 0
-                while True:
-                    tcp = self.model.fk(q)[:3, 3]
-                    dist = float(np.linalg.norm(tcp - wp))
-                    if dist <= tol and s >= seg_len:
-                        break
-                    if steps >= c.max_steps:
-                        self.driver.stop()
-                        return result(ReachReason.TIMEOUT, goal, steps, refused, min_clear, moved)
-                    if dist < best - 1e-3:
-                        best, since_best = dist, 0
-                    else:
-                        since_best += 1
-                    if since_best >= c.stall_steps and s >= seg_len:
-                        self.driver.stop()
-                        near = self.checker.clearance(q).distance
-                        reason = (
-                            ReachReason.BLOCKED
-                            if near < self.diffik.config.collision_min_distance + 0.01
-                            else ReachReason.NO_PROGRESS
-                        )
-                        return result(reason, goal, steps, refused, min_clear, moved)
-                    s = min(seg_len, s + step_len)
-                    carrot = start + (seg * (s / seg_len) if seg_len > 0 else 0.0)
-                    ik = self.diffik.step(q, make_transform(R, carrot))
-                    c0 = self.checker.clearance(q)
-                    ok = False
-                    if ik.solved:
-                        q_next = ik.q
-                        for _ in range(3):  # the full step, then half, then a quarter
-                            mc = self.checker.check_motion(q, q_next, c.clearance_margin, c0)
-                            if mc.ok:
-                                ok = True
-                                break
-                            q_next = q + 0.5 * (q_next - q)
-                    if not ok:
-                        refused += 1
-                        consecutive_refusals += 1
-                        if consecutive_refusals >= c.max_refusals:
-                            self.driver.stop()
-                            return result(
-                                ReachReason.BLOCKED, goal, steps, refused, min_clear, moved
-                            )
-                        self.driver.command_positions(q, dt)  # hold position for one period
-                        q = self.driver.read_state().q
-                        continue
-                    consecutive_refusals = 0
-                    min_clear = min(min_clear, mc.swept_lower_bound)
-                    self.driver.command_positions(q_next, dt)
-                    steps += 1
-                    q = self.driver.read_state().q
-            return result(ReachReason.REACHED, goal, steps, refused, min_clear, moved)
+            run = _Run(min_clear=self.checker.clearance(q).distance, steps_left=c.max_steps)
+            reason = self._follow(waypoints, R, run)
+            if reason == ReachReason.REACHED or not c.fallback:
+                return result(
+                    reason, goal, run.steps, run.refused, run.min_clear, moved, ReachRoute.LOCAL
+                )
+            # The local move stalled: the global planner, then the local finish.
+            local_reason = reason
+            plan, samples = self._planned_move(q_goal, run)
+            if plan.ok:
+                run.steps_left = c.max_steps  # the finish has its own step budget
+                tcp = self.model.fk(self.driver.read_state().q)[:3, 3]
+                reason = (
+                    ReachReason.REACHED
+                    if np.linalg.norm(tcp - goal) <= c.tolerance
+                    else self._follow([(goal, c.tolerance)], R, run)
+                )
+            return result(
+                reason,
+                goal,
+                run.steps,
+                run.refused,
+                run.min_clear,
+                moved,
+                ReachRoute.PLANNED,
+                local_reason,
+                plan,
+                samples,
+            )
         finally:
             self.diffik.set_posture(posture0)
+
+    def _planned_move(self, q_goal: np.ndarray, run: _Run) -> tuple[PlanResult, int]:
+        """Plan from the measured configuration to ``q_goal``, execute it; (plan, samples)."""
+        q_now = self.driver.read_state().q
+        # Plan to the goal configuration inside the published limits (the local finish
+        # covers the difference when the IK solution touched the URDF's wider ones).
+        lo, hi = PANDA_LIMITS.q_lower + 1e-3, PANDA_LIMITS.q_upper - 1e-3
+        q_to = np.clip(q_goal, lo, hi)
+        # Likewise the start, when tracking left the arm a hair outside (at most 0.01 rad:
+        # the trajectory may start that far from the measured configuration).
+        q_from = np.clip(q_now, lo, hi)
+        if np.abs(q_from - q_now).max() > 0.01:
+            q_from = q_now
+        plan = self.planner.plan(q_from, q_to)
+        if not plan.ok:
+            log.info(
+                "global planner: %s after %.3f s (from %s to %s)",
+                plan.reason.value,
+                plan.planning_time_s,
+                np.round(q_now, 4).tolist(),
+                np.round(q_to, 4).tolist(),
+            )
+            return plan, 0
+        traj = time_parametrize(plan.path, PANDA_LIMITS, self.config.trajectory)
+        self.driver.execute_trajectory(traj)
+        run.min_clear = min(run.min_clear, plan.min_clearance_m)
+        log.info(
+            "global planner: %d waypoints (%d before shortcuts), %.3f s planning, %.2f s motion",
+            len(plan.path),
+            plan.raw_waypoints,
+            plan.planning_time_s,
+            traj.duration,
+        )
+        return plan, len(traj)
+
+    def _follow(self, waypoints, R: np.ndarray, run: _Run) -> ReachReason:
+        """The local controller along the TCP waypoints [(point (3,) [m], tolerance [m])].
+
+        Updates ``run`` (steps, refusals, clearance); returns ``REACHED`` or why it stopped.
+        """
+        c = self.config
+        q = self.driver.read_state().q
+        dt = self.diffik.config.dt
+        step_len = c.max_speed * dt
+        steps0 = run.steps
+        lo = np.maximum(self.model.q_lower, PANDA_LIMITS.q_lower)
+        hi = np.minimum(self.model.q_upper, PANDA_LIMITS.q_upper)
+        for wp, tol in waypoints:
+            start = self.model.fk(q)[:3, 3]
+            seg = wp - start
+            seg_len = float(np.linalg.norm(seg))
+            s = 0.0
+            best, since_best, consecutive_refusals = np.inf, 0, 0
+            while True:
+                tcp = self.model.fk(q)[:3, 3]
+                dist = float(np.linalg.norm(tcp - wp))
+                if dist <= tol and s >= seg_len:
+                    break
+                if run.steps - steps0 >= run.steps_left:
+                    self.driver.stop()
+                    return ReachReason.TIMEOUT
+                if dist < best - 1e-3:
+                    best, since_best = dist, 0
+                else:
+                    since_best += 1
+                if since_best >= c.stall_steps and s >= seg_len:
+                    self.driver.stop()
+                    near = self.checker.clearance(q).distance
+                    if near < self.diffik.config.collision_min_distance + 0.01:
+                        return ReachReason.BLOCKED
+                    return ReachReason.NO_PROGRESS
+                s = min(seg_len, s + step_len)
+                carrot = start + (seg * (s / seg_len) if seg_len > 0 else 0.0)
+                ik = self.diffik.step(q, make_transform(R, carrot))
+                c0 = self.checker.clearance(q)
+                ok = False
+                if ik.solved:
+                    # Inside the Panda's published limits (tighter than the URDF's that mink
+                    # and the IK use), never further outside than the arm already is.
+                    q_next = np.clip(ik.q, np.minimum(lo, q), np.maximum(hi, q))
+                    for _ in range(3):  # the full step, then half, then a quarter
+                        mc = self.checker.check_motion(q, q_next, c.clearance_margin, c0)
+                        if mc.ok:
+                            ok = True
+                            break
+                        q_next = q + 0.5 * (q_next - q)
+                if not ok:
+                    run.refused += 1
+                    consecutive_refusals += 1
+                    if consecutive_refusals >= c.max_refusals:
+                        self.driver.stop()
+                        return ReachReason.BLOCKED
+                    self.driver.command_positions(q, dt)  # hold position for one period
+                    q = self.driver.read_state().q
+                    continue
+                consecutive_refusals = 0
+                run.min_clear = min(run.min_clear, mc.swept_lower_bound)
+                self.driver.command_positions(q_next, dt)
+                run.steps += 1
+                q = self.driver.read_state().q
+        return ReachReason.REACHED

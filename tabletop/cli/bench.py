@@ -100,6 +100,12 @@ def _print_bench(results: dict) -> None:
     )
     print(f"       reasons {r['reasons']}")
     print(
+        f"       routes {r['routes']}: global-planner fallback on {r['fallback_share']:.1%} of "
+        f"the reaches that moved ({r['fallback_reached']} of them reached); planning "
+        f"{r['planning_ms_median']:.0f} ms median ({r['planning_ms_p95']:.0f} p95); "
+        f"alternative goals {r['alternative_goals']}"
+    )
+    print(
         f"       mink IK step {r['ik_step_ms_median']:.3f} ms median "
         f"({r['ik_step_ms_p95']:.3f} p95); collision check "
         f"{r['collision_check_ms_median']:.3f} ms ({r['collision_check_ms_p95']:.3f} p95); "

@@ -167,9 +167,19 @@ class RandomSpec:
     duplicates: int = 2
     """How many kinds appear twice, in different colours."""
     kinds: tuple[str, ...] = ()
-    """Kinds to draw from (empty = every catalog kind)."""
+    """Kinds to draw from (empty = every catalog kind the profile draws)."""
+    profile: str = "table"
+    """Placement profile (:data:`tabletop.sim.generator.PROFILES`): ``table`` spreads the
+    objects over the table; ``clutter`` packs them densely, tall kinds beside low ones."""
 
     def __post_init__(self) -> None:
+        from tabletop.sim.generator import PROFILES
+
+        if self.profile not in PROFILES:
+            raise SceneError(
+                f"random.profile: unknown profile {self.profile!r}; valid profiles: "
+                f"{sorted(PROFILES)}"
+            )
         if self.count < 0 or self.duplicates < 0 or 2 * self.duplicates > self.count:
             raise SceneError(
                 f"random: need count >= 0 and 0 <= 2*duplicates <= count, got "
