@@ -243,6 +243,18 @@ def test_a_two_coloured_object_fits_either_of_its_colours_but_no_other(scene):
     assert scene.colour_match(scene.colour_weights("red"), [domino])[0] < 0.1
 
 
+def test_the_colour_of_a_part_need_not_cover_much_of_the_thing(scene):
+    # A football: white panels and black patches covering a quarter of it.
+    ball = _instance((190, 190, 190), [(240, 240, 240), (25, 25, 25)], [0.75, 0.25])
+    w = scene.colour_weights("black")
+    whole = scene.colour_match(w, [ball])[0]  # "the black ball": not really
+    part = scene.colour_match(w, [ball], of_part=True)[0]  # "the ball with black patches"
+    assert part > 0.9 and part > whole + 0.2
+    assert scene.colour_match(scene.colour_weights("red"), [ball], of_part=True)[0] < 0.1
+    m = scene.match("the ball with black patches")
+    assert m.colour == "black"
+
+
 def test_of_two_objects_a_colour_fits_the_nearer_one_is_meant():
     # A grey teddy bear and a white one in shadow: "grey" fits both (light grey is a grey),
     # but the grey one is what a person means, and "white" means the other.

@@ -403,7 +403,8 @@ class ObjectModule:
         close = None
         if colour:
             w = self.colour_weights(colour)
-            cm = np.maximum(self.colour_match(w, inst), self.learned_colour(w, inst, want))
+            of_part = _colour_of_a_part(query, colour)
+            cm = np.maximum(self.colour_match(w, inst, of_part), self.learned_colour(w, inst, want))
             if n:
                 d = self.colour_distance(w, inst)
                 close = np.exp(-(d - d.min()) / cfg.closeness_scale)
@@ -507,14 +508,17 @@ class ObjectModule:
         name's colour lit at the nearest allowed gain."""
         return delta_e(np.asarray(lab)[None, :, None, :], self._lexicon[1][:, None, :, :]).min(0)
 
-    def colour_match(self, weights: np.ndarray, instances: list[ObjectInstance]) -> np.ndarray:
+    def colour_match(
+        self, weights: np.ndarray, instances: list[ObjectInstance], of_part: bool = False
+    ) -> np.ndarray:
         """(n,) in [0, 1]: how well each instance's measured colour fits the colour phrase
         (``weights``: the lexicon names it means, :meth:`colour_weights`).
 
         The instance's mean colour is scored by :meth:`colour_fit`; an instance of two
         distinct colours (its palette: a domino's black faces and white edges) also fits a
         colour that one of them fits, scaled down where that colour covers less than a third
-        of it (under a quarter: not at all)."""
+        of it (under a quarter: not at all) — unless the phrase names the colour of a part
+        (``of_part``: "the ball with black patches"), which need not cover much."""
         if not instances:
             return np.zeros(0)
         fit = self.colour_fit(np.stack([i.lab for i in instances])) @ weights
@@ -522,7 +526,8 @@ class ObjectModule:
             colours, shares = _palette_parts(inst)
             if len(colours):
                 part = self.colour_fit(colours) @ weights
-                fit[k] = max(fit[k], float((part * np.minimum(shares / (1 / 3), 1.0)).max()))
+                scale = 1.0 if of_part else np.minimum(shares / (1 / 3), 1.0)
+                fit[k] = max(fit[k], float((part * scale).max()))
         return fit
 
     def heatmap(self, query: str, decay: float, judge: Judge) -> Heatmap:
@@ -611,6 +616,17 @@ class ObjectModule:
 
 #: A palette colour covering less of an instance than this share does not speak for it.
 PALETTE_MIN_SHARE = 0.25
+
+
+def _colour_of_a_part(query: str, colour: str) -> bool:
+    """Whether the query's colour phrase describes a part of the thing: it follows "with" or
+    "having" ("the ball with black pentagons", "a mug with a red handle")."""
+    words = str(query).lower().replace("-", " ").split()
+    first = colour.replace("-", " ").split()[0] if colour else ""
+    if first not in words:
+        return False
+    at = words.index(first)
+    return any(w in ("with", "having") for w in words[:at])
 
 
 def _palette_parts(inst: ObjectInstance) -> tuple[np.ndarray, np.ndarray]:
