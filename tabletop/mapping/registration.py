@@ -21,7 +21,22 @@ three of a pose's six degrees of freedom (height, roll, pitch).
 Corrections smaller than the fit's own noise (``deadband_m``, ``deadband_rad``) are not
 applied, so exact poses (the simulator's) are left exactly as they are; corrections larger than
 ``max_correction_m``/``max_correction_rad`` are refused as fits to something else (a box top,
-a tray). Horizontal position and yaw are not observable from a plane and stay as recorded.
+a tray).
+
+Horizontal position and yaw are not observable from a plane. With ``planar``, a third pass
+registers them on what stands on the table:
+
+3. each frame's points above the table are aligned in x, y and yaw to the points above the
+   table of the *other* frames (the scan split into even and odd frames, each half aligned to
+   the other, so a frame never pulls towards its own points): nearest neighbours within
+   ``planar_match_m`` in 3D, a closed-form rigid fit in the horizontal plane, repeated
+   ``planar_icp_iterations`` times; the two halves' references are rebuilt from the corrected
+   frames ``planar_rounds`` times. The same deadband and bounds apply
+   (``planar_deadband_m``/``planar_deadband_rad``, ``planar_max_m``/``planar_max_rad``).
+
+Per-frame pose noise and a wrist camera's extrinsic error (which moves each view differently
+as the hand turns) both show as frames that disagree with their neighbours; what all frames
+agree on stays where it was recorded.
 """
 
 from __future__ import annotations
@@ -61,12 +76,36 @@ class RegistrationConfig:
     max_correction_rad: float = math.radians(5.0)
     """A frame whose table is tilted more [rad] against the reference is not corrected."""
     seed: int = 0
+    planar: bool = True
+    """Register x, y and yaw on the points above the table (pass 3 of the module)."""
+    planar_voxel_m: float = 0.02
+    """The other frames' points are averaged in voxels of this size [m] before matching."""
+    planar_match_m: float = 0.02
+    """Nearest neighbours farther apart [m] are not matched."""
+    planar_icp_iterations: int = 8
+    """Alignment steps per frame and round."""
+    planar_rounds: int = 6
+    """Rounds of rebuilding the references from the corrected frames."""
+    planar_min_points: int = 80
+    """A frame needs this many matched points above the table to be registered."""
+    planar_deadband_m: float = 0.001
+    """Horizontal corrections below this [m] are noise: not applied (unless the yaw is)."""
+    planar_deadband_rad: float = math.radians(0.1)
+    """Yaw corrections below this [rad] are noise: not applied (unless the shift is)."""
+    planar_max_m: float = 0.03
+    """A frame that would move farther [m] is not corrected."""
+    planar_max_rad: float = math.radians(4.0)
+    """A frame that would turn more [rad] is not corrected."""
 
     def __post_init__(self) -> None:
         for name in ("samples", "iterations"):
             v = getattr(self, name)
             if not isinstance(v, int) or isinstance(v, bool) or v < 3:
                 raise ConfigError(f"registration {name} must be an integer >= 3, got {v!r}")
+        for name in ("planar_icp_iterations", "planar_rounds", "planar_min_points"):
+            v = getattr(self, name)
+            if not isinstance(v, int) or isinstance(v, bool) or v < 1:
+                raise ConfigError(f"registration {name} must be an integer >= 1, got {v!r}")
         for name in (
             "inlier_m",
             "max_tilt_rad",
@@ -74,6 +113,12 @@ class RegistrationConfig:
             "deadband_rad",
             "max_correction_m",
             "max_correction_rad",
+            "planar_voxel_m",
+            "planar_match_m",
+            "planar_deadband_m",
+            "planar_deadband_rad",
+            "planar_max_m",
+            "planar_max_rad",
         ):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not 0 <= v < 10:
@@ -218,4 +263,113 @@ def table_corrections(
         t = centroid - R @ centroid + dz * ref_n
         C[i] = make_transform(R, t)
         corrected[i] = True
+    if cfg.planar:
+        P = _planar_corrections(points, C, T_world_cam[:, :3, 3], ref_h, cfg)
+        moved = ~np.all(np.isclose(P, np.eye(4), rtol=0, atol=0), axis=(1, 2))
+        C = P @ C
+        corrected |= moved
     return TableCorrections(C, corrected, len(planes), ref_h)
+
+
+def _yaw_transform(theta: float, t: np.ndarray) -> np.ndarray:
+    c, s = math.cos(theta), math.sin(theta)
+    return make_transform(np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]), [*t, 0.0])
+
+
+def _normals(p: np.ndarray, tree, k: int = 30) -> np.ndarray:
+    """(m, 3) unit surface normals at the points ``p`` (the least spread direction of their
+    ``k`` nearest neighbours in ``tree``)."""
+    _, j = tree.query(p, k=min(k, len(tree.data)))
+    nb = tree.data[j] - tree.data[j].mean(axis=1, keepdims=True)
+    _, _, vt = np.linalg.svd(nb, full_matrices=False)
+    return vt[:, 2, :]
+
+
+def _step_yaw(p: np.ndarray, q: np.ndarray, n: np.ndarray) -> tuple[float, np.ndarray]:
+    """(yaw, (2,) shift): the small motion in the horizontal plane that best brings the points
+    ``p`` onto the planes through ``q`` with normals ``n`` ((m, 3) each; point-to-plane, so a
+    point may slide along the surface it lies on)."""
+    J = np.stack([n[:, 1] * p[:, 0] - n[:, 0] * p[:, 1], n[:, 0], n[:, 1]], axis=1)
+    r = ((q - p) * n).sum(axis=1)
+    x = np.linalg.solve(J.T @ J + 1e-9 * np.eye(3), J.T @ r)
+    return float(x[0]), x[1:]
+
+
+def _voxel_means(p: np.ndarray, size: float) -> np.ndarray:
+    """The mean of ``p``'s points in each ``size`` voxel: many noisy views of a surface averaged
+    into one estimate of it (nearest neighbours in the raw union of views find some noisy
+    copy of a point close by whatever the frame's error, and pull it nowhere)."""
+    key = np.floor(p / size).astype(np.int64)
+    _, inv, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+    out = np.zeros((len(counts), 3))
+    np.add.at(out, inv.ravel(), p)
+    return out / counts[:, None]
+
+
+def _planar_corrections(
+    points: list[np.ndarray | None],
+    C: np.ndarray,
+    cameras: np.ndarray,
+    table_h: float,
+    cfg: RegistrationConfig,
+) -> np.ndarray:
+    """(N, 4, 4) x/y/yaw corrections (applied after ``C``): pass 3 of the module."""
+    from scipy.spatial import cKDTree
+
+    n = len(points)
+    P = np.tile(np.eye(4), (n, 1, 1))
+    above: list[np.ndarray | None] = []
+    for i, pw in enumerate(points):
+        if pw is None:
+            above.append(None)
+            continue
+        q = pw @ C[i][:3, :3].T + C[i][:3, 3]
+        # above the table, and not the gripper's own fingers in front of the camera
+        far = np.linalg.norm(pw - cameras[i], axis=1) > 0.15
+        keep = far & (q[:, 2] > table_h + 0.008) & (q[:, 2] < table_h + 0.35)
+        above.append(q[keep] if keep.sum() >= cfg.planar_min_points else None)
+    halves = (np.arange(n) % 2 == 0, np.arange(n) % 2 == 1)
+    for round_ in range(cfg.planar_rounds):
+        voxel = max(cfg.planar_voxel_m * 0.75**round_, 0.004)  # coarse to fine
+        moved = [
+            None if a is None else a @ P[i][:3, :3].T + P[i][:3, 3] for i, a in enumerate(above)
+        ]
+        trees = []
+        for half in halves:
+            ref = [moved[i] for i in np.flatnonzero(half) if moved[i] is not None]
+            if not ref:
+                trees.append(None)
+                continue
+            tree = cKDTree(_voxel_means(np.concatenate(ref), voxel))
+            trees.append((tree, _normals(tree.data, tree)))
+        for i, a in enumerate(above):
+            ref = trees[1 - i % 2]
+            if a is None or ref is None:
+                continue
+            tree, normals = ref
+            # yaw about the frame's own points (well conditioned), then a shift
+            centre = np.array([*a[:, :2].mean(axis=0), 0.0])
+            local = a - centre
+            theta, t = 0.0, np.zeros(2)
+            for _ in range(cfg.planar_icp_iterations):
+                cur = local @ _yaw_transform(theta, t)[:3, :3].T + [*t, 0.0] + centre
+                d, j = tree.query(cur, distance_upper_bound=cfg.planar_match_m)
+                ok = np.isfinite(d)
+                if ok.sum() < cfg.planar_min_points:
+                    break
+                dth, dt = _step_yaw(cur[ok] - centre, tree.data[j[ok]] - centre, normals[j[ok]])
+                c, s = math.cos(dth), math.sin(dth)
+                t = np.array([[c, -s], [s, c]]) @ t + dt
+                theta += dth
+            else:
+                shift = float(np.linalg.norm(t))
+                if shift > cfg.planar_max_m or abs(theta) > cfg.planar_max_rad:
+                    continue
+                if shift < cfg.planar_deadband_m and abs(theta) < cfg.planar_deadband_rad:
+                    P[i] = np.eye(4)
+                    continue
+                Rz = _yaw_transform(theta, np.zeros(2))
+                P[i] = make_transform(
+                    Rz[:3, :3], centre + np.array([*t, 0.0]) - Rz[:3, :3] @ centre
+                )
+    return P
