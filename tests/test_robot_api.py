@@ -203,7 +203,7 @@ def test_a_point_beside_a_tall_object_is_approached_within_the_success_radius(ar
     )
     goal, ref = arm.approach_goal(point)
     np.testing.assert_allclose(ref, point, atol=0.011)  # nothing stands there: the table top
-    np.testing.assert_allclose(goal, ref + [0, 0, arm.spatial.above_gap], atol=1e-9)
+    np.testing.assert_allclose(goal, ref + np.array([0, 0, arm.spatial.above_gap]), atol=1e-9)
     # the highest surface within the gripper's radius is the bear's top
     assert arm.approach_radius > 0.03
     arm.reset()
