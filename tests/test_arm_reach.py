@@ -154,6 +154,8 @@ def test_invalid_target_and_config():
 def test_non_finite_target_is_refused(ctrl):
     with pytest.raises(ConfigError, match=r"target must be a finite \(3,\) point"):
         ctrl.move_to([np.nan, 0.0, 0.1])
+    with pytest.raises(ConfigError, match=r"reference must be a finite \(3,\) point"):
+        ctrl.move_to([0.5, 0.0, 0.1], reference=[0.5, 0.0])
 
 
 # Benchmark targets (seed 0) where the local controller stalls beside objects (76: low between

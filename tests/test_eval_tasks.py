@@ -405,6 +405,51 @@ def test_shipped_suites_cover_every_goal_type():
     assert len(demo.goals) <= 30
 
 
+def test_shipped_clutter_suites_are_dense_tables_with_goals_on_beside_and_between():
+    from tabletop.eval.paraphrase import HELDOUT_SEEDS, TUNE_SEEDS
+    from tabletop.eval.runner import collect_task_files
+    from tabletop.eval.suites import CLUTTER_SEEDS, DEFAULT_SUITES
+    from tabletop.sim.generator import TALL_KINDS
+
+    files = collect_task_files("clutter")
+    assert [f.scene.random["seed"] for f in files] == list(CLUTTER_SEEDS)
+    used = {s["random"]["seed"] for _, s, _ in DEFAULT_SUITES if "random" in s}
+    used |= {*TUNE_SEEDS, *HELDOUT_SEEDS, *range(700, 706), 900, 901, 902}
+    assert not used & set(CLUTTER_SEEDS)
+    for f in files:
+        spec = f.scene.load()
+        kinds = [o.kind for o in spec.objects]
+        assert f.scene.random["profile"] == "clutter" and len(kinds) >= 10
+        assert sum(kinds.count(k) == 2 for k in set(kinds)) >= 3
+        assert any(k in TALL_KINDS for k in kinds)
+        relations = {g.relation for g in f.goals if g.type == "spatial"}
+        assert {g.type for g in f.goals} == {"object", "spatial"}
+        assert "between" in relations and len(relations) >= 3, (f.name, relations)
+    assert sum(len(f.goals) for f in files) >= 100
+
+
+def test_reach_summary_counts_right_targets_routes_and_audited_blocks():
+    def g(gid, success, terr, route, reach="reached", audit="", plan=None):
+        return GoalResult(
+            gid, "object", gid, gid, "done", success=success, target_error_m=terr,
+            route=route, reach=reach, audit=audit, planning_s=plan,
+        )  # fmt: skip
+
+    goals = [
+        g("a", True, 0.01, "local"),
+        g("b", False, 0.02, "none", "blocked", "feasible"),
+        g("c", False, 0.30, "none", "blocked", "infeasible"),  # wrong target: not counted
+        g("d", True, 0.05, "planned", plan=0.2),
+    ]
+    x = EvalResult(["t"], [EncoderRun("oracle", {}, True, tasks=[TaskRun("t", "t", "s", goals)])])
+    r = x.to_json()["reach"]
+    assert (r["right_target"], r["right_target_successes"]) == (3, 2)
+    assert r["routes"] == {"none": 2, "local": 1, "planned": 1} and r["fallback_share"] == 0.5
+    assert r["planning_ms_median"] == pytest.approx(200.0)
+    assert (r["blocked"], r["blocked_audit_feasible"]) == (2, 1)
+    assert "67 (2/3)" in x.reach_markdown() and "found a collision-free" in x.reach_markdown()
+
+
 def test_every_relation_is_a_target_primitive_of_the_robot_api():
     from tabletop.eval.tasks import RELATIONS
     from tabletop.robot.primitives import primitive

@@ -192,6 +192,32 @@ def test_sim_arm_spatial_primitive_without_contact(arm, gt):
     assert arm.contacts[-2:] == [0, 0]
 
 
+def test_a_point_beside_a_tall_object_is_approached_within_the_success_radius(arm, gt):
+    """On the table 3 cm from the teddy bear (12 cm tall): clearing the highest surface in the
+    gripper's disc would put the TCP 4 cm over the bear, 16 cm from the point; the arm goes
+    4 cm over the table instead, with the bear an obstacle, and ends within the goal radius
+    of the point without touching anything."""
+    bear = gt["brown_teddy_bear"]
+    point = np.array(
+        [bear["aabb_max"][0] + 0.03, (bear["aabb_min"][1] + bear["aabb_max"][1]) / 2, 0]
+    )
+    goal, ref = arm.approach_goal(point)
+    np.testing.assert_allclose(ref, point, atol=0.011)  # nothing stands there: the table top
+    np.testing.assert_allclose(goal, ref + np.array([0, 0, arm.spatial.above_gap]), atol=1e-9)
+    # the highest surface within the gripper's radius is the bear's top
+    assert arm.approach_radius > 0.03
+    arm.reset()
+    r = arm.move_to(point)
+    assert r.reached, r.reason
+    assert np.linalg.norm(r.final_tcp - point) <= arm.controller.config.goal_radius + 0.005
+    assert arm.contacts[-1] == 0
+    # on an object, the reference is its top: the goal stays above_gap over it
+    lego = gt["red_lego_brick"]
+    centre = (np.array(lego["aabb_min"]) + np.array(lego["aabb_max"])) / 2
+    goal, ref = arm.approach_goal(centre)
+    assert abs(ref[2] - lego["aabb_max"][2]) <= 0.015 and goal[2] >= ref[2] + 0.039
+
+
 def test_mobile_base_plans_around_obstacles(rec_map, gt):
     base = MobileBase(rec_map[1], start=(0.30, 0.0))
     tray = gt["tray"]

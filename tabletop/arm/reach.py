@@ -291,11 +291,12 @@ class ReachController:
         return goal, moved
 
     def goal_candidates(self, target: object, goal: object) -> list[np.ndarray]:
-        """Alternative goals [(3,) m] for a blocked ``goal``, nearest to ``target`` first.
+        """Alternative goals [(3,) m] for a blocked ``goal``, nearest to ``target`` (the
+        reach's reference) first.
 
         Points around the goal (8 directions in the horizontal plane and straight up, at 2-8 cm
         steps of 2 cm), each lifted to the standoff above any object it is in or on, kept when
-        inside the workspace and within ``goal_radius`` of the target (so a TCP on one of them
+        inside the workspace and within ``goal_radius`` of ``target`` (so a TCP on one of them
         is within the success radius), at most ``goal_candidates`` of them.
         """
         c = self.config
@@ -393,12 +394,17 @@ class ReachController:
         return "blocked", best_q
 
     # ------------------------------------------------------------------ motion
-    def move_to(self, target: object, orientation: object | None = None) -> ReachResult:
+    def move_to(
+        self, target: object, orientation: object | None = None, *, reference: object | None = None
+    ) -> ReachResult:
         """Move the TCP to ``target`` (3,) [m], world frame; see the module docstring.
 
         Args:
             target: the point to reach.
             orientation: (3, 3) R_world_tcp; default top-down, yawed towards the target.
+            reference: (3,) [m] the point the reach is judged by (the object's top when
+                ``target`` is an approach point above it); the goal selection keeps its
+                alternative goals within ``goal_radius`` of it. Default: ``target``.
 
         Returns:
             a :class:`ReachResult`; failures are reasons in it, never exceptions.
@@ -409,6 +415,9 @@ class ReachController:
         target = np.array(target, dtype=np.float64)
         if target.shape != (3,) or not np.all(np.isfinite(target)):
             raise ConfigError(f"target must be a finite (3,) point [m], got {target.tolist()}")
+        ref = target if reference is None else np.array(reference, dtype=np.float64)
+        if ref.shape != (3,) or not np.all(np.isfinite(ref)):
+            raise ConfigError(f"reference must be a finite (3,) point [m], got {ref.tolist()}")
         c = self.config
         state = self.driver.read_state()
         t_start = state.time_s
@@ -470,7 +479,7 @@ class ReachController:
         t_search = time.perf_counter()
         status, q_goal = self._goal_configuration(goal, R, q, free_yaw=orientation is None)
         if status == "blocked" and c.goal_radius > 0:
-            for cand in self.goal_candidates(target, goal):
+            for cand in self.goal_candidates(ref, goal):
                 tried += 1
                 st, qc = self._goal_configuration(
                     cand, R, q, orientation is None, c.goal_candidate_search_iters
@@ -478,10 +487,10 @@ class ReachController:
                 if st == "ok":
                     status, q_goal, goal, choice = st, qc, cand, GoalChoice.ALTERNATIVE
                     log.info(
-                        "goal selection: %s instead of %s (%.3f m from the target)",
+                        "goal selection: %s instead of %s (%.3f m from the reference)",
                         np.round(goal, 3).tolist(),
                         np.round(target, 3).tolist(),
-                        float(np.linalg.norm(goal - target)),
+                        float(np.linalg.norm(goal - ref)),
                     )
                     break
         goal_search_s = time.perf_counter() - t_search

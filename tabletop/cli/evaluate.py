@@ -376,7 +376,8 @@ def add_commands(sub) -> None:
         nargs="+",
         help="task files (.toml/.json), directories of them, or shipped names: 'default' (the "
         "default suites), 'demo', 'paraphrase-tune' (goals asked as people ask, to tune on), "
-        "'paraphrase-heldout' (the same, held out: evaluate at the end)",
+        "'paraphrase-heldout' (the same, held out: evaluate at the end), 'clutter' (dense "
+        "tables: goals on, beside and between objects)",
     )
     p.add_argument(
         "--encoders",

@@ -117,9 +117,10 @@ def build_map(recording, encoders: str, config=None, progress=None, **kwargs):
     )
 
 
-#: Modules that only answer queries on a built map: nothing a saved map holds comes from them,
-#: so editing them keeps cached maps (the calibration, also read at query time, is applied
-#: afresh to every map taken from the cache).
+#: Modules that only answer queries on a built map, or move the arm on it: nothing a saved map
+#: holds comes from them, so editing them keeps cached maps (the calibration, also read at query
+#: time, is applied afresh to every map taken from the cache). Of the arm, a map reads only the
+#: self-filter (``arm/self_filter.py`` on ``arm/model.py``).
 QUERY_TIME_SOURCES = frozenset(
     (
         "mapping/object_module.py",
@@ -128,6 +129,24 @@ QUERY_TIME_SOURCES = frozenset(
         "mapping/targets.py",
         "mapping/render.py",
         "mapping/bench.py",
+        *(
+            f"arm/{m}.py"
+            for m in (
+                "bench",
+                "collision",
+                "diffik",
+                "driver",
+                "ik",
+                "mjcf",
+                "obstacles",
+                "panda_py_driver",
+                "planner",
+                "reach",
+                "success",
+                "trajectory",
+                "workspace",
+            )
+        ),
     )
 )
 

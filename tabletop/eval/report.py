@@ -120,6 +120,31 @@ class EvalResult:
                 )
         return "\n".join(lines)
 
+    def reach_markdown(self) -> str:
+        """One line per encoder set: the goals with a right target that succeeded, the routes,
+        the planner's time, the blocked reaches and the audit's verdict on them."""
+        lines = []
+        for r in self.runs:
+            if not r.available:
+                continue
+            x = r.summary()["reach"]
+            ro = x["routes"]
+            plan = (
+                f"planning {x['planning_ms_median']:.0f} / {x['planning_ms_p95']:.0f} ms "
+                "(median / p95)"
+                if x["planning_ms_median"] is not None
+                else "no planning"
+            )
+            lines.append(
+                f"- **{r.label}**: goals with the target within {SUCCESS_RADIUS_M * 100:.0f} cm "
+                f"of the truth reached: {_pct(x['right_target_success_rate'])} "
+                f"({x['right_target_successes']}/{x['right_target']}); routes: "
+                f"{ro['local']} local, {ro['planned']} planned, {ro['none']} none (fallback "
+                f"{_pct(x['fallback_share'])}); {plan}; blocked {x['blocked']}, of which the "
+                f"audit found a collision-free configuration for {x['blocked_audit_feasible']}"
+            )
+        return "\n".join(lines)
+
     def in_a_row_markdown(self) -> str:
         rows = [(r, r.summary()["in_a_row"]) for r in self.runs if r.available]
         n = max((len(x) for _, x in rows), default=0)
@@ -158,6 +183,7 @@ class EvalResult:
             else:
                 out.append(f"- **{r.label}**: unavailable — {r.reason}")
         out += ["", "## Success by goal type", "", self.table_markdown(), ""]
+        out += ["## The arm", "", self.reach_markdown(), ""]
         row = self.in_a_row_markdown()
         if row:
             out += [
@@ -223,14 +249,15 @@ def _outcome(g) -> str:
 
 def _goal_table(t) -> str:
     lines = [
-        "| goal | type | text | outcome | target error cm | reach | contacts |",
-        "|---|---|---|---|---|---|---|",
+        "| goal | type | text | outcome | target error cm | reach | route | contacts |",
+        "|---|---|---|---|---|---|---|---|",
     ]
     for g in t.goals:
         text = g.text.replace("|", "/")
         lines.append(
             f"| {g.goal_id} | {g.type} | {text} | {_outcome(g)} | {_cm(g.target_error_m)} | "
-            f"{g.reach or g.status} | {g.contacts} |"
+            f"{g.reach or g.status}{f' (audit: {g.audit})' if g.audit else ''} | "
+            f"{g.route or '–'} | {g.contacts} |"
         )
     return "\n".join(lines)
 

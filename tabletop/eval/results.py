@@ -36,6 +36,7 @@ __all__ = [
     "EncoderRun",
     "GoalResult",
     "TaskRun",
+    "reach_summary",
     "summarize",
 ]
 
@@ -64,6 +65,12 @@ class GoalResult:
     time_s: float = 0.0
     truth: list = field(default_factory=list)  # boxes [[lo, hi], ...] [m]
     code: str = ""  # an instruction's generated code
+    route: str = ""  # how the (last) reach moved the arm: "none", "local", "planned"
+    planning_s: float | None = None  # wall time of its global planner [s], when it was asked
+    # for a reach that ended short (blocked, unreachable, ...): "feasible" when the audit
+    # (tabletop.arm.bench.audit_goal) finds a configuration on its goal keeping the margin,
+    # "infeasible" when it finds none
+    audit: str = ""
 
     @property
     def attempted(self) -> bool:
@@ -79,7 +86,7 @@ class GoalResult:
         for k in ("target", "tcp"):
             if d[k] is not None:
                 d[k] = [round(float(v), 4) for v in d[k]]
-        for k in ("target_error_m", "error_m", "time_s"):
+        for k in ("target_error_m", "error_m", "time_s", "planning_s"):
             if d[k] is not None:
                 d[k] = round(float(d[k]), 4)
         return d
@@ -192,9 +199,45 @@ def in_a_row(sequences: list[list[GoalResult]]) -> dict:
     return out
 
 
+def reach_summary(goals: list[GoalResult]) -> dict:
+    """How the arm did, apart from the map: ``right_target`` (goals whose predicted target is
+    within the success radius of the truth) and the share of them that succeeded
+    (``right_target_success_rate``), the reaches' ``routes``, ``fallback_share`` (planned
+    among the reaches that moved), the global planner's wall time (``planning_ms_median`` /
+    ``_p95``), and the reaches that ended ``blocked``, ``blocked_audit_feasible`` of them
+    although the audit found a collision-free configuration on the goal."""
+    moved = [g for g in goals if g.attempted and g.route]
+    right = [
+        g
+        for g in goals
+        if g.attempted
+        and g.has_place
+        and g.target_error_m is not None
+        and g.target_error_m <= SUCCESS_RADIUS_M
+    ]
+    routes = {r: sum(g.route == r for g in moved) for r in ("none", "local", "planned")}
+    went = routes["local"] + routes["planned"]
+    plan_ms = [1e3 * g.planning_s for g in moved if g.planning_s is not None]
+    return {
+        "right_target": len(right),
+        "right_target_successes": sum(g.success for g in right),
+        "right_target_success_rate": (sum(g.success for g in right) / len(right))
+        if right
+        else None,
+        "routes": routes,
+        "fallback_share": routes["planned"] / went if went else None,
+        "planning_ms_median": float(np.median(plan_ms)) if plan_ms else None,
+        "planning_ms_p95": float(np.percentile(plan_ms, 95)) if plan_ms else None,
+        "blocked": sum(g.reach == "blocked" for g in goals),
+        "blocked_audit_feasible": sum(
+            g.reach == "blocked" and g.audit == "feasible" for g in goals
+        ),
+    }
+
+
 def summarize(goals: list[GoalResult], sequences: list[list[GoalResult]]) -> dict:
     """``by_type`` (in :data:`GOAL_TYPES` order, types present only), ``all``, ``contacts``,
-    ``in_a_row`` (sequences of two or more goals)."""
+    ``in_a_row`` (sequences of two or more goals), ``reach`` (:func:`reach_summary`)."""
     by_type = {}
     for t in GOAL_TYPES:
         gs = [g for g in goals if g.type == t]
@@ -207,6 +250,7 @@ def summarize(goals: list[GoalResult], sequences: list[list[GoalResult]]) -> dic
         "goals": len(goals),
         "contacts": total["contacts"] if total["attempted"] else None,  # None: nothing moved
         "in_a_row": in_a_row(sequences),
+        "reach": reach_summary(goals),
     }
 
 

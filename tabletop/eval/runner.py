@@ -166,6 +166,32 @@ def _move(ctx: _Context, goal: Goal):
     return target, robot.move_to(target)
 
 
+def _reach_fields(robot, res) -> dict:
+    """The reach's route, planning time and, when it ended short of its goal (blocked,
+    unreachable, no progress, timeout), whether the audit finds a configuration that puts the
+    TCP on that goal with the controller's clearance margin
+    (:func:`tabletop.arm.bench.audit_goal`, from where the arm stands)."""
+    if res is None:
+        return {}
+    out = {
+        "route": res.route.value,
+        "planning_s": None if res.plan is None else float(res.plan.planning_time_s),
+    }
+    if not res.reached and res.reason.value != "outside_workspace":
+        from tabletop.arm.bench import audit_goal
+
+        ctrl = robot.controller
+        audit = audit_goal(
+            ctrl.model,
+            ctrl.checker,
+            res.goal,
+            margin=ctrl.config.clearance_margin,
+            q_start=robot.driver.read_state().q,
+        )
+        out["audit"] = "feasible" if audit.feasible else "infeasible"
+    return out
+
+
 def _run_goal(ctx: _Context, goal: Goal, sequence: str, region: Region) -> GoalResult:
     from tabletop.robot.api import ImageGoalUnavailable
 
@@ -211,6 +237,7 @@ def _run_goal(ctx: _Context, goal: Goal, sequence: str, region: Region) -> GoalR
         reach=res.reason.value,
         contacts=int(robot.contacts[-1]),
         time_s=time.perf_counter() - t0,
+        **_reach_fields(robot, res),
     )
 
 
@@ -305,6 +332,7 @@ def _run_code(ctx: _Context, goal: Goal, base: dict, region: Region, t0: float):
         contacts=int(sum(robot.contacts[moves_before:])),
         time_s=time.perf_counter() - t0,
         code=code,
+        **_reach_fields(robot, res),
     )
 
 

@@ -6,6 +6,7 @@ unambiguously. The files it writes are plain data: they are committed, and the r
 any task file, generated or written by hand. Regenerate the shipped suites with::
 
     python -m tabletop.eval.suites            # writes tabletop/data/tasks/default/*.toml, demo.toml
+    python -m tabletop.eval.suites --clutter  # writes tabletop/data/tasks/clutter/*.toml
 
 Goal choices are seeded (``generator.seed`` in each file), so the same scan gives the same file.
 How goals are worded is a :class:`Wording`: this one asks with the scene's exact catalog labels
@@ -26,7 +27,16 @@ from tabletop.eval.truth import resolve_truth, sound_occurrences
 from tabletop.sim.ground_truth import AreaTruth, GroundTruth, ObjectTruth, SoundEventTruth
 from tabletop.transforms import aabb_distance
 
-__all__ = ["DEFAULT_SUITES", "Wording", "generate_suite", "to_toml", "write_default_suites"]
+__all__ = [
+    "CLUTTER_SEEDS",
+    "CLUTTER_SUITES",
+    "DEFAULT_SUITES",
+    "Wording",
+    "generate_suite",
+    "to_toml",
+    "write_clutter_suites",
+    "write_default_suites",
+]
 
 #: (file stem, scene section, scan section, map section, goal counts) of the shipped suites.
 _SCAN = {"speed": 0.3, "episodes": 6, "episode_s": 4.0, "repeat_sounds": 1}
@@ -42,6 +52,40 @@ DEFAULT_SUITES = [
         for i, s in enumerate((11, 12, 13, 14, 15))
     ],
 ]
+#: Generator seeds of the clutter suites' dense tables (and their scans), used by no other
+#: experiment: not the shipped suites (11-15, scan seeds 0-5), eval-map (10-12), the
+#: calibration (700-705), the paraphrase suites (750-752, 800-803), the shape prior (400-411,
+#: 430-433), the instance evaluation (900-902), vision training layouts (0-219 at seed 0, and
+#: from 9,000,000 held out).
+CLUTTER_SEEDS = (950, 951, 952, 953)
+#: (file stem, scene section, scan section) of the clutter suites: 12 objects, 3 kinds twice,
+#: packed by the generator's ``clutter`` profile (tall kinds beside low ones).
+CLUTTER_SUITES = [
+    (
+        f"scene-clutter-{s}",
+        {"random": {"seed": s, "count": 12, "duplicates": 3, "profile": "clutter"}},
+        {"seed": s, **_SCAN},
+    )
+    for s in CLUTTER_SEEDS
+]
+#: Goals of a clutter suite: on objects (object goals) and beside and between them (spatial).
+_CLUTTER = dict(
+    object=10,
+    sound=0,
+    image=0,
+    area=0,
+    amb_sound=0,
+    amb_image=0,
+    amb_object=0,
+    amb_area=0,
+    spatial=15,
+    mm_spatial=0,
+    instruction=0,
+    sequences=0,
+)
+#: Free table [m] a clutter suite's spatial truth keeps from every object box (between, beside):
+#: the gaps between packed objects (the shipped suites keep 3 and 5 cm).
+_CLUTTER_CLEAR = (0.01, 0.015)
 _FULL = dict(
     object=8,
     sound=5,
@@ -207,11 +251,15 @@ def generate_suite(
     description: str = "",
     wording: Wording | None = None,
     generator: dict | None = None,
+    spatial_clear: tuple[float, float] = (0.03, 0.05),
 ) -> dict:
     """A task document (dict) for one scene from its recording's ground truth. ``wording``
     (default :class:`Wording`: exact labels and captions) words the queries; the goals drawn
     depend on ``seed`` and the ground truth only. ``generator`` replaces the document's
-    ``[generator]`` section (default: the seed and this module)."""
+    ``[generator]`` section (default: the seed and this module). ``spatial_clear``: how far
+    [m] a spatial goal's truth point (between two objects, beside one) keeps from every object
+    box, so that it is free table."""
+    clear_between, clear_beside = (float(v) for v in spatial_clear)
     rng = np.random.default_rng(seed)
     w = wording if wording is not None else Wording()
     gt = ground_truth
@@ -349,14 +397,14 @@ def generate_suite(
             )
             p = resolve_truth(t, gt).center
             if (
-                _xy_clear(p, gt.objects)
+                _xy_clear(p, gt.objects, margin=clear_between)
                 and 0.12 <= np.linalg.norm(np.subtract(a.center, b.center)) <= 0.45
             ):
                 spatial.append(("between", [a, b]))
         for rel in ("left_of", "right_of", "in_front_of", "behind"):
             t = Truth("relation", relation=rel, of=(Truth("object", object=a.name),))
             p = resolve_truth(t, gt).center
-            if _reachable(p) and _xy_clear(p, gt.objects, margin=0.05):
+            if _reachable(p) and _xy_clear(p, gt.objects, margin=clear_beside):
                 spatial.append((rel, [a]))
     words = RELATION_WORDS
     for rel, os_ in pick(spatial, counts["spatial"]):
@@ -498,6 +546,39 @@ def write_default_suites(out_dir: Path, cache_dir="out/eval-cache", only=None) -
     return written
 
 
+def write_clutter_suites(out_dir: Path, cache_dir="out/eval-cache", only=None) -> list[Path]:
+    """Write the clutter suites (``clutter/*.toml``): dense tables of :data:`CLUTTER_SEEDS`,
+    goals on objects and beside and between them. Scans each scene once through the cache."""
+    d = Path(out_dir) / "clutter"
+    d.mkdir(parents=True, exist_ok=True)
+    header = (
+        "Clutter suite, generated by `python -m tabletop.eval.suites --clutter` from the\n"
+        "scene's ground truth and the seeded scan below; plain data."
+    )
+    written = []
+    for stem, scene, scan in CLUTTER_SUITES:
+        if only and stem not in only:
+            continue
+        gt = _scan_ground_truth(scene, scan, cache_dir)
+        doc = generate_suite(
+            stem,
+            scene,
+            scan,
+            gt,
+            _CLUTTER,
+            seed=scan["seed"],
+            description=(
+                "clutter suite: a dense table (12 objects, 3 kinds twice, tall beside low); "
+                "goals on objects and beside and between them"
+            ),
+            spatial_clear=_CLUTTER_CLEAR,
+        )
+        p = d / f"{stem}.toml"
+        p.write_text(to_toml(doc, header))
+        written.append(p)
+    return written
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument(
@@ -507,8 +588,12 @@ def main(argv=None) -> int:
     )
     ap.add_argument("--cache-dir", default="out/eval-cache")
     ap.add_argument("--only", nargs="*", help="suite stems to write (default: all)")
+    ap.add_argument(
+        "--clutter", action="store_true", help="write the clutter suites instead (clutter/)"
+    )
     args = ap.parse_args(argv)
-    for p in write_default_suites(Path(args.out), args.cache_dir, args.only):
+    write = write_clutter_suites if args.clutter else write_default_suites
+    for p in write(Path(args.out), args.cache_dir, args.only):
         print(p)
     return 0
 

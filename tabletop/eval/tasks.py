@@ -458,7 +458,12 @@ def scene_ref(sc: object, source: str = "<tasks>", base_dir: Path | None = None)
     if "path" in sc:
         p = Path(_text(sc["path"], f"{source} [scene].path"))
         return SceneRef(path=p if p.is_absolute() or base_dir is None else base_dir / p)
-    r = _keys(sc["random"], f"{source} [scene].random", ("seed",), ("count", "duplicates", "kinds"))
+    r = _keys(
+        sc["random"],
+        f"{source} [scene].random",
+        ("seed",),
+        ("count", "duplicates", "kinds", "profile"),
+    )
     return SceneRef(random=dict(r))
 
 

@@ -6,12 +6,17 @@ real Panda's: :class:`~tabletop.arm.panda_py_driver.PandaPyDriver`) with the
 ``move_to`` approaches a target from above: the TCP goes to the target raised to ``above_gap``
 over the highest map surface within the gripper's radius
 (:func:`tabletop.mapping.targets.approach_point`), so ``move_to(get_max_pos_3d(...))`` reaches
-a goal on or in an object without driving into it.
+a goal on or in an object without driving into it. In clutter a taller neighbour within that
+radius would lift the TCP out of the success radius; then the TCP goes ``above_gap`` over the
+approached object alone (the map instance at the target, or the surface beneath it), and the
+reach controller, whose obstacles are every object the map holds, checks what the gripper
+clears there and selects another goal within its ``goal_radius`` of that object's top when it
+does not (:meth:`ArmRobot.approach`).
 
 :class:`SimArm` is an :class:`ArmRobot` on a PyBullet world of the scene; the obstacles still come
 from the MAP (:func:`tabletop.robot.obstacles.arm_obstacles`), not the simulator's ground truth.
 The simulator only checks the outcome: PyBullet contact points between the robot and the table
-or objects are counted after every control step.
+or objects are counted after every physics step (the planner's trajectories included).
 """
 
 from __future__ import annotations
@@ -21,7 +26,7 @@ import numpy as np
 from tabletop.arm.driver import ArmDriver, PyBulletDriver
 from tabletop.arm.model import HOME_Q, PandaModel
 from tabletop.arm.reach import ReachConfig, ReachController, ReachResult
-from tabletop.mapping.targets import APPROACH_RADIUS_M, approach_point
+from tabletop.mapping.targets import APPROACH_RADIUS_M, approach_point, surface_z
 from tabletop.robot.api import RobotAPI, SpatialConfig, _point
 from tabletop.robot.obstacles import ARM, Embodiment, arm_obstacles
 
@@ -29,10 +34,11 @@ __all__ = ["ArmRobot", "SimArm"]
 
 
 class _ContactCountingDriver(PyBulletDriver):
-    """A PyBulletDriver that counts robot contacts with given bodies after every command."""
+    """A PyBulletDriver that counts robot contacts with given bodies after every physics step
+    (control steps and planned trajectories alike)."""
 
     def __init__(self, client_id: int, body_id: int, others: list[int], **kw) -> None:
-        super().__init__(client_id, body_id, **kw)
+        super().__init__(client_id, body_id, on_step=self._count, **kw)
         self.others = list(others)
         self.contacts = 0
 
@@ -42,14 +48,6 @@ class _ContactCountingDriver(PyBulletDriver):
             self.contacts += len(
                 pb.getContactPoints(self.body_id, b, physicsClientId=self.client_id)
             )
-
-    def command_positions(self, q: np.ndarray, duration: float) -> None:
-        super().command_positions(q, duration)
-        self._count()
-
-    def command_velocities(self, dq: np.ndarray, duration: float) -> None:
-        super().command_velocities(dq, duration)
-        self._count()
 
 
 class ArmRobot(RobotAPI):
@@ -94,21 +92,47 @@ class ArmRobot(RobotAPI):
         self.history: list[ReachResult] = []
         """Every move's result, in order."""
 
+    def _own_top(self, p: np.ndarray, occupancy: np.ndarray) -> float:
+        """Height [m] of the top of what stands at ``p``: the map instance whose box holds
+        ``p`` horizontally (the one with a voxel nearest to it, when several do), else the
+        highest surface in the voxel column beneath (the table, 0, where there is none)."""
+        objects = getattr(self.map, "objects", None)
+        inst = list(objects.instances.items) if getattr(objects, "uses_instances", False) else []
+        holding = [i for i in inst if np.all(p[:2] >= i.lo[:2]) and np.all(p[:2] <= i.hi[:2])]
+        if holding:
+            centers = self.map.voxels.centers
+            near = min(holding, key=lambda i: np.min(np.linalg.norm(centers[i.rows] - p, axis=1)))
+            return float(near.hi[2])
+        return surface_z(self.map.grid, occupancy, p[:2])
+
+    def approach_goal(self, pos) -> tuple[np.ndarray, np.ndarray]:
+        """(goal, reference), (3,) [m] each: where ``move_to(pos)`` sends the TCP, and the point
+        the reach is judged by (the goal selection keeps alternative goals within the
+        controller's ``goal_radius`` of it).
+
+        The reference is ``pos`` raised to the top of what stands there (:meth:`_own_top`).
+        The goal is ``pos`` raised to ``above_gap`` over the highest map surface within
+        ``approach_radius`` (the gripper's disc), when that is within ``goal_radius`` of the
+        reference; else (a taller neighbour in the disc) ``above_gap`` over the reference."""
+        p = _point(pos)
+        occ = self.map.voxels.occupancy()
+        ref = p.copy()
+        ref[2] = max(p[2], self._own_top(p, occ))
+        gap = self.spatial.above_gap
+        wide = approach_point(self.map.grid, occ, p, gap, self.approach_radius)
+        if np.linalg.norm(wide - ref) <= self.controller.config.goal_radius:
+            return wide, ref
+        return np.array([p[0], p[1], max(p[2], ref[2] + gap)]), ref
+
     def approach(self, pos) -> np.ndarray:
-        """(3,) [m]: where ``move_to(pos)`` sends the TCP: ``pos`` raised to ``above_gap`` over
-        the highest map surface within ``approach_radius``."""
-        return approach_point(
-            self.map.grid,
-            self.map.voxels.occupancy(),
-            _point(pos),
-            self.spatial.above_gap,
-            self.approach_radius,
-        )
+        """(3,) [m]: where ``move_to(pos)`` sends the TCP (:meth:`approach_goal`)."""
+        return self.approach_goal(pos)[0]
 
     def move_to(self, pos) -> ReachResult:
         """Reach ``pos`` (3,) [m] base frame with the TCP, approached from above
-        (:meth:`approach`); failures are reasons in the result."""
-        result = self.controller.move_to(self.approach(pos))
+        (:meth:`approach_goal`); failures are reasons in the result."""
+        goal, ref = self.approach_goal(pos)
+        result = self.controller.move_to(goal, reference=ref)
         self.history.append(result)
         return result
 
