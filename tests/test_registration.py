@@ -104,3 +104,62 @@ def test_disabled_registration_corrects_nothing_and_bad_settings_are_named():
         RegistrationConfig(min_inlier_fraction=0)
     with pytest.raises(ConfigError, match="inlier_m must be a number"):
         RegistrationConfig(inlier_m=float("nan"))
+
+
+BOXES = (((0.42, -0.06), 0.03, 0.10), ((0.50, 0.05), 0.025, 0.14), ((0.36, 0.08), 0.035, 0.07))
+
+
+def _render_boxes(T_world_cam):
+    """Depth of a table at z = 0 with upright boxes (centre, half-size, height) on it."""
+    v, u = np.mgrid[0:H, 0:W].astype(float)
+    rays = np.stack([(u - K[0, 2]) / K[0, 0], (v - K[1, 2]) / K[1, 1], np.ones_like(u)], -1)
+    R, t = T_world_cam[:3, :3], T_world_cam[:3, 3]
+    d = rays @ R.T  # world direction per pixel, scaled so that camera depth is the parameter
+    best = np.where(d[..., 2] < 0, -t[2] / np.where(d[..., 2] < 0, d[..., 2], -1), np.inf)
+    for (cx, cy), half, top in BOXES:
+        lo, hi = np.array([cx - half, cy - half, 0.0]), np.array([cx + half, cy + half, top])
+        with np.errstate(divide="ignore", invalid="ignore"):
+            a, b = (lo - t) / d, (hi - t) / d
+        near = np.nanmax(np.minimum(a, b), axis=-1)
+        far = np.nanmin(np.maximum(a, b), axis=-1)
+        hit = (near <= far) & (near > 0)
+        best = np.where(hit & (near < best), near, best)
+    return np.where(np.isfinite(best), best, 0.0).astype(np.float32)
+
+
+def _box_scan(n=60, seed=0):
+    """Views from all round the boxes, tilted so that their sides are seen."""
+    rng = np.random.default_rng(seed)
+    poses = []
+    for _ in range(n):
+        az = rng.uniform(-math.pi, math.pi)
+        eye = np.array([0.43 + 0.3 * math.cos(az), 0.02 + 0.3 * math.sin(az), 0.35])
+        z = np.array([0.43, 0.02, 0.03]) - eye + rng.normal(0, 0.02, 3)
+        z /= np.linalg.norm(z)
+        x = np.cross(z, [0.0, 0.0, 1.0])
+        x /= np.linalg.norm(x)
+        poses.append(make_transform(np.stack([x, np.cross(z, x), z], axis=1), eye))
+    return np.stack(poses), np.stack([_render_boxes(T) for T in poses])
+
+
+def test_horizontal_shift_and_yaw_are_registered_on_what_stands_on_the_table():
+    T, depth = _box_scan()
+    exact = table_corrections(depth, K, T)
+    np.testing.assert_array_equal(exact.C, np.tile(np.eye(4), (len(T), 1, 1)))
+    rng = np.random.default_rng(2)
+    noisy = np.stack(
+        [
+            make_transform(rotation_about("z", rng.normal(0, math.radians(0.5))), [*s, 0.0]) @ P
+            for P, s in zip(T, rng.normal(0, 0.005, (len(T), 2)), strict=True)
+        ]
+    )
+    probe = np.array([0.43, 0.02, 0.05, 1.0])  # a point among the boxes
+
+    def spread(A):  # how far the frames disagree there, less what they share
+        err = (A @ np.linalg.inv(T) @ probe)[:, :2] - probe[:2]
+        return float(np.linalg.norm(err - np.median(err, axis=0), axis=1).mean())
+
+    table_only = table_corrections(depth, K, noisy, RegistrationConfig(planar=False))
+    fixed = table_corrections(depth, K, noisy)
+    assert spread(table_only.C @ noisy) > 0.004  # the table alone cannot see these errors
+    assert spread(fixed.C @ noisy) < 0.65 * spread(noisy), (spread(noisy), spread(fixed.C @ noisy))
