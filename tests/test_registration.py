@@ -144,7 +144,8 @@ def _box_scan(n=60, seed=0):
 
 def test_horizontal_shift_and_yaw_are_registered_on_what_stands_on_the_table():
     T, depth = _box_scan()
-    exact = table_corrections(depth, K, T)
+    planar = RegistrationConfig(planar=True)
+    exact = table_corrections(depth, K, T, planar)
     np.testing.assert_array_equal(exact.C, np.tile(np.eye(4), (len(T), 1, 1)))
     rng = np.random.default_rng(2)
     noisy = np.stack(
@@ -160,6 +161,6 @@ def test_horizontal_shift_and_yaw_are_registered_on_what_stands_on_the_table():
         return float(np.linalg.norm(err - np.median(err, axis=0), axis=1).mean())
 
     table_only = table_corrections(depth, K, noisy, RegistrationConfig(planar=False))
-    fixed = table_corrections(depth, K, noisy)
+    fixed = table_corrections(depth, K, noisy, planar)
     assert spread(table_only.C @ noisy) > 0.004  # the table alone cannot see these errors
     assert spread(fixed.C @ noisy) < 0.65 * spread(noisy), (spread(noisy), spread(fixed.C @ noisy))
