@@ -86,8 +86,11 @@ def test_query_refuses_a_map_of_another_encoder_set_before_loading_it(tmp_path, 
 
 
 _SLOW_SAVE = r"""
-import sys, time
+import signal, sys, time
 import numpy as np
+# A shell that starts the tests in the background leaves SIGINT ignored in its children;
+# a user's terminal does not: act as from a terminal.
+signal.signal(signal.SIGINT, signal.default_int_handler)
 from tabletop.atomic import exit_on_signals
 from tabletop.recording import Recording, save_recording
 
