@@ -100,14 +100,16 @@ class RegistrationConfig:
     """A frame that would turn more [rad] is not corrected."""
 
     def __post_init__(self) -> None:
-        for name in ("samples", "iterations"):
+        for name, least in (
+            ("samples", 3),
+            ("iterations", 3),
+            ("planar_icp_iterations", 1),
+            ("planar_rounds", 1),
+            ("planar_min_points", 1),
+        ):
             v = getattr(self, name)
-            if not isinstance(v, int) or isinstance(v, bool) or v < 3:
-                raise ConfigError(f"registration {name} must be an integer >= 3, got {v!r}")
-        for name in ("planar_icp_iterations", "planar_rounds", "planar_min_points"):
-            v = getattr(self, name)
-            if not isinstance(v, int) or isinstance(v, bool) or v < 1:
-                raise ConfigError(f"registration {name} must be an integer >= 1, got {v!r}")
+            if not isinstance(v, int) or isinstance(v, bool) or v < least:
+                raise ConfigError(f"registration {name} must be an integer >= {least}, got {v!r}")
         for name in (
             "inlier_m",
             "max_tilt_rad",
@@ -267,7 +269,7 @@ def table_corrections(
         corrected[i] = True
     if cfg.planar:
         P = _planar_corrections(points, C, T_world_cam[:, :3, 3], ref_h, cfg)
-        moved = ~np.all(np.isclose(P, np.eye(4), rtol=0, atol=0), axis=(1, 2))
+        moved = np.any(P != np.eye(4), axis=(1, 2))
         C = P @ C
         corrected |= moved
     return TableCorrections(C, corrected, len(planes), ref_h)
