@@ -134,3 +134,61 @@ def test_the_palette_separates_two_colours_but_not_one_colour_shaded():
     pal, share = colour_palette(orange, np.ones(12))
     assert pal.shape == (0, 3) and share.shape == (0,)
     assert colour_palette(black_white[:1], np.ones(1))[0].shape == (0, 3)
+
+
+def _room_voxels():
+    """A room at 2 cm: a floor, a wall, two tables (tops at 0.60 and 0.74 m on legs), a mug on
+    each, and a board 0.3 m over the second table with a box on it."""
+    from tabletop.grid import VoxelGrid
+
+    grid = VoxelGrid(lower=(0.0, 0.0, -0.04), upper=(3.0, 2.0, 1.4), voxel_size=0.02)
+    text = text_encoder()
+    names = ["floor", "wall", "table", "red mug", "blue mug", "box"]
+    emb = text.encode_text(names)
+    parts = [
+        ("floor", (0.0, 0.0, -0.02), (3.0, 2.0, 0.0), (90, 90, 90)),
+        ("wall", (2.97, 0.0, 0.0), (3.0, 2.0, 1.3), (200, 200, 200)),  # its face
+        ("table", (0.5, 0.5, 0.58), (1.3, 1.1, 0.60), (150, 110, 60)),
+        ("table", (0.5, 0.5, 0.0), (0.56, 0.56, 0.58), (150, 110, 60)),
+        ("table", (1.8, 0.8, 0.72), (2.5, 1.5, 0.74), (150, 110, 60)),
+        ("table", (1.8, 0.8, 0.0), (1.86, 0.86, 0.72), (150, 110, 60)),
+        ("table", (1.8, 0.8, 1.04), (2.5, 1.5, 1.06), (150, 110, 60)),  # the board
+        ("red mug", (0.8, 0.7, 0.60), (0.9, 0.8, 0.70), RED),
+        ("blue mug", (2.0, 1.0, 0.74), (2.1, 1.1, 0.84), BLUE),
+        ("box", (2.2, 1.2, 1.06), (2.3, 1.3, 1.14), YELLOW),
+    ]
+    vm = VoxelMap(grid, text.dim)
+    for name, lo, hi, rgb in parts:
+        pts = box_points(lo, hi, 0.01)
+        vm.integrate(
+            pts,
+            emb,
+            np.tile(np.array(rgb, np.uint8), (len(pts), 1)),
+            feature_index=np.full(len(pts), names.index(name), np.int64),
+        )
+    return grid, vm
+
+
+def test_a_room_has_a_floor_table_tops_and_a_board_and_objects_stand_on_each():
+    from tabletop.mapping.table_regions import fit_surfaces, raised_surfaces
+
+    grid, vm = _room_voxels()
+    surfaces = fit_surfaces(grid, vm.indices)
+    heights = sorted(round(s.z, 2) for s in surfaces)
+    # the floor, the two table tops and the board; the wall is no surface
+    assert len(surfaces) == 4, heights
+    assert np.allclose(heights, [-0.01, 0.59, 0.73, 1.05], atol=0.02)
+    assert surfaces[0].z < 0.0  # the floor is the largest
+    raised = raised_surfaces(surfaces, 0.2)
+    assert len(raised) == 3 and min(s.z for s in raised) > 0.5
+
+    inst = segment_instances(vm, raised, InstanceConfig(max_height_m=0.25))
+    boxes = {
+        "red mug": ((0.8, 0.7, 0.60), (0.9, 0.8, 0.70), RED),
+        "blue mug": ((2.0, 1.0, 0.74), (2.1, 1.1, 0.84), BLUE),
+        "box": ((2.2, 1.2, 1.06), (2.3, 1.3, 1.14), YELLOW),
+    }
+    assert sorted(_which(inst, boxes)) == sorted(boxes)  # neither legs, board nor wall
+    # the one table of a tabletop scan would have been the floor: everything on it is one blob
+    one = segment_instances(vm, surfaces[0])
+    assert len(one) < 3 or any(i.extent[2] > 0.5 for i in one)

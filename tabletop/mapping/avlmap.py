@@ -44,8 +44,10 @@ from tabletop.mapping.registration import table_corrections
 from tabletop.mapping.table_regions import (
     TableFit,
     area_subject,
+    fit_surfaces,
     fit_table,
     parse_region,
+    raised_surfaces,
     region_heatmap,
 )
 from tabletop.mapping.targets import max_position
@@ -155,7 +157,7 @@ class AVLMap:
         a map built frame by frame or loaded)."""
         self.voxels = VoxelMap(self.grid, text.dim)
         self.objects = ObjectModule(
-            self.voxels, text, config.object, config.objects, config.descriptions, self.table
+            self.voxels, text, config.object, config.objects, config.descriptions, self.supports
         )
         """The object module."""
         self.areas = AreaModule(self.grid, config.area)
@@ -167,6 +169,7 @@ class AVLMap:
         self.images = VisualModule(self.voxels, db, 0.2 if visual is None else visual.target_px)
         """The visual localization module (its ``database`` is None: no image goals)."""
         self._table: tuple[tuple[int, int], TableFit | None] | None = None
+        self._surfaces: tuple[tuple[int, int], list[TableFit]] | None = None
         self.lacks: tuple[str, ...] = ()
         """What a map loaded from an older file format lacks (empty for a new map)."""
         self._frames_seen = 0
@@ -490,6 +493,23 @@ class AVLMap:
         if self._table is None or self._table[0] != key:
             self._table = (key, fit_table(self.grid, self.voxels.indices))
         return self._table[1]
+
+    def surfaces(self) -> list[TableFit]:
+        """Every horizontal surface of the map, largest first
+        (:func:`~tabletop.mapping.table_regions.fit_surfaces`: a room's floor, table tops,
+        shelves), cached until the voxels change."""
+        key = (self.voxels.n, self.voxels.version)
+        if self._surfaces is None or self._surfaces[0] != key:
+            self._surfaces = (key, fit_surfaces(self.grid, self.voxels.indices))
+        return self._surfaces[1]
+
+    def supports(self) -> TableFit | list[TableFit] | None:
+        """What the map's objects stand on, as its object config says
+        (``object.segmentation.supports``): the fitted table, or every raised surface."""
+        seg = self.config.object.segmentation
+        if seg.supports == "table":
+            return self.table()
+        return raised_surfaces(self.surfaces(), seg.min_support_height_m)
 
     def image_heatmap(
         self, rgb: np.ndarray, major: bool = True, K: np.ndarray | None = None

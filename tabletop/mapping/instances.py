@@ -42,7 +42,12 @@ __all__ = [
     "colour_palette",
     "instances_from_labels",
     "segment_instances",
+    "support_of",
 ]
+
+
+#: What :attr:`InstanceConfig.supports` may name.
+SUPPORTS = ("table", "surfaces")
 
 
 @dataclass(frozen=True)
@@ -59,8 +64,26 @@ class InstanceConfig:
     """Neighbouring voxels whose colours differ by more than this CIELAB ΔE..."""
     split_cos: float = 0.8
     """...and whose fused features' cosine is below this belong to different objects."""
+    supports: str = "table"
+    """What objects stand on: "table" (the map's one fitted table: a tabletop scan) or
+    "surfaces" (every horizontal surface :data:`min_support_height_m` above the lowest one,
+    :func:`~tabletop.mapping.table_regions.fit_surfaces`: a room's table tops and shelves)."""
+    min_support_height_m: float = 0.2
+    """With ``supports="surfaces"``: how far [m] above the lowest surface (the floor) a
+    surface must be to carry objects."""
+    max_height_m: float | None = None
+    """A voxel more than this [m] above its support is not an object's (None: no bound; a
+    room's shelves above a table are not on it)."""
 
     def __post_init__(self) -> None:
+        if self.supports not in SUPPORTS:
+            raise ConfigError(f"supports must be one of {list(SUPPORTS)}, got {self.supports!r}")
+        if not self.min_support_height_m >= 0:
+            raise ConfigError(
+                f"min_support_height_m must be >= 0 [m], got {self.min_support_height_m!r}"
+            )
+        if self.max_height_m is not None and not self.max_height_m > 0:
+            raise ConfigError(f"max_height_m must be > 0 [m] or None, got {self.max_height_m!r}")
         if self.min_voxels < 1:
             raise ConfigError(f"min_voxels must be >= 1, got {self.min_voxels}")
         if not self.above_table_m >= 0 or not self.table_margin_m >= 0:
@@ -115,23 +138,56 @@ _HALF_NEIGHBOURHOOD = [
 ]
 
 
+def _as_supports(table) -> list[TableFit]:
+    if table is None:
+        return []
+    if isinstance(table, TableFit):
+        return [table]
+    return list(table)
+
+
+def support_of(supports, point: np.ndarray) -> TableFit | None:
+    """The highest of ``supports`` (a :class:`TableFit`, a list of them, or None) under
+    ``point`` (3,) [m]: the one whose extent holds its x, y and whose top is below it (the
+    largest when none does)."""
+    sup = _as_supports(supports)
+    under = [
+        s
+        for s in sup
+        if s.x[0] <= point[0] <= s.x[1] and s.y[0] <= point[1] <= s.y[1] and s.z <= point[2]
+    ]
+    if under:
+        return max(under, key=lambda s: s.z)
+    return sup[0] if sup else None
+
+
 def segment_instances(
-    voxels: VoxelMap, table: TableFit | None, config: InstanceConfig | None = None
+    voxels: VoxelMap, table, config: InstanceConfig | None = None
 ) -> list[ObjectInstance]:
-    """The object instances of ``voxels`` standing on ``table`` (none without a table), largest
-    first (see the module docstring)."""
+    """The object instances of ``voxels`` standing on ``table`` (a :class:`TableFit`, or a list
+    of supporting surfaces; none without one), largest first (see the module docstring)."""
     config = config or InstanceConfig()
-    if table is None or voxels.n == 0:
+    supports = _as_supports(table)
+    if not supports or voxels.n == 0:
         return []
     centers = voxels.centers
     m = config.table_margin_m
-    cand = np.nonzero(
-        (centers[:, 2] > table.z + config.above_table_m)
-        & (centers[:, 0] >= table.x[0] - m)
-        & (centers[:, 0] <= table.x[1] + m)
-        & (centers[:, 1] >= table.y[0] - m)
-        & (centers[:, 1] <= table.y[1] + m)
-    )[0]
+    top = np.inf if config.max_height_m is None else config.max_height_m
+    inside = np.zeros(voxels.n, bool)
+    for sup in sorted(supports, key=lambda s: s.z):
+        over = (
+            (centers[:, 0] >= sup.x[0] - m)
+            & (centers[:, 0] <= sup.x[1] + m)
+            & (centers[:, 1] >= sup.y[0] - m)
+            & (centers[:, 1] <= sup.y[1] + m)
+        )
+        # A higher support over this one (a shelf board over a shelf board) ends its objects.
+        inside = np.where(
+            over & (centers[:, 2] > sup.z - config.above_table_m),
+            (centers[:, 2] > sup.z + config.above_table_m) & (centers[:, 2] <= sup.z + top),
+            inside,
+        )
+    cand = np.nonzero(inside)[0]
     if len(cand) < config.min_voxels:
         return []
     idx = voxels.indices[cand]

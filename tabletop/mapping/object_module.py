@@ -65,7 +65,7 @@ from tabletop.mapping.colors import (
     split_color_words,
 )
 from tabletop.mapping.heatmaps import Heatmap, Judge, point_heatmap_3d
-from tabletop.mapping.instances import InstanceConfig, InstanceSet, ObjectInstance
+from tabletop.mapping.instances import InstanceConfig, InstanceSet, ObjectInstance, support_of
 from tabletop.mapping.voxel_map import VoxelMap
 from tabletop.paths import DATA_DIR
 
@@ -233,7 +233,8 @@ class ObjectModule:
         vocabulary: the object names the map knows (``MapConfig.objects``); empty: voxel
             scoring only.
         descriptions: name -> descriptions of it, extra text targets of the name.
-        table: () -> the map's fitted table (:meth:`AVLMap.table`), for the segmentation.
+        table: () -> what the map's objects stand on (:meth:`AVLMap.supports`: its fitted
+            table, or a room's raised surfaces), for the segmentation.
     """
 
     def __init__(
@@ -354,8 +355,8 @@ class ObjectModule:
         fitted table."""
         from tabletop.mapping.shape import FEATURES, shape_features
 
-        table = self.instances.table()
-        if table is None or not instances:
+        supports = self.instances.table()
+        if not supports or not instances:
             return np.zeros((len(instances), len(FEATURES)))
         key = (self.voxels.n, self.voxels.version)
         if self._shape_cache[0] != key:  # once per instance until the voxels change
@@ -364,7 +365,8 @@ class ObjectModule:
         centers, vs = self.voxels.centers, self.voxels.grid.voxel_size
         for i in instances:
             if i not in done:
-                done[i] = shape_features(centers[i.rows], vs, table.z)
+                base = support_of(supports, np.array([*i.center[:2], i.lo[2] + vs]))
+                done[i] = shape_features(centers[i.rows], vs, base.z)
         return np.stack([done[i] for i in instances])
 
     def match(self, query: str) -> InstanceMatch:

@@ -42,8 +42,10 @@ __all__ = [
     "TableFit",
     "TableRegion",
     "area_subject",
+    "fit_surfaces",
     "fit_table",
     "parse_region",
+    "raised_surfaces",
     "region_heatmap",
 ]
 
@@ -209,6 +211,69 @@ def fit_table(grid: VoxelGrid, indices: np.ndarray) -> TableFit | None:
         (float(np.percentile(py, 1)) - h, float(np.percentile(py, 99)) + h),
         int(layer.sum()),
     )
+
+
+def fit_surfaces(grid: VoxelGrid, indices: np.ndarray, min_area_m2: float = 0.04) -> list[TableFit]:
+    """Every horizontal surface of the occupied voxels ``indices`` (N, 3), largest first: a
+    room's floor, its table tops, a cabinet's top, a shelf's boards.
+
+    A surface is a connected patch of one layer (with the layer above: a surface at a voxel
+    boundary fills two) of at least ``min_area_m2`` [m^2] that survives a morphological opening
+    by 3 x 3 voxels (a wall cut by the layer is a line one or two voxels thick; a surface is
+    not). A patch already taken by a surface one layer away is the same surface. Each surface's
+    height is the count-weighted mean of its two layers' centres, its extent the 1st-99th
+    percentile of its cells (as :func:`fit_table`)."""
+    idx = np.asarray(indices)
+    min_cells = max(int(np.ceil(min_area_m2 / grid.voxel_size**2)), 9)
+    if len(idx) < min_cells:
+        return []
+    nz = grid.shape[2]
+    counts = np.bincount(idx[:, 2], minlength=nz)
+    layers = np.zeros(grid.shape, bool)
+    layers[tuple(idx.T)] = True
+    xs, ys, zs = grid.axes()
+    h = grid.voxel_size / 2
+    taken = np.zeros(grid.shape, bool)  # cells (per layer) of accepted surfaces
+    out: list[TableFit] = []
+    for k in np.argsort(-counts, kind="stable"):
+        if counts[k] < min_cells:
+            break
+        pair = [k] + ([k + 1] if k + 1 < nz else [])
+        both = layers[:, :, pair].any(axis=2)
+        opened = ndimage.binary_opening(both, structure=np.ones((3, 3), bool))
+        labels, n = ndimage.label(opened, structure=np.ones((3, 3), bool))
+        for c in range(1, n + 1):
+            patch = labels == c
+            area = int(patch.sum())
+            if area < min_cells:
+                continue
+            near = taken[:, :, max(k - 1, 0) : min(k + 2, nz)].any(axis=2)
+            if (patch & near).sum() > area / 2:
+                continue
+            per_layer = np.array([(layers[:, :, j] & patch).sum() for j in pair], np.float64)
+            z = float(np.average(zs[pair], weights=per_layer + 1e-9))
+            ij = np.argwhere(patch)
+            px, py = xs[ij[:, 0]], ys[ij[:, 1]]
+            out.append(
+                TableFit(
+                    z,
+                    (float(np.percentile(px, 1)) - h, float(np.percentile(px, 99)) + h),
+                    (float(np.percentile(py, 1)) - h, float(np.percentile(py, 99)) + h),
+                    area,
+                )
+            )
+            taken[:, :, k] |= patch
+    out.sort(key=lambda t: -t.voxels)
+    return out
+
+
+def raised_surfaces(surfaces: list[TableFit], min_height_m: float) -> list[TableFit]:
+    """The surfaces at least ``min_height_m`` [m] above the lowest one (a room's table tops
+    and shelves, not its floor); all of them when there is only one."""
+    if len(surfaces) < 2:
+        return list(surfaces)
+    floor = min(s.z for s in surfaces)
+    return [s for s in surfaces if s.z >= floor + min_height_m]
 
 
 def region_heatmap(
