@@ -1,8 +1,8 @@
 """Imports run downward only: a module may import its own subpackage and the layers below it.
 
-core (errors, transforms, grid, recording, paths) -> arm -> sim; mapping beside arm and sim
-(importing neither) -> robot -> language -> eval, train -> cli. The test walks every module's
-imports (top-level and inside functions) with ``ast``.
+core (errors, transforms, grid, recording, paths) -> arm, base -> sim; mapping beside arm, base
+and sim (importing none of them) -> robot -> language -> eval, train -> cli. The test walks
+every module's imports (top-level and inside functions) with ``ast``.
 """
 
 import ast
@@ -15,13 +15,14 @@ ROOT = Path(tabletop.__file__).parent
 ALLOWED = {
     "core": set(),
     "arm": {"core"},
-    "sim": {"core", "arm"},
+    "base": {"core"},
+    "sim": {"core", "arm", "base"},
     "mapping": {"core"},
-    "robot": {"core", "arm", "sim", "mapping"},
-    "language": {"core", "arm", "sim", "mapping", "robot"},
-    "eval": {"core", "arm", "sim", "mapping", "robot", "language"},
-    "train": {"core", "arm", "sim", "mapping", "robot", "language"},
-    "cli": {"core", "arm", "sim", "mapping", "robot", "language", "eval", "train"},
+    "robot": {"core", "arm", "base", "sim", "mapping"},
+    "language": {"core", "arm", "base", "sim", "mapping", "robot"},
+    "eval": {"core", "arm", "base", "sim", "mapping", "robot", "language"},
+    "train": {"core", "arm", "base", "sim", "mapping", "robot", "language"},
+    "cli": {"core", "arm", "base", "sim", "mapping", "robot", "language", "eval", "train"},
 }
 
 
