@@ -68,6 +68,9 @@ class Embodiment:
     map_objects: bool = True
     """Every object name of the map's vocabulary (``MapConfig.objects``) blocks this robot too,
     ahead of ``obstacles``."""
+    objects_free: bool = False
+    """Every object name of the map's vocabulary is free for this robot (a flyer passes over
+    what stands on a table); exclusive with ``map_objects``."""
 
     def __post_init__(self) -> None:
         if not self.obstacles and not self.slabs:
@@ -75,6 +78,11 @@ class Embodiment:
         clash = set(self.obstacles + self.slabs) & set(self.free)
         if clash:
             raise ConfigError(f"embodiment {self.name!r}: {sorted(clash)} both obstacle and free")
+        if self.map_objects and self.objects_free:
+            raise ConfigError(
+                f"embodiment {self.name!r}: the map's objects either block it (map_objects) or "
+                "not (objects_free), not both"
+            )
         lo, hi = self.z_range
         if not lo < hi:
             raise ConfigError(f"embodiment {self.name!r}: z_range must be (lo, hi), lo < hi")
@@ -86,10 +94,12 @@ class Embodiment:
     def for_map(self, avlmap) -> Embodiment:
         """This embodiment with the map's object vocabulary among its obstacles (when
         ``map_objects``), ready to label that map's voxels."""
-        if not self.map_objects:
+        if not (self.map_objects or self.objects_free):
             return self
         taken = set(self.obstacles + self.slabs + self.free)
         objects = tuple(dict.fromkeys(o for o in avlmap.config.objects if o not in taken))
+        if self.objects_free:
+            return replace(self, free=(*self.free, *objects), objects_free=False)
         return replace(self, obstacles=(*objects, *self.obstacles), map_objects=False)
 
 
