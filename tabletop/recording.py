@@ -73,8 +73,8 @@ class Frame:
     timestamp: float  # [s] on the frame clock
     rgb: np.ndarray  # (H, W, 3) uint8
     depth: np.ndarray  # (H, W) float32 [m], 0 = invalid
-    joint_positions: np.ndarray  # (7,) float64 [rad]
-    T_world_hand: np.ndarray  # (4, 4) end-effector (panda_hand) pose in the base frame
+    joint_positions: np.ndarray  # (J,) float64 [rad]: the arm's 7 joints, a base's 2 wheels
+    T_world_hand: np.ndarray  # (4, 4) pose of the camera's mount frame (``ee_frame``)
     T_world_cam: np.ndarray  # (4, 4) camera optical frame (OpenCV) in the base frame
     segmentation: np.ndarray | None  # (H, W) uint16 instance ids; simulator only
 
@@ -86,8 +86,12 @@ class Recording:
     timestamps: np.ndarray  # (N,) float64 [s], strictly increasing
     rgb: np.ndarray  # (N, H, W, 3) uint8
     depth: np.ndarray  # (N, H, W) float32 [m], 0 = invalid
-    joint_positions: np.ndarray  # (N, 7) float64 [rad]
-    T_world_hand: np.ndarray  # (N, 4, 4) float64, end-effector pose, base frame [m]
+    joint_positions: np.ndarray
+    """(N, J) float64 [rad]: the robot's joints per frame, J >= 1 (the Panda's 7 arm joints;
+    a wheeled base's 2 wheel angles); ``joint_names`` names them when given."""
+    T_world_hand: np.ndarray
+    """(N, 4, 4) float64 [m]: the pose of the frame the camera and microphone are mounted on
+    (``ee_frame``: the Panda's hand, a base's footprint) in the world frame."""
     K: np.ndarray  # (3, 3) float64 [px]
     T_hand_cam: np.ndarray  # (4, 4) float64, calibrated camera extrinsic [m]
     T_hand_mic: np.ndarray = V1_T_HAND_MIC  # type: ignore[assignment]
@@ -102,6 +106,11 @@ class Recording:
     T_world_hand_true: np.ndarray | None = None  # (N, 4, 4) noise-free poses (simulator)
     ground_truth: dict | None = None  # scene and sound-event ground truth (simulator)
     meta: dict = field(default_factory=dict)  # free-form provenance (source, seed, renderer, …)
+    ee_frame: str = "panda_hand"
+    """The frame ``T_world_hand`` refers to (``panda_hand``; ``base_footprint`` for the wheeled
+    base, whose camera rides on its mast)."""
+    joint_names: tuple[str, ...] = ()
+    """Names of the J joints of ``joint_positions`` (empty: the Panda's ``panda_joint1..7``)."""
 
     def __post_init__(self) -> None:
         def arr(name, dtype, shape_tail, ndim):
@@ -123,7 +132,19 @@ class Recording:
             raise RecordingError(f"rgb must be (N, H, W, 3) uint8, got {rgb.shape}")
         h, w = rgb.shape[1:3]
         arr("depth", np.float32, (h, w), 3)
-        arr("joint_positions", np.float64, (7,), 2)
+        jp = arr("joint_positions", np.float64, (), 2)
+        if jp.shape[1] < 1:
+            raise RecordingError(f"joint_positions must be (N, J) with J >= 1, got {jp.shape}")
+        if not isinstance(self.ee_frame, str) or not self.ee_frame:
+            raise RecordingError(f"ee_frame must be a frame name, got {self.ee_frame!r}")
+        names = self.joint_names
+        if not isinstance(names, (tuple, list)) or not all(isinstance(x, str) for x in names):
+            raise RecordingError(f"joint_names must be a tuple of strings, got {names!r}")
+        object.__setattr__(self, "joint_names", tuple(names))
+        if names and len(names) != jp.shape[1]:
+            raise RecordingError(
+                f"joint_names has {len(names)} names for {jp.shape[1]} joints in joint_positions"
+            )
         arr("T_world_hand", np.float64, (4, 4), 3)
         for name in ("rgb", "depth", "joint_positions", "T_world_hand"):
             if len(getattr(self, name)) != n:
@@ -389,7 +410,8 @@ def _write_into(rec: Recording, out: Path, workers: int) -> None:
         "K": rec.K.tolist(),
         "T_hand_cam": rec.T_hand_cam.tolist(),
         "T_hand_mic": rec.T_hand_mic.tolist(),
-        "ee_frame": "panda_hand",
+        "ee_frame": rec.ee_frame,
+        "joint_names": list(rec.joint_names),
         "depth_resolution": rec.depth_resolution,
         "has_segmentation": rec.segmentation is not None,
         "audio": None
@@ -491,6 +513,11 @@ def _check_header(h: dict, header_path: Path) -> None:
     for k in ("meta", "ground_truth"):
         if h.get(k) is not None and not isinstance(h[k], dict):
             raise _header_error(header_path, k, h[k], "an object or null")
+    if not isinstance(h.get("ee_frame", "panda_hand"), str):
+        raise _header_error(header_path, "ee_frame", h["ee_frame"], "a frame name")
+    names = h.get("joint_names", [])
+    if not isinstance(names, list) or not all(isinstance(x, str) for x in names):
+        raise _header_error(header_path, "joint_names", names, "a list of joint names")
     if not isinstance(h.get("has_segmentation", False), bool):
         raise _header_error(header_path, "has_segmentation", h["has_segmentation"], "true or false")
 
@@ -602,6 +629,8 @@ def load_recording(path: str | Path, *, workers: int = 2) -> Recording:
             T_world_hand_true=poses.get("T_world_hand_true"),
             ground_truth=h.get("ground_truth"),
             meta=h.get("meta", {}),
+            ee_frame=h.get("ee_frame", "panda_hand"),
+            joint_names=tuple(h.get("joint_names", ())),
         )
     except RecordingError as e:
         raise RecordingError(f"{path}: {e}") from None

@@ -203,3 +203,34 @@ def test_values_compare_by_content_and_are_not_hashable(small):
     assert replace(a, sound_events=()) != a
     with pytest.raises(TypeError):
         hash(a.objects[0])
+
+
+def test_a_room_ground_truth_has_furniture_and_no_single_table(small):
+    d = copy.deepcopy(small)
+    assert "furniture" not in GroundTruth.from_dict(d).to_dict()  # the arm's stays as it was
+    d["table"] = None
+    d["objects"][0]["table"] = "dining_table"
+    d["sound_events"][0]["place"] = "dining_table"
+    item = {
+        "name": "dining_table",
+        "category": "table",
+        "model": "table",
+        "instance_id": 9,
+        "T_world_item": np.eye(4).tolist(),
+        "aabb_min": [1.0, 2.0, 0.0],
+        "aabb_max": [2.5, 3.0, 0.625],
+        "top_z": 0.625,
+    }
+    wall = {**item, "name": "wall_north", "category": "wall", "model": "wall", "top_z": None}
+    d["furniture"] = [item, wall]
+    gt = GroundTruth.from_dict(d)
+    assert GroundTruth.from_dict(json.loads(json.dumps(gt.to_dict()))) == gt
+    assert gt.table is None and gt.item("wall_north").top_z is None
+    assert [f.name for f in gt.furniture_of("table")] == ["dining_table"]
+    assert [o.name for o in gt.objects_on("dining_table")] == ["red_mug"]
+    assert gt.sound_events[0].place == "dining_table"
+    assert gt.item("dining_table").center.tolist() == [1.75, 2.5, 0.3125]
+    with pytest.raises(NotInGroundTruth, match="furniture: \\['dining_table', 'wall_north'\\]"):
+        gt.item("bed")
+    d["furniture"][1].pop("category")
+    assert "ground_truth.furniture[1]: missing field 'category'" in _error(d)

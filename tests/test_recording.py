@@ -60,6 +60,7 @@ def assert_same(a: Recording, b: Recording):
     assert a.ground_truth == b.ground_truth
     assert a.meta == b.meta
     assert a.audio_rate == b.audio_rate and a.depth_resolution == b.depth_resolution
+    assert a.ee_frame == b.ee_frame and a.joint_names == b.joint_names
 
 
 @pytest.mark.parametrize("extras", [True, False])
@@ -67,6 +68,21 @@ def test_round_trip_is_exact(tmp_path, extras):
     rec = make_recording(with_extras=extras)
     save_recording(rec, tmp_path / "rec")
     assert_same(rec, load_recording(tmp_path / "rec"))
+
+
+def test_a_wheeled_base_recording_round_trips_with_its_two_wheels(tmp_path):
+    rec = make_recording()
+    kw = {**vars_of(rec), "joint_positions": rec.joint_positions[:, :2]}
+    kw.update(ee_frame="base_footprint", joint_names=("left", "right"))
+    base = Recording(**kw)
+    save_recording(base, tmp_path / "rec")
+    back = load_recording(tmp_path / "rec")
+    assert_same(base, back)
+    assert back.joint_positions.shape == (5, 2) and back.ee_frame == "base_footprint"
+    with pytest.raises(RecordingError, match="joint_names has 3 names for 2 joints"):
+        Recording(**{**kw, "joint_names": ("a", "b", "c")})
+    with pytest.raises(RecordingError, match="J >= 1"):
+        Recording(**{**kw, "joint_positions": np.zeros((5, 0))})
 
 
 def test_missing_file_is_named(tmp_path):

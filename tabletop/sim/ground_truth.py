@@ -1,10 +1,15 @@
 """The simulator's ground truth of a scan, as a typed value.
 
 A simulated scan knows what a real one cannot: where every object stands, the table's named
-areas, and where and when each sound was inserted. :class:`GroundTruth` holds it;
-:meth:`GroundTruth.to_dict` is its on-disk form (``Recording.ground_truth``, JSON), and
-:meth:`GroundTruth.from_dict` / :meth:`GroundTruth.of` read it back, checked, naming a missing
-or malformed field. Every position is in the world frame (= the robot base frame, table top at
+areas, and where and when each sound was inserted. A room scan by the wheeled base
+(:mod:`tabletop.sim.room_scan`) has no single table: its ground truth has ``table = None``, the
+room's furniture (:class:`FurnitureTruth`: tables, shelves, walls... with categories and boxes),
+each object's ``table`` (the furniture it stands on) and each sound event's ``place``; those
+fields are left out of the arm's ground truth, which reads and writes as before.
+:class:`GroundTruth` holds it; :meth:`GroundTruth.to_dict` is its on-disk form
+(``Recording.ground_truth``, JSON), and :meth:`GroundTruth.from_dict` / :meth:`GroundTruth.of`
+read it back, checked, naming a missing or malformed field. Every position is in the world
+frame (the arm: the robot base frame, table top at z = 0; a room: the room frame, floor at
 z = 0), in metres; arrays are read-only float64.
 """
 
@@ -24,6 +29,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "AreaTruth",
+    "FurnitureTruth",
     "GroundTruth",
     "GroundTruthError",
     "NotInGroundTruth",
@@ -65,8 +71,8 @@ def _range(value: Any, where: str) -> tuple[float, float]:
     return (float(lo), float(hi))
 
 
-def _fields(d: Any, names: tuple[str, ...], where: str) -> None:
-    """``d`` is a mapping with exactly the fields ``names``."""
+def _fields(d: Any, names: tuple[str, ...], where: str, optional: tuple[str, ...] = ()) -> None:
+    """``d`` is a mapping with the fields ``names``, and perhaps some of ``optional``."""
     if not isinstance(d, Mapping):
         raise GroundTruthError(f"{where}: expected a mapping, got {type(d).__name__}")
     missing = [n for n in names if n not in d]
@@ -74,11 +80,19 @@ def _fields(d: Any, names: tuple[str, ...], where: str) -> None:
         raise GroundTruthError(
             f"{where}: missing field {missing[0]!r}; expected fields: {list(names)}"
         )
-    extra = sorted(str(k) for k in d if k not in names)
+    extra = sorted(str(k) for k in d if k not in names and k not in optional)
     if extra:
         raise GroundTruthError(
             f"{where}: unknown field {extra[0]!r}; expected fields: {list(names)}"
+            + (f", optional: {list(optional)}" if optional else "")
         )
+
+
+def _opt_str(d: Mapping, key: str, where: str) -> str | None:
+    """An optional string field (absent or null: None)."""
+    if d.get(key) is None:
+        return None
+    return _str(d, key, where)
 
 
 def _str(d: Mapping, key: str, where: str) -> str:
@@ -153,6 +167,8 @@ class ObjectTruth(_Value):
     """(3,) float64 [m], world frame: upper corner of the axis-aligned bounding box."""
     center: np.ndarray
     """(3,) float64 [m], world frame: centre of the bounding box."""
+    table: str | None = None
+    """The furniture it stands on (a room's ``"dining_table"``); None on the arm's table."""
 
     _ARRAYS = (
         ("position", (2,)),
@@ -184,16 +200,18 @@ class ObjectTruth(_Value):
 
     @classmethod
     def from_dict(cls, d: Any, where: str = "object") -> ObjectTruth:
-        _fields(d, cls._FIELDS, where)
+        _fields(d, cls._FIELDS, where, optional=("table",))
         return cls(
             **{k: _str(d, k, where) for k in ("name", "kind", "label", "category", "color")},
             instance_id=_int(d, "instance_id", where),
             yaw_deg=_float(d, "yaw_deg", where),
             **{k: _frozen(d[k], s, f"{where}.{k}") for k, s in cls._ARRAYS},
+            table=_opt_str(d, "table", where),
         )
 
     def to_dict(self) -> dict:
-        return {
+        extra = {} if self.table is None else {"table": self.table}
+        return extra | {
             "name": self.name,
             "kind": self.kind,
             "label": self.label,
@@ -286,7 +304,11 @@ class SoundEventTruth(_Value):
     table_point: np.ndarray
     """(3,) float64 [m], world frame: where it was heard on the table (``tcp_mean`` at z = 0)."""
     region_center: np.ndarray
-    """(3,) float64 [m], world frame: centre of the table region the episode visited."""
+    """(3,) float64 [m], world frame: centre of the table region the episode visited (a
+    room: the centre of the visited table's top)."""
+    place: str | None = None
+    """A room scan: the furniture the base stopped at (``tcp_mean`` is then the mean
+    microphone position on its mast, ``table_point`` the base's position on the floor)."""
 
     _ARRAYS = ("tcp_mean", "table_point", "region_center")
     _FIELDS = (
@@ -314,7 +336,7 @@ class SoundEventTruth(_Value):
 
     @classmethod
     def from_dict(cls, d: Any, where: str = "sound_event") -> SoundEventTruth:
-        _fields(d, cls._FIELDS, where)
+        _fields(d, cls._FIELDS, where, optional=("place",))
         frames = _list(d, "frames", where)
         if len(frames) not in (0, 2) or any(
             isinstance(f, bool) or not isinstance(f, (int, np.integer)) for f in frames
@@ -328,10 +350,12 @@ class SoundEventTruth(_Value):
             offset_s=_float(d, "offset_s", where),
             frames=tuple(frames),
             **{k: _frozen(d[k], (3,), f"{where}.{k}") for k in cls._ARRAYS},
+            place=_opt_str(d, "place", where),
         )
 
     def to_dict(self) -> dict:
-        return {
+        extra = {} if self.place is None else {"place": self.place}
+        return extra | {
             "episode": self.episode,
             "category": self.category,
             "caption": self.caption,
@@ -381,6 +405,74 @@ class TableTruth(_Value):
 
 
 @dataclass(frozen=True, eq=False)
+class FurnitureTruth(_Value):
+    """A piece of a room's furniture (tables, shelves, cabinets...) or one of its walls."""
+
+    name: str
+    """Unique name in the room, e.g. ``"dining_table"``, ``"wall_north"``."""
+    category: str
+    """What it is, in words: ``"table"``, ``"shelf"``, ``"cabinet"``, ``"sofa"``, ``"wall"``."""
+    model: str
+    """The model it was built from (:data:`tabletop.sim.room.FURNITURE_MODELS`, ``"wall"``)."""
+    instance_id: int
+    """Its id in the recording's segmentation images."""
+    T_world_item: np.ndarray
+    """(4, 4) float64 [m]: its frame (footprint centre on the floor, turned by its yaw)."""
+    aabb_min: np.ndarray
+    """(3,) float64 [m], world frame: lower corner of its axis-aligned bounding box."""
+    aabb_max: np.ndarray
+    """(3,) float64 [m], world frame: upper corner."""
+    top_z: float | None = None
+    """Height [m] of the flat top objects stand on (tables, cabinets); None: none."""
+
+    _ARRAYS = (("T_world_item", (4, 4)), ("aabb_min", (3,)), ("aabb_max", (3,)))
+    _FIELDS = (
+        "name",
+        "category",
+        "model",
+        "instance_id",
+        "T_world_item",
+        "aabb_min",
+        "aabb_max",
+        "top_z",
+    )
+
+    def __post_init__(self) -> None:
+        for name, shape in self._ARRAYS:
+            object.__setattr__(self, name, _frozen(getattr(self, name), shape, f"furniture.{name}"))
+        object.__setattr__(self, "instance_id", int(self.instance_id))
+        if self.top_z is not None:
+            object.__setattr__(self, "top_z", float(self.top_z))
+
+    @property
+    def center(self) -> np.ndarray:
+        """(3,) float64 [m]: centre of its bounding box."""
+        return (self.aabb_min + self.aabb_max) / 2
+
+    @classmethod
+    def from_dict(cls, d: Any, where: str = "furniture") -> FurnitureTruth:
+        _fields(d, cls._FIELDS, where)
+        return cls(
+            **{k: _str(d, k, where) for k in ("name", "category", "model")},
+            instance_id=_int(d, "instance_id", where),
+            **{k: _frozen(d[k], s, f"{where}.{k}") for k, s in cls._ARRAYS},
+            top_z=None if d["top_z"] is None else _float(d, "top_z", where),
+        )
+
+    def to_dict(self) -> dict:
+        return {
+            "name": self.name,
+            "category": self.category,
+            "model": self.model,
+            "instance_id": self.instance_id,
+            "T_world_item": self.T_world_item.tolist(),
+            "aabb_min": self.aabb_min.tolist(),
+            "aabb_max": self.aabb_max.tolist(),
+            "top_z": self.top_z,
+        }
+
+
+@dataclass(frozen=True, eq=False)
 class GroundTruth(_Value):
     """Everything a benchmark knows about a simulated scan: the scene, where its objects and
     areas are, and the sounds inserted into its audio track.
@@ -395,7 +487,8 @@ class GroundTruth(_Value):
     <tabletop.sim.scene.SceneSpec.to_dict>`); a private copy, not to be modified."""
     frame: str
     """A sentence naming the frame and units of every position."""
-    table: TableTruth
+    table: TableTruth | None
+    """The arm's table; None in a room (its tables are among the ``furniture``)."""
     objects: tuple[ObjectTruth, ...]
     """In the scene's order."""
     areas: tuple[AreaTruth, ...]
@@ -405,6 +498,9 @@ class GroundTruth(_Value):
     and every object); a private copy, not to be modified."""
     sound_events: tuple[SoundEventTruth, ...] = ()
     """In insertion (episode) order; :meth:`sound_events_of` sorts by onset."""
+    furniture: tuple[FurnitureTruth, ...] = ()
+    """A room's furniture and walls, in the room spec's order then the walls; empty for the
+    arm's scenes."""
 
     _FIELDS = ("scene", "frame", "table", "objects", "areas", "instances", "sound_events")
 
@@ -413,6 +509,11 @@ class GroundTruth(_Value):
         object.__setattr__(self, "objects", tuple(self.objects))
         object.__setattr__(self, "areas", tuple(self.areas))
         object.__setattr__(self, "sound_events", tuple(self.sound_events))
+        object.__setattr__(self, "furniture", tuple(self.furniture))
+        items = [f.name for f in self.furniture]
+        dup = sorted({n for n in items if items.count(n) > 1})
+        if dup:
+            raise GroundTruthError(f"furniture: names must be unique; repeated: {dup}")
         object.__setattr__(self, "instances", {int(k): str(v) for k, v in self.instances.items()})
         names = [o.name for o in self.objects]
         dup = sorted({n for n in names if names.count(n) > 1})
@@ -429,7 +530,7 @@ class GroundTruth(_Value):
                 (e.g. ``ground_truth.objects[2].aabb_min``).
         """
         where = "ground_truth"  # the path into the recording: Recording.ground_truth
-        _fields(d, cls._FIELDS, where)
+        _fields(d, cls._FIELDS, where, optional=("furniture",))
         if not isinstance(d["scene"], Mapping):
             raise GroundTruthError(f"{where}.scene: expected a mapping, got {d['scene']!r}")
         instances = d["instances"]
@@ -449,7 +550,9 @@ class GroundTruth(_Value):
         return cls(
             scene=d["scene"],
             frame=_str(d, "frame", where),
-            table=TableTruth.from_dict(d["table"], f"{where}.table"),
+            table=None
+            if d["table"] is None
+            else TableTruth.from_dict(d["table"], f"{where}.table"),
             objects=tuple(
                 ObjectTruth.from_dict(o, f"{where}.objects[{i}]")
                 for i, o in enumerate(_list(d, "objects", where))
@@ -462,6 +565,10 @@ class GroundTruth(_Value):
             sound_events=tuple(
                 SoundEventTruth.from_dict(e, f"{where}.sound_events[{i}]")
                 for i, e in enumerate(_list(d, "sound_events", where))
+            ),
+            furniture=tuple(
+                FurnitureTruth.from_dict(f, f"{where}.furniture[{i}]")
+                for i, f in enumerate(_list(d, "furniture", where) if "furniture" in d else ())
             ),
         )
 
@@ -483,15 +590,18 @@ class GroundTruth(_Value):
 
     def to_dict(self) -> dict:
         """The JSON-serialisable dict a recording stores (``Recording.ground_truth``)."""
-        return {
+        d = {
             "scene": copy.deepcopy(self.scene),
             "frame": self.frame,
-            "table": self.table.to_dict(),
+            "table": None if self.table is None else self.table.to_dict(),
             "objects": [o.to_dict() for o in self.objects],
             "areas": [a.to_dict() for a in self.areas],
             "instances": {str(k): v for k, v in self.instances.items()},
             "sound_events": [e.to_dict() for e in self.sound_events],
         }
+        if self.furniture:
+            d["furniture"] = [f.to_dict() for f in self.furniture]
+        return d
 
     # ------------------------------------------------------------------ lookups
     @property
@@ -547,6 +657,27 @@ class GroundTruth(_Value):
             if a.answers_to(name):
                 return a
         raise NotInGroundTruth(f"no area {name!r}; areas: {list(self.area_names)}")
+
+    def item(self, name: str) -> FurnitureTruth:
+        """The piece of furniture (or wall) called ``name``.
+
+        Raises:
+            NotInGroundTruth: no such item (the message lists the furniture).
+        """
+        for f in self.furniture:
+            if f.name == name:
+                return f
+        raise NotInGroundTruth(
+            f"no furniture {name!r}; furniture: {[f.name for f in self.furniture]}"
+        )
+
+    def furniture_of(self, category: str) -> tuple[FurnitureTruth, ...]:
+        """The furniture of a category (``"table"``, ``"wall"``...), in order (may be empty)."""
+        return tuple(f for f in self.furniture if f.category == category)
+
+    def objects_on(self, table: str) -> tuple[ObjectTruth, ...]:
+        """The objects standing on the furniture called ``table``, in order."""
+        return tuple(o for o in self.objects if o.table == table)
 
     def sound_events_of(self, category: str) -> tuple[SoundEventTruth, ...]:
         """The sound events of ``category`` in time order (one per place it was inserted).

@@ -42,6 +42,9 @@ __all__ = [
     "RENDERERS",
     "CameraImage",
     "SimWorld",
+    "create_object_body",
+    "load_egl_plugin",
+    "render_camera",
 ]
 
 log = logging.getLogger(__name__)
@@ -91,6 +94,95 @@ def _quiet_stdout():
         os.close(devnull)
 
 
+def load_egl_plugin(pb, client: int) -> bool:
+    """Load PyBullet's EGL renderer plugin into ``client`` (before any body); False if the
+    machine has none."""
+    loader = pkgutil.get_loader("eglRenderer")
+    if loader is None:
+        return False
+    try:
+        with _quiet_stdout():  # the plugin prints its GL banner from C
+            plugin = pb.loadPlugin(
+                loader.get_filename(), "_eglRendererPlugin", physicsClientId=client
+            )
+    except Exception:  # pragma: no cover - depends on the machine's GL stack
+        return False
+    return plugin >= 0
+
+
+def create_object_body(pb, client: int, kind_name: str, color: str, T_world_obj: np.ndarray) -> int:
+    """A static PyBullet body of a catalog object (mesh visual and collision) at
+    ``T_world_obj`` (its bottom centre), painted ``color`` unless the kind keeps its texture."""
+    kind = object_kind(kind_name)
+    geo = load_mesh_geometry(kind_name)
+    data = pybullet_data_dir()
+    mesh = str(data / kind.mesh)
+    # The EGL renderer ignores texture changes, so painted kinds load a copy of the
+    # mesh without its material library.
+    vis_mesh = mesh if kind.keep_texture else str(_untextured_copy(data / kind.mesh))
+    q_frame = quat_from_matrix(geo.frame_rotation).tolist()
+    vis = pb.createVisualShape(
+        pb.GEOM_MESH,
+        fileName=vis_mesh,
+        meshScale=list(kind.scale),
+        visualFramePosition=geo.frame_offset.tolist(),
+        visualFrameOrientation=q_frame,
+        rgbaColor=None if kind.keep_texture else [*COLORS[color], 1.0],
+        physicsClientId=client,
+    )
+    col = pb.createCollisionShape(
+        pb.GEOM_MESH,
+        fileName=mesh,
+        meshScale=list(kind.scale),
+        collisionFramePosition=geo.frame_offset.tolist(),
+        collisionFrameOrientation=q_frame,
+        physicsClientId=client,
+    )
+    T = np.asarray(T_world_obj, dtype=np.float64)
+    return pb.createMultiBody(
+        0,
+        col,
+        vis,
+        T[:3, 3].tolist(),
+        quat_from_matrix(T[:3, :3]).tolist(),
+        physicsClientId=client,
+    )
+
+
+def render_camera(
+    pb,
+    client: int,
+    camera: WristCameraConfig,
+    projection: list[float],
+    renderer: str,
+    T_world_cam: np.ndarray,
+    seg_lut: np.ndarray,
+) -> CameraImage:
+    """Render RGB, metric depth and instance segmentation (body id -> ``seg_lut``) from an
+    OpenCV camera pose with the "egl" or "tiny" renderer."""
+    W, H = camera.width, camera.height
+    kind = pb.ER_BULLET_HARDWARE_OPENGL if renderer == "egl" else pb.ER_TINY_RENDERER
+    _, _, rgba, buf, seg = pb.getCameraImage(
+        W,
+        H,
+        gl_view_matrix(T_world_cam),
+        projection,
+        renderer=kind,
+        lightDirection=[0.4, 0.3, 1.0],
+        shadow=0,
+        physicsClientId=client,
+    )
+    rgb = np.asarray(rgba, dtype=np.uint8).reshape(H, W, 4)[..., :3].copy()
+    depth = depth_from_gl_buffer(np.asarray(buf).reshape(H, W), camera.near, camera.far)
+    res = camera.depth_resolution
+    depth = (np.round(depth / res) * res).astype(np.float32)
+    seg = np.asarray(seg, dtype=np.int64).reshape(H, W)
+    inst = np.where(seg >= 0, seg_lut[np.clip(seg, 0, len(seg_lut) - 1)], 0)
+    inst = inst.astype(np.uint16)
+    inst[depth == 0] = INSTANCE_NONE
+    return CameraImage(rgb=rgb, depth=depth, segmentation=inst)
+
+
 class SimWorld:
     """A PyBullet scene built from a :class:`SceneSpec`, with a wrist camera on the Panda."""
 
@@ -126,17 +218,7 @@ class SimWorld:
 
     # ------------------------------------------------------------------ building
     def _load_egl(self) -> bool:
-        loader = pkgutil.get_loader("eglRenderer")
-        if loader is None:
-            return False
-        try:
-            with _quiet_stdout():  # the plugin prints its GL banner from C
-                plugin = self._pb.loadPlugin(
-                    loader.get_filename(), "_eglRendererPlugin", physicsClientId=self._client
-                )
-        except Exception:  # pragma: no cover - depends on the machine's GL stack
-            return False
-        return plugin >= 0
+        return load_egl_plugin(self._pb, self._client)
 
     def _egl_renders(self) -> bool:
         T = make_transform(np.diag([1.0, -1.0, -1.0]), (0.4, 0.0, 0.8))
@@ -202,40 +284,7 @@ class SimWorld:
         self.object_ids: dict[str, int] = {}
         self.object_instance: dict[str, int] = {}
         for i, obj in enumerate(self.spec.objects):
-            kind = object_kind(obj.kind)
-            geo = load_mesh_geometry(obj.kind)
-            mesh = str(data / kind.mesh)
-            # The EGL renderer ignores texture changes, so painted kinds load a copy of the
-            # mesh without its material library.
-            vis_mesh = mesh if kind.keep_texture else str(_untextured_copy(data / kind.mesh))
-            q_frame = quat_from_matrix(geo.frame_rotation).tolist()
-            rgba = [*COLORS[obj.color], 1.0]
-            vis = pb.createVisualShape(
-                pb.GEOM_MESH,
-                fileName=vis_mesh,
-                meshScale=list(kind.scale),
-                visualFramePosition=geo.frame_offset.tolist(),
-                visualFrameOrientation=q_frame,
-                rgbaColor=None if kind.keep_texture else rgba,
-                physicsClientId=cid,
-            )
-            col = pb.createCollisionShape(
-                pb.GEOM_MESH,
-                fileName=mesh,
-                meshScale=list(kind.scale),
-                collisionFramePosition=geo.frame_offset.tolist(),
-                collisionFrameOrientation=q_frame,
-                physicsClientId=cid,
-            )
-            T = obj.T_world_obj
-            body = pb.createMultiBody(
-                0,
-                col,
-                vis,
-                T[:3, 3].tolist(),
-                quat_from_matrix(T[:3, :3]).tolist(),
-                physicsClientId=cid,
-            )
+            body = create_object_body(pb, cid, obj.kind, obj.color, obj.T_world_obj)
             inst = _FIRST_OBJECT_INSTANCE + i
             self.object_ids[obj.name] = body
             self.object_instance[obj.name] = inst
@@ -305,30 +354,15 @@ class SimWorld:
     # ------------------------------------------------------------------ rendering
     def render(self, T_world_cam: np.ndarray) -> CameraImage:
         """Render RGB, metric depth and instance segmentation from an OpenCV camera pose."""
-        pb = self._pb
-        W, H = self.camera.width, self.camera.height
-        renderer = pb.ER_BULLET_HARDWARE_OPENGL if self.renderer == "egl" else pb.ER_TINY_RENDERER
-        _, _, rgba, buf, seg = pb.getCameraImage(
-            W,
-            H,
-            gl_view_matrix(T_world_cam),
+        return render_camera(
+            self._pb,
+            self._client,
+            self.camera,
             self._projection,
-            renderer=renderer,
-            lightDirection=[0.4, 0.3, 1.0],
-            shadow=0,
-            physicsClientId=self._client,
+            self.renderer,
+            T_world_cam,
+            self._seg_lut,
         )
-        rgb = np.asarray(rgba, dtype=np.uint8).reshape(H, W, 4)[..., :3].copy()
-        depth = depth_from_gl_buffer(
-            np.asarray(buf).reshape(H, W), self.camera.near, self.camera.far
-        )
-        res = self.camera.depth_resolution
-        depth = (np.round(depth / res) * res).astype(np.float32)
-        seg = np.asarray(seg, dtype=np.int64).reshape(H, W)
-        inst = np.where(seg >= 0, self._seg_lut[np.clip(seg, 0, len(self._seg_lut) - 1)], 0)
-        inst = inst.astype(np.uint16)
-        inst[depth == 0] = INSTANCE_NONE
-        return CameraImage(rgb=rgb, depth=depth, segmentation=inst)
 
     # ------------------------------------------------------------------ ground truth
     def ground_truth(self) -> GroundTruth:
