@@ -184,10 +184,11 @@ _CELL = 0.05
 
 
 def _viewpoints(
-    spec: RoomSpec, table: FurnitureSpec, free: np.ndarray, config: RoomScanConfig, rng
-) -> list[tuple[float, float]]:
-    """Free, reachable points ``standoff`` from the table's edge, one per side (mid-side),
-    best first: sides in a seeded order, the first and its opposite preferred."""
+    table: FurnitureSpec, free: np.ndarray, config: RoomScanConfig
+) -> list[tuple[int, tuple[float, float]]]:
+    """(side, point): free, reachable points ``standoff`` from the table's edge, at most one
+    per side (its middle, else shifted along it); sides 0-3 are +x, +y, -x, -y of the table's
+    frame."""
     L, D = table.dims[0] / 2, table.dims[1] / 2
     c, s = math.cos(table.yaw), math.sin(table.yaw)
     sides = [
@@ -197,7 +198,7 @@ def _viewpoints(
         (0.0, -D - config.standoff),
     ]
     out = []
-    for k in rng.permutation(4):
+    for k in range(4):
         for shift in (0.0, 0.25, -0.25, 0.45, -0.45):  # along the side if its middle is blocked
             lx, ly = sides[k]
             if lx == 0.0:
@@ -209,17 +210,12 @@ def _viewpoints(
             if 0 <= i < free.shape[0] and 0 <= j < free.shape[1] and free[i, j]:
                 out.append((k, p))
                 break
-    if not out:
-        return []
-    first = out[0][0]
-    order = sorted(out, key=lambda kp: (kp[0] != first, kp[0] != (first + 2) % 4))
-    return [p for _, p in order]
+    return out
 
 
 def _plan(spec: RoomSpec, config: RoomScanConfig, blocked: np.ndarray) -> list[_Visit]:
     from scipy import ndimage
 
-    rng = np.random.default_rng([config.seed, 0x5CA])
     labels, _ = ndimage.label(~blocked)
     sx, sy = spec.start.position
     start_label = labels[int(sx / _CELL), int(sy / _CELL)]
@@ -237,24 +233,31 @@ def _plan(spec: RoomSpec, config: RoomScanConfig, blocked: np.ndarray) -> list[_
         tables = [spec.item(t) for t in config.tables]
     else:
         tables = [f for f in spec.furniture if f.category == "table" or f.objects]
-    visits = []
+    candidates = {}
     for t in tables:
-        vps = _viewpoints(spec, t, free, config, rng)
+        vps = _viewpoints(t, free, config)
         if not vps:
             raise SimulationError(
                 f"table {t.name!r} has no free viewpoint {config.standoff} m from its edge that "
                 "the base can reach; move the furniture apart or lower standoff"
             )
-        n = config.views_per_table if max(t.dims[:2]) >= 1.0 else 1
-        visits.append(_Visit(t, tuple(vps[:n])))
-    # nearest-first tour from the start
+        candidates[t.name] = vps
+    # a nearest-first tour from the start: at each table, the nearest side first, then the
+    # opposite one (else the farthest), so that both views together see the whole top
     order, here = [], np.array(spec.start.position)
-    left = list(visits)
+    left = list(tables)
     while left:
-        k = int(np.argmin([np.linalg.norm(np.subtract(v.viewpoints[0], here)) for v in left]))
-        v = left.pop(k)
-        order.append(v)
-        here = np.array(v.viewpoints[-1])
+        dist = [min(math.dist(p, here) for _, p in candidates[t.name]) for t in left]
+        t = left.pop(int(np.argmin(dist)))
+        vps = sorted(candidates[t.name], key=lambda kp: math.dist(kp[1], here))
+        views = [vps[0]]
+        n = config.views_per_table if max(t.dims[:2]) >= 1.0 else 1
+        rest = sorted(
+            vps[1:], key=lambda kp: (kp[0] != (vps[0][0] + 2) % 4, -math.dist(kp[1], vps[0][1]))
+        )
+        views += rest[: n - 1]
+        order.append(_Visit(t, tuple(p for _, p in views)))
+        here = np.array(views[-1][1])
     return order
 
 
