@@ -425,12 +425,12 @@ def run_room_scan(
         T_hand_mic = world.description.T_base_mic
         collisions = base.collisions
 
-    f = rec.frames
     n = len(rec.labels)
+    # one frame list at a time becomes an array and is freed: a scan's images are gigabytes
+    f = {k: np.array(rec.frames.pop(k)) for k in list(rec.frames)}
     timestamps = np.arange(n) / config.rate_hz
     segments = rec.segments()
-    mic = np.array(f["mic"])
-    true = np.array(f["true"])
+    mic, true = f["mic"], f["true"]
     audio, audio_rate, events = None, 16000, []
     if config.episodes:
         centres = [p.position for p in episode_places]
@@ -446,10 +446,10 @@ def run_room_scan(
     )
     recording = Recording(
         timestamps=timestamps,
-        rgb=np.array(f["rgb"]),
-        depth=np.array(f["depth"]),
-        joint_positions=np.array(f["wheels"]),
-        T_world_hand=np.array(f["odo"]),
+        rgb=f.pop("rgb"),
+        depth=f.pop("depth"),
+        joint_positions=f["wheels"],
+        T_world_hand=f["odo"],
         K=K,
         T_hand_cam=config.camera.T_hand_cam,
         T_hand_mic=T_hand_mic,
@@ -457,7 +457,7 @@ def run_room_scan(
         audio=audio,
         audio_rate=audio_rate,
         segments=tuple(segments),
-        segmentation=np.array(f["seg"]),
+        segmentation=f.pop("seg"),
         T_world_hand_true=true,
         ground_truth=ground_truth.to_dict(),
         meta={
