@@ -15,11 +15,14 @@ from tabletop.base import (
 )
 from tabletop.errors import ConfigError
 
+#: Turn rate [rad/s] of the wheels at -4, +4 rad/s.
+W4 = 2 * TABLETOP_BASE.wheel_radius * 4.0 / TABLETOP_BASE.wheel_separation
+
 
 def drive_square(driver):
     for _ in range(4):
         driver.command_wheels(8.0, 8.0, 2.5)  # 1 m straight
-        driver.command_wheels(-4.0, 4.0, math.pi / 2 / (2 * 0.05 * 4.0 / 0.3))  # quarter turn
+        driver.command_wheels(-4.0, 4.0, math.pi / 2 / W4)  # quarter turn
 
 
 def test_kinematic_driver_moves_exactly_and_its_odometry_agrees():
@@ -28,7 +31,7 @@ def test_kinematic_driver_moves_exactly_and_its_odometry_agrees():
     drive_square(d)
     assert d.true_pose().as_array() == pytest.approx([1.0, 1.0, 0.0], abs=1e-9)
     assert d.read_odometry().as_array() == pytest.approx(d.true_pose().as_array(), abs=1e-9)
-    assert d.read_odometry().t == pytest.approx(4 * 2.5 + 4 * math.pi / 2 / (4.0 / 3.0))
+    assert d.read_odometry().t == pytest.approx(4 * 2.5 + 4 * math.pi / 2 / W4)
 
 
 def test_wheel_speeds_saturate_at_the_limit():
@@ -60,6 +63,7 @@ def test_wheel_odometry_integrates_increments_as_arcs():
     odo = WheelOdometry(TABLETOP_BASE, BasePose(0.0, 0.0, 0.0), (5.0, 5.0))
     p = odo.update(5.0 + 20.0, 5.0 + 20.0, 1.0)  # 20 rad * 5 cm = 1 m straight
     assert p.as_array() == pytest.approx([1.0, 0.0, 0.0])
-    turn = math.pi / 2 * 0.15 / 0.05  # each wheel's angle for a quarter turn in place
+    # each wheel's angle for a quarter turn in place
+    turn = math.pi / 2 * (TABLETOP_BASE.wheel_separation / 2) / TABLETOP_BASE.wheel_radius
     p = odo.update(25.0 - turn, 25.0 + turn, 2.0)
     assert p.as_array() == pytest.approx([1.0, 0.0, math.pi / 2])

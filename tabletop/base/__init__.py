@@ -26,6 +26,7 @@ from tabletop.base.kinematics import (
     wheels_from_twist,
 )
 from tabletop.base.odometry import OdometryDrift, WheelOdometry
+from tabletop.base.planner import grid_path, line_is_free
 from tabletop.base.pose import BasePose, wrap_angle
 
 __all__ = [
@@ -45,8 +46,10 @@ __all__ = [
     "base_urdf_path",
     "check_command",
     "follow_path",
+    "grid_path",
     "integrate",
     "limit_wheels",
+    "line_is_free",
     "load_base_description",
     "turn_to",
     "twist_from_wheels",

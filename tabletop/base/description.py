@@ -42,10 +42,10 @@ MIC_FRAME = "mic"
 #: The driven wheels' joints, (left, right).
 WHEEL_JOINTS = ("left_wheel_joint", "right_wheel_joint")
 
-#: The base of ``urdf/base/tabletop_base.urdf``: 5 cm wheels 0.30 m apart, up to 12 rad/s
+#: The base of ``urdf/base/tabletop_base.urdf``: 5 cm wheels 0.24 m apart, up to 12 rad/s
 #: (0.6 m/s), a chassis 0.35 m across.
 TABLETOP_BASE = DiffDriveParams(
-    wheel_radius=0.05, wheel_separation=0.30, max_wheel_speed=12.0, radius=0.175
+    wheel_radius=0.05, wheel_separation=0.24, max_wheel_speed=12.0, radius=0.175
 )
 
 
@@ -127,9 +127,9 @@ def load_base_description(path: str | Path | None = None) -> BaseDescription:
         )
 
     def cylinder(link: str) -> ET.Element:
-        el = links[link].find("collision/geometry/cylinder")
+        el = links[link].find("visual/geometry/cylinder")
         if el is None:
-            raise AssetError(f"{path}: link {link!r} needs a cylinder collision shape")
+            raise AssetError(f"{path}: link {link!r} needs a cylinder visual shape")
         return el
 
     wheels = []

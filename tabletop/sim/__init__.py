@@ -1,5 +1,6 @@
 """Simulation: tabletop scenes, the Panda with its wrist RGB-D camera, teleop-style scans with
-inserted audio, the sound bank, and recordings on disk."""
+inserted audio, the sound bank, and recordings on disk; rooms with the wheeled base and its
+scans."""
 
 from tabletop.recording import (
     FORMAT_VERSION,
@@ -14,6 +15,7 @@ from tabletop.sim.catalog import COLORS, OBJECT_KINDS, ObjectKind
 from tabletop.sim.esc50 import load_esc50
 from tabletop.sim.ground_truth import (
     AreaTruth,
+    FurnitureTruth,
     GroundTruth,
     GroundTruthError,
     NotInGroundTruth,
@@ -22,6 +24,16 @@ from tabletop.sim.ground_truth import (
     TableTruth,
 )
 from tabletop.sim.noise import NoiseConfig, apply_noise
+from tabletop.sim.room import (
+    FurnitureSpec,
+    RoomSpec,
+    StartPose,
+    generate_room,
+    list_default_rooms,
+    load_room_spec,
+)
+from tabletop.sim.room_scan import RoomScanConfig, RoomScanStats, run_room_scan
+from tabletop.sim.room_world import PyBulletBaseDriver, RoomWorld, mast_camera_config
 from tabletop.sim.scan import ScanConfig, ScanStats, plan_scan, run_scan
 from tabletop.sim.scene import (
     AreaSpec,
@@ -44,6 +56,8 @@ __all__ = [
     "CameraImage",
     "CameraIntrinsics",
     "Frame",
+    "FurnitureSpec",
+    "FurnitureTruth",
     "GroundTruth",
     "GroundTruthError",
     "NoiseConfig",
@@ -51,8 +65,13 @@ __all__ = [
     "ObjectKind",
     "ObjectSpec",
     "ObjectTruth",
+    "PyBulletBaseDriver",
     "RandomSpec",
     "Recording",
+    "RoomScanConfig",
+    "RoomScanStats",
+    "RoomSpec",
+    "RoomWorld",
     "ScanConfig",
     "ScanStats",
     "SceneSpec",
@@ -61,15 +80,21 @@ __all__ = [
     "SoundBank",
     "SoundClip",
     "SoundEventTruth",
+    "StartPose",
     "TableSpec",
     "TableTruth",
     "WristCameraConfig",
     "apply_noise",
+    "generate_room",
+    "list_default_rooms",
     "list_default_scenes",
     "load_esc50",
     "load_recording",
+    "load_room_spec",
     "load_scene_spec",
+    "mast_camera_config",
     "plan_scan",
+    "run_room_scan",
     "run_scan",
     "save_recording",
 ]
