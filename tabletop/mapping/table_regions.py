@@ -213,18 +213,28 @@ def fit_table(grid: VoxelGrid, indices: np.ndarray) -> TableFit | None:
     )
 
 
-def fit_surfaces(grid: VoxelGrid, indices: np.ndarray, min_area_m2: float = 0.04) -> list[TableFit]:
+def fit_surfaces(
+    grid: VoxelGrid,
+    indices: np.ndarray,
+    min_area_m2: float = 0.04,
+    above_m: float = 0.10,
+    max_covered: float = 0.5,
+) -> list[TableFit]:
     """Every horizontal surface of the occupied voxels ``indices`` (N, 3), largest first: a
     room's floor, its table tops, a cabinet's top, a shelf's boards.
 
     A surface is a connected patch of one layer (with the layer above: a surface at a voxel
     boundary fills two) of at least ``min_area_m2`` [m^2] that survives a morphological opening
     by 3 x 3 voxels (a wall cut by the layer is a line one or two voxels thick; a surface is
-    not). A patch already taken by a surface one layer away is the same surface. Each surface's
+    not), with at most ``max_covered`` of its cells occupied in the ``above_m`` [m] over it (a
+    table top carries objects on part of it; a vertical side cut by the layer is occupied
+    above it too). A patch already taken by a surface a layer away is the same surface. Each
+    surface's
     height is the count-weighted mean of its two layers' centres, its extent the 1st-99th
     percentile of its cells (as :func:`fit_table`)."""
     idx = np.asarray(indices)
     min_cells = max(int(np.ceil(min_area_m2 / grid.voxel_size**2)), 9)
+    above_cells = max(round(above_m / grid.voxel_size), 1)
     if len(idx) < min_cells:
         return []
     nz = grid.shape[2]
@@ -247,8 +257,13 @@ def fit_surfaces(grid: VoxelGrid, indices: np.ndarray, min_area_m2: float = 0.04
             area = int(patch.sum())
             if area < min_cells:
                 continue
-            near = taken[:, :, max(k - 1, 0) : min(k + 2, nz)].any(axis=2)
+            near = taken[:, :, max(k - 1, 0) : min(k + 3, nz)].any(axis=2)
             if (patch & near).sum() > area / 2:
+                continue
+            # A surface has room above it (what stands on it covers part of it); a wall, a
+            # sofa's back or a shelf's side cut by the layer is occupied above as well.
+            over = layers[:, :, min(k + 2, nz) : min(k + 2 + above_cells, nz)].any(axis=2)
+            if (patch & over).sum() > max_covered * area:
                 continue
             per_layer = np.array([(layers[:, :, j] & patch).sum() for j in pair], np.float64)
             z = float(np.average(zs[pair], weights=per_layer + 1e-9))
@@ -262,7 +277,7 @@ def fit_surfaces(grid: VoxelGrid, indices: np.ndarray, min_area_m2: float = 0.04
                     area,
                 )
             )
-            taken[:, :, k] |= patch
+            taken[:, :, pair] |= patch[:, :, None]
     out.sort(key=lambda t: -t.voxels)
     return out
 

@@ -25,9 +25,20 @@ __all__ = [
 ORACLE_BACKGROUND_LABELS = {1: "floor", 2: "table", 3: "robot arm"}
 
 
+#: What the oracle calls a room's own instances (by their ground-truth names).
+ORACLE_ROOM_LABELS = {"floor": "floor", "robot": "robot"}
+
+
 def oracle_labels(ground_truth: dict) -> dict[int, str]:
-    """Instance id -> label ("red mug", "table", ...) from a recording's ground truth."""
-    labels = dict(ORACLE_BACKGROUND_LABELS)
+    """Instance id -> label ("red mug", "table", "wall", ...) from a recording's ground truth:
+    a room's furniture and walls by their category, objects by their label."""
+    if ground_truth.get("furniture"):  # a room numbers its own instances
+        names = {int(k): v for k, v in ground_truth.get("instances", {}).items()}
+        labels = {i: ORACLE_ROOM_LABELS[n] for i, n in names.items() if n in ORACLE_ROOM_LABELS}
+        for f in ground_truth["furniture"]:
+            labels[int(f["instance_id"])] = f["category"]
+    else:
+        labels = dict(ORACLE_BACKGROUND_LABELS)
     for o in ground_truth.get("objects", []):
         labels[int(o["instance_id"])] = o["label"]
     return labels
