@@ -257,3 +257,55 @@ def test_the_suites_unparseable_instructions_are_refused():
         with pytest.raises(ParseError) as e:
             parse_instruction(bad.instruction)
         assert e.value.fragment == bad.fragment, bad.instruction
+
+
+@pytest.mark.parametrize(
+    "text, code",
+    [
+        ("move forward 2 meters", ["robot.move_forward(2.0)"]),
+        ("drive 3 m forward", ["robot.move_forward(3.0)"]),
+        ("back up 50 cm", ["robot.move_forward(-0.5)"]),
+        ("go backwards 1 m", ["robot.move_forward(-1.0)"]),
+        ("turn left", ["robot.turn(90.0)"]),
+        ("turn 45 degrees to the right", ["robot.turn(-45.0)"]),
+        ("rotate 30 degrees clockwise", ["robot.turn(-30.0)"]),
+        ("turn around", ["robot.turn(180.0)"]),
+        ("face the teddy bear", ['robot.face("teddy bear")']),
+        ("turn to face the blue mug", ['robot.face("blue mug")']),
+        ("move 2 m north", ["robot.move_north(2.0)"]),
+        (
+            "go to the red mug, then turn right, then move forward 1 m",
+            ['robot.move_to_object("red mug")', "robot.turn(-90.0)", "robot.move_forward(1.0)"],
+        ),
+    ],
+)
+def test_a_mobile_base_turns_faces_and_drives(text, code):
+    from tabletop.language.codegen import instruction_to_code
+
+    lines = [x for x in instruction_to_code(text, "mobile").splitlines() if not x.startswith("#")]
+    assert lines == code
+
+
+@pytest.mark.parametrize(
+    "text, robot, why",
+    [
+        ("turn left", "arm", "a mobile base's motions"),
+        ("face the duck", "arm", "a mobile base's motions"),
+        ("move 1 m left", "mobile", "does not move sideways"),
+        ("turn", "mobile", "say which way to turn"),
+        ("move forward", "mobile", "say how far"),
+        ("turn 400 degrees left", "mobile", "at most 360 degrees"),
+        ("move forward 30 m", "mobile", "at most 20 m"),
+        ("turn 90 degrees around", "mobile", "not both"),
+    ],
+)
+def test_base_motions_are_refused_where_they_do_not_apply(text, robot, why):
+    with pytest.raises(ParseError, match=why):
+        parse_instruction(text, robot)
+
+
+def test_the_arm_still_reads_forward_as_north():
+    from tabletop.language.codegen import instruction_to_code
+
+    assert "robot.move_north(0.1)" in instruction_to_code("move forward 10 cm")
+    assert "robot.move_south(0.05)" in instruction_to_code("go back 5 cm")

@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 from tabletop.cli import main
+from tabletop.errors import ConfigError
 from tabletop.language import CodeRejected, ParseError, TracingRobot, run_instruction
 from tabletop.language.suite import PointRobot, load_suite, reference_map
 
@@ -68,7 +69,7 @@ def test_every_traced_motion_goes_to_its_declared_target(ref_map):
     robot = PointRobot(ref_map, (0.3, 0.0, 0.3))
     args = {"name": "red mug", "a": "red mug", "b": "tray", "distance_m": 0.04}
     for p in PRIMITIVES:
-        if not p.moves or p.target is None:
+        if not p.moves or p.target is None or "arm" not in p.robots:
             continue
         t = TracingRobot(robot, execute=False, start=(0.3, 0.0, 0.3))
         values = [args[n] for n in p.params]
@@ -82,6 +83,12 @@ def test_every_traced_motion_goes_to_its_declared_target(ref_map):
     np.testing.assert_allclose(robot.current_position(), [0.3, 0.0, 0.3])  # a dry run
     with pytest.raises(TypeError, match="distance_m"):
         TracingRobot(robot).move_north()
+    # a mobile base's own motions, asked of an arm, are refused by name before anything moves
+    for call, arg in (("move_forward", 1.0), ("turn", 90), ("face", "red mug"), ("ahead", 1)):
+        t = TracingRobot(robot, execute=False)
+        with pytest.raises(ConfigError, match=f"{call} is a primitive of the mobile robot"):
+            getattr(t, call)(arg)
+        assert t.motions == []
 
 
 def test_the_arm_does_not_move_for_refused_code_or_instructions(arm):

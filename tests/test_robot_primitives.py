@@ -28,9 +28,29 @@ def _params(cls, name):
 
 @pytest.mark.parametrize("p", PRIMITIVES, ids=[p.name for p in PRIMITIVES])
 def test_every_primitive_is_a_robot_api_method_with_the_declared_parameters(p):
-    assert callable(getattr(RobotAPI, p.name, None)), p.name
-    assert _params(RobotAPI, p.name) == p.params
+    from tabletop.robot.wheeled import MobileRobot
+
+    # a primitive of every robot is the shared API's; a base's own is the base's
+    cls = RobotAPI if set(p.robots) == {"arm", "mobile"} else MobileRobot
+    assert p.robots in (("arm", "mobile"), ("mobile",)), p.robots
+    assert callable(getattr(cls, p.name, None)), p.name
+    assert _params(cls, p.name) == p.params
     assert p.kind in KINDS and p.summary and "\n" not in p.summary
+    if cls is MobileRobot:
+        assert not hasattr(RobotAPI, p.name)  # the arm has no base motions
+
+
+def test_the_mobile_base_has_every_primitive_of_its_own_and_no_undeclared_one():
+    from tabletop.robot.wheeled import MobileRobot
+
+    assert signature_mismatches(MobileRobot, "mobile") == ()
+    assert undeclared_methods(MobileRobot) == ()
+    assert MobileRobot.robot_kind == "mobile" and RobotAPI.robot_kind == "arm"
+    mobile_only = [p.name for p in PRIMITIVES if p.robots == ("mobile",)]
+    assert set(mobile_only) == {"ahead", "move_forward", "turn", "face"}
+    assert signature_mismatches(RobotAPI, "mobile") == tuple(
+        f"RobotAPI has no method {n!r}" for n in mobile_only
+    )
 
 
 def test_every_public_robot_api_method_is_declared_or_excluded():
@@ -39,11 +59,14 @@ def test_every_public_robot_api_method_is_declared_or_excluded():
         for n, v in inspect.getmembers(RobotAPI)
         if not n.startswith("_") and (inspect.isfunction(v) or inspect.ismethod(v))
     }
-    assert public == DECLARED | set(EXCLUDED)
+    from tabletop.robot.wheeled import MobileRobot
+
+    shared = {p.name for p in PRIMITIVES if set(p.robots) == {"arm", "mobile"}}
+    assert public == shared | (set(EXCLUDED) & public)
     assert undeclared_methods(RobotAPI) == ()
     assert signature_mismatches(RobotAPI) == ()
-    for name, why in EXCLUDED.items():
-        assert hasattr(RobotAPI, name) and why, name  # a stale exclusion is an error too
+    for name, why in EXCLUDED.items():  # a stale exclusion is an error too
+        assert (hasattr(RobotAPI, name) or hasattr(MobileRobot, name)) and why, name
 
 
 def test_a_method_added_without_a_declaration_is_caught():
@@ -87,7 +110,13 @@ def test_motions_name_their_target_primitive():
         "move_south",
         "move_east",
         "move_west",
+        "move_forward",
+        "turn",
+        "face",
     }
+    assert motion_to("ahead").name == "move_forward"
+    assert {p.name for p in motions if p.rotates} == {"turn", "face"}
+    assert all(p.target is None for p in motions if p.rotates)
     assert motion_to("above").name == "move_to_object"
     assert motion_to("left_of").name == "move_to_left"
     assert motion_to("between").name == "move_in_between"
@@ -135,13 +164,18 @@ def test_the_tracing_robot_has_exactly_the_declared_primitives():
             assert _params(TracingRobot, p.name) == p.params
 
 
-def test_the_prompt_lists_exactly_the_declared_primitives():
-    from tabletop.language.prompts import SYSTEM_PROMPT, api_list
+@pytest.mark.parametrize("robot", ["arm", "mobile"])
+def test_the_prompt_lists_exactly_the_declared_primitives(robot):
+    from tabletop.language.prompts import SYSTEM_PROMPT, api_list, system_prompt
 
-    listed = re.findall(r"^robot\.(\w+)\(", api_list(), flags=re.MULTILINE)
-    assert listed == [p.name for p in PRIMITIVES]
-    assert api_list() in SYSTEM_PROMPT
+    prompt = system_prompt(robot)
+    listed = re.findall(r"^robot\.(\w+)\(", api_list(robot), flags=re.MULTILINE)
+    assert listed == [p.name for p in PRIMITIVES if robot in p.robots]
+    assert api_list(robot) in prompt
     for p in PRIMITIVES:
-        assert f"{p.call}" in SYSTEM_PROMPT and p.summary in SYSTEM_PROMPT
-    assert "robot.get_major_map(obj=, sound=, img=, area=, primary=)" in SYSTEM_PROMPT
-    assert "robot.move_north(distance_m)" in SYSTEM_PROMPT
+        shown = f"{p.call}" in prompt and p.summary in prompt
+        assert shown == (robot in p.robots), p.name  # the arm's prompt has no base motions
+    assert "robot.get_major_map(obj=, sound=, img=, area=, primary=)" in prompt
+    assert "robot.move_north(distance_m)" in prompt
+    assert SYSTEM_PROMPT == system_prompt("arm")
+    assert ("wheeled robot base" in prompt) == (robot == "mobile")

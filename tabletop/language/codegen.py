@@ -31,11 +31,14 @@ from tabletop.language.plan import (
     BackAndForth,
     Between,
     Compass,
+    Face,
+    Forward,
     Goal,
     GoTo,
     Part,
     Side,
     Step,
+    Turn,
 )
 from tabletop.robot.primitives import Primitive, motion_to, primitive
 
@@ -57,6 +60,9 @@ _MOVE_SIDE = {
     "behind": motion_to("behind"),
 }
 _MOVE_COMPASS = {d: primitive(f"move_{d}") for d in ("north", "south", "east", "west")}
+_MOVE_FORWARD = primitive("move_forward")
+_TURN = primitive("turn")
+_FACE = primitive("face")
 
 
 def _call(p: Primitive, *args: str) -> str:
@@ -148,6 +154,12 @@ def _step_code(step: Step, names: _Names) -> list[str]:
         moves = [_call(_MOVE_ABOVE, _q(a.landmark))]
     elif isinstance(a, Compass):
         moves = [_call(_MOVE_COMPASS[a.direction], repr(a.distance_m))]
+    elif isinstance(a, Forward):
+        moves = [_call(_MOVE_FORWARD, repr(a.distance_m))]
+    elif isinstance(a, Turn):
+        moves = [_call(_TURN, repr(a.angle_deg))]
+    elif isinstance(a, Face):
+        moves = [_call(_FACE, _q(a.landmark))]
     elif isinstance(a, BackAndForth):
         # the two points once, outside the loop: each pass goes to the same places
         p1, p2 = names("pos1"), names("pos2")
@@ -171,6 +183,7 @@ def plan_to_code(steps: tuple[Step, ...]) -> str:
     return "\n".join(out) + "\n"
 
 
-def instruction_to_code(instruction: str) -> str:
-    """Parse ``instruction`` and write its robot code (:class:`ParseError` if not understood)."""
-    return plan_to_code(parse_instruction(instruction))
+def instruction_to_code(instruction: str, robot: str = "arm") -> str:
+    """Parse ``instruction`` for ``robot`` ("arm" or "mobile") and write its robot code
+    (:class:`ParseError` if not understood)."""
+    return plan_to_code(parse_instruction(instruction, robot))

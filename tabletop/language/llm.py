@@ -254,11 +254,12 @@ def extract_code(reply: str) -> str:
     return code.strip("\n") + "\n"
 
 
-def llm_code(instruction: str, config: LLMConfig) -> str:
-    """Robot code for ``instruction`` from the endpoint (not yet checked by the sandbox)."""
+def llm_code(instruction: str, config: LLMConfig, robot: str = "arm") -> str:
+    """Robot code for ``instruction`` from the endpoint (not yet checked by the sandbox), with
+    the prompt of ``robot`` ("arm" or "mobile")."""
     if not isinstance(instruction, str) or not instruction.strip():
         raise ConfigError("the instruction is empty")
-    code = extract_code(chat(prompt_messages(instruction), config))
+    code = extract_code(chat(prompt_messages(instruction, robot), config))
     if not code.strip():
         raise LLMError(f"{config.base_url}: the model replied with no code")
     return code

@@ -26,21 +26,26 @@ from __future__ import annotations
 
 import re
 
+from tabletop.errors import ConfigError
 from tabletop.language.errors import ParseError
 from tabletop.language.plan import (
     Above,
     BackAndForth,
     Between,
     Compass,
+    Face,
+    Forward,
     Goal,
     GoTo,
     Part,
     Side,
     Step,
+    Turn,
 )
 
 __all__ = [
     "MAX_DISTANCE_M",
+    "MAX_DRIVE_M",
     "MAX_REPEAT",
     "parse_instruction",
 ]
@@ -49,6 +54,8 @@ MAX_REPEAT = 20
 """Most repetitions of one step ("20 times")."""
 MAX_DISTANCE_M = 1.0
 """Longest compass move [m]: the table is about a metre across."""
+MAX_DRIVE_M = 20.0
+"""Longest move of a mobile base [m] (forward, back, compass): a room is a few metres."""
 
 
 # ---------------------------------------------------------------------- vocabulary
@@ -239,10 +246,42 @@ _PATH = re.compile(
 
 
 # ---------------------------------------------------------------------- parsing
+# A mobile base's own motions: turning on the spot, driving along its heading.
+_TURN = re.compile(
+    rf"^(?:please\s+)?(?:turn|rotate|spin)(?:\s+(?:yourself|the\s+(?:robot|base)))?\s*"
+    rf"(?:(?:by\s+)?({_NUM})\s*(?:deg(?:ree)?s?|°)\s*)?"
+    r"(?:to\s+(?:the|your)\s+)?(left|right|around|clockwise|counter[\s-]?clockwise|"
+    r"anti[\s-]?clockwise)?$"
+)
+_FACE = re.compile(
+    r"^(?:please\s+)?(?:(?:turn|rotate)\s+(?:to\s+)?(?:face|towards?)|face|look\s+(?:at|towards?))"
+    r"\s+(.+)$"
+)
+_DRIVE = re.compile(
+    rf"^(?:please\s+)?(?:(?:go|move|drive|roll|head|travel)\s+(forward|forwards|ahead|straight(?:\s+ahead)?|"
+    rf"back|backwards?|in\s+reverse)|back\s+up|reverse)"
+    rf"(?:\s+(?:by\s+|for\s+)?{_DIST})?$"
+)
+_DRIVE_LEAD = re.compile(
+    rf"^(?:please\s+)?(?:go|move|drive|roll|head|travel)\s+{_DIST}\s+"
+    r"(forward|forwards|ahead|straight(?:\s+ahead)?|back|backwards?)$"
+)
+_TURN_SIGN = {
+    "left": 1.0,
+    "counterclockwise": 1.0,
+    "anticlockwise": 1.0,
+    "right": -1.0,
+    "clockwise": -1.0,
+}
+
+
 class _Parser:
-    def __init__(self, instruction: str) -> None:
+    def __init__(self, instruction: str, robot: str = "arm") -> None:
         if not isinstance(instruction, str) or not instruction.strip():
             raise ParseError(str(instruction), str(instruction), "the instruction is empty")
+        if robot not in ("arm", "mobile"):
+            raise ConfigError(f"robot must be 'arm' or 'mobile', got {robot!r}")
+        self.robot = robot
         self.instruction = instruction
         self.paths: list[str] = []
         self.areas: list[tuple[str, str]] = []  # (as written, the map's area name)
@@ -295,6 +334,9 @@ class _Parser:
         if m:
             a, b = self.two_goals(m.group(1), "back and forth", sep=r"\s+(?:and|to)\s+")
             return Step(BackAndForth(a, b), times, self._restore(clause))
+        base = self.base_motion(body, clause)
+        if base is not None:
+            return Step(base, times, self._restore(clause))
         m = _LEAD_REPEAT.match(body)
         if m and times == 1:
             times = self.times(m, clause)
@@ -314,6 +356,49 @@ class _Parser:
             self.fail(clause, "the step names no goal")
         return Step(self.action(rest, clause), times, self._restore(clause))
 
+    def base_motion(self, body: str, clause: str):
+        """A mobile base's own motion (turn, face, forward, back), or None. The arm's
+        instructions never have one: asked of the arm, it is refused by name."""
+        m_turn, m_face = _TURN.match(body), _FACE.match(body)
+        # the arm reads "move forward 10 cm" as a compass move (north: away from the robot)
+        m_drive = (
+            (_DRIVE.match(body) or _DRIVE_LEAD.match(body)) if self.robot == "mobile" else None
+        )
+        if not (m_turn or m_face or m_drive):
+            return None
+        if self.robot != "mobile":
+            self.fail(
+                clause,
+                "turning on the spot and driving forward or back are a mobile base's motions; "
+                "the arm moves to places (e.g. 'move 10 cm north')",
+            )
+        if m_face:
+            return Face(self.landmark(m_face.group(1), "face"))
+        if m_turn:
+            num, way = m_turn.group(1), (m_turn.group(2) or "").replace(" ", "").replace("-", "")
+            if way == "around":
+                if num is not None:
+                    self.fail(clause, "say 'turn around' or 'turn N degrees left', not both")
+                return Turn(180.0)
+            if not way and num is None:
+                self.fail(clause, "say which way to turn: left, right, around, or N degrees")
+            deg = 90.0 if num is None else self.number(num, clause)
+            if not 0 < deg <= 360:
+                self.fail(clause, "a turn is more than 0 and at most 360 degrees")
+            return Turn(_TURN_SIGN.get(way, 1.0) * deg)
+        g = m_drive.groups()
+        if m_drive.re is _DRIVE_LEAD:
+            num, unit, way = g
+        else:
+            way, num, unit = g
+        if num is None:
+            self.fail(clause, "say how far, e.g. 'move forward 1 m' or 'back up 50 cm'")
+        d = self.number(num, clause) * _UNITS[unit.rstrip("s")]
+        if not 0 < d <= MAX_DRIVE_M:
+            self.fail(clause, f"a base drives more than 0 and at most {MAX_DRIVE_M:g} m at once")
+        back = way is None or way.startswith(("back", "in"))
+        return Forward(round(-d if back else d, 6))
+
     def times(self, m: re.Match, clause: str) -> int:
         word = m.group(1) or m.group(2)
         n = {"once": 1, "twice": 2, "thrice": 3}.get(word) or self.number(word, clause)
@@ -331,9 +416,14 @@ class _Parser:
                 else:
                     num, unit, direction = g
                 d = self.number(num, clause) * _UNITS[unit.rstrip("s")]
-                if not 0 < d <= MAX_DISTANCE_M:
+                limit = MAX_DRIVE_M if self.robot == "mobile" else MAX_DISTANCE_M
+                if not 0 < d <= limit:
+                    self.fail(rest, f"a compass move goes more than 0 and at most {limit} m")
+                if self.robot == "mobile" and direction in ("left", "right"):
                     self.fail(
-                        rest, f"a compass move goes more than 0 and at most {MAX_DISTANCE_M} m"
+                        rest,
+                        "a base does not move sideways: 'turn left, then move forward 1 m', "
+                        "or a compass direction ('move 1 m west')",
                     )
                 return Compass(_DIRECTIONS[direction], round(d, 6))
         if re.match(rf"^(?:to(?:wards)?\s+(?:the\s+)?)?{_DIR}(?:wards?)?$", rest):
@@ -486,6 +576,7 @@ def _a(noun: str) -> str:
     return ("an " if noun[0] in "aeiou" else "a ") + noun
 
 
-def parse_instruction(instruction: str) -> tuple[Step, ...]:
-    """The steps of ``instruction``; :class:`ParseError` names what was not understood."""
-    return _Parser(instruction).parse()
+def parse_instruction(instruction: str, robot: str = "arm") -> tuple[Step, ...]:
+    """The steps of ``instruction`` for ``robot`` ("arm", or "mobile": a base that also turns
+    and drives forward and back); :class:`ParseError` names what was not understood."""
+    return _Parser(instruction, robot).parse()

@@ -19,11 +19,14 @@ __all__ = [
     "BackAndForth",
     "Between",
     "Compass",
+    "Face",
+    "Forward",
     "GoTo",
     "Goal",
     "Part",
     "Side",
     "Step",
+    "Turn",
 ]
 
 #: The modalities of a goal part, named as the robot API's query keywords (obj=, sound=, ...).
@@ -97,7 +100,28 @@ class BackAndForth:
     b: Goal
 
 
-Action = GoTo | Between | Side | Above | Compass | BackAndForth
+@dataclass(frozen=True)
+class Forward:
+    """A mobile base drives ``distance_m`` [m] along its heading (negative: back)."""
+
+    distance_m: float
+
+
+@dataclass(frozen=True)
+class Turn:
+    """A mobile base turns on the spot by ``angle_deg`` [deg], counter-clockwise positive."""
+
+    angle_deg: float
+
+
+@dataclass(frozen=True)
+class Face:
+    """A mobile base turns on the spot towards the object ``landmark``."""
+
+    landmark: str
+
+
+Action = GoTo | Between | Side | Above | Compass | BackAndForth | Forward | Turn | Face
 """What one step does."""
 
 

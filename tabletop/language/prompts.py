@@ -7,9 +7,18 @@ has to carry the pattern over rather than copy an answer.
 
 from __future__ import annotations
 
+from tabletop.errors import ConfigError
 from tabletop.robot.primitives import PRIMITIVES
 
-__all__ = ["EXAMPLES", "SYSTEM_PROMPT", "api_list", "prompt_messages", "prompt_text"]
+__all__ = [
+    "EXAMPLES",
+    "MOBILE_EXAMPLES",
+    "SYSTEM_PROMPT",
+    "api_list",
+    "prompt_messages",
+    "prompt_text",
+    "system_prompt",
+]
 
 _PREAMBLE = """\
 You write Python for a robot arm above a table. The arm has a map of the table built from its
@@ -30,14 +39,45 @@ goal.
 """
 
 
-def api_list() -> str:
-    """The prompt's API list, one line per declared primitive (:data:`PRIMITIVES`)."""
+_MOBILE_PREAMBLE = """\
+You write Python for a wheeled robot base in a room. The base has a map of the room built from
+its camera and microphone. Answer with code only: no explanations, no imports, no functions,
+no if or while. Use only the object `robot`, numbers, strings, variables, + - * /, tuples and
+lists, and `for _ in range(n)` loops. Positions are 3D points in metres in the room's frame
+(z up, the floor at z = 0); the base drives on the floor to the point's x, y. "Left of",
+"in front of" a landmark are in the base's own frame: to its left, further along its heading.
+"""
+
+_MOBILE_CONVENTIONS = """\
+obj= is an object description, sound= a sound description, area= a place named by what is
+there ("the area around the sofa"), img= an image from robot.load_image. Multiply heatmaps to
+combine them: the goal gets get_major_map, every goal that only narrows it down ("near",
+"where you heard") gets get_map. A landmark (name, a, b) is an object description or a
+heatmap.
+"""
+
+
+def api_list(robot: str = "arm") -> str:
+    """The prompt's API list for ``robot`` ("arm" or "mobile"), one line per declared
+    primitive that robot has (:data:`PRIMITIVES`)."""
     width = 40
-    return "".join(f"{p.call:<{width - 1}} -> {p.summary}\n" for p in PRIMITIVES)
+    return "".join(
+        f"{p.call:<{width - 1}} -> {p.summary}\n" for p in PRIMITIVES if robot in p.robots
+    )
 
 
-SYSTEM_PROMPT = f"{_PREAMBLE}\n{api_list()}\n{_CONVENTIONS}"
-"""The system message: the rules, the API list generated from the declaration, conventions."""
+def system_prompt(robot: str = "arm") -> str:
+    """The system message for ``robot``: the rules, the API list generated from the
+    declaration, conventions."""
+    if robot == "mobile":
+        return f"{_MOBILE_PREAMBLE}\n{api_list(robot)}\n{_MOBILE_CONVENTIONS}"
+    if robot != "arm":
+        raise ConfigError(f"robot must be 'arm' or 'mobile', got {robot!r}")
+    return f"{_PREAMBLE}\n{api_list(robot)}\n{_CONVENTIONS}"
+
+
+SYSTEM_PROMPT = system_prompt("arm")
+"""The arm's system message (:func:`system_prompt`)."""
 
 #: (instruction, code) pairs, in the order they are shown to the model.
 EXAMPLES: tuple[tuple[str, str], ...] = (
@@ -115,16 +155,41 @@ EXAMPLES: tuple[tuple[str, str], ...] = (
 )
 
 
-def prompt_text(instruction: str) -> str:
+#: The mobile base's examples (its own motions, and the shared API in a room).
+MOBILE_EXAMPLES: tuple[tuple[str, str], ...] = (
+    ("go to the green bowl", 'robot.move_to_object("green bowl")'),
+    (
+        "drive to the cup near the sound of a kettle whistling",
+        'obj_map = robot.get_major_map(obj="cup")\n'
+        'sound_map = robot.get_map(sound="kettle whistling")\n'
+        "robot.move_to(robot.get_max_pos_3d(obj_map * sound_map))",
+    ),
+    ("move 2 meters forward, then turn left", "robot.move_forward(2)\nrobot.turn(90)"),
+    ("turn around and face the armchair", 'robot.turn(180)\nrobot.face("armchair")'),
+    (
+        "go in between the lamp and the sound of a phone ringing",
+        'sound_map = robot.get_major_map(sound="phone ringing")\n'
+        'robot.move_in_between("lamp", sound_map)',
+    ),
+    ("back up half a meter", "robot.move_forward(-0.5)"),
+)
+
+
+def _examples(robot: str):
+    return MOBILE_EXAMPLES if robot == "mobile" else EXAMPLES
+
+
+def prompt_text(instruction: str, robot: str = "arm") -> str:
     """The whole prompt as one text (for completion endpoints and for reading)."""
-    shots = "\n\n".join(f"# {q}\n{code}" for q, code in EXAMPLES)
-    return f"{SYSTEM_PROMPT}\n{shots}\n\n# {instruction.strip()}\n"
+    shots = "\n\n".join(f"# {q}\n{code}" for q, code in _examples(robot))
+    return f"{system_prompt(robot)}\n{shots}\n\n# {instruction.strip()}\n"
 
 
-def prompt_messages(instruction: str) -> list[dict]:
-    """Chat messages: the API description, the examples as user/assistant turns, the query."""
-    messages = [{"role": "system", "content": SYSTEM_PROMPT}]
-    for q, code in EXAMPLES:
+def prompt_messages(instruction: str, robot: str = "arm") -> list[dict]:
+    """Chat messages: the API description, the examples as user/assistant turns, the query
+    (for ``robot``: "arm" or "mobile")."""
+    messages = [{"role": "system", "content": system_prompt(robot)}]
+    for q, code in _examples(robot):
         messages.append({"role": "user", "content": f"# {q}"})
         messages.append({"role": "assistant", "content": code})
     messages.append({"role": "user", "content": f"# {instruction.strip()}"})

@@ -152,12 +152,38 @@ def _signature(p: Primitive) -> inspect.Signature:
     return inspect.Signature(params)
 
 
+def _has(robot, p: Primitive) -> None:
+    """Refuse a primitive the wrapped robot does not have (a mobile base's own motion asked
+    of the arm), naming the robots that have it."""
+    if getattr(robot, p.name, None) is None:
+        raise ConfigError(
+            f"{p.name} is a primitive of the {' and '.join(p.robots)} robot; this robot "
+            f"({type(robot).__name__}) has no {p.name}"
+        )
+
+
 def _traced(p: Primitive):
     """The tracer's method for primitive ``p`` (see :class:`TracingRobot`)."""
     sig = _signature(p)
-    if not p.moves:
+    if p.rotates:
 
         def method(self, *args, **kwargs):
+            _has(self.robot, p)
+            values = list(sig.bind(self, *args, **kwargs).arguments.values())[1:]
+            here = self._pos.copy()
+            if self.on_motion is not None:
+                self.on_motion(Motion(p.name, here.copy()))
+            result = getattr(self.robot, p.name)(*values) if self.execute else None
+            motion = Motion(p.name, here, result)
+            self.motions.append(motion)
+            if self.execute and self.on_motion is not None:
+                self.on_motion(motion)
+            return result
+
+    elif not p.moves:
+
+        def method(self, *args, **kwargs):
+            _has(self.robot, p)
             if "img" in p.params:  # an image path is read here, inside image_dir
                 bound = sig.bind(self, *args, **kwargs).arguments
                 if isinstance(bound.get("img"), (str, Path)):
@@ -175,6 +201,7 @@ def _traced(p: Primitive):
                 d = _distance(values[0])
                 target = getattr(self, p.target)(d * p.direction[0], d * p.direction[1])
             else:
+                _has(self.robot, p)
                 target = getattr(self, p.target)(*values)
             return self._move(p.name, target)
 
@@ -207,19 +234,22 @@ class InstructionRun:
         return np.array([m.target for m in self.motions], dtype=np.float64).reshape(-1, 3)
 
 
-def generate_code(instruction: str, backend: str = "offline", llm_config=None) -> str:
-    """The robot code for ``instruction`` from the ``offline`` parser or an ``llm`` endpoint.
+def generate_code(
+    instruction: str, backend: str = "offline", llm_config=None, robot: str = "arm"
+) -> str:
+    """The robot code for ``instruction`` from the ``offline`` parser or an ``llm`` endpoint
+    (prompted for ``robot``: "arm" or "mobile").
 
     The code is returned exactly as the sandbox will receive it.
     """
     if backend == "offline":
         from tabletop.language.codegen import instruction_to_code
 
-        return instruction_to_code(instruction)
+        return instruction_to_code(instruction, robot)
     if backend == "llm":
         from tabletop.language.llm import LLMConfig, llm_code
 
-        return llm_code(instruction, llm_config or LLMConfig.from_env())
+        return llm_code(instruction, llm_config or LLMConfig.from_env(), robot)
     raise ConfigError(f"unknown backend {backend!r}; valid: {list(BACKENDS)}")
 
 
@@ -243,7 +273,8 @@ def run_instruction(
     """
     sandbox = sandbox or SandboxConfig()
     if code is None:
-        code = generate_code(instruction, backend, llm_config)
+        kind = getattr(robot, "robot_kind", "arm")
+        code = generate_code(instruction, backend, llm_config, kind)
     checked = check_code(code, sandbox)
     if on_code is not None:
         on_code(code)

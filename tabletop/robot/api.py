@@ -84,6 +84,10 @@ class RobotAPI(abc.ABC):
         spatial: offsets of the spatial primitives.
     """
 
+    robot_kind = "arm"
+    """Which robot's primitives and prompt it takes ("arm": the shared API with the table's
+    conventions; "mobile": a base in a room, :class:`~tabletop.robot.wheeled.MobileRobot`)."""
+
     def __init__(self, avlmap, spatial: SpatialConfig | None = None) -> None:
         self.map = avlmap
         self.spatial = spatial or SpatialConfig()

@@ -37,6 +37,7 @@ __all__ = [
     "EXCLUDED",
     "KINDS",
     "PRIMITIVES",
+    "ROBOTS",
     "Primitive",
     "motion_to",
     "primitive",
@@ -46,6 +47,8 @@ __all__ = [
 
 #: The kinds of primitive: a map or robot query, a target point (no motion), a motion.
 KINDS = ("query", "target", "motion")
+#: The robots a primitive may be for: the arm over a table, a mobile base in a room.
+ROBOTS = ("arm", "mobile")
 
 
 @dataclass(frozen=True)
@@ -69,8 +72,18 @@ class Primitive:
     argument, a distance [m], scales it into the ``offset`` target's (dx, dy)."""
     keywords: bool = False
     """The parameters are optional keywords (``obj=``, ``sound=``, ...), given by name."""
+    robots: tuple[str, ...] = ROBOTS
+    """The robots that have it: every one by default; a mobile base's own motions
+    (``move_forward``, ``turn``, ``face``) only ``("mobile",)``."""
+    rotates: bool = False
+    """Motion only: it turns the robot on the spot (no target point: the robot stays where it
+    is)."""
 
     def __post_init__(self) -> None:
+        if not self.robots or not set(self.robots) <= set(ROBOTS):
+            raise ConfigError(f"{self.name}: robots must be some of {list(ROBOTS)}")
+        if self.rotates and (self.kind != "motion" or self.target is not None):
+            raise ConfigError(f"{self.name}: a rotation is a motion without a target")
         if not self.name.isidentifier() or self.name.startswith("_"):
             raise ConfigError(f"primitive name {self.name!r} must be a public identifier")
         if self.kind not in KINDS:
@@ -147,6 +160,38 @@ PRIMITIVES: tuple[Primitive, ...] = (
     _compass("south", "-x", (-1.0, 0.0)),
     _compass("east", "-y", (0.0, -1.0)),
     _compass("west", "+y", (0.0, 1.0)),
+    # ------------------------------------------------------------------ a mobile base's own
+    Primitive(
+        "ahead",
+        ("distance_m",),
+        "the point distance_m metres ahead of the base (mobile base)",
+        "target",
+        robots=("mobile",),
+    ),
+    Primitive(
+        "move_forward",
+        ("distance_m",),
+        "drive distance_m metres ahead, negative: back (mobile base)",
+        "motion",
+        "ahead",
+        robots=("mobile",),
+    ),
+    Primitive(
+        "turn",
+        ("angle_deg",),
+        "turn on the spot by angle_deg degrees, counter-clockwise (mobile base)",
+        "motion",
+        robots=("mobile",),
+        rotates=True,
+    ),
+    Primitive(
+        "face",
+        ("name",),
+        "turn on the spot towards a landmark (mobile base)",
+        "motion",
+        robots=("mobile",),
+        rotates=True,
+    ),
 )
 """Every primitive, in the order the prompt lists them (queries, targets, motions)."""
 
@@ -155,6 +200,8 @@ PRIMITIVES: tuple[Primitive, ...] = (
 EXCLUDED: dict[str, str] = {
     "side_target": "the general form of left_of/right_of/in_front_of/behind, taking a direction "
     "vector; generated code names the side instead",
+    "heading": "a mobile base's yaw; generated code turns with turn and face instead",
+    "plan": "a mobile base's path without moving, for tools and reports",
 }
 
 _BY_NAME = {p.name: p for p in PRIMITIVES}
@@ -216,11 +263,18 @@ def undeclared_methods(cls: type) -> tuple[str, ...]:
     return tuple(n for n in _public_methods(cls) if n not in _BY_NAME and n not in EXCLUDED)
 
 
-def signature_mismatches(cls: type) -> tuple[str, ...]:
+def signature_mismatches(cls: type, robot: str | None = None) -> tuple[str, ...]:
     """One line per declared primitive that ``cls`` lacks or whose parameter names (without
-    ``self``) differ from the declaration."""
+    ``self``) differ from the declaration: the primitives every robot has (``robot`` None:
+    the shared API), or those of ``robot`` ("arm", "mobile")."""
+    if robot is not None and robot not in ROBOTS:
+        raise ConfigError(f"robot must be one of {list(ROBOTS)}, got {robot!r}")
     problems = []
     for p in PRIMITIVES:
+        if (robot is None and set(p.robots) != set(ROBOTS)) or (
+            robot is not None and robot not in p.robots
+        ):
+            continue
         attr = inspect.getattr_static(cls, p.name, None)
         if attr is None:
             problems.append(f"{cls.__name__} has no method {p.name!r}")
