@@ -377,7 +377,8 @@ def add_commands(sub) -> None:
         help="task files (.toml/.json), directories of them, or shipped names: 'default' (the "
         "default suites), 'demo', 'paraphrase-tune' (goals asked as people ask, to tune on), "
         "'paraphrase-heldout' (the same, held out: evaluate at the end), 'clutter' (dense "
-        "tables: goals on, beside and between objects)",
+        "tables: goals on, beside and between objects), 'mobile' (a wheeled base in rooms, "
+        "1 m success radius)",
     )
     p.add_argument(
         "--encoders",

@@ -66,11 +66,20 @@ def map_config(**overrides):
         base = MapConfig().to_dict()
         full = MapConfig.from_dict({k: {**base[k], **v} for k, v in nested.items()})
         kw.update({k: getattr(full, k) for k in nested})
+    if isinstance(kw.get("grid"), dict):  # a room's box: {lower, upper, voxel_size}
+        g = kw["grid"]
+        try:
+            kw["grid"] = VoxelGrid(tuple(g["lower"]), tuple(g["upper"]), g["voxel_size"])
+        except (KeyError, TypeError):
+            raise ConfigError(
+                f"grid must be {{lower: [x, y, z], upper: [x, y, z], voxel_size: m}}, got {g!r}"
+            ) from None
     if "voxel_size" in kw:
         v = kw.pop("voxel_size")
         if isinstance(v, bool) or not isinstance(v, (int, float)):
             raise ConfigError(f"voxel_size must be a number [m], got {v!r}")
-        kw["grid"] = VoxelGrid(voxel_size=float(v))
+        g = kw.get("grid", VoxelGrid())
+        kw["grid"] = VoxelGrid(g.lower, g.upper, voxel_size=float(v))
     if "categories" not in kw:
         kw["categories"] = (*(k.label for k in OBJECT_KINDS.values()), *BACKGROUND)
         desc = catalog_descriptions()

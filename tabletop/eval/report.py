@@ -72,13 +72,28 @@ class EvalResult:
         return {
             **top,
             "task_files": self.task_files,
-            "success_radius_m": SUCCESS_RADIUS_M,
+            "success_radius_m": self.success_radius,
+            "robot": "mobile" if self.mobile else "arm",
             "report": str(self.report_path) if self.report_path else None,
             "rows": rows,
         }
 
+    @property
+    def mobile(self) -> bool:
+        """Whether the task files are a mobile base's (success within a radius on the floor)."""
+        tasks = [t for r in self.runs for t in r.tasks]
+        return bool(tasks) and all(t.robot == "mobile" for t in tasks)
+
+    @property
+    def success_radius(self) -> float:
+        """[m] the task files' success radius (the arm's 10 cm when no task ran)."""
+        radii = {t.success_radius for r in self.runs for t in r.tasks}
+        return max(radii) if radii else SUCCESS_RADIUS_M
+
     def table_markdown(self) -> str:
         """The per-type table: one row per goal type and encoder set."""
+        if self.mobile:
+            return self._mobile_table()
         head = (
             "| goal type | encoders | goals | success % | "
             + " | ".join(f"R@{int(r * 100)} cm %" for r in RECALL_RADII_M)
@@ -116,6 +131,42 @@ class EvalResult:
                     f"| {name} | {r.label} | {goals} | {_pct(v['success_rate'])} "
                     f"({v['successes']}/{v['attempted']}) | {rec} | {_cm(v['mean_error_m'])} | "
                     f"{_cm(v['mean_target_error_m'])} | {v['contacts']} | "
+                    f"{v['time_per_goal_s']:.1f} |"
+                )
+        return "\n".join(lines)
+
+    def _mobile_table(self) -> str:
+        """A mobile base's table: success within the radius on the floor, the base's and the
+        target's distance to the truth [m], collisions."""
+        r_m = self.success_radius
+        head = (
+            f"| goal type | encoders | goals | success % (within {r_m:g} m) | base error m | "
+            "target error m | collisions | s / goal |"
+        )
+        lines = [head, "|" + "---|" * (head.count("|") - 1)]
+        types = []
+        for r in self.runs:
+            for t in r.summary()["by_type"]:
+                if t not in types:
+                    types.append(t)
+        for t in [*types, "all"]:
+            for r in self.runs:
+                if not r.available:
+                    if t == "all":
+                        lines.append(f"| {t} | {r.label} | unavailable: {r.reason} |" + " |" * 5)
+                    continue
+                s = r.summary()
+                v = s["all"] if t == "all" else s["by_type"].get(t)
+                if v is None or v["attempted"] == 0:
+                    continue
+                name = f"**{t}**" if t == "all" else t
+                err = "–" if v["mean_error_m"] is None else f"{v['mean_error_m']:.2f}"
+                terr = (
+                    "–" if v["mean_target_error_m"] is None else f"{v['mean_target_error_m']:.2f}"
+                )
+                lines.append(
+                    f"| {name} | {r.label} | {v['attempted']} | {_pct(v['success_rate'])} "
+                    f"({v['successes']}/{v['attempted']}) | {err} | {terr} | {v['contacts']} | "
                     f"{v['time_per_goal_s']:.1f} |"
                 )
         return "\n".join(lines)
@@ -165,16 +216,29 @@ class EvalResult:
     def to_markdown(self) -> str:
         """The whole report as Markdown (pictures by relative path)."""
         out = ["# Goal-reaching evaluation", ""]
-        out.append(
-            "A goal succeeds when the robot's tool centre point ends within 10 cm of the goal's "
-            "ground truth (an object's box, where a sound was heard, an area, the point a "
-            "spatial relation names). R@k: the predicted target (where the robot was sent) "
-            "lies within k of the truth. Contacts: robot-scene contact points during the "
-            "motions. An **absent** goal asks for something the scene does not have: it "
-            "succeeds when the map reports it not found (nothing moves), and recall and errors "
-            "leave it out. The **oracle** encoders read the simulator's segmentation and the "
-            "inserted clips' labels: a simulator upper bound, never the default."
-        )
+        if self.mobile:
+            out.append(
+                f"A mobile base's goal succeeds when the base's centre ends within "
+                f"{self.success_radius:g} m of the goal's ground truth on the floor (x, y: an "
+                "object's box, where a sound was heard, a table's top, where an image was "
+                "taken, the point a spatial relation names). Target error: the predicted "
+                "target's distance to the truth on the floor. Collisions: contacts begun "
+                "between the base and the room during its motions. The **oracle** encoders "
+                "read the simulator's segmentation and the inserted clips' labels: a simulator "
+                "upper bound, never the default."
+            )
+        else:
+            out.append(
+                "A goal succeeds when the robot's tool centre point ends within 10 cm of the "
+                "goal's ground truth (an object's box, where a sound was heard, an area, the "
+                "point a spatial relation names). R@k: the predicted target (where the robot "
+                "was sent) lies within k of the truth. Contacts: robot-scene contact points "
+                "during the motions. An **absent** goal asks for something the scene does not "
+                "have: it succeeds when the map reports it not found (nothing moves), and "
+                "recall and errors leave it out. The **oracle** encoders read the simulator's "
+                "segmentation and the inserted clips' labels: a simulator upper bound, never "
+                "the default."
+            )
         out += ["", f"Task files: {', '.join(f'`{p}`' for p in self.task_files)}", ""]
         for r in self.runs:
             if r.available:
@@ -183,7 +247,8 @@ class EvalResult:
             else:
                 out.append(f"- **{r.label}**: unavailable — {r.reason}")
         out += ["", "## Success by goal type", "", self.table_markdown(), ""]
-        out += ["## The arm", "", self.reach_markdown(), ""]
+        if not self.mobile:
+            out += ["## The arm", "", self.reach_markdown(), ""]
         row = self.in_a_row_markdown()
         if row:
             out += [

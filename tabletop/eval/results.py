@@ -106,6 +106,8 @@ class TaskRun:
     cached: bool = False
     encoder_names: dict = field(default_factory=dict)
     noise: dict = field(default_factory=dict)  # the sensor noise applied (empty: clean)
+    robot: str = "arm"  # "arm" or "mobile" (the task file's [robot] kind)
+    success_radius: float = SUCCESS_RADIUS_M  # [m]
 
 
 @dataclass

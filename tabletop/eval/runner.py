@@ -94,13 +94,20 @@ def collect_task_files(items: str | Path | TaskFile | Iterable) -> list[TaskFile
 class _Context:
     """What one task file's goals run against: the robot, the map, the scene and truth."""
 
-    def __init__(self, robot, avlmap, spec, rec) -> None:
+    def __init__(
+        self, robot, avlmap, spec, rec, radius: float = SUCCESS_RADIUS_M, world=None
+    ) -> None:
         self.robot = robot
         self.map = avlmap
         self.spec = spec
         self.rec = rec
         self.gt = GroundTruth.of(rec)
-        self._world = None
+        self.radius = radius
+        """Success radius [m]."""
+        self.on_floor = world is not None
+        """A mobile base in a room: distances are measured on the floor (x, y)."""
+        self._world = world  # renders image goals (a room's world is the robot's own)
+        self._own_world = world is None
         self.images: dict[str, np.ndarray] = {}  # goal id -> rendered query image
         self.heatmaps: dict[str, list] = {}  # goal id -> [(label, values)], for the report
         self.keep_heatmaps: set[str] = set()
@@ -120,8 +127,22 @@ class _Context:
         return rgb
 
     def close(self) -> None:
-        if self._world is not None:
+        if self._world is not None and self._own_world:
             self._world.close()
+
+    def distance(self, region: Region, p) -> float:
+        """[m] from a final position to the goal's region (on the floor for a base)."""
+        return region.distance_xy(p) if self.on_floor else region.distance(p)
+
+
+def _final(res) -> np.ndarray:
+    """(3,) [m] where a motion ended: the arm's TCP, a base's centre on the floor."""
+    p = getattr(res, "final_tcp", None)
+    return np.asarray(res.final_position if p is None else p, np.float64)
+
+
+def _reason(res) -> str:
+    return str(getattr(res.reason, "value", res.reason))
 
 
 def _parts(ctx: _Context, goal_id: str, lm: Landmark) -> dict:
@@ -171,7 +192,7 @@ def _reach_fields(robot, res) -> dict:
     unreachable, no progress, timeout), whether the audit finds a configuration that puts the
     TCP on that goal with the controller's clearance margin
     (:func:`tabletop.arm.bench.audit_goal`, from where the arm stands)."""
-    if res is None:
+    if res is None or not hasattr(res, "route"):  # a base's drive: no route, no audit
         return {}
     out = {
         "route": res.route.value,
@@ -219,22 +240,22 @@ def _run_goal(ctx: _Context, goal: Goal, sequence: str, region: Region) -> GoalR
             status="not_found" if isinstance(e, GoalNotFound) else "failed",
             reason=str(e) if isinstance(e, GoalNotFound) else f"{type(e).__name__}: {e}",
             tcp=tuple(tcp),
-            error_m=region.distance(tcp),
+            error_m=ctx.distance(region, tcp),
             time_s=time.perf_counter() - t0,
         )
     target = np.asarray(target, np.float64)
-    tcp = np.asarray(res.final_tcp, np.float64)
-    err = region.distance(tcp)
+    tcp = _final(res)
+    err = ctx.distance(region, tcp)
     return GoalResult(
         **base,
         status="done",
-        reason="" if res.reached else f"reach ended: {res.reason.value}",
+        reason="" if res.reached else f"reach ended: {_reason(res)}",
         target=tuple(target),
-        target_error_m=region.distance(target),
+        target_error_m=ctx.distance(region, target),
         tcp=tuple(tcp),
         error_m=err,
-        success=err <= SUCCESS_RADIUS_M,
-        reach=res.reason.value,
+        success=err <= ctx.radius,
+        reach=_reason(res),
         contacts=int(robot.contacts[-1]),
         time_s=time.perf_counter() - t0,
         **_reach_fields(robot, res),
@@ -283,8 +304,8 @@ def _run_absent(ctx: _Context, goal: Goal, base: dict, t0: float) -> GoalResult:
         status="done",
         reason=found,
         target=tuple(target),
-        tcp=tuple(np.asarray(res.final_tcp, np.float64)),
-        reach=res.reason.value,
+        tcp=tuple(_final(res)),
+        reach=_reason(res),
         contacts=int(robot.contacts[-1]),
         time_s=time.perf_counter() - t0,
     )
@@ -309,13 +330,13 @@ def _run_code(ctx: _Context, goal: Goal, base: dict, region: Region, t0: float):
             status="not_found" if isinstance(e, GoalNotFound) else "failed",
             reason=f"{type(e).__name__}: {e}",
             tcp=tuple(tcp),
-            error_m=region.distance(tcp),
+            error_m=ctx.distance(region, tcp),
             contacts=int(sum(robot.contacts[moves_before:])),
             time_s=time.perf_counter() - t0,
             code=code,
         )
     tcp = robot.current_position()
-    err = region.distance(tcp)
+    err = ctx.distance(region, tcp)
     last = run.motions[-1] if run.motions else None
     target = None if last is None else np.asarray(last.target, np.float64)
     res = None if last is None else last.result
@@ -324,11 +345,11 @@ def _run_code(ctx: _Context, goal: Goal, base: dict, region: Region, t0: float):
         status="done",
         reason="" if res is not None and res.reached else "the code's last motion fell short",
         target=None if target is None else tuple(target),
-        target_error_m=None if target is None else region.distance(target),
+        target_error_m=None if target is None else ctx.distance(region, target),
         tcp=tuple(tcp),
         error_m=err,
-        success=err <= SUCCESS_RADIUS_M,
-        reach="" if res is None else res.reason.value,
+        success=err <= ctx.radius,
+        reach="" if res is None else _reason(res),
         contacts=int(sum(robot.contacts[moves_before:])),
         time_s=time.perf_counter() - t0,
         code=code,
@@ -363,6 +384,16 @@ def evaluate_task_file(
     quieter); ``noise``: :class:`~tabletop.sim.noise.NoiseConfig` fields that replace the task
     file's ``[noise]`` ones (the clean scan is taken from the cache and the noise applied to
     it, so a noisy run costs a map, not a scan)."""
+    if tf.robot.kind == "mobile":
+        return evaluate_room_task_file(
+            tf,
+            encoders,
+            cache_dir=cache_dir,
+            progress=progress,
+            map_overrides=map_overrides,
+            scan_overrides=scan_overrides,
+            noise=noise,
+        )
     from tabletop.robot import SimArm
     from tabletop.sim.noise import NoiseConfig, apply_noise
 
@@ -386,14 +417,8 @@ def evaluate_task_file(
         rec = apply_noise(rec, sensor)
     m, map_s, map_cached = cached_map(tf.name, settings, rec, encoders, cache, rec_key, progress)
     # Resolve every truth before anything moves: a wrong reference is a task-file error.
-    where = str(tf.path or tf.name)
     truth = GroundTruth.of(rec)
-    regions = {
-        g.id: resolve_truth(g.truth, truth, f"{where} goal {g.id!r} truth") for g in tf.goals
-    }
-    for g in tf.goals:
-        if g.type == "absent":
-            check_absent(g.query, truth, f"{where} goal {g.id!r}")
+    regions = _resolve_goals(tf, truth)
     robot = SimArm(m, spec)
     ctx = _Context(robot, m, spec, rec)
     if figures_dir is not None:
@@ -432,6 +457,99 @@ def evaluate_task_file(
     return run
 
 
+def _resolve_goals(tf: TaskFile, truth: GroundTruth) -> dict[str, Region]:
+    """Every goal's region, before anything moves: a wrong reference is a task-file error."""
+    where = str(tf.path or tf.name)
+    regions = {
+        g.id: resolve_truth(g.truth, truth, f"{where} goal {g.id!r} truth") for g in tf.goals
+    }
+    for g in tf.goals:
+        if g.type == "absent":
+            check_absent(g.query, truth, f"{where} goal {g.id!r}")
+    return regions
+
+
+def evaluate_room_task_file(
+    tf: TaskFile,
+    encoders: str,
+    *,
+    cache_dir: Path | None = DEFAULT_CACHE_DIR,
+    progress: Progress | None = None,
+    map_overrides: dict | None = None,
+    scan_overrides: dict | None = None,
+    noise: dict | None = None,
+) -> TaskRun:
+    """:func:`evaluate_task_file` for a mobile base's task file: scan the room with the wheeled
+    base (or reuse the scan), map it with the room's settings
+    (:func:`~tabletop.eval.room.room_map_settings`), then run every goal with a
+    :class:`~tabletop.robot.wheeled.MobileRobot` on the room's physics (the ground base) or
+    an ideal unicycle (the flyer, which no physics of ours can fly); a goal is reached when
+    the base's centre ends within the task file's success radius of the truth, on the floor."""
+    from tabletop.base import TABLETOP_BASE, KinematicBaseDriver
+    from tabletop.eval.room import cached_room_recording, room_map_settings, room_recording_key
+    from tabletop.robot.wheeled import FLYER, GROUND_BASE, MobileRobot
+    from tabletop.sim.room_world import RoomWorld, mast_camera_config
+
+    if tf.noise or noise:
+        raise TaskFileError(
+            f"{tf.path or tf.name}: sensor noise ([noise], --noise) is applied to the arm's "
+            "scans only; a mobile base's odometry drift is a [scan] setting of its own"
+        )
+    spec = tf.scene.load()
+    cache = Path(cache_dir) if cache_dir is not None else None
+    settings = {**room_map_settings(spec), **dict(tf.map), **dict(map_overrides or {})}
+    try:  # a bad [map] value fails before the scan, not after it
+        map_config(**settings)
+    except (TypeError, TabletopError) as e:
+        raise TaskFileError(f"{tf.path or tf.name} [map]: {e}") from None
+    scan = {**dict(tf.scan), **dict(scan_overrides or {})}
+    rec, scan_s, rec_cached = cached_room_recording(tf.name, scan, spec, cache, progress)
+    rec_key = room_recording_key(spec, scan)
+    m, map_s, map_cached = cached_map(tf.name, settings, rec, encoders, cache, rec_key, progress)
+    truth = GroundTruth.of(rec)
+    regions = _resolve_goals(tf, truth)
+    h, w = rec.rgb.shape[1:3]
+    renderer = (rec.meta or {}).get("renderer", "auto")
+    world = RoomWorld(spec, mast_camera_config(width=w, height=h), renderer)
+    flyer = tf.robot.embodiment == "flyer"
+
+    def fresh_robot():
+        if flyer:
+            start = world.driver.read_odometry()
+            driver = KinematicBaseDriver(TABLETOP_BASE, start)
+        else:
+            world.reset_base()
+            driver = world.driver
+        return MobileRobot(m, driver, embodiment=FLYER if flyer else GROUND_BASE)
+
+    results: list[GoalResult] = []
+    try:
+        robot = fresh_robot()
+        ctx = _Context(robot, m, spec, rec, radius=tf.robot.success_radius, world=world)
+        done = 0
+        for seq_id, goals in tf.runs():
+            ctx.robot = robot = fresh_robot()  # every sequence from the room's start
+            for g in goals:
+                results.append(_run_goal(ctx, g, seq_id, regions[g.id]))
+                done += 1
+                if progress:
+                    progress(f"goals {tf.name}", done, len(tf.goals))
+        return TaskRun(
+            task_name=tf.name,
+            task_path=str(tf.path or tf.name),
+            scene=spec.name,
+            goals=results,
+            scan_s=scan_s,
+            map_s=map_s,
+            cached=rec_cached and map_cached,
+            encoder_names=dict(m.encoder_names),
+            robot="mobile",
+            success_radius=tf.robot.success_radius,
+        )
+    finally:
+        world.close()
+
+
 def _check_encoder_set(name: str) -> str:
     """'' when the encoder set can be built here, else the reason it cannot."""
     from tabletop.mapping.encoders.registry import ENCODER_SETS, make_encoders
@@ -468,6 +586,12 @@ def run_eval(
     from tabletop.eval.report import EvalResult
 
     files = collect_task_files(tasks)
+    kinds = sorted({tf.robot.kind for tf in files})
+    if len(kinds) > 1:
+        raise ConfigError(
+            f"the task files are for different robots ({kinds}): evaluate the arm's and the "
+            "mobile base's suites apart (their success radii differ)"
+        )
     names = [encoders] if isinstance(encoders, str) else list(encoders)
     if not names:
         raise ConfigError("give at least one encoder set")

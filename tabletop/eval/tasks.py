@@ -20,6 +20,12 @@ A task file is TOML or JSON (``tabletop-tasks`` version 1; see ``docs/evaluation
     query = { obj = "red mug" }
     truth = { object = "red_mug" }
 
+A mobile-base task file has ``[robot] kind = "mobile"`` and a ``[room]`` (name, path or
+``random = { seed = N }``) instead of ``[scene]``; its ``[scan]`` holds
+:class:`tabletop.sim.room_scan.RoomScanConfig` fields. ``[robot]`` may set ``success_radius``
+[m] (0.10 for the arm's TCP, 1.0 for a base, the paper's radius) and, for a base,
+``embodiment`` ("ground" or "flyer").
+
 Goal types: object, sound, image, area, ambiguous, spatial, multimodal_spatial, instruction,
 absent. A *query* goal (every type but spatial ones and instructions) names map queries by modality
 (``obj``, ``sound``, ``img``, ``area``); with several, ``primary`` is the sharp one and the
@@ -49,9 +55,12 @@ __all__ = [
     "GOAL_TYPES",
     "MODALITIES",
     "RELATIONS",
+    "ROBOT_KINDS",
     "Goal",
     "ImageView",
     "Landmark",
+    "RobotRef",
+    "RoomRef",
     "SceneRef",
     "TaskFile",
     "TaskFileError",
@@ -91,6 +100,10 @@ RELATIONS = {
 _TRUTH_KINDS = ("object", "sound", "area", "point", "box", "camera", "relation", "absent")
 _SCAN_FIELDS = ("seed", "speed", "episodes", "episode_s", "repeat_sounds", "clip_split", "snr_db")
 _MAP_FIELDS = ("frame_step", "pixel_step", "voxel_size")
+#: What a task file's robot may be, and its default success radius [m].
+ROBOT_KINDS = {"arm": 0.10, "mobile": 1.0}
+#: A mobile base's embodiments (``[robot].embodiment``).
+EMBODIMENTS = ("ground", "flyer")
 
 
 class TaskFileError(ConfigError):
@@ -218,12 +231,53 @@ class SceneRef:
 
 
 @dataclass(frozen=True)
+class RoomRef:
+    """Which room (a mobile base's task file): a shipped room ``name``, a spec ``path``, or a
+    generator draw ``random`` (``{"seed": N}``)."""
+
+    name: str | None = None
+    path: Path | None = None
+    random: dict | None = None
+
+    def describe(self) -> str:
+        if self.name:
+            return f"shipped room {self.name!r}"
+        if self.path:
+            return f"room spec {self.path}"
+        return f"generated room, seed {self.random['seed']}"
+
+    def load(self):
+        """The :class:`tabletop.sim.room.RoomSpec`."""
+        from tabletop.sim.room import generate_room, load_room_spec
+
+        if self.name:
+            return load_room_spec(self.name)
+        if self.path:
+            return load_room_spec(self.path)
+        return generate_room(self.random["seed"])
+
+
+@dataclass(frozen=True)
+class RobotRef:
+    """The robot a task file's goals are for (``[robot]``)."""
+
+    kind: str = "arm"
+    """"arm" (the Panda over a table) or "mobile" (a wheeled base in a room)."""
+    success_radius: float = 0.10
+    """A goal is reached within this distance [m]: of the TCP (arm), of the base's centre on
+    the floor, in x and y (mobile)."""
+    embodiment: str = "ground"
+    """A mobile base's obstacles: "ground" or "flyer" (see :mod:`tabletop.robot.wheeled`)."""
+
+
+@dataclass(frozen=True)
 class TaskFile:
     """A parsed task file."""
 
     path: Path | None
     name: str
-    scene: SceneRef
+    scene: SceneRef | RoomRef
+    """The arm's scene, or a mobile base's room (:attr:`robot` says which)."""
     scan: dict
     map: dict
     goals: tuple[Goal, ...]
@@ -233,6 +287,8 @@ class TaskFile:
     noise: dict = field(default_factory=dict)
     """The ``[noise]`` section: :class:`~tabletop.sim.noise.NoiseConfig` fields applied to the
     clean scan before mapping (empty: a clean run)."""
+    robot: RobotRef = field(default_factory=RobotRef)
+    """The ``[robot]`` section."""
 
     def goal(self, goal_id: str) -> Goal:
         for g in self.goals:
@@ -467,6 +523,42 @@ def scene_ref(sc: object, source: str = "<tasks>", base_dir: Path | None = None)
     return SceneRef(random=dict(r))
 
 
+def room_ref(sc: object, source: str = "<tasks>", base_dir: Path | None = None) -> RoomRef:
+    """A task file's ``[room]`` section as a :class:`RoomRef`."""
+    sc = _keys(sc, f"{source} [room]", (), ("name", "path", "random"))
+    given = [k for k in ("name", "path", "random") if k in sc]
+    if len(given) != 1:
+        raise _err(f"{source} [room]", f"give exactly one of name, path, random; got {given}")
+    if "name" in sc:
+        return RoomRef(name=_text(sc["name"], f"{source} [room].name"))
+    if "path" in sc:
+        p = Path(_text(sc["path"], f"{source} [room].path"))
+        return RoomRef(path=p if p.is_absolute() or base_dir is None else base_dir / p)
+    r = _keys(sc["random"], f"{source} [room].random", ("seed",))
+    seed = r["seed"]
+    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+        raise _err(f"{source} [room].random.seed", f"must be an integer >= 0, got {seed!r}")
+    return RoomRef(random={"seed": seed})
+
+
+def robot_ref(d: object, source: str = "<tasks>") -> RobotRef:
+    """A task file's ``[robot]`` section as a :class:`RobotRef`."""
+    where = f"{source} [robot]"
+    d = _keys(d, where, (), ("kind", "success_radius", "embodiment"))
+    kind = d.get("kind", "arm")
+    if kind not in ROBOT_KINDS:
+        raise _err(where, f"kind must be one of {list(ROBOT_KINDS)}, got {kind!r}")
+    r = d.get("success_radius", ROBOT_KINDS[kind])
+    if isinstance(r, bool) or not isinstance(r, (int, float)) or not 0 < r < math.inf:
+        raise _err(where, f"success_radius must be a number > 0 [m], got {r!r}")
+    emb = d.get("embodiment", "ground")
+    if emb not in EMBODIMENTS:
+        raise _err(where, f"embodiment must be one of {list(EMBODIMENTS)}, got {emb!r}")
+    if kind != "mobile" and "embodiment" in d:
+        raise _err(where, 'embodiment is for a mobile base (kind = "mobile")')
+    return RobotRef(kind, float(r), emb)
+
+
 def parse_tasks(data: dict, source: str = "<tasks>", base_dir: Path | None = None) -> TaskFile:
     """Validate parsed TOML/JSON and build a :class:`TaskFile`.
 
@@ -476,8 +568,19 @@ def parse_tasks(data: dict, source: str = "<tasks>", base_dir: Path | None = Non
     d = _keys(
         data,
         source,
-        ("format", "version", "scene", "goals"),
-        ("name", "description", "scan", "map", "noise", "sequences", "generator"),
+        ("format", "version", "goals"),
+        (
+            "name",
+            "description",
+            "scene",
+            "room",
+            "robot",
+            "scan",
+            "map",
+            "noise",
+            "sequences",
+            "generator",
+        ),
     )
     if d["format"] != FORMAT_NAME:
         raise _err(source, f"format is {d['format']!r}; expected {FORMAT_NAME!r}")
@@ -485,8 +588,20 @@ def parse_tasks(data: dict, source: str = "<tasks>", base_dir: Path | None = Non
         raise _err(
             source, f"version {d['version']!r} is not supported; supported: {FORMAT_VERSION}"
         )
-    scene = scene_ref(d["scene"], source, base_dir)
-    scan = dict(_keys(d.get("scan", {}), f"{source} [scan]", (), _SCAN_FIELDS))
+    robot = robot_ref(d.get("robot", {}), source)
+    place = "room" if robot.kind == "mobile" else "scene"
+    other = "scene" if place == "room" else "room"
+    if place not in d or other in d:
+        raise _err(
+            source,
+            f"a task file for the {robot.kind} robot needs a [{place}] section and no "
+            f"[{other}] (the arm works at a table [scene], a mobile base in a [room])",
+        )
+    if place == "room":
+        scene = room_ref(d["room"], source, base_dir)
+    else:
+        scene = scene_ref(d["scene"], source, base_dir)
+    scan = dict(_keys(d.get("scan", {}), f"{source} [scan]", (), _scan_fields(robot.kind)))
     mapcfg = dict(_keys(d.get("map", {}), f"{source} [map]", (), _MAP_FIELDS))
     goals_raw = d["goals"]
     if not isinstance(goals_raw, list) or not goals_raw:
@@ -512,7 +627,7 @@ def parse_tasks(data: dict, source: str = "<tasks>", base_dir: Path | None = Non
             placed[g] = sid
         seqs.append((sid, tuple(s["goals"])))
     try:
-        _check_scan(scan)
+        _check_scan(scan, robot.kind)
     except ConfigError as e:
         raise _err(f"{source} [scan]", str(e)) from None
     from tabletop.sim.noise import NoiseConfig
@@ -536,14 +651,47 @@ def parse_tasks(data: dict, source: str = "<tasks>", base_dir: Path | None = Non
         description=str(d.get("description", "")),
         extra={"generator": d.get("generator", {})},
         noise=dict(noise),
+        robot=robot,
     )
 
 
-def _check_scan(scan: dict) -> None:
-    from tabletop.sim.scan import ScanConfig
+def _scan_fields(kind: str) -> tuple[str, ...]:
+    """The ``[scan]`` keys a task file for robot ``kind`` may set."""
+    if kind != "mobile":
+        return _SCAN_FIELDS
+    from dataclasses import fields
 
+    from tabletop.sim.room_scan import RoomScanConfig
+
+    return tuple(f.name for f in fields(RoomScanConfig) if f.name in _ROOM_SCAN_FIELDS)
+
+
+#: What a mobile task file's ``[scan]`` may set (of :class:`RoomScanConfig`'s fields).
+_ROOM_SCAN_FIELDS = (
+    "seed",
+    "rate_hz",
+    "max_linear",
+    "max_angular",
+    "views_per_table",
+    "standoff",
+    "look_s",
+    "pan_rad",
+    "look_around",
+    "episodes",
+    "episode_s",
+    "repeat_sounds",
+    "clip_split",
+    "snr_db",
+)
+
+
+def _check_scan(scan: dict, kind: str = "arm") -> None:
+    if kind == "mobile":
+        from tabletop.sim.room_scan import RoomScanConfig as Config
+    else:
+        from tabletop.sim.scan import ScanConfig as Config
     try:
-        ScanConfig(**scan)
+        Config(**scan)
     except TypeError as e:
         raise ConfigError(str(e)) from None
 

@@ -57,6 +57,16 @@ class Region:
         d = np.maximum(lo - p, 0) + np.maximum(p - hi, 0)
         return float(np.linalg.norm(d, axis=1).min())
 
+    def distance_xy(self, p) -> float:
+        """Distance [m] in x and y only from a point (2,) or (3,) to the nearest box's
+        footprint (a mobile base is on the floor; inf without boxes)."""
+        if not len(self.boxes):
+            return math.inf
+        p = np.asarray(p, np.float64)[:2]
+        lo, hi = self.boxes[:, 0, :2], self.boxes[:, 1, :2]
+        d = np.maximum(lo - p, 0) + np.maximum(p - hi, 0)
+        return float(np.linalg.norm(d, axis=1).min())
+
     @property
     def center(self) -> np.ndarray:
         """(3,) centre of the first box [m]."""

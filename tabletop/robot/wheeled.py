@@ -127,6 +127,8 @@ class DriveResult:
     """Length [m] of the planned path."""
     duration_s: float
     """Driver time [s] of the motion."""
+    collisions: int = 0
+    """Collisions the driver counted during the motion (a simulated base; 0 otherwise)."""
 
     @property
     def error_m(self) -> float:
@@ -282,6 +284,9 @@ def plan_path(
 class MobileRobot(RobotAPI):
     """A wheeled base on any base driver, planning on the map's obstacles for its embodiment.
 
+    Its primitives are the shared robot API's and a base's own (``ahead``, ``move_forward``,
+    ``turn``, ``face``: :data:`tabletop.robot.primitives.PRIMITIVES`).
+
     Args:
         avlmap: the map (queries and obstacles).
         driver: the base's driver (:class:`~tabletop.base.driver.BaseDriver`).
@@ -291,6 +296,8 @@ class MobileRobot(RobotAPI):
         spatial: offsets of the spatial primitives (a base keeps further from objects than a
             gripper: 0.6 m beside by default).
     """
+
+    robot_kind = "mobile"
 
     def __init__(
         self,
@@ -316,6 +323,15 @@ class MobileRobot(RobotAPI):
         )
         """The configuration space: obstacles inflated by the radius and the clearance."""
         self.history: list[DriveResult] = []
+        self._seen = self._collisions()
+
+    def _collisions(self) -> int:
+        return int(getattr(self.driver, "collisions", 0))
+
+    @property
+    def contacts(self) -> list[int]:
+        """Collisions per motion, in the order of :attr:`history`."""
+        return [r.collisions for r in self.history]
 
     # --------------------------------------------------------------------- state
     def current_position(self) -> np.ndarray:
@@ -342,7 +358,9 @@ class MobileRobot(RobotAPI):
             driven=np.zeros((0, 3)) if run is None else run.driven,
             length_m=float(np.linalg.norm(np.diff(planned, axis=0), axis=1).sum()),
             duration_s=0.0 if run is None else run.duration_s,
+            collisions=self._collisions() - self._seen,
         )
+        self._seen = self._collisions()
         self.history.append(r)
         return r
 
@@ -364,11 +382,16 @@ class MobileRobot(RobotAPI):
         run = follow_path(self.driver, xy, self.config.follow, final_yaw=yaw)
         return self._result("reached", target, goal, shifted, xy, run)
 
-    def move_forward(self, distance_m: float) -> DriveResult:
-        """Drive ``distance_m`` [m] straight ahead (negative: back), around what is in the way."""
+    def ahead(self, distance_m: float) -> np.ndarray:
+        """(3,) [m] the point ``distance_m`` [m] ahead of the base along its heading (negative:
+        behind it), on the floor."""
         d = _finite(distance_m, "distance_m")
         p = self.driver.read_odometry()
-        return self.move_to([p.x + d * math.cos(p.yaw), p.y + d * math.sin(p.yaw), 0.0])
+        return np.array([p.x + d * math.cos(p.yaw), p.y + d * math.sin(p.yaw), 0.0])
+
+    def move_forward(self, distance_m: float) -> DriveResult:
+        """Drive ``distance_m`` [m] straight ahead (negative: back), around what is in the way."""
+        return self.move_to(self.ahead(distance_m))
 
     def turn(self, angle_deg: float) -> DriveResult:
         """Turn on the spot by ``angle_deg`` [deg], counter-clockwise positive."""

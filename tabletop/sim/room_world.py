@@ -391,6 +391,28 @@ class RoomWorld:
             furniture=tuple(furniture),
         )
 
+    def reset_base(self, pose: BasePose | None = None) -> None:
+        """Put the base back at ``pose`` (default: the room's start) at rest, with its
+        odometry there, and clear its collision count (a new run in the same room)."""
+        if pose is None:
+            sx, sy = self.spec.start.position
+            pose = BasePose(sx, sy, math.radians(self.spec.start.yaw_deg))
+        pb, cid = self._pb, self._client
+        q = quat_from_matrix(rotation_about("z", pose.yaw))
+        pb.resetBasePositionAndOrientation(
+            self.robot_id, [pose.x, pose.y, 0.0], q.tolist(), physicsClientId=cid
+        )
+        pb.resetBaseVelocity(self.robot_id, [0, 0, 0], [0, 0, 0], physicsClientId=cid)
+        for j in self.driver._wheels:
+            pb.resetJointState(self.robot_id, j, 0.0, 0.0, physicsClientId=cid)
+        self.driver._target = [0.0, 0.0]
+        self.driver._set_motors()
+        self.driver.hold(0.25)  # settle on the floor
+        self.driver.reset_odometry()
+        self.driver.collisions = 0
+        self.driver.collision_log.clear()
+        self.driver._touching.clear()
+
     # ------------------------------------------------------------------ lifetime
     def close(self) -> None:
         if self._client is not None and self._pb.isConnected(self._client):

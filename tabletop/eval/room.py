@@ -1,0 +1,95 @@
+"""Maps of rooms for the mobile base: the same map code as the arm's, at room scale.
+
+:func:`room_map_settings` is what changes between a tabletop map and a room map (everything
+else, the encoders and the modules, is shared):
+
+- the grid is the room's box (its floor plus a margin, up to the walls' height) at
+  ``voxel_size`` (3 cm by default: the paper maps rooms at 5 cm; 3 cm keeps the objects on
+  the tables several voxels across, which the object instances need);
+- the vocabulary is the catalog's objects, the tabletop background concepts and the room's own
+  concepts (:data:`ROOM_CONCEPTS`: walls, shelves, ...), so a voxel of a wall is not forced
+  onto "table" or "other" when an embodiment's obstacle list names walls;
+- objects stand on every raised surface (each table top, a cabinet's top, a shelf's boards),
+  not on one fitted table (``object.segmentation.supports = "surfaces"``), and at most
+  ``max_object_height_m`` above it;
+- the table registration (a wrist camera's height, roll and pitch corrected onto the table)
+  is off: a base's camera sees the floor and several tables; its poses come from the wheel
+  odometry, whose errors are in x, y and yaw;
+- no robot self-filter (the mast camera does not see the base).
+"""
+
+from __future__ import annotations
+
+__all__ = ["ROOM_CONCEPTS", "room_map_settings"]
+
+#: Concepts a room holds besides the catalog's objects and the tabletop background.
+ROOM_CONCEPTS = ("wall", "shelf", "cabinet", "sofa", "robot")
+
+
+def room_map_settings(
+    spec, voxel_size: float = 0.03, max_object_height_m: float = 0.40, margin_m: float = 0.3
+) -> dict:
+    """Map config overrides (:func:`tabletop.eval.harness.map_config`) for a room
+    (:class:`~tabletop.sim.room.RoomSpec`)."""
+    from tabletop.eval.harness import catalog_descriptions
+    from tabletop.mapping import BACKGROUND
+    from tabletop.sim.catalog import OBJECT_KINDS
+
+    sx, sy = spec.size
+    top = float(spec.wall_height) + 0.1
+    desc = catalog_descriptions()
+    return {
+        "grid": {
+            "lower": [-margin_m, -margin_m, -0.06],
+            "upper": [sx + margin_m, sy + margin_m, top],
+            "voxel_size": voxel_size,
+        },
+        "categories": (
+            *(k.label for k in OBJECT_KINDS.values()),
+            *BACKGROUND,
+            *(c for c in ROOM_CONCEPTS if c not in BACKGROUND),
+        ),
+        "descriptions": {k.label: desc[n] for n, k in OBJECT_KINDS.items() if n in desc},
+        "object": {
+            "segmentation": {
+                "supports": "surfaces",
+                "max_height_m": max_object_height_m,
+            }
+        },
+        "registration": {"enabled": False},
+        "self_filter_margin": None,
+    }
+
+
+def room_recording_key(spec, scan: dict) -> str:
+    """The cache key of the scan of room ``spec`` with ``scan`` (RoomScanConfig fields)."""
+    from tabletop.eval.harness import _fingerprint, _key
+
+    return _key({"room": spec.to_dict(), "scan": scan, "sim": _fingerprint("sim", "base")})
+
+
+def cached_room_recording(name: str, scan: dict, spec, cache, progress=None):
+    """(recording, scan seconds, cached?) of a room scanned with ``scan``, through the cache."""
+    import logging
+    import time
+
+    from tabletop.errors import TabletopError
+    from tabletop.recording import load_recording, save_recording
+    from tabletop.sim.room_scan import RoomScanConfig, run_room_scan
+
+    path = cache / f"rec-room-{spec.name}-{room_recording_key(spec, scan)}" if cache else None
+    if path is not None and path.is_dir():
+        try:
+            return load_recording(path), 0.0, True
+        except TabletopError as e:
+            logging.getLogger(__name__).warning(
+                "cached recording %s is unusable (%s); scanning again", path, e
+            )
+    t0 = time.perf_counter()
+    cb = (lambda d: progress(f"scan {name}", d, 0)) if progress else None
+    rec, _ = run_room_scan(spec, RoomScanConfig(**scan), progress=cb)
+    scan_s = time.perf_counter() - t0
+    if path is not None:
+        cache.mkdir(parents=True, exist_ok=True)
+        save_recording(rec, path, overwrite=True)
+    return rec, scan_s, False
