@@ -286,6 +286,8 @@ def cmd_demo(args: argparse.Namespace) -> int:
 
     out = Path(args.out)
     encoders = [e.strip() for e in args.encoders.split(",") if e.strip()]
+    if args.robot == "mobile":
+        return _mobile_demo(out, encoders)
     print(
         "tabletop demo: default scene -> teleop scan with inserted sounds -> AVLMap with the "
         f"encoders {encoders} -> the demo suite (object, sound, image, area, ambiguous, "
@@ -304,6 +306,31 @@ def cmd_demo(args: argparse.Namespace) -> int:
     print()
     print_result(res, wall, " (scan, map, reaches)")
     return 0 if all(r.available for r in res.runs) else 1
+
+
+def _mobile_demo(out: Path, encoders: list[str]) -> int:
+    """``tabletop demo --robot mobile``: the wheeled base in the default room."""
+    from tabletop.eval.room_demo import run_room_demo
+
+    print(
+        "tabletop demo --robot mobile: default room -> a drive of the wheeled base with "
+        "inserted sounds -> AVLMap of the room -> goals reached on the room's physics (1 m "
+        "radius); the flyer's path beside the ground base's.\n",
+        flush=True,
+    )
+    for enc in encoders:
+        t0 = time.perf_counter()
+        where = out if len(encoders) == 1 else out / enc
+        with ProgressBars() as bars:
+            res = run_room_demo(where, enc, progress=bars)
+        print(f"\n{enc}: {res['successes']}/{len(res['goals'])} goals reached within 1 m")
+        for g in res["goals"]:
+            print(
+                f"  {g['type']:<12} {g.get('text', ''):<45} {g['status']:<10} "
+                f"error {g.get('error_m', '–')} m, collisions {g.get('collisions', '–')}"
+            )
+        print(f"report: {where / 'report.md'} ({time.perf_counter() - t0:.0f} s)")
+    return 0
 
 
 # ---------------------------------------------------------------------- calibrate
@@ -442,6 +469,12 @@ def add_commands(sub) -> None:
 
     p = sub.add_parser("demo", help="the end-to-end demo on the embedded defaults")
     p.add_argument("--out", default="out/demo", help="output directory (default: out/demo)")
+    p.add_argument(
+        "--robot",
+        choices=["arm", "mobile"],
+        default="arm",
+        help="the Panda at the default table (default), or the wheeled base in the default room",
+    )
     p.add_argument(
         "--encoders",
         default="default",

@@ -86,7 +86,8 @@ def cached_room_recording(name: str, scan: dict, spec, cache, progress=None):
                 "cached recording %s is unusable (%s); scanning again", path, e
             )
     t0 = time.perf_counter()
-    cb = (lambda d: progress(f"scan {name}", d, 0)) if progress else None
+    # the drive takes what the physics takes: the total is not known ahead
+    cb = (lambda d: progress(f"scan {name}", d, d)) if progress else None
     rec, _ = run_room_scan(spec, RoomScanConfig(**scan), progress=cb)
     scan_s = time.perf_counter() - t0
     if path is not None:

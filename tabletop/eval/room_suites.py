@@ -211,10 +211,25 @@ def generate_room_suite(
         (("between", a, b), {"relation": "between", "of": [{"object": a.name}, {"object": b.name}]})
         for a, b in spatial
     ]
-    for j, (form, truth) in enumerate(pick(inst, counts["instruction"])):
+    inst += [(("object_then_turn", o), {"object": o.name}) for o in objs]
+    # every form in turn (objects, sounds, near a sound, between, then a turn), each drawn
+    by_form: dict[str, list] = {}
+    for form, truth in inst:
+        by_form.setdefault(form[0], []).append((form, truth))
+    for k in by_form:
+        by_form[k] = pick(by_form[k], len(by_form[k]))
+        rng.shuffle(by_form[k])
+    chosen = []
+    while len(chosen) < counts["instruction"] and any(by_form.values()):
+        for k in list(by_form):
+            if by_form[k] and len(chosen) < counts["instruction"]:
+                chosen.append(by_form[k].pop())
+    for j, (form, truth) in enumerate(chosen):
         v = _VERBS[j % len(_VERBS)]
         kind, *args = form
-        if kind == "object":
+        if kind == "object_then_turn":
+            text = f"{v} the {args[0].label}, then turn around"
+        elif kind == "object":
             text = f"{v} the {args[0].label}"
         elif kind == "sound":
             text = f"{v} {args[0].caption}"

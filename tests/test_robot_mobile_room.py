@@ -1,0 +1,102 @@
+"""The mobile base on a real room map: two embodiments' obstacle maps from one map differ where
+their category lists say, and the ground base drives to a goal on the room's physics without a
+collision, through the same robot API and instruction code as the arm."""
+
+import numpy as np
+import pytest
+
+from tabletop.base import TABLETOP_BASE, KinematicBaseDriver
+from tabletop.eval.harness import map_config
+from tabletop.eval.room import room_map_settings
+from tabletop.mapping import AVLMap
+from tabletop.robot.obstacles import label_voxels
+from tabletop.robot.wheeled import FLYER, GROUND_BASE, MobileRobot
+from tabletop.sim.ground_truth import GroundTruth
+from tabletop.sim.room import load_room_spec
+from tabletop.sim.room_scan import RoomScanConfig, run_room_scan
+from tabletop.sim.room_world import RoomWorld, mast_camera_config
+
+#: A few seconds: to the work table, one look, one audio episode.
+SHORT = dict(
+    rate_hz=10.0,
+    tables=("work_table",),
+    views_per_table=1,
+    look_s=0.5,
+    pan_rad=0.0,
+    look_around=False,
+    episodes=1,
+    episode_s=1.5,
+)
+
+
+@pytest.fixture(scope="module")
+def room():
+    spec = load_room_spec("default")
+    rec, _ = run_room_scan(spec, RoomScanConfig(**SHORT))
+    m = AVLMap.build(rec, map_config(**room_map_settings(spec)), encoders="oracle")
+    return spec, rec, m
+
+
+def _cells(grid, lo, hi):
+    """Occupancy of the grid's cells whose centres lie in the box [lo, hi] (x, y) [m]."""
+    ij = np.argwhere(np.ones(grid.shape, bool))
+    xy = grid.to_world(ij)
+    inside = np.all((xy >= lo[:2]) & (xy <= hi[:2]), axis=1)
+    return grid.occupied[tuple(ij[inside].T)]
+
+
+def test_ground_base_and_flyer_obstacles_differ_where_their_categories_say(room):
+    spec, rec, m = room
+    gt = GroundTruth.of(rec)
+    start = KinematicBaseDriver(TABLETOP_BASE)
+    ground = MobileRobot(m, start, embodiment=GROUND_BASE)
+    flyer = MobileRobot(m, KinematicBaseDriver(TABLETOP_BASE), embodiment=FLYER)
+    table = next(f for f in gt.furniture if f.name == "work_table")
+    lo, hi = np.array(table.aabb_min), np.array(table.aabb_max)
+    # the table the scan looked at blocks the ground base, not the flyer
+    under = _cells(ground.obstacles, lo + 0.1, hi - 0.1)
+    assert under.mean() > 0.8
+    assert _cells(flyer.obstacles, lo + 0.1, hi - 0.1).mean() < 0.05
+    # what the map labels a wall or a shelf blocks both
+    labels = label_voxels(m, GROUND_BASE.for_map(m).concepts)
+    wall = GROUND_BASE.for_map(m).concepts.index("wall")
+    pts = m.voxels.centers[(labels == wall) & (m.voxels.centers[:, 2] > 0.3)]
+    assert len(pts) > 50  # the scan saw walls
+    for robot in (ground, flyer):
+        c = np.array([robot.obstacles.to_cell(p)[0] for p in pts])
+        assert robot.obstacles.occupied[tuple(c.T)].mean() > 0.95
+    # the flyer's world is a superset of the ground base's free space
+    assert not (flyer.obstacles.occupied & ~ground.obstacles.occupied).any()
+
+
+def test_the_ground_base_drives_to_an_object_without_a_collision(room):
+    spec, rec, m = room
+    gt = GroundTruth.of(rec)
+    with RoomWorld(spec, mast_camera_config(), "tiny") as world:
+        robot = MobileRobot(m, world.driver)
+        mug = gt.object("blue_mug")  # on the work table
+        res = robot.move_to_object("blue mug")
+        assert res.reached and res.goal_shifted  # beside the table, not in it
+        assert res.collisions == 0 and world.driver.collisions == 0
+        d = np.hypot(*(world.driver.true_pose().xy - np.array(mug.center[:2])))
+        assert d <= 1.0
+        # the path it planned keeps its footprint off every obstacle the map holds
+        for p in res.planned:
+            c, _ = robot.blocked.to_cell(p)
+            assert not robot.blocked.occupied[tuple(c)]
+        # a base's own motions, through instruction code
+        from tabletop.language import run_instruction
+
+        yaw0 = robot.heading()
+        run = run_instruction("turn left, then move forward 30 cm", robot)
+        assert [x.method for x in run.motions] == ["turn", "move_forward"]
+        turned = run.motions[0].result.final_yaw - yaw0 - np.pi / 2
+        assert abs(np.angle(np.exp(1j * turned))) < 0.1
+        assert world.driver.collisions == 0
+
+
+def test_a_goal_out_of_reach_is_not_driven_to(room):
+    spec, rec, m = room
+    robot = MobileRobot(m, KinematicBaseDriver(TABLETOP_BASE))
+    res = robot.move_to([50.0, 50.0, 0.0])
+    assert not res.reached and res.reason == "outside_map" and len(res.driven) == 0
