@@ -46,10 +46,9 @@ def _cells(grid, lo, hi):
 
 
 def test_ground_base_and_flyer_obstacles_differ_where_their_categories_say(room):
-    spec, rec, m = room
+    _, rec, m = room
     gt = GroundTruth.of(rec)
-    start = KinematicBaseDriver(TABLETOP_BASE)
-    ground = MobileRobot(m, start, embodiment=GROUND_BASE)
+    ground = MobileRobot(m, KinematicBaseDriver(TABLETOP_BASE), embodiment=GROUND_BASE)
     flyer = MobileRobot(m, KinematicBaseDriver(TABLETOP_BASE), embodiment=FLYER)
     table = next(f for f in gt.furniture if f.name == "work_table")
     lo, hi = np.array(table.aabb_min), np.array(table.aabb_max)
@@ -96,7 +95,7 @@ def test_the_ground_base_drives_to_an_object_without_a_collision(room):
 
 
 def test_a_goal_out_of_reach_is_not_driven_to(room):
-    spec, rec, m = room
+    m = room[2]
     robot = MobileRobot(m, KinematicBaseDriver(TABLETOP_BASE))
     res = robot.move_to([50.0, 50.0, 0.0])
     assert not res.reached and res.reason == "outside_map" and len(res.driven) == 0
