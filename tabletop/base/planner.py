@@ -15,7 +15,7 @@ import numpy as np
 
 from tabletop.base.errors import PathError
 
-__all__ = ["grid_path", "line_is_free"]
+__all__ = ["cells_on_segment", "grid_path", "line_is_free"]
 
 _STEPS = [(-1, -1), (-1, 0), (-1, 1), (0, -1), (0, 1), (1, -1), (1, 0), (1, 1)]
 
@@ -27,18 +27,48 @@ def _cell(xy, origin, cell: float) -> tuple[int, int]:
     )
 
 
+def cells_on_segment(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(K, 2) int: every cell the straight segment from ``a`` to ``b`` (continuous cell
+    coordinates: cell (i, j) covers [i, i+1) x [j, j+1)) passes through, in order (a grid
+    traversal; a segment through a cell corner takes both cells beside it too)."""
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    cell = np.floor(a).astype(np.int64)
+    end = np.floor(b).astype(np.int64)
+    d = b - a
+    step = np.sign(d).astype(np.int64)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t_delta = np.where(d != 0, 1.0 / np.abs(d), np.inf)
+        t_max = np.where(d != 0, np.where(step > 0, cell + 1 - a, a - cell) * t_delta, np.inf)
+    out = [cell.copy()]
+    for _ in range(int(np.abs(end - cell).sum()) + 2):
+        if np.array_equal(cell, end):
+            break
+        if abs(t_max[0] - t_max[1]) < 1e-12:  # through a corner: both neighbours, then diagonal
+            out.append(cell + np.array([step[0], 0]))
+            out.append(cell + np.array([0, step[1]]))
+            cell = cell + step
+            t_max = t_max + t_delta
+        elif t_max[0] < t_max[1]:
+            cell = cell + np.array([step[0], 0])
+            t_max[0] += t_delta[0]
+        else:
+            cell = cell + np.array([0, step[1]])
+            t_max[1] += t_delta[1]
+        out.append(cell.copy())
+    return np.array(out)
+
+
 def line_is_free(
     blocked: np.ndarray, a: np.ndarray, b: np.ndarray, cell: float, origin=(0.0, 0.0)
 ) -> bool:
-    """Whether the segment from ``a`` to ``b`` [m] crosses no blocked cell (sampled at a
-    quarter cell)."""
-    n = max(2, math.ceil(np.linalg.norm(np.subtract(b, a)) / (cell / 4)) + 1)
-    pts = np.linspace(a, b, n)
-    ij = np.floor((pts - np.asarray(origin)) / cell).astype(int)
-    inside = (ij >= 0).all(axis=1) & (ij[:, 0] < blocked.shape[0]) & (ij[:, 1] < blocked.shape[1])
+    """Whether the segment from ``a`` to ``b`` [m] crosses no blocked cell (every cell it
+    passes through, :func:`cells_on_segment`; leaving the grid counts as blocked)."""
+    o = np.asarray(origin, float)
+    c = cells_on_segment((np.asarray(a, float) - o) / cell, (np.asarray(b, float) - o) / cell)
+    inside = np.all((c >= 0) & (c < blocked.shape), axis=1)
     if not inside.all():
         return False
-    return not blocked[ij[:, 0], ij[:, 1]].any()
+    return not blocked[c[:, 0], c[:, 1]].any()
 
 
 def grid_path(

@@ -20,7 +20,7 @@ from tabletop.robot.api import (
     SpatialConfig,
 )
 from tabletop.robot.arm import ArmRobot, SimArm
-from tabletop.robot.mobile import BaseMoveResult, MobileBase, MobileConfig, astar
+from tabletop.robot.mobile import BaseMoveResult, MobileBase, MobileConfig
 from tabletop.robot.obstacles import (
     ARM,
     MOBILE_BASE,
@@ -76,7 +76,6 @@ __all__ = [
     "SimArm",
     "SpatialConfig",
     "arm_obstacles",
-    "astar",
     "label_voxels",
     "merge_boxes",
     "motion_to",

@@ -1,4 +1,5 @@
-"""A mobile base behind the same robot API: a disc on the map's 2D obstacle grid, with A*.
+"""A mobile base behind the same robot API: a disc on the map's 2D obstacle grid, with A*
+(:func:`tabletop.base.planner.grid_path`).
 
 This shows the API serving a second embodiment. It is KINEMATIC: a point (a disc of
 ``radius``, by inflating the obstacles) that jumps along its planned path; no dynamics, no
@@ -8,17 +9,17 @@ controller, no simulator. A real base implements :meth:`MobileBase.move_to` by h
 
 from __future__ import annotations
 
-import heapq
 from dataclasses import dataclass
 
 import numpy as np
 from scipy import ndimage
 
+from tabletop.base.planner import grid_path
 from tabletop.errors import ConfigError
 from tabletop.robot.api import RobotAPI, SpatialConfig, _point
 from tabletop.robot.obstacles import MOBILE_BASE, Embodiment, OccupancyGrid, occupancy_grid
 
-__all__ = ["BaseMoveResult", "MobileBase", "MobileConfig", "astar"]
+__all__ = ["BaseMoveResult", "MobileBase", "MobileConfig"]
 
 
 @dataclass(frozen=True)
@@ -46,54 +47,9 @@ class BaseMoveResult:
     goal: np.ndarray  # (3,) [m] where the base was sent (target moved out of an obstacle)
     goal_shifted: bool  # the target was in an (inflated) obstacle
     final_position: np.ndarray  # (3,) [m] where the base is after the move
-    path: np.ndarray  # (K, 3) [m] cell centres from start to goal; (0, 3) when no path
+    path: np.ndarray  # (K, 3) [m] waypoints from start to goal; (0, 3) when no path
     length_m: float  # path length [m]
     error_m: float  # |final - target| in x, y [m]
-
-
-_STEPS = [(-1, -1), (-1, 0), (-1, 1), (0, -1), (0, 1), (1, -1), (1, 0), (1, 1)]
-
-
-def astar(
-    blocked: np.ndarray, start: tuple[int, int], goal: tuple[int, int]
-) -> list[tuple[int, int]] | None:
-    """Shortest 8-connected path of cells from ``start`` to ``goal`` avoiding ``blocked``
-    (2D bool), octile heuristic; diagonal moves may not cut a blocked corner. None: no path."""
-    nx, ny = blocked.shape
-    if blocked[start] or blocked[goal]:
-        return None
-    r2 = np.sqrt(2.0)
-
-    def h(c):
-        dx, dy = abs(c[0] - goal[0]), abs(c[1] - goal[1])
-        return max(dx, dy) + (r2 - 1.0) * min(dx, dy)
-
-    g = {start: 0.0}
-    parent: dict = {start: None}
-    heap = [(h(start), 0.0, start)]
-    closed = set()
-    while heap:
-        _, gc, c = heapq.heappop(heap)
-        if c in closed:
-            continue
-        if c == goal:
-            path = [c]
-            while parent[path[-1]] is not None:
-                path.append(parent[path[-1]])
-            return path[::-1]
-        closed.add(c)
-        for dx, dy in _STEPS:
-            n = (c[0] + dx, c[1] + dy)
-            if not (0 <= n[0] < nx and 0 <= n[1] < ny) or blocked[n] or n in closed:
-                continue
-            if dx and dy and (blocked[c[0] + dx, c[1]] or blocked[c[0], c[1] + dy]):
-                continue
-            ng = gc + (r2 if dx and dy else 1.0)
-            if ng < g.get(n, np.inf):
-                g[n] = ng
-                parent[n] = c
-                heapq.heappush(heap, (ng + h(n), ng, n))
-    return None
 
 
 class MobileBase(RobotAPI):
@@ -184,12 +140,10 @@ class MobileBase(RobotAPI):
         goal_cell = self._nearest_free(gc, sc) if shifted else (int(gc[0]), int(gc[1]))
         if goal_cell is None:
             return self._result(False, "no_path", target, target, shifted, None)
-        cells = astar(occ.occupied, sc, goal_cell)
-        if cells is None:
+        # the last cell is free: finish on the exact point (or the shifted cell's centre)
+        end = target[:2] if not shifted else occ.to_world(np.array([goal_cell]))[0]
+        xy = grid_path(occ.occupied, occ.cell_size, self._pos[:2], end, occ.lower)
+        if xy is None:
             return self._result(False, "no_path", target, target, shifted, None)
-        xy = occ.to_world(np.array(cells))
-        xy[0] = self._pos[:2]
-        if not shifted:
-            xy[-1] = target[:2]  # the last cell is free: finish on the exact point
         goal = np.array([xy[-1][0], xy[-1][1], 0.0])
         return self._result(True, "reached", target, goal, shifted, xy)

@@ -12,7 +12,7 @@ base's adapter):
    base can reach, at most ``max_goal_shift`` away (a mobile goal is reached within a radius,
    1 m in the paper's evaluation);
 3. A* (8-connected, no corner cutting) finds the cells, which are shortened to the waypoints
-   that see each other on the inflated grid;
+   that see each other on the inflated grid (:func:`tabletop.base.planner.grid_path`);
 4. the path follower (:func:`~tabletop.base.follower.follow_path`) drives the wheels.
 
 The same map gives different robots different obstacles (the paper's open-vocabulary
@@ -31,7 +31,6 @@ World frame = the room frame: metres, z up, floor at z = 0; yaw counter-clockwis
 
 from __future__ import annotations
 
-import heapq
 import math
 from dataclasses import dataclass, field
 
@@ -40,6 +39,7 @@ from scipy import ndimage
 
 from tabletop.base.driver import BaseDriver
 from tabletop.base.follower import FollowConfig, FollowResult, follow_path, turn_to
+from tabletop.base.planner import grid_path
 from tabletop.errors import ConfigError
 from tabletop.robot.api import RobotAPI, SpatialConfig, _point
 from tabletop.robot.obstacles import Embodiment, OccupancyGrid, occupancy_grid
@@ -136,101 +136,6 @@ class DriveResult:
         return float(np.hypot(*(self.final_position[:2] - self.target[:2])))
 
 
-_STEPS = [(-1, -1), (-1, 0), (-1, 1), (0, -1), (0, 1), (1, -1), (1, 0), (1, 1)]
-
-
-def _astar(blocked: np.ndarray, start: tuple[int, int], goal: tuple[int, int]):
-    """8-connected A* on ``blocked`` (octile heuristic, no corner cutting); None: no path."""
-    nx, ny = blocked.shape
-    r2 = math.sqrt(2.0)
-
-    def h(c):
-        dx, dy = abs(c[0] - goal[0]), abs(c[1] - goal[1])
-        return max(dx, dy) + (r2 - 1.0) * min(dx, dy)
-
-    g = {start: 0.0}
-    parent: dict = {start: None}
-    heap = [(h(start), 0.0, start)]
-    closed = set()
-    while heap:
-        _, gc, c = heapq.heappop(heap)
-        if c in closed:
-            continue
-        if c == goal:
-            out = [c]
-            while parent[out[-1]] is not None:
-                out.append(parent[out[-1]])
-            return out[::-1]
-        closed.add(c)
-        for dx, dy in _STEPS:
-            n = (c[0] + dx, c[1] + dy)
-            if not (0 <= n[0] < nx and 0 <= n[1] < ny) or blocked[n] or n in closed:
-                continue
-            if dx and dy and (blocked[c[0] + dx, c[1]] or blocked[c[0], c[1] + dy]):
-                continue
-            ng = gc + (r2 if dx and dy else 1.0)
-            if ng < g.get(n, math.inf):
-                g[n] = ng
-                parent[n] = c
-                heapq.heappush(heap, (ng + h(n), ng, n))
-    return None
-
-
-def _cells_on_segment(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """(K, 2) every cell the straight segment from ``a`` to ``b`` (continuous cell coordinates:
-    cell (i, j) covers [i, i+1) x [j, j+1)) passes through, in order (a grid traversal; a
-    segment through a cell corner takes both cells beside it)."""
-    cell = np.floor(a).astype(np.int64)
-    end = np.floor(b).astype(np.int64)
-    d = b - a
-    step = np.sign(d).astype(np.int64)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t_delta = np.where(d != 0, 1.0 / np.abs(d), np.inf)
-        nxt = np.where(step > 0, cell + 1 - a, a - cell)
-        t_max = np.where(d != 0, nxt * t_delta, np.inf)
-    out = [cell.copy()]
-    for _ in range(int(np.abs(end - cell).sum()) + 2):
-        if np.array_equal(cell, end):
-            break
-        if abs(t_max[0] - t_max[1]) < 1e-12:  # through a corner: both neighbours, then diagonal
-            out.append(cell + np.array([step[0], 0]))
-            out.append(cell + np.array([0, step[1]]))
-            cell = cell + step
-            t_max = t_max + t_delta
-        elif t_max[0] < t_max[1]:
-            cell = cell + np.array([step[0], 0])
-            t_max[0] += t_delta[0]
-        else:
-            cell = cell + np.array([0, step[1]])
-            t_max[1] += t_delta[1]
-        out.append(cell.copy())
-    return np.array(out)
-
-
-def _sees(blocked: np.ndarray, a: np.ndarray, b: np.ndarray) -> bool:
-    """Whether the straight segment between cell centres ``a`` and ``b`` crosses no blocked
-    cell."""
-    c = _cells_on_segment(a + 0.5, b + 0.5)
-    inside = np.all((c >= 0) & (c < blocked.shape), axis=1)
-    if not inside.all():
-        return False
-    return not blocked[c[:, 0], c[:, 1]].any()
-
-
-def _shortcut(blocked: np.ndarray, cells: np.ndarray) -> np.ndarray:
-    """The cells of an A* path reduced to waypoints that see each other (greedy, furthest
-    visible first)."""
-    out = [0]
-    i = 0
-    while i < len(cells) - 1:
-        j = len(cells) - 1
-        while j > i + 1 and not _sees(blocked, cells[i].astype(float), cells[j].astype(float)):
-            j -= 1
-        out.append(j)
-        i = j
-    return cells[out]
-
-
 def _pooled(grid: OccupancyGrid, cell_m: float) -> OccupancyGrid:
     """``grid`` on cells of about ``cell_m`` (a whole number of its cells; any occupied cell
     occupies the pooled one)."""
@@ -270,14 +175,11 @@ def plan_path(
         if d[k] > max_goal_shift:
             return "no_path", none, goal_xy, True
         gc = cells[k]
-    path = _astar(blocked.occupied, tuple(int(v) for v in sc), tuple(int(v) for v in gc))
-    if path is None:  # pragma: no cover - the goal is in the start's free region
+    # the goal's cell is free and reachable: finish on the exact point (or that cell's centre)
+    end = goal_xy if not shifted else blocked.to_world(np.array([gc]))[0]
+    xy = grid_path(blocked.occupied, blocked.cell_size, start_xy, end, blocked.lower)
+    if xy is None:  # pragma: no cover - the goal is in the start's free region
         return "no_path", none, goal_xy, shifted
-    cells = _shortcut(blocked.occupied, np.array(path))
-    xy = blocked.to_world(cells)
-    xy[0] = start_xy
-    if not shifted:
-        xy[-1] = goal_xy  # its cell is free and reachable: finish on the exact point
     return "reached", xy, xy[-1].copy(), shifted
 
 
