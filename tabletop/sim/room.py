@@ -598,8 +598,11 @@ def default_room_path(name: str = "default") -> Path:
 
 
 # ---------------------------------------------------------------------------- generator
-#: Free corridor [m] the generator keeps around every table (and between any two items).
-CORRIDOR = 0.6
+#: Free corridor [m] the generator keeps around every table (and between any two items). The
+#: room scan's planner keeps the base's centre 0.375 m (its radius and a margin) from
+#: everything, so a corridor of 0.8 m still leaves it a passage; at 0.6 m, some of the
+#: generated rooms had tables the scan could not reach.
+CORRIDOR = 0.8
 _OTHER_FURNITURE = (
     ("shelf", "kiva_shelf", None, None),
     ("cabinet", "box", (0.8, 0.45, 0.9), (0.45, 0.30, 0.20)),
