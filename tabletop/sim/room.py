@@ -45,6 +45,7 @@ from pathlib import Path
 
 import numpy as np
 
+from tabletop.base import TABLETOP_BASE
 from tabletop.errors import SceneError
 from tabletop.paths import DATA_DIR
 from tabletop.sim.catalog import OBJECT_KINDS, load_mesh_geometry, object_kind
@@ -328,7 +329,7 @@ class RoomSpec:
     wall_color: tuple[float, float, float] = (0.88, 0.87, 0.83)
     furniture: tuple[FurnitureSpec, ...] = ()
     start: StartPose = field(default_factory=lambda: StartPose((0.6, 0.6), 45.0))
-    robot_radius: float = 0.175
+    robot_radius: float = TABLETOP_BASE.radius
     """The base's footprint radius [m]: its start must leave it this far from everything."""
 
     def __post_init__(self) -> None:

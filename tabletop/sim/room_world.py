@@ -22,6 +22,7 @@ import numpy as np
 
 from tabletop.base import (
     TABLETOP_BASE,
+    BaseDriver,
     BasePose,
     DiffDriveParams,
     OdometryDrift,
@@ -405,7 +406,7 @@ class RoomWorld:
         self.close()
 
 
-class PyBulletBaseDriver:
+class PyBulletBaseDriver(BaseDriver):
     """The base in a :class:`RoomWorld`, driven through its wheel motors with physics on.
 
     Each command sets velocity motors on the two wheel joints (their targets ramped at
