@@ -207,7 +207,7 @@ class FurnitureSpec:
         if self.objects and self.top_z is None:
             raise SceneError(
                 f"{where}: a {self.model!r} has no flat top to hold objects; models with one: "
-                f"{sorted(n for n in FURNITURE_MODELS if n != 'kiva_shelf' and n != 'sofa')}"
+                f"{sorted(n for n, m in FURNITURE_MODELS.items() if m.top_z or n == 'box')}"
             )
         hx, hy = self.dims[0] / 2 - TOP_MARGIN, self.dims[1] / 2 - TOP_MARGIN
         boxes = []
@@ -347,6 +347,11 @@ class RoomSpec:
                 raise SceneError(f"room.{name} must be RGB in [0, 1], got {getattr(self, name)!r}")
             object.__setattr__(self, name, tuple(float(v) for v in col))
         object.__setattr__(self, "furniture", tuple(self.furniture))
+        for i, f in enumerate(self.furniture):
+            if not isinstance(f, FurnitureSpec):
+                raise SceneError(f"room.furniture[{i}] must be a FurnitureSpec, got {f!r}")
+        if not isinstance(self.start, StartPose):
+            raise SceneError(f"room.start must be a StartPose, got {self.start!r}")
         names = [f.name for f in self.furniture] + [
             o.name for f in self.furniture for o in f.objects
         ]
