@@ -101,6 +101,17 @@ def test_the_default_plan_visits_every_table_from_free_viewpoints(spec):
             assert not blocked[int(x / 0.05), int(y / 0.05)]
 
 
+def test_every_table_of_a_generated_room_can_be_scanned():
+    from tabletop.sim.room import generate_room
+
+    config = RoomScanConfig()
+    for seed in range(8):
+        room = generate_room(seed)
+        blocked = room.occupancy(0.05, inflate=room.robot_radius + config.clearance)
+        visits = _plan(room, config, blocked)  # raises when a table has no reachable viewpoint
+        assert {v.table.name for v in visits} == {t.name for t in room.tables}
+
+
 @pytest.mark.parametrize(
     "kw, needle",
     [

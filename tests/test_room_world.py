@@ -117,3 +117,24 @@ def test_collisions_are_counted_and_named(spec):
         assert d.collision_log[0].other == "work_table"
         assert d.true_pose().x < 1.85
         assert r.reason in ("timeout", "reached")
+
+
+def test_the_wheels_carry_the_base_in_any_start_pose():
+    """With four rigid contacts the solver once left the wheels unloaded (spinning in place) in
+    some start poses; the casters are compliant so the wheels always carry the weight."""
+    import pybullet as pb
+
+    from tabletop.sim.room import generate_room
+
+    with RoomWorld(generate_room(0), renderer="tiny") as w:
+        loads = {}
+        for link in ("left_wheel", "right_wheel", "front_caster", "rear_caster"):
+            contacts = pb.getContactPoints(
+                bodyA=w.robot_id, linkIndexA=w._link_index[link], physicsClientId=w._client
+            )
+            loads[link] = sum(c[9] for c in contacts)
+        weight = 14.5 * 9.81
+        assert loads["left_wheel"] + loads["right_wheel"] > 0.9 * weight
+        assert math.degrees(math.acos(w.T_world_base()[2, 2])) < 0.2  # hardly tilted
+        r = turn_to(w.driver, w.driver.true_pose().yaw + 2.5)
+        assert r.reached and r.duration_s < 6.0

@@ -54,7 +54,7 @@ class BaseDriver(Protocol):
         ...
 
 
-class KinematicBaseDriver:
+class KinematicBaseDriver(BaseDriver):
     """An ideal unicycle: the commanded wheel speeds happen exactly (exact arc integration).
 
     Its odometry equals the true pose unless ``drift`` is given; then the wheel angles are

@@ -77,6 +77,8 @@ def grid_path(
     start_xy,
     goal_xy,
     origin=(0.0, 0.0),
+    *,
+    snap_start: float = 0.0,
 ) -> np.ndarray | None:
     """Waypoints (K, 2) [m] from ``start_xy`` to ``goal_xy`` avoiding ``blocked`` cells, or None
     when the goal cannot be reached.
@@ -85,7 +87,10 @@ def grid_path(
         blocked: (nx, ny) bool, True where the base's centre may not go; cell (i, j) spans
             ``origin + [i, i + 1) * cell`` along x and ``[j, j + 1) * cell`` along y.
         cell: cell size [m].
-        start_xy, goal_xy: (2,) [m]; both must lie in free cells.
+        start_xy, goal_xy: (2,) [m]; both must lie in free cells, but see ``snap_start``.
+        snap_start: a start in a blocked cell but within this distance [m] of a free one (a
+            base that stopped within its goal tolerance of a free cell) leaves from the
+            nearest free cell: the path's first waypoint is the start, its second that cell.
 
     Raises:
         PathError: a malformed grid, or a start or goal outside it or in a blocked cell.
@@ -95,6 +100,17 @@ def grid_path(
         raise PathError(f"blocked must be a 2D grid and cell > 0, got {blocked.shape}, {cell}")
     start, goal = np.asarray(start_xy, float), np.asarray(goal_xy, float)
     s, g = _cell(start, origin, cell), _cell(goal, origin, cell)
+    lead = None
+    if snap_start > 0 and 0 <= s[0] < blocked.shape[0] and 0 <= s[1] < blocked.shape[1]:
+        if blocked[s]:
+            free = np.argwhere(~blocked)
+            centres = (free + 0.5) * cell + np.asarray(origin)
+            d = np.linalg.norm(centres - start, axis=1)
+            k = int(np.argmin(d)) if len(d) else -1
+            if k >= 0 and d[k] <= snap_start:
+                lead = start
+                start = centres[k]
+                s = (int(free[k][0]), int(free[k][1]))
     for name, c, p in (("start", s, start), ("goal", g, goal)):
         if not (0 <= c[0] < blocked.shape[0] and 0 <= c[1] < blocked.shape[1]):
             raise PathError(f"{name} {p.tolist()} is outside the grid")
@@ -145,4 +161,6 @@ def grid_path(
             j -= 1
         out.append(pts[j])
         i = j
+    if lead is not None:
+        out.insert(0, lead)
     return np.array(out)

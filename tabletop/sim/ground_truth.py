@@ -156,7 +156,8 @@ class ObjectTruth(_Value):
     """Its id in the recording's segmentation images."""
     position: np.ndarray
     """(2,) float64 [m], world frame: (x, y) of the object frame's origin on the table top
-    (z = 0), as the scene spec places it."""
+    (z = 0), as the scene spec places it; in a room, on its table's top (the height is in
+    ``T_world_obj``)."""
     yaw_deg: float
     """Rotation [deg] about the world z axis."""
     T_world_obj: np.ndarray

@@ -45,6 +45,7 @@ from pathlib import Path
 
 import numpy as np
 
+from tabletop.base import TABLETOP_BASE
 from tabletop.errors import SceneError
 from tabletop.paths import DATA_DIR
 from tabletop.sim.catalog import OBJECT_KINDS, load_mesh_geometry, object_kind
@@ -206,7 +207,7 @@ class FurnitureSpec:
         if self.objects and self.top_z is None:
             raise SceneError(
                 f"{where}: a {self.model!r} has no flat top to hold objects; models with one: "
-                f"{sorted(n for n in FURNITURE_MODELS if n != 'kiva_shelf' and n != 'sofa')}"
+                f"{sorted(n for n, m in FURNITURE_MODELS.items() if m.top_z or n == 'box')}"
             )
         hx, hy = self.dims[0] / 2 - TOP_MARGIN, self.dims[1] / 2 - TOP_MARGIN
         boxes = []
@@ -328,7 +329,7 @@ class RoomSpec:
     wall_color: tuple[float, float, float] = (0.88, 0.87, 0.83)
     furniture: tuple[FurnitureSpec, ...] = ()
     start: StartPose = field(default_factory=lambda: StartPose((0.6, 0.6), 45.0))
-    robot_radius: float = 0.175
+    robot_radius: float = TABLETOP_BASE.radius
     """The base's footprint radius [m]: its start must leave it this far from everything."""
 
     def __post_init__(self) -> None:
@@ -346,6 +347,11 @@ class RoomSpec:
                 raise SceneError(f"room.{name} must be RGB in [0, 1], got {getattr(self, name)!r}")
             object.__setattr__(self, name, tuple(float(v) for v in col))
         object.__setattr__(self, "furniture", tuple(self.furniture))
+        for i, f in enumerate(self.furniture):
+            if not isinstance(f, FurnitureSpec):
+                raise SceneError(f"room.furniture[{i}] must be a FurnitureSpec, got {f!r}")
+        if not isinstance(self.start, StartPose):
+            raise SceneError(f"room.start must be a StartPose, got {self.start!r}")
         names = [f.name for f in self.furniture] + [
             o.name for f in self.furniture for o in f.objects
         ]
@@ -598,8 +604,11 @@ def default_room_path(name: str = "default") -> Path:
 
 
 # ---------------------------------------------------------------------------- generator
-#: Free corridor [m] the generator keeps around every table (and between any two items).
-CORRIDOR = 0.6
+#: Free corridor [m] the generator keeps around every table (and between any two items). The
+#: room scan's planner keeps the base's centre 0.375 m (its radius and a margin) from
+#: everything, so a corridor of 0.8 m still leaves it a passage; at 0.6 m, some of the
+#: generated rooms had tables the scan could not reach.
+CORRIDOR = 0.8
 _OTHER_FURNITURE = (
     ("shelf", "kiva_shelf", None, None),
     ("cabinet", "box", (0.8, 0.45, 0.9), (0.45, 0.30, 0.20)),

@@ -181,6 +181,9 @@ class _Visit:
 
 
 _CELL = 0.05
+#: The base stops within the follower's goal tolerance of a free viewpoint, which may put it
+#: in a blocked cell of the inflated grid; it then leaves from the nearest free cell.
+_SNAP = 0.15
 
 
 def _viewpoints(
@@ -362,7 +365,7 @@ def run_room_scan(
             t = visit.table
             for j, vp in enumerate(visit.viewpoints):
                 here = d.read_odometry()
-                path = grid_path(blocked, _CELL, here.xy, vp)
+                path = grid_path(blocked, _CELL, here.xy, vp, snap_start=_SNAP)
                 if path is None:
                     raise SimulationError(f"room scan: no path to {t.name!r} viewpoint {vp}")
                 facing = math.atan2(t.position[1] - vp[1], t.position[0] - vp[0])
@@ -393,7 +396,7 @@ def run_room_scan(
             centre = np.array(spec.size) / 2
             pts = (free + 0.5) * _CELL
             goal = pts[int(np.argmin(np.linalg.norm(pts - centre, axis=1)))]
-            path = grid_path(blocked, _CELL, d.read_odometry().xy, goal)
+            path = grid_path(blocked, _CELL, d.read_odometry().xy, goal, snap_start=_SNAP)
             if path is not None:
                 rec.segment = ("transit_centre", "transit")
                 here = d.read_odometry()

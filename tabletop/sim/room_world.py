@@ -22,6 +22,7 @@ import numpy as np
 
 from tabletop.base import (
     TABLETOP_BASE,
+    BaseDriver,
     BasePose,
     DiffDriveParams,
     OdometryDrift,
@@ -70,6 +71,8 @@ _TABLE_LEGS = {
         0.28,
     ),
 }
+#: Contact spring of the casters [N/m] and its damping [N s/m] (see PyBulletBaseDriver).
+_CASTER_STIFFNESS, _CASTER_DAMPING = 3.0e4, 300.0
 #: The sofa's seat height [m] and back-rest depth [m].
 _SOFA_SEAT, _SOFA_BACK = 0.45, 0.2
 
@@ -427,7 +430,7 @@ class RoomWorld:
         self.close()
 
 
-class PyBulletBaseDriver:
+class PyBulletBaseDriver(BaseDriver):
     """The base in a :class:`RoomWorld`, driven through its wheel motors with physics on.
 
     Each command sets velocity motors on the two wheel joints (their targets ramped at
@@ -465,6 +468,10 @@ class PyBulletBaseDriver:
         pb, cid, body = world._pb, world._client, world.robot_id
         self._pb, self._cid, self._body = pb, cid, body
         self._wheels = [world._joint_index[n] for n in WHEEL_JOINTS]
+        # Four rigid contacts (two wheels, two casters) share the load as the solver pleases:
+        # in some start poses the casters took it all and the wheels spun without traction.
+        # Compliant casters (a spring of _CASTER_STIFFNESS) leave the load on the wheels; the
+        # rear caster carries the few newtons of the mast's offset, tilting the base < 0.1 deg.
         for link in ("front_caster", "rear_caster"):
             pb.changeDynamics(
                 body,
@@ -472,6 +479,8 @@ class PyBulletBaseDriver:
                 lateralFriction=0.0,
                 rollingFriction=0.0,
                 spinningFriction=0.0,
+                contactStiffness=_CASTER_STIFFNESS,
+                contactDamping=_CASTER_DAMPING,
                 physicsClientId=cid,
             )
         for j in self._wheels:
