@@ -65,7 +65,7 @@ def cmd_parse(args: argparse.Namespace) -> int:
     if not args.instruction:
         print("tabletop parse: give an instruction (or --suite)", file=sys.stderr)
         return 2
-    code = generate_code(args.instruction, args.backend, _llm_config(args))
+    code = generate_code(args.instruction, args.backend, _llm_config(args), args.robot)
     sys.stdout.write(code)
     check_code(code)  # a refusal is reported as an error (exit status 2)
     return 0
@@ -181,12 +181,21 @@ def cmd_run(args: argparse.Namespace) -> int:
     if args.map == REFERENCE and image_dir is None:  # its goal images, for trying it out
         tmp = tempfile.TemporaryDirectory()
         image_dir = write_suite_images(suite, tmp.name)
+    world = None  # the room's simulator, for the wheeled base
     if args.dry_run or args.embodiment == "point":
         robot = PointRobot(m, (0.3, 0.0, 0.3))
     elif args.embodiment == "base":
         from tabletop.robot import MobileBase
 
         robot = MobileBase(m)
+    elif args.embodiment == "room":
+        from tabletop.robot import MobileRobot
+        from tabletop.sim.room import load_room_spec
+        from tabletop.sim.room_world import RoomWorld
+
+        print(f"starting the wheeled base in room {args.room!r} ...", file=sys.stderr)
+        world = RoomWorld(load_room_spec(args.room))
+        robot = MobileRobot(m, world.driver)
     else:
         from tabletop.robot import SimArm
 
@@ -231,6 +240,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     finally:
         if hasattr(robot, "close"):
             robot.close()
+        if world is not None:
+            world.close()
         if tmp is not None:
             tmp.cleanup()
     results = [mo.result for mo in run.motions]
@@ -251,6 +262,12 @@ def add_commands(sub) -> None:
     p.add_argument("instruction", nargs="?", help='e.g. "go to the mug near the sound of a dog"')
     _add_backend_args(p)
     p.add_argument(
+        "--robot",
+        choices=["arm", "mobile"],
+        default="arm",
+        help="the robot the code is for: the arm (default) or a mobile base (turns, drives)",
+    )
+    p.add_argument(
         "--suite",
         action="store_true",
         help="score the backend on the instruction suite over its reference map instead",
@@ -266,12 +283,14 @@ def add_commands(sub) -> None:
     p.add_argument("--dry-run", action="store_true", help="print code and targets; nothing moves")
     p.add_argument(
         "--embodiment",
-        choices=["arm", "base", "point"],
+        choices=["arm", "base", "room", "point"],
         default="arm",
-        help="arm: the simulated Panda (default); base: the kinematic mobile base; point: a "
+        help="arm: the simulated Panda (default); base: the kinematic disc on the table; "
+        "room: the wheeled base in the room a room map was built from (--room); point: a "
         "robot that jumps to each target",
     )
     p.add_argument("--scene", default="default", help="the scene the map was built from")
+    p.add_argument("--room", default="default", help="with --embodiment room: the room")
     p.add_argument(
         "--image-dir",
         help="the directory images in instructions are read from (relative paths from here; "

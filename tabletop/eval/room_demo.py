@@ -37,7 +37,9 @@ def _top_view(world, spec, px_per_m: int = _PX_PER_M) -> np.ndarray:
     h_m = 12.0
     w, h = int(sy * px_per_m), int(sx * px_per_m)  # image x along -y... see T below
     fov = math.degrees(2 * math.atan((sx / 2) / h_m))
-    cam = WristCameraConfig(width=w, height=h, fov_y_deg=fov, near=1.0, far=20.0)
+    cam = WristCameraConfig(
+        width=w, height=h, fov_y_deg=fov, near=1.0, far=20.0, depth_resolution=1e-3
+    )
     from tabletop.sim.camera import gl_projection_matrix
 
     proj = gl_projection_matrix(cam.intrinsics, cam.near, cam.far)
@@ -61,23 +63,25 @@ def _to_px(xy, spec, shape) -> np.ndarray:
 
 
 def _map_view(avlmap, spec, shape) -> np.ndarray:
-    """(H, W, 3) uint8: the map from above, each column's highest voxel in its colour."""
+    """(H, W, 3) uint8: the map from above, each column's highest voxel in its colour (white
+    where nothing was seen), in the pictures' frame (:func:`_to_px`)."""
+    import cv2
+
     h, w = shape[:2]
-    out = np.full((h, w, 3), 255, np.uint8)
-    c = avlmap.voxels.centers
-    if not len(c):
-        return out
-    rgb = avlmap.voxels.mean_colors()
-    order = np.argsort(c[:, 2])  # low first: the highest voxel is painted last
-    px = _to_px(c[order, :2], spec, shape)
-    ok = (px[:, 0] >= 0) & (px[:, 0] < w) & (px[:, 1] >= 0) & (px[:, 1] < h)
-    r = max(round(avlmap.grid.voxel_size * _PX_PER_M / 2), 1)
-    for dx in range(-r + 1, r):
-        for dy in range(-r + 1, r):
-            q = px[ok] + (dx, dy)
-            q = np.clip(q, 0, [w - 1, h - 1])
-            out[q[:, 1], q[:, 0]] = rgb[order][ok]
-    return out
+    g = avlmap.grid
+    idx = avlmap.voxels.indices
+    cols = np.full((*g.shape[:2], 3), 255, np.uint8)
+    if len(idx):
+        order = np.argsort(idx[:, 2], kind="stable")  # the highest voxel is written last
+        cols[idx[order, 0], idx[order, 1]] = avlmap.voxels.mean_colors()[order]
+    # cells covering the room [0, X] x [0, Y], then x up and y to the left, as seen from above
+    vs = g.voxel_size
+    i0 = round((0.0 - g.lower[0]) / vs)
+    j0 = round((0.0 - g.lower[1]) / vs)
+    i1 = i0 + round(spec.size[0] / vs)
+    j1 = j0 + round(spec.size[1] / vs)
+    room = cols[max(i0, 0) : i1, max(j0, 0) : j1][::-1, ::-1]
+    return cv2.resize(np.ascontiguousarray(room), (w, h), interpolation=cv2.INTER_NEAREST)
 
 
 def _paths_view(base_img, grid, spec, runs, colour) -> np.ndarray:

@@ -71,6 +71,10 @@ class Embodiment:
     objects_free: bool = False
     """Every object name of the map's vocabulary is free for this robot (a flyer passes over
     what stands on a table); exclusive with ``map_objects``."""
+    block_above: float | None = None
+    """Every voxel whose centre is at least this high [m] blocks, whatever its concept (a
+    flyer cruising at that height cannot pass what reaches above it, named or not); None:
+    the concepts alone decide."""
 
     def __post_init__(self) -> None:
         if not self.obstacles and not self.slabs:
@@ -184,7 +188,9 @@ def obstacle_voxels(
     is_obs = (labels >= 0) & (labels < n_obs)
     if embodiment.unknown_is_obstacle:
         is_obs |= labels < 0
-    is_slab = (labels >= n_obs) & (labels < n_obs + n_slab)
+    if embodiment.block_above is not None and len(idx):
+        is_obs |= z[idx[:, 2]] >= embodiment.block_above
+    is_slab = (labels >= n_obs) & (labels < n_obs + n_slab) & ~is_obs
     mask = np.zeros(grid.shape, bool)
     sel = idx[is_obs]
     sel = sel[band[sel[:, 2]]] if len(sel) else sel

@@ -63,16 +63,18 @@ GROUND_BASE = Embodiment(
     fill_down_to=None,
 )
 
-#: A flyer: walls, shelves and anything it cannot name block it; it passes over the floor,
+#: A flyer cruising at 1.2 m: walls, shelves and anything it cannot name block it, and so
+#: does whatever reaches above its cruising height, named or not; it passes over the floor,
 #: tables, what stands on them and low furniture (the map's object names are free for it).
 FLYER = Embodiment(
     name="flyer",
     obstacles=("wall", "shelf", "other"),
-    free=("floor", "table", "cabinet"),
+    free=("floor", "table", "cabinet", "sofa"),
     z_range=(0.04, 2.2),
     fill_down_to=None,
     map_objects=False,
     objects_free=True,
+    block_above=1.2,
 )
 
 
