@@ -66,6 +66,12 @@ def test_ground_base_and_flyer_obstacles_differ_where_their_categories_say(room)
         assert robot.obstacles.occupied[tuple(c.T)].mean() > 0.95
     # the flyer's world is a superset of the ground base's free space
     assert not (flyer.obstacles.occupied & ~ground.obstacles.occupied).any()
+    # whatever reaches above its cruising height blocks the flyer, whatever the map calls it
+    tall = m.voxels.centers[m.voxels.centers[:, 2] >= FLYER.block_above]
+    tall = tall[tall[:, 2] <= FLYER.z_range[1]]
+    assert len(tall) > 50
+    c = np.array([flyer.obstacles.to_cell(p)[0] for p in tall])
+    assert flyer.obstacles.occupied[tuple(c.T)].all()
 
 
 def test_the_ground_base_drives_to_an_object_without_a_collision(room):
