@@ -321,7 +321,7 @@ def _run_code(ctx: _Context, goal: Goal, base: dict, region: Region, t0: float):
     moves_before = len(robot.history)
     code = ""
     try:
-        code = str(instruction_to_code(goal.instruction))
+        code = str(instruction_to_code(goal.instruction, getattr(robot, "robot_kind", "arm")))
         run = run_instruction(goal.instruction, robot, code=code)
     except TabletopError as e:  # a parse error, rejected code, not found, a refused query
         tcp = robot.current_position()
