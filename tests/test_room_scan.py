@@ -127,6 +127,12 @@ def test_bad_config_names_the_field(kw, needle):
         RoomScanConfig(**kw)
 
 
+def test_more_episodes_than_tables_is_refused_before_driving(spec):
+    config = RoomScanConfig(**{**SHORT, "episodes": 2})
+    with pytest.raises(ConfigError, match=r"2 audio episodes need as many tables .* \['work_"):
+        run_room_scan(spec, config)
+
+
 def test_unknown_tables_are_named(spec):
     config = RoomScanConfig(tables=("kitchen_table",))
     with pytest.raises(ConfigError, match=r"no furniture \['kitchen_table'\]; furniture: \["):

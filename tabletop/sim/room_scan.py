@@ -357,6 +357,11 @@ def run_room_scan(
         inflate = d.params.radius + config.clearance
         blocked = spec.occupancy(_CELL, inflate=inflate)
         visits = _plan(spec, config, blocked)
+        if len(visits) < config.episodes:  # before any driving
+            raise ConfigError(
+                f"room scan: {config.episodes} audio episodes need as many tables to stand "
+                f"at; the scan visits {len(visits)}: {[v.table.name for v in visits]}"
+            )
         rec = _Recorder(world, config.rate_hz, progress)
         base.on_physics_step = rec
         rec(base.time)  # frame 0 where the base stands
@@ -386,11 +391,6 @@ def run_room_scan(
                     rec.segment = (f"episode_{len(episode_places)}", "episode")
                     base.hold(config.episode_s)
                     episode_places.append(t)
-        if len(episode_places) < config.episodes:
-            raise ConfigError(
-                f"room scan: {config.episodes} audio episodes need as many tables to stand "
-                f"at; the scan visits {len(episode_places)}"
-            )
         if config.look_around:
             free = np.argwhere(~blocked)
             centre = np.array(spec.size) / 2
