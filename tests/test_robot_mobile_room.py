@@ -32,7 +32,7 @@ SHORT = dict(
 @pytest.fixture(scope="module")
 def room():
     spec = load_room_spec("default")
-    rec, _ = run_room_scan(spec, RoomScanConfig(**SHORT))
+    rec = run_room_scan(spec, RoomScanConfig(**SHORT))
     m = AVLMap.build(rec, map_config(**room_map_settings(spec)), encoders="oracle")
     return spec, rec, m
 

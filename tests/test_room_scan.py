@@ -13,7 +13,13 @@ from tabletop.errors import ConfigError
 from tabletop.recording import load_recording, save_recording
 from tabletop.sim.ground_truth import GroundTruth
 from tabletop.sim.room import load_room_spec
-from tabletop.sim.room_scan import RoomScanConfig, _plan, base_pose_of, run_room_scan
+from tabletop.sim.room_scan import (
+    RoomScanConfig,
+    _plan,
+    base_pose_of,
+    run_room_scan,
+    scan_room,
+)
 
 #: A few seconds: to the work table (about 1 m from the start), one look, one audio episode.
 SHORT = dict(
@@ -35,7 +41,7 @@ def spec():
 
 @pytest.fixture(scope="module")
 def scan(spec):
-    return run_room_scan(spec, RoomScanConfig(**SHORT))
+    return scan_room(spec, RoomScanConfig(**SHORT))
 
 
 def test_a_short_scan_records_without_collision(scan):
@@ -53,6 +59,7 @@ def test_a_short_scan_records_without_collision(scan):
     # the wheels turned forward while the base drove about a metre
     assert np.all(rec.joint_positions[-1] - rec.joint_positions[0] > 5.0)
     assert 0.5 < stats.distance_m < 2.0
+    assert rec.meta["distance_m"] == round(stats.distance_m, 4)
     # odometry in T_world_hand, the simulator's pose beside it: they agree (no drift asked)
     err = np.linalg.norm(rec.T_world_hand[:, :2, 3] - rec.T_world_hand_true[:, :2, 3], axis=1)
     assert err.max() < 0.01
@@ -127,7 +134,19 @@ def test_bad_config_names_the_field(kw, needle):
         RoomScanConfig(**kw)
 
 
+def test_more_episodes_than_tables_is_refused_before_driving(spec):
+    config = RoomScanConfig(**{**SHORT, "episodes": 2})
+    with pytest.raises(ConfigError, match=r"2 audio episodes need as many tables .* \['work_"):
+        run_room_scan(spec, config)
+
+
 def test_unknown_tables_are_named(spec):
     config = RoomScanConfig(tables=("kitchen_table",))
     with pytest.raises(ConfigError, match=r"no furniture \['kitchen_table'\]; furniture: \["):
         _plan(spec, config, spec.occupancy(0.05, inflate=0.4))
+
+
+def test_run_room_scan_returns_the_same_recording_again(spec, scan):
+    """run_room_scan is scan_room without the timing figures, and a scan is deterministic."""
+    rec = run_room_scan(spec, RoomScanConfig(**SHORT))
+    assert_same(rec, scan[0])

@@ -36,7 +36,7 @@ def cmd_rooms(args: argparse.Namespace) -> int:
 def cmd_scan_room(args: argparse.Namespace) -> int:
     from tabletop.recording import check_output, save_recording
     from tabletop.sim.ground_truth import GroundTruth
-    from tabletop.sim.room_scan import RoomScanConfig, run_room_scan
+    from tabletop.sim.room_scan import RoomScanConfig, scan_room
 
     check_output(args.out, args.overwrite)  # before the scan, not after it
     spec = _room(args)
@@ -51,7 +51,7 @@ def cmd_scan_room(args: argparse.Namespace) -> int:
     )
     with ProgressBars() as bars:
         report = bars.stage(f"scan {spec.name}")
-        rec, stats = run_room_scan(spec, config, progress=lambda n: report(n, n))
+        rec, stats = scan_room(spec, config, progress=lambda n: report(n, n))
     t0 = time.perf_counter()
     save_recording(rec, args.out, overwrite=args.overwrite)
     write_s = time.perf_counter() - t0

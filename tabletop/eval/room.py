@@ -88,7 +88,7 @@ def cached_room_recording(name: str, scan: dict, spec, cache, progress=None):
     t0 = time.perf_counter()
     # the drive takes what the physics takes: the total is not known ahead
     cb = (lambda d: progress(f"scan {name}", d, d)) if progress else None
-    rec, _ = run_room_scan(spec, RoomScanConfig(**scan), progress=cb)
+    rec = run_room_scan(spec, RoomScanConfig(**scan), progress=cb)
     scan_s = time.perf_counter() - t0
     if path is not None:
         cache.mkdir(parents=True, exist_ok=True)

@@ -32,7 +32,7 @@ from tabletop.sim.room import (
     list_default_rooms,
     load_room_spec,
 )
-from tabletop.sim.room_scan import RoomScanConfig, RoomScanStats, run_room_scan
+from tabletop.sim.room_scan import RoomScanConfig, RoomScanStats, run_room_scan, scan_room
 from tabletop.sim.room_world import PyBulletBaseDriver, RoomWorld, mast_camera_config
 from tabletop.sim.scan import ScanConfig, ScanStats, plan_scan, run_scan
 from tabletop.sim.scene import (
@@ -97,4 +97,5 @@ __all__ = [
     "run_room_scan",
     "run_scan",
     "save_recording",
+    "scan_room",
 ]

@@ -44,7 +44,7 @@ from tabletop.sim.noise import NoiseConfig, apply_noise
 from tabletop.sim.room import FurnitureSpec, RoomSpec
 from tabletop.sim.room_world import RoomWorld, mast_camera_config
 
-__all__ = ["RoomScanConfig", "RoomScanStats", "base_pose_of", "run_room_scan"]
+__all__ = ["RoomScanConfig", "RoomScanStats", "base_pose_of", "run_room_scan", "scan_room"]
 
 log = logging.getLogger(__name__)
 
@@ -336,6 +336,23 @@ def run_room_scan(
     spec: RoomSpec,
     config: RoomScanConfig | None = None,
     progress: Callable[[int], None] | None = None,
+) -> Recording:
+    """Scan a room with the wheeled base; return the recording (with ground truth).
+
+    ``meta`` records the contacts (``collisions``, 0) and the distance driven
+    (``distance_m``); :func:`scan_room` also returns the timing figures.
+
+    Raises:
+        SimulationError: the base touched furniture, a wall or an object, or could not reach
+            a viewpoint.
+    """
+    return scan_room(spec, config, progress)[0]
+
+
+def scan_room(
+    spec: RoomSpec,
+    config: RoomScanConfig | None = None,
+    progress: Callable[[int], None] | None = None,
 ) -> tuple[Recording, RoomScanStats]:
     """Scan a room with the wheeled base; return the recording (with ground truth) and figures.
 
@@ -357,6 +374,11 @@ def run_room_scan(
         inflate = d.params.radius + config.clearance
         blocked = spec.occupancy(_CELL, inflate=inflate)
         visits = _plan(spec, config, blocked)
+        if len(visits) < config.episodes:  # before any driving
+            raise ConfigError(
+                f"room scan: {config.episodes} audio episodes need as many tables to stand "
+                f"at; the scan visits {len(visits)}: {[v.table.name for v in visits]}"
+            )
         rec = _Recorder(world, config.rate_hz, progress)
         base.on_physics_step = rec
         rec(base.time)  # frame 0 where the base stands
@@ -386,11 +408,6 @@ def run_room_scan(
                     rec.segment = (f"episode_{len(episode_places)}", "episode")
                     base.hold(config.episode_s)
                     episode_places.append(t)
-        if len(episode_places) < config.episodes:
-            raise ConfigError(
-                f"room scan: {config.episodes} audio episodes need as many tables to stand "
-                f"at; the scan visits {len(episode_places)}"
-            )
         if config.look_around:
             free = np.argwhere(~blocked)
             centre = np.array(spec.size) / 2
@@ -447,6 +464,7 @@ def run_room_scan(
             SoundEventTruth.from_dict(e, f"sound_events[{i}]") for i, e in enumerate(events)
         ),
     )
+    distance = float(np.linalg.norm(np.diff(true[:, :2, 3], axis=0), axis=1).sum()) if n else 0.0
     recording = Recording(
         timestamps=timestamps,
         rgb=f.pop("rgb"),
@@ -471,6 +489,7 @@ def run_room_scan(
             "renderer": renderer,
             "rate_hz": config.rate_hz,
             "collisions": collisions,
+            "distance_m": round(distance, 4),
             "odometry_drift": {k.name: getattr(config.drift, k.name) for k in fields(config.drift)},
         },
         ee_frame=BASE_FRAME,
@@ -478,7 +497,6 @@ def run_room_scan(
     )
     if config.noise.any:
         recording = apply_noise(recording, config.noise)
-    distance = float(np.linalg.norm(np.diff(true[:, :2, 3], axis=0), axis=1).sum()) if n else 0.0
     stats = RoomScanStats(
         frames=len(recording),
         simulated_s=n / config.rate_hz,
