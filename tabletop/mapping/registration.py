@@ -14,7 +14,8 @@ three of a pose's six degrees of freedom (height, roll, pitch).
    planes agree on (the floor past the table's edge is another), and each frame's plane is
    fitted again to its points near that height: a plane within ``max_tilt_rad`` of
    horizontal is the frame's view of the table;
-2. the reference table is the median of those planes (height and normal); a frame whose plane
+2. the reference table is level (``level``: the world frame's z is up) at the median of those
+   planes' heights (without ``level``: the median plane, height and normal); a frame whose plane
    differs from it is corrected by the rigid transform that rotates its plane onto the
    reference about the plane's centroid and lifts it onto the reference height.
 
@@ -76,6 +77,12 @@ class RegistrationConfig:
     max_correction_rad: float = math.radians(5.0)
     """A frame whose table is tilted more [rad] against the reference is not corrected."""
     seed: int = 0
+    level: bool = True
+    """The table is level in the base frame (z up, as the world frame is defined): frames are
+    corrected onto a horizontal plane. False: onto the median of the frames' planes (a table
+    that is tilted in the base frame). A camera extrinsic that is off tilts every frame's view
+    of the table alike; the median then keeps that tilt, and a map whose table rises a few
+    millimetres across its width puts the high side's table top among the objects."""
     planar: bool = False
     """Register x, y and yaw on the points above the table (pass 3 of the module). Off by
     default: on an exact scan of the shipped default scene it still turns 368 of 1429 frames by
@@ -250,9 +257,11 @@ def table_corrections(
             planes.append((i, fit[0], fit[1]))
     if not planes:
         return TableCorrections(C, corrected, 0, None)
-    normals = np.stack([p[1] for p in planes])
-    ref_n = np.median(normals, axis=0)
-    ref_n /= np.linalg.norm(ref_n)
+    if cfg.level:
+        ref_n = np.array([0.0, 0.0, 1.0])
+    else:
+        ref_n = np.median(np.stack([p[1] for p in planes]), axis=0)
+        ref_n /= np.linalg.norm(ref_n)
     heights = np.array([float(np.dot(ref_n, p[2])) for p in planes])
     ref_h = float(np.median(heights))
     for (i, normal, centroid), h in zip(planes, heights, strict=True):
