@@ -182,3 +182,13 @@ def test_horizontal_shift_and_yaw_are_registered_on_what_stands_on_the_table():
     fixed = table_corrections(depth, K, noisy, planar)
     assert spread(table_only.C @ noisy) > 0.004  # the table alone cannot see these errors
     assert spread(fixed.C @ noisy) < 0.65 * spread(noisy), (spread(noisy), spread(fixed.C @ noisy))
+
+
+def test_a_frame_is_not_slid_along_surfaces_it_already_lies_on():
+    # exact poses, depth with 1 mm of noise: an alignment without the gain check still finds
+    # something to slide; nothing brings the points closer, so nothing is corrected
+    T, depth = _box_scan()
+    rng = np.random.default_rng(3)
+    depth = (depth + (depth > 0) * rng.normal(0, 0.001, depth.shape)).astype(np.float32)
+    assert table_corrections(depth, K, T, RegistrationConfig(planar_min_gain_m=0.0)).any
+    assert not table_corrections(depth, K, T).any
