@@ -14,7 +14,8 @@ three of a pose's six degrees of freedom (height, roll, pitch).
    planes agree on (the floor past the table's edge is another), and each frame's plane is
    fitted again to its points near that height: a plane within ``max_tilt_rad`` of
    horizontal is the frame's view of the table;
-2. the reference table is the median of those planes (height and normal); a frame whose plane
+2. the reference table is level (``level``: the world frame's z is up) at the median of those
+   planes' heights (without ``level``: the median plane, height and normal); a frame whose plane
    differs from it is corrected by the rigid transform that rotates its plane onto the
    reference about the plane's centroid and lifts it onto the reference height.
 
@@ -23,7 +24,7 @@ applied, so exact poses (the simulator's) are left exactly as they are; correcti
 ``max_correction_m``/``max_correction_rad`` are refused as fits to something else (a box top,
 a tray).
 
-Horizontal position and yaw are not observable from a plane. With ``planar`` (off by default,
+Horizontal position and yaw are not observable from a plane. With ``planar`` (on by default,
 see :class:`RegistrationConfig`), a third pass registers them on what stands on the table:
 
 3. each frame's points above the table are aligned in x, y and yaw to the points above the
@@ -32,7 +33,10 @@ see :class:`RegistrationConfig`), a third pass registers them on what stands on 
    ``planar_match_m`` in 3D, a closed-form rigid fit in the horizontal plane, repeated
    ``planar_icp_iterations`` times; the two halves' references are rebuilt from the corrected
    frames ``planar_rounds`` times. The same deadband and bounds apply
-   (``planar_deadband_m``/``planar_deadband_rad``, ``planar_max_m``/``planar_max_rad``).
+   (``planar_deadband_m``/``planar_deadband_rad``, ``planar_max_m``/``planar_max_rad``), and
+   a correction is applied only where it brings the frame's points ``planar_min_gain_m``
+   closer to the other frames' surfaces: exact poses already put them there, so an alignment
+   that slides a frame along what pins it poorly (a yaw about one upright face) is refused.
 
 Per-frame pose noise and a wrist camera's extrinsic error (which moves each view differently
 as the hand turns) both show as frames that disagree with their neighbours; what all frames
@@ -76,10 +80,14 @@ class RegistrationConfig:
     max_correction_rad: float = math.radians(5.0)
     """A frame whose table is tilted more [rad] against the reference is not corrected."""
     seed: int = 0
-    planar: bool = False
-    """Register x, y and yaw on the points above the table (pass 3 of the module). Off by
-    default: on an exact scan of the shipped default scene it still turns 368 of 1429 frames by
-    up to 1 deg (where few upright surfaces pin the yaw), so exact poses would not stay exact."""
+    level: bool = True
+    """The table is level in the base frame (z up, as the world frame is defined): frames are
+    corrected onto a horizontal plane. False: onto the median of the frames' planes (a table
+    that is tilted in the base frame). A camera extrinsic that is off tilts every frame's view
+    of the table alike; the median then keeps that tilt, and a map whose table rises a few
+    millimetres across its width puts the high side's table top among the objects."""
+    planar: bool = True
+    """Register x, y and yaw on the points above the table (pass 3 of the module)."""
     planar_voxel_m: float = 0.02
     """The other frames' points are averaged in voxels of this size [m] before matching."""
     planar_match_m: float = 0.02
@@ -98,6 +106,12 @@ class RegistrationConfig:
     """A frame that would move farther [m] is not corrected."""
     planar_max_rad: float = math.radians(4.0)
     """A frame that would turn more [rad] is not corrected."""
+    planar_min_gain_m: float = 0.0005
+    """A frame is corrected only where that brings its points at least this much [m] closer to
+    the other frames' surfaces (median point-to-plane distance, in the last round). Exact
+    poses put them on those surfaces already (0.05 mm on the shipped default scene), and an
+    alignment may still slide a frame along what pins it poorly (a yaw about a lone upright
+    face): nothing is gained."""
 
     def __post_init__(self) -> None:
         for name, least in (
@@ -123,6 +137,7 @@ class RegistrationConfig:
             "planar_deadband_rad",
             "planar_max_m",
             "planar_max_rad",
+            "planar_min_gain_m",
         ):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not 0 <= v < 10:
@@ -250,9 +265,11 @@ def table_corrections(
             planes.append((i, fit[0], fit[1]))
     if not planes:
         return TableCorrections(C, corrected, 0, None)
-    normals = np.stack([p[1] for p in planes])
-    ref_n = np.median(normals, axis=0)
-    ref_n /= np.linalg.norm(ref_n)
+    if cfg.level:
+        ref_n = np.array([0.0, 0.0, 1.0])
+    else:
+        ref_n = np.median(np.stack([p[1] for p in planes]), axis=0)
+        ref_n /= np.linalg.norm(ref_n)
     heights = np.array([float(np.dot(ref_n, p[2])) for p in planes])
     ref_h = float(np.median(heights))
     for (i, normal, centroid), h in zip(planes, heights, strict=True):
@@ -297,6 +314,17 @@ def _step_yaw(p: np.ndarray, q: np.ndarray, n: np.ndarray) -> tuple[float, np.nd
     r = ((q - p) * n).sum(axis=1)
     x = np.linalg.solve(J.T @ J + 1e-9 * np.eye(3), J.T @ r)
     return float(x[0]), x[1:]
+
+
+def _residual(p: np.ndarray, tree, normals: np.ndarray, cfg: RegistrationConfig) -> float:
+    """The median distance [m] of the points ``p`` (m, 3) from the reference's surfaces
+    (point-to-plane, over the points with a neighbour within ``planar_match_m``; a point
+    without one counts as that far)."""
+    d, j = tree.query(p, distance_upper_bound=cfg.planar_match_m)
+    ok = np.isfinite(d)
+    r = np.full(len(p), cfg.planar_match_m)
+    r[ok] = np.abs(((tree.data[j[ok]] - p[ok]) * normals[j[ok]]).sum(axis=1))
+    return float(np.median(r))
 
 
 def _voxel_means(p: np.ndarray, size: float) -> np.ndarray:
@@ -372,6 +400,12 @@ def _planar_corrections(
                 if shift < cfg.planar_deadband_m and abs(theta) < cfg.planar_deadband_rad:
                     P[i] = np.eye(4)
                     continue
+                if round_ == cfg.planar_rounds - 1:  # against the finest, final references
+                    fin = local @ _yaw_transform(theta, t)[:3, :3].T + [*t, 0.0] + centre
+                    gain = _residual(a, tree, normals, cfg) - _residual(fin, tree, normals, cfg)
+                    if gain < cfg.planar_min_gain_m:
+                        P[i] = np.eye(4)
+                        continue
                 Rz = _yaw_transform(theta, np.zeros(2))
                 P[i] = make_transform(
                     Rz[:3, :3], centre + np.array([*t, 0.0]) - Rz[:3, :3] @ centre
