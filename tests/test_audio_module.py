@@ -88,6 +88,30 @@ def test_one_segment_is_judged_against_reference_sounds():
     assert right.evidence > 0.5 > absent.evidence
 
 
+def test_a_sound_heard_in_two_of_three_places_is_found():
+    # a room scan: three episodes, one sound heard at two tables; the segments' median is
+    # then that sound's own score, and the reference sounds must set the floor instead
+    text = text_encoder()
+    m = AudioModule(GRID)
+    t = np.arange(0, 12.0, 1 / 30)
+    events = [
+        {"caption": "the sound of hammering", "onset_s": 1.0, "offset_s": 2.0},
+        {"caption": "the sound of a violin playing", "onset_s": 5.0, "offset_s": 6.0},
+        {"caption": "the sound of hammering", "onset_s": 9.0, "offset_s": 10.0},
+    ]
+    m.add(
+        _track([(1.0, 2.0), (5.0, 6.0), (9.0, 10.0)]),
+        RATE,
+        t,
+        _poses(t, lambda s: (0.1 + 0.04 * s, 0.0)),
+        OracleAudioEncoder(text, events),
+    )
+    assert len(m) == 3
+    h = m.heatmap("the sound of hammering", 10.0, text, judge_at(0.3))
+    assert h.found and h.evidence > 0.4
+    assert not m.heatmap("a submarine sonar ping", 10.0, text, judge_at(0.3)).found
+
+
 def test_bad_input_names_the_problem():
     with pytest.raises(ConfigError, match="one pose per timestamp"):
         AudioModule(GRID).add(_track([]), RATE, np.arange(3.0), np.zeros((2, 4, 4)), None)

@@ -121,6 +121,14 @@ def test_room_map_settings_cover_the_room_with_its_concepts():
     assert set(ROOM_CONCEPTS) <= set(cfg.categories) and "other" in cfg.categories
     assert cfg.object.segmentation.supports == "surfaces"
     assert not cfg.registration.enabled and cfg.self_filter_margin is None
+    # an image goal is where the picture was taken; a mast camera need not look down
+    assert cfg.visual.target == "camera" and not cfg.visual.localization.require_look_down
+    assert cfg.aux_decay < map_config().aux_decay and cfg.major_decay < map_config().major_decay
+    from tabletop.errors import ConfigError
+    from tabletop.mapping.visual.module import VisualModuleConfig
+
+    with pytest.raises(ConfigError, match=r"target must be one of \['view', 'camera'\]"):
+        VisualModuleConfig(target="above")
     # the task file's voxel size keeps the room's box
     cfg5 = map_config(**{**room_map_settings(spec), "voxel_size": 0.05})
     assert cfg5.grid.voxel_size == 0.05 and cfg5.grid.upper == cfg.grid.upper

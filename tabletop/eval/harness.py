@@ -59,7 +59,7 @@ def map_config(**overrides):
     kw = dict(overrides)
     nested = {
         k: kw.pop(k)
-        for k in ("object", "area", "audio", "registration")
+        for k in ("object", "area", "audio", "registration", "visual")
         if isinstance(kw.get(k), dict)
     }
     if nested:  # module configs given as dicts of the fields that change

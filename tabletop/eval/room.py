@@ -22,6 +22,10 @@ from __future__ import annotations
 
 __all__ = ["ROOM_CONCEPTS", "room_map_settings"]
 
+#: Decays [1/m] of a room's primary and auxiliary heatmaps (the table's 10 and 2.5, over 5):
+#: a sound heard where the base stood, a metre or two from the table, still narrows down
+#: which object is meant.
+ROOM_MAJOR_DECAY, ROOM_AUX_DECAY = 2.0, 0.5
 #: Concepts a room holds besides the catalog's objects and the tabletop background.
 ROOM_CONCEPTS = ("wall", "shelf", "cabinet", "sofa", "robot")
 
@@ -58,6 +62,19 @@ def room_map_settings(
         },
         "registration": {"enabled": False},
         "self_filter_margin": None,
+        # a room is about five times a table's size: heat spreads five times as far
+        "major_decay": ROOM_MAJOR_DECAY,
+        "aux_decay": ROOM_AUX_DECAY,
+        # an image goal is where it was taken; a mast camera looks across the room, its
+        # references reach 5 m, and a 3 cm map reproduces a view less exactly than 1 cm
+        "visual": {
+            "target": "camera",
+            "localization": {
+                "require_look_down": False,
+                "max_depth_m": 5.0,
+                "min_agreement": 0.5,
+            },
+        },
     }
 
 

@@ -193,8 +193,11 @@ class AudioModule:
         s = np.stack(self.embeddings) @ q
         pos = np.stack(self.positions)[:, :2]
         values = scored_points_heatmap_xy(self.grid, pos, normalize_scores(s), decay)
+        # What a query typically scores: the segments' scores, with the reference sounds'
+        # when few distinct sounds were heard (two of three segments the same sound, as in a
+        # room scan with a sound heard at two tables, would make the median the match itself).
         typical = s
-        if len(s) <= 2:
+        if len(np.unique(np.round(s, 4))) <= 3:
             refs = text.encode_text(list(self.config.reference_sounds))
             typical = np.concatenate([s, refs @ q])
         floor = float(np.median(typical))

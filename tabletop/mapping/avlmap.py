@@ -166,7 +166,12 @@ class AVLMap:
         """The audio module (segments, embeddings, where each was heard)."""
         visual = config.visual
         db = None if visual is None else VisualDatabase(visual.localization)
-        self.images = VisualModule(self.voxels, db, 0.2 if visual is None else visual.target_px)
+        self.images = VisualModule(
+            self.voxels,
+            db,
+            0.2 if visual is None else visual.target_px,
+            "view" if visual is None else visual.target,
+        )
         """The visual localization module (its ``database`` is None: no image goals)."""
         self._table: tuple[tuple[int, int], TableFit | None] | None = None
         self._surfaces: tuple[tuple[int, int], list[TableFit]] | None = None

@@ -67,6 +67,10 @@ class VisualLocalizationConfig:
     colour the map, seen from the candidate pose, reproduces. On the eval-map image goals
     (103 goals, 3 seeds; ``tools/image_candidates.py``) the true camera poses scored
     0.83-0.96, and 22 of 360 wrong candidates passed (``min_kappa`` refuses 13 of those)."""
+    require_look_down: bool = True
+    """A pose must look down at the table (its optical axis meets the plane z = 0 in front
+    of it): a wrist camera over a table does; a mobile base's mast camera looking across a
+    room need not (False)."""
     min_kappa: float = 0.3
     """With a :class:`PhotometricCheck`: smallest agreement beyond chance (Cohen's kappa). On
     the eval-map image goals the true camera poses scored 0.39-0.89 (a view of plain table

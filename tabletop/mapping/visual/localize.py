@@ -114,7 +114,7 @@ def _localize_turned(
     out["inliers"] = n_inl
     if T is None or n_inl < min_inliers or n_inl < config.min_inlier_ratio * len(pts):
         return {**out, "reason": f"{n_inl} of {len(pts)} matches with frames {list(refs)} agree"}
-    if look_at_point(T) is None:
+    if config.require_look_down and look_at_point(T) is None:
         return {**out, "reason": f"a pose with {n_inl} inliers does not look down at the table"}
     return {**out, "T": T, "reason": ""}
 

@@ -24,7 +24,10 @@ from tabletop.mapping.visual.photometric import PhotometricCheck
 from tabletop.mapping.voxel_map import VoxelMap
 from tabletop.transforms import pixel_rays
 
-__all__ = ["VisualModule", "VisualModuleConfig"]
+__all__ = ["TARGETS", "VisualModule", "VisualModuleConfig"]
+
+#: What an image goal may name (:attr:`VisualModuleConfig.target`).
+TARGETS = ("view", "camera")
 
 
 @dataclass(frozen=True)
@@ -36,8 +39,14 @@ class VisualModuleConfig:
     target_px: float = 0.2
     """An image's target is the median surface point of the rays through the central
     ``target_px`` fraction of its width and height."""
+    target: str = "view"
+    """What an image goal names: "view", the point the image shows (a wrist camera over a
+    table: reach what it looks at), or "camera", where it was taken, on the floor beneath the
+    camera (a mobile base goes to where the picture was taken, as in the paper)."""
 
     def __post_init__(self) -> None:
+        if self.target not in TARGETS:
+            raise ConfigError(f"target must be one of {list(TARGETS)}, got {self.target!r}")
         if not isinstance(self.localization, VisualLocalizationConfig):
             raise ConfigError(
                 "localization must be a VisualLocalizationConfig, got "
@@ -58,13 +67,20 @@ class VisualModule:
     """
 
     def __init__(
-        self, voxels: VoxelMap, database: VisualDatabase | None, target_px: float = 0.2
+        self,
+        voxels: VoxelMap,
+        database: VisualDatabase | None,
+        target_px: float = 0.2,
+        target: str = "view",
     ) -> None:
         if not 0 < target_px <= 1:
             raise ConfigError(f"target_px must be in (0, 1], got {target_px}")
+        if target not in TARGETS:
+            raise ConfigError(f"target must be one of {list(TARGETS)}, got {target!r}")
         self.voxels = voxels
         self.database = database
         self.target_px = float(target_px)
+        self.target = target
         self._check: tuple[tuple[int, int], PhotometricCheck] | None = None
 
     def photometric_check(self) -> PhotometricCheck:
@@ -127,8 +143,9 @@ class VisualModule:
     def heatmap(
         self, rgb: np.ndarray, decay: float, judge: Judge, K: np.ndarray | None = None
     ) -> Heatmap:
-        """Heat around the table point an image shows; a failed localisation is not found
-        with its reason (``evidence``: the refused best pose's kappa, None without a pose)."""
+        """Heat around the table point an image shows (or, with ``target="camera"``, the
+        floor beneath where it was taken); a failed localisation is not found with its reason
+        (``evidence``: the refused best pose's kappa, None without a pose)."""
         grid = self.voxels.grid
         rgb = check_rgb(rgb)
         query = f"image {rgb.shape[1]}x{rgb.shape[0]}"
@@ -138,6 +155,9 @@ class VisualModule:
             return replace(h, evidence=loc.kappa)
         conf, _ = judge("image", loc.kappa)
         K = self.database.K if K is None else K
-        target = self.image_target(loc.T_world_cam, K, (rgb.shape[1], rgb.shape[0]))
+        if self.target == "camera":  # where it was taken, on the floor beneath the camera
+            target = np.asarray(loc.T_world_cam, np.float64)[:3, 3] * [1.0, 1.0, 0.0]
+        else:
+            target = self.image_target(loc.T_world_cam, K, (rgb.shape[1], rgb.shape[0]))
         values = scored_points_heatmap_xy(grid, target[None, :2], [1.0], decay)
         return Heatmap(grid, values, query, "image", decay, conf, True, "", loc.kappa, target)
