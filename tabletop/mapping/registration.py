@@ -40,7 +40,7 @@ see :class:`RegistrationConfig`), a third pass registers them on what stands on 
 
 Per-frame pose noise and a wrist camera's extrinsic error (which moves each view differently
 as the hand turns) both show as frames that disagree with their neighbours; what all frames
-agree on stays where it was recorded.
+agree on stays where it was recorded, except a tilt of the table (``level``).
 """
 
 from __future__ import annotations
