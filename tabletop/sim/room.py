@@ -39,7 +39,6 @@ from __future__ import annotations
 
 import json
 import math
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -47,9 +46,8 @@ import numpy as np
 
 from tabletop.base import TABLETOP_BASE
 from tabletop.errors import SceneError
-from tabletop.paths import DATA_DIR
 from tabletop.sim.catalog import OBJECT_KINDS, load_mesh_geometry, object_kind
-from tabletop.sim.scene import ObjectSpec
+from tabletop.sim.scene import ObjectSpec, read_spec_file, shipped_spec_path, shipped_specs
 from tabletop.transforms import make_transform, rotation_about, transform_points
 
 __all__ = [
@@ -573,34 +571,18 @@ def _to_toml(d: dict) -> str:
 
 def load_room_spec(path: str | Path) -> RoomSpec:
     """Load a room spec from a ``.toml`` or ``.json`` file, or a shipped room by name."""
-    path = Path(path)
-    if not path.exists() and path.suffix == "":
-        path = default_room_path(str(path))
-    if not path.is_file():
-        raise SceneError(f"room spec {path} not found; shipped rooms: {list_default_rooms()}")
-    try:
-        if path.suffix == ".toml":
-            data = tomllib.loads(path.read_text())
-        elif path.suffix == ".json":
-            data = json.loads(path.read_text())
-        else:
-            raise SceneError(f"room spec {path}: unknown format; valid: .toml, .json")
-    except (tomllib.TOMLDecodeError, json.JSONDecodeError) as e:
-        raise SceneError(f"room spec {path} is not valid {path.suffix[1:].upper()}: {e}") from None
+    data, path = read_spec_file(path, "rooms", "room")
     return RoomSpec.from_dict(data, source=str(path))
 
 
 def list_default_rooms() -> list[str]:
     """Names of the room specs shipped in ``tabletop/data/rooms``."""
-    return sorted(p.stem for p in (DATA_DIR / "rooms").glob("*.toml"))
+    return shipped_specs("rooms")
 
 
 def default_room_path(name: str = "default") -> Path:
     """Path of a shipped room spec by name."""
-    path = DATA_DIR / "rooms" / f"{name}.toml"
-    if not path.is_file():
-        raise SceneError(f"no shipped room {name!r}; shipped: {list_default_rooms()}")
-    return path
+    return shipped_spec_path("rooms", "room", name)
 
 
 # ---------------------------------------------------------------------------- generator

@@ -354,33 +354,52 @@ class SceneSpec:
         }
 
 
-def load_scene_spec(path: str | Path) -> SceneSpec:
-    """Load a scene spec from a ``.toml`` or ``.json`` file, or a shipped scene by name."""
+def shipped_specs(folder: str) -> list[str]:
+    """Names of the spec files shipped in ``tabletop/data/<folder>`` ("scenes", "rooms")."""
+    return sorted(p.stem for p in (DATA_DIR / folder).glob("*.toml"))
+
+
+def shipped_spec_path(folder: str, what: str, name: str) -> Path:
+    """Path of the ``what`` spec ("scene", "room") shipped as ``name`` in ``folder``."""
+    path = DATA_DIR / folder / f"{name}.toml"
+    if not path.is_file():
+        raise SceneError(f"no shipped {what} {name!r}; shipped: {shipped_specs(folder)}")
+    return path
+
+
+def read_spec_file(path: str | Path, folder: str, what: str) -> tuple[dict, Path]:
+    """(parsed data, path) of a ``what`` spec ("scene", "room") from a ``.toml`` or ``.json``
+    file, or of one shipped in ``tabletop/data/<folder>`` by name."""
     path = Path(path)
     if not path.exists() and path.suffix == "":
-        path = default_scene_path(str(path))
+        path = shipped_spec_path(folder, what, str(path))
     if not path.is_file():
-        raise SceneError(f"scene spec {path} not found; shipped scenes: {list_default_scenes()}")
+        raise SceneError(f"{what} spec {path} not found; shipped {folder}: {shipped_specs(folder)}")
     try:
         if path.suffix == ".toml":
             data = tomllib.loads(path.read_text())
         elif path.suffix == ".json":
             data = json.loads(path.read_text())
         else:
-            raise SceneError(f"scene spec {path}: unknown format; valid: .toml, .json")
+            raise SceneError(f"{what} spec {path}: unknown format; valid: .toml, .json")
     except (tomllib.TOMLDecodeError, json.JSONDecodeError) as e:
-        raise SceneError(f"scene spec {path} is not valid {path.suffix[1:].upper()}: {e}") from None
+        raise SceneError(
+            f"{what} spec {path} is not valid {path.suffix[1:].upper()}: {e}"
+        ) from None
+    return data, path
+
+
+def load_scene_spec(path: str | Path) -> SceneSpec:
+    """Load a scene spec from a ``.toml`` or ``.json`` file, or a shipped scene by name."""
+    data, path = read_spec_file(path, "scenes", "scene")
     return SceneSpec.from_dict(data, source=str(path))
 
 
 def list_default_scenes() -> list[str]:
     """Names of the scene specs shipped in ``tabletop/data/scenes``."""
-    return sorted(p.stem for p in (DATA_DIR / "scenes").glob("*.toml"))
+    return shipped_specs("scenes")
 
 
 def default_scene_path(name: str = "default") -> Path:
     """Path of a shipped scene spec by name."""
-    path = DATA_DIR / "scenes" / f"{name}.toml"
-    if not path.is_file():
-        raise SceneError(f"no shipped scene {name!r}; shipped: {list_default_scenes()}")
-    return path
+    return shipped_spec_path("scenes", "scene", name)
