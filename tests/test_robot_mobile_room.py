@@ -4,6 +4,7 @@ collision, through the same robot API and instruction code as the arm."""
 
 import numpy as np
 import pytest
+from test_room_scan import SHORT  # a few seconds: to the work table, one look, one sound
 
 from tabletop.base import TABLETOP_BASE, KinematicBaseDriver
 from tabletop.eval.harness import map_config
@@ -15,18 +16,6 @@ from tabletop.sim.ground_truth import GroundTruth
 from tabletop.sim.room import load_room_spec
 from tabletop.sim.room_scan import RoomScanConfig, run_room_scan
 from tabletop.sim.room_world import RoomWorld, mast_camera_config
-
-#: A few seconds: to the work table, one look, one audio episode.
-SHORT = dict(
-    rate_hz=10.0,
-    tables=("work_table",),
-    views_per_table=1,
-    look_s=0.5,
-    pan_rad=0.0,
-    look_around=False,
-    episodes=1,
-    episode_s=1.5,
-)
 
 
 @pytest.fixture(scope="module")

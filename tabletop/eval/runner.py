@@ -401,11 +401,7 @@ def evaluate_task_file(
     cache = Path(cache_dir) if cache_dir is not None else None
     if cache is not None:
         cache.mkdir(parents=True, exist_ok=True)
-    settings = {**dict(tf.map), **dict(map_overrides or {})}
-    try:  # a bad [map] value fails before the scan, not after it
-        map_config(**settings)
-    except (TypeError, TabletopError) as e:
-        raise TaskFileError(f"{tf.path or tf.name} [map]: {e}") from None
+    settings = _map_settings(tf, map_overrides)
     scan = {**dict(tf.scan), **dict(scan_overrides or {})}
     try:
         sensor = NoiseConfig.from_dict({**dict(tf.noise), **dict(noise or {})})
@@ -457,6 +453,17 @@ def evaluate_task_file(
     return run
 
 
+def _map_settings(tf: TaskFile, overrides: dict | None, base: dict | None = None) -> dict:
+    """The map settings of a task file (``base``, then its ``[map]``, then ``overrides``),
+    checked before anything is scanned: a bad value fails before the scan, not after it."""
+    settings = {**dict(base or {}), **dict(tf.map), **dict(overrides or {})}
+    try:
+        map_config(**settings)
+    except (TypeError, TabletopError) as e:
+        raise TaskFileError(f"{tf.path or tf.name} [map]: {e}") from None
+    return settings
+
+
 def _resolve_goals(tf: TaskFile, truth: GroundTruth) -> dict[str, Region]:
     """Every goal's region, before anything moves: a wrong reference is a task-file error."""
     where = str(tf.path or tf.name)
@@ -497,11 +504,7 @@ def evaluate_room_task_file(
         )
     spec = tf.scene.load()
     cache = Path(cache_dir) if cache_dir is not None else None
-    settings = {**room_map_settings(spec), **dict(tf.map), **dict(map_overrides or {})}
-    try:  # a bad [map] value fails before the scan, not after it
-        map_config(**settings)
-    except (TypeError, TabletopError) as e:
-        raise TaskFileError(f"{tf.path or tf.name} [map]: {e}") from None
+    settings = _map_settings(tf, map_overrides, room_map_settings(spec))
     scan = {**dict(tf.scan), **dict(scan_overrides or {})}
     rec, scan_s, rec_cached = cached_room_recording(tf.name, scan, spec, cache, progress)
     rec_key = room_recording_key(spec, scan)

@@ -503,38 +503,39 @@ def _goal(d: object, where: str) -> Goal:
     return Goal(**common, query=query)
 
 
-def scene_ref(sc: object, source: str = "<tasks>", base_dir: Path | None = None) -> SceneRef:
-    """A task file's ``[scene]`` section as a :class:`SceneRef`."""
-    sc = _keys(sc, f"{source} [scene]", (), ("name", "path", "random"))
+def _place(sc: object, section: str, source: str, base_dir: Path | None) -> tuple[str, object]:
+    """(which, value) of a ``[scene]`` or ``[room]`` section: ("name", str), ("path", Path
+    relative to ``base_dir``) or ("random", its table, unchecked)."""
+    where = f"{source} [{section}]"
+    sc = _keys(sc, where, (), ("name", "path", "random"))
     given = [k for k in ("name", "path", "random") if k in sc]
     if len(given) != 1:
-        raise _err(f"{source} [scene]", f"give exactly one of name, path, random; got {given}")
+        raise _err(where, f"give exactly one of name, path, random; got {given}")
     if "name" in sc:
-        return SceneRef(name=_text(sc["name"], f"{source} [scene].name"))
+        return "name", _text(sc["name"], f"{where}.name")
     if "path" in sc:
-        p = Path(_text(sc["path"], f"{source} [scene].path"))
-        return SceneRef(path=p if p.is_absolute() or base_dir is None else base_dir / p)
+        p = Path(_text(sc["path"], f"{where}.path"))
+        return "path", p if p.is_absolute() or base_dir is None else base_dir / p
+    return "random", sc["random"]
+
+
+def scene_ref(sc: object, source: str = "<tasks>", base_dir: Path | None = None) -> SceneRef:
+    """A task file's ``[scene]`` section as a :class:`SceneRef`."""
+    which, value = _place(sc, "scene", source, base_dir)
+    if which != "random":
+        return SceneRef(**{which: value})
     r = _keys(
-        sc["random"],
-        f"{source} [scene].random",
-        ("seed",),
-        ("count", "duplicates", "kinds", "profile"),
+        value, f"{source} [scene].random", ("seed",), ("count", "duplicates", "kinds", "profile")
     )
     return SceneRef(random=dict(r))
 
 
 def room_ref(sc: object, source: str = "<tasks>", base_dir: Path | None = None) -> RoomRef:
     """A task file's ``[room]`` section as a :class:`RoomRef`."""
-    sc = _keys(sc, f"{source} [room]", (), ("name", "path", "random"))
-    given = [k for k in ("name", "path", "random") if k in sc]
-    if len(given) != 1:
-        raise _err(f"{source} [room]", f"give exactly one of name, path, random; got {given}")
-    if "name" in sc:
-        return RoomRef(name=_text(sc["name"], f"{source} [room].name"))
-    if "path" in sc:
-        p = Path(_text(sc["path"], f"{source} [room].path"))
-        return RoomRef(path=p if p.is_absolute() or base_dir is None else base_dir / p)
-    r = _keys(sc["random"], f"{source} [room].random", ("seed",))
+    which, value = _place(sc, "room", source, base_dir)
+    if which != "random":
+        return RoomRef(**{which: value})
+    r = _keys(value, f"{source} [room].random", ("seed",))
     seed = r["seed"]
     if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
         raise _err(f"{source} [room].random.seed", f"must be an integer >= 0, got {seed!r}")
