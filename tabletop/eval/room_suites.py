@@ -16,13 +16,14 @@ on free floor the base can stand on.
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import math
 from pathlib import Path
 
 import numpy as np
 
-from tabletop.eval.suites import to_toml
+from tabletop.eval.suites import _the, draw, to_toml
 from tabletop.eval.tasks import FORMAT_NAME, FORMAT_VERSION, Truth, parse_tasks
 from tabletop.eval.truth import resolve_truth, sound_occurrences
 from tabletop.paths import DATA_DIR
@@ -60,10 +61,6 @@ def _free(occ: np.ndarray, cell: float, xy) -> bool:
     return 0 <= i < occ.shape[0] and 0 <= j < occ.shape[1] and not occ[i, j]
 
 
-def _the(text: str) -> str:
-    return text if text.startswith(("the ", "a ")) else f"the {text}"
-
-
 def generate_room_suite(
     name: str, room: dict, scan: dict, spec, gt: GroundTruth, seed: int, counts=COUNTS
 ) -> dict:
@@ -85,11 +82,7 @@ def generate_room_suite(
     def add(gid, gtype, text, truth, **kw):
         goals.append({"id": gid, "type": gtype, "text": text, **kw, "truth": truth})
 
-    def pick(seq, n):
-        seq = list(seq)
-        if len(seq) <= n:
-            return seq
-        return [seq[i] for i in sorted(rng.choice(len(seq), n, replace=False))]
+    pick = functools.partial(draw, rng)
 
     for o in pick(objs, counts["object"]):
         add(f"object-{o.name}", "object", _the(o.label), {"object": o.name}, query={"obj": o.label})

@@ -17,6 +17,7 @@ people do.
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 from pathlib import Path
 
@@ -184,6 +185,15 @@ def _view(rng, target_xy) -> dict:
     }
 
 
+def draw(rng: np.random.Generator, seq, n: int) -> list:
+    """``n`` items of ``seq`` drawn with ``rng``, in their order (all of them when it has no
+    more than ``n``)."""
+    seq = list(seq)
+    if len(seq) <= n:
+        return seq
+    return [seq[i] for i in sorted(rng.choice(len(seq), n, replace=False))]
+
+
 def _the(phrase: str) -> str:
     """``phrase`` with a leading article: "the red mug"; one that has an article keeps it."""
     return phrase if phrase.split(" ", 1)[0] in ("the", "a", "an") else f"the {phrase}"
@@ -278,11 +288,7 @@ def generate_suite(
     def add(gid, gtype, text, truth, **kw):
         goals.append({"id": gid, "type": gtype, "text": text, **kw, "truth": truth})
 
-    def pick(seq, n):
-        seq = list(seq)
-        if len(seq) <= n:
-            return seq
-        return [seq[i] for i in sorted(rng.choice(len(seq), n, replace=False))]
+    pick = functools.partial(draw, rng)
 
     # object goals: a colour and a noun, unambiguous in the scene
     for o in pick(objs, counts["object"]):
