@@ -40,6 +40,7 @@ from tabletop.sim.room import FURNITURE_MODELS, FurnitureSpec, RoomSpec
 from tabletop.sim.world import (
     RENDERERS,
     CameraImage,
+    PyBulletClient,
     _quiet_stdout,
     create_object_body,
     load_egl_plugin,
@@ -97,7 +98,7 @@ class Collision:
     """Contact point [m], world frame."""
 
 
-class RoomWorld:
+class RoomWorld(PyBulletClient):
     """A PyBullet room built from a :class:`RoomSpec`, with the wheeled base at its start.
 
     Args:
@@ -415,19 +416,6 @@ class RoomWorld:
         self.driver.collisions = 0
         self.driver.collision_log.clear()
         self.driver._touching.clear()
-
-    # ------------------------------------------------------------------ lifetime
-    def close(self) -> None:
-        if self._client is not None and self._pb.isConnected(self._client):
-            with _quiet_stdout():
-                self._pb.disconnect(self._client)
-        self._client = None
-
-    def __enter__(self) -> RoomWorld:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
 
 
 class PyBulletBaseDriver(BaseDriver):

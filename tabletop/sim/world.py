@@ -15,6 +15,7 @@ import sys
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Self
 
 import numpy as np
 
@@ -183,7 +184,26 @@ def render_camera(
     return CameraImage(rgb=rgb, depth=depth, segmentation=inst)
 
 
-class SimWorld:
+class PyBulletClient:
+    """The lifetime of a world's own PyBullet client (``self._pb``, ``self._client``):
+    :meth:`close` disconnects it once; a world is a context manager that closes it."""
+
+    _client: int | None
+
+    def close(self) -> None:
+        if self._client is not None and self._pb.isConnected(self._client):
+            with _quiet_stdout():
+                self._pb.disconnect(self._client)
+        self._client = None
+
+    def __enter__(self) -> Self:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+class SimWorld(PyBulletClient):
     """A PyBullet scene built from a :class:`SceneSpec`, with a wrist camera on the Panda."""
 
     def __init__(
@@ -399,16 +419,3 @@ class SimWorld:
             ),
             instances=dict(sorted(self.instance_names.items())),
         )
-
-    # ------------------------------------------------------------------ lifetime
-    def close(self) -> None:
-        if self._client is not None and self._pb.isConnected(self._client):
-            with _quiet_stdout():
-                self._pb.disconnect(self._client)
-        self._client = None
-
-    def __enter__(self) -> SimWorld:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
