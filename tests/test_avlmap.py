@@ -339,8 +339,13 @@ def test_object_instances_are_saved_and_an_older_file_segments_again(avlmap, rec
     np.savez(edited, voxel_instance=merged, **arrays)
     assert len(AVLMap.load(edited).objects.instances) == len(inst) - 1
     back = AVLMap.load(path)
-    assert back.lacks == () and MAP_VERSION == 4
+    assert back.lacks == () and MAP_VERSION == 5
     np.testing.assert_array_equal(back.objects.instances.labels(), labels)
+    np.testing.assert_allclose(back.voxels.mean_heights(), avlmap.voxels.mean_heights())
+    v4 = AVLMap.load(_rewrite(path, tmp_path / "v4.npz", drop=("voxel_height_sums",), version=4))
+    assert v4.lacks == ("point heights (object heights judged by voxel centres)",)
+    assert v4.voxels.mean_heights() is None
+    np.testing.assert_array_equal(v4.objects.instances.labels(), labels)
     old = _rewrite(path, tmp_path / "v3.npz", drop=("voxel_instance",), version=3)
     m3 = AVLMap.load(old)
     assert any("instances" in w for w in m3.lacks)

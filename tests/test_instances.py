@@ -192,3 +192,65 @@ def test_a_room_has_a_floor_table_tops_and_a_board_and_objects_stand_on_each():
     # the one table of a tabletop scan would have been the floor: everything on it is one blob
     one = segment_instances(vm, surfaces[0])
     assert len(one) < 3 or any(i.extent[2] > 0.5 for i in one)
+
+
+def test_a_flat_object_in_the_table_tops_voxel_layer_stands_out_by_its_points_heights():
+    """3 cm voxels, a table top at 0.636 m and a 1.5 cm thick block lying on it: the block's
+    points and the table top's share one voxel layer, so only the points' heights part them."""
+    from tabletop.grid import VoxelGrid
+    from tabletop.mapping.table_regions import fit_surfaces, raised_surfaces
+
+    grid = VoxelGrid(lower=(0.0, 0.0, -0.06), upper=(2.0, 2.0, 1.2), voxel_size=0.03)
+    text = text_encoder()
+    names = ["floor", "table", "jenga block"]
+    emb = text.encode_text(names)
+    top = 0.636
+    block = ((0.90, 0.90, top), (1.05, 0.99, top + 0.015))
+    parts = [
+        ("floor", (0.0, 0.0, -0.01), (2.0, 2.0, 0.0), (90, 90, 90)),
+        ("table", (0.6, 0.6, top - 0.02), (1.4, 1.4, top), (150, 110, 60)),
+        ("table", (0.6, 0.6, 0.0), (0.65, 0.65, top - 0.02), (150, 110, 60)),
+        ("jenga block", *block, (120, 70, 40)),
+    ]
+    vm = VoxelMap(grid, text.dim)
+    for name, lo, hi, rgb in parts:
+        pts = box_points(lo, hi, 0.005)
+        if name == "table":  # the block hides the table top beneath it
+            under = np.all((pts[:, :2] >= block[0][:2]) & (pts[:, :2] <= block[1][:2]), axis=1)
+            pts = pts[~under]
+        vm.integrate(
+            pts,
+            emb,
+            np.tile(np.array(rgb, np.uint8), (len(pts), 1)),
+            feature_index=np.full(len(pts), names.index(name), np.int64),
+        )
+    assert vm.mean_heights() is not None
+    by_points = InstanceConfig(supports="surfaces", heights="points", max_height_m=0.3)
+    surfaces = raised_surfaces(fit_surfaces(grid, vm.indices, heights=vm.mean_heights()), 0.2)
+    assert len(surfaces) == 1 and surfaces[0].z == pytest.approx(top, abs=0.005)
+    inst = segment_instances(vm, surfaces, by_points)
+    assert len(inst) == 1
+    assert np.all(inst[0].center[:2] >= block[0][:2]) and np.all(inst[0].center[:2] <= block[1][:2])
+    # judged by voxel centres, the block is lost in (or is all of) the table top's layer
+    by_centres = InstanceConfig(supports="surfaces", max_height_m=0.3)
+    centre_surfaces = raised_surfaces(fit_surfaces(grid, vm.indices), 0.2)
+    blobs = segment_instances(vm, centre_surfaces, by_centres)
+    assert not any(i.extent[0] < 0.3 for i in blobs)
+    with pytest.raises(ConfigError, match="heights"):
+        InstanceConfig(heights="median")
+    with pytest.raises(ConfigError, match="heights"):
+        fit_surfaces(grid, vm.indices, heights=np.zeros(3))
+
+
+def test_a_voxel_map_without_point_heights_says_so():
+    vm = coloured_voxels(BOXES)
+    st = vm.state()
+    h = vm.mean_heights()
+    assert st["height_sums"].shape == (vm.n,) and np.all(h > vm.centers[:, 2] - 0.006)
+    del st["height_sums"]
+    old = VoxelMap.from_state(vm.grid, vm.dim, st)
+    assert not old.has_heights and old.mean_heights() is None and "height_sums" not in old.state()
+    # segmenting by points falls back to the voxel centres
+    table = fit_table(GRID, vm.indices)
+    by_points = segment_instances(old, table, InstanceConfig(heights="points"))
+    assert len(by_points) == len(segment_instances(old, table)) == len(BOXES)

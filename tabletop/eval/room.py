@@ -11,7 +11,8 @@ else, the encoders and the modules, is shared):
   onto "table" or "other" when an embodiment's obstacle list names walls;
 - objects stand on every raised surface (each table top, a cabinet's top, a shelf's boards),
   not on one fitted table (``object.segmentation.supports = "surfaces"``), and at most
-  ``max_object_height_m`` above it;
+  ``max_object_height_m`` above it; heights are the voxels' points' mean heights
+  (``heights = "points"``): a flat object lies in its table top's 3 cm voxel layer;
 - the table registration (a wrist camera's height, roll and pitch corrected onto the table)
   is off: a base's camera sees the floor and several tables; its poses come from the wheel
   odometry, whose errors are in x, y and yaw;
@@ -58,6 +59,10 @@ def room_map_settings(
             "segmentation": {
                 "supports": "surfaces",
                 "max_height_m": max_object_height_m,
+                # a jenga block lying on a table is half a 3 cm voxel tall; a table top seen
+                # from metres away (depth resolution falls with distance) spreads over a cm
+                "heights": "points",
+                "above_table_m": 0.012,
             }
         },
         "registration": {"enabled": False},

@@ -1,7 +1,9 @@
 """Task files for the mobile base, generated from a room scan's ground truth.
 
-``python -m tabletop.eval.room_suites [--only NAME]`` writes ``tabletop/data/tasks/mobile/``:
-one task file per room (the shipped default room and generated rooms), each with every goal
+``python -m tabletop.eval.room_suites [--only NAME]`` writes ``tabletop/data/tasks/mobile/``
+(:data:`ROOM_SUITES`) and ``tabletop/data/tasks/mobile-heldout/`` (:data:`HELDOUT_ROOM_SUITES`:
+rooms of generator seeds no tuning saw; evaluate them at the end, do not read them while
+tuning): one task file per room (the shipped default room and generated rooms), each with every goal
 type of the arm's suites, worded with the catalog's labels and the sound bank's captions, and
 the robot section of a mobile base (``kind = "mobile"``, the paper's 1 m success radius).
 
@@ -29,13 +31,29 @@ from tabletop.eval.truth import resolve_truth, sound_occurrences
 from tabletop.paths import DATA_DIR
 from tabletop.sim.ground_truth import GroundTruth
 
-__all__ = ["ROOM_SUITES", "generate_room_suite", "write_room_suites"]
+__all__ = ["HELDOUT_ROOM_SUITES", "ROOM_SUITES", "generate_room_suite", "write_room_suites"]
 
 #: The shipped mobile suites: name -> ([room] section, [scan] section, goal seed).
 ROOM_SUITES = {
     "room-default": ({"name": "default"}, {"seed": 0, "episodes": 3, "repeat_sounds": 1}, 300),
     "room-random-1": ({"random": {"seed": 1}}, {"seed": 1, "episodes": 3, "repeat_sounds": 1}, 301),
 }
+#: Held-out mobile suites: rooms drawn with generator seeds that neither the room settings'
+#: tuning nor any test used, goals drawn with seeds of their own.
+HELDOUT_ROOM_SUITES = {
+    "room-heldout-1": (
+        {"random": {"seed": 9101}},
+        {"seed": 9101, "episodes": 3, "repeat_sounds": 1},
+        9301,
+    ),
+    "room-heldout-2": (
+        {"random": {"seed": 9102}},
+        {"seed": 9102, "episodes": 3, "repeat_sounds": 1},
+        9302,
+    ),
+}
+#: Where each set of suites is written, under ``tabletop/data/tasks/``.
+SUITE_DIRS = {"mobile": ROOM_SUITES, "mobile-heldout": HELDOUT_ROOM_SUITES}
 #: Goals per type in each suite (at most; fewer when the room has fewer).
 COUNTS = {
     "object": 8,
@@ -53,7 +71,7 @@ COUNTS = {
 ABSENT = ("the giraffe", "a grand piano", "the fire truck", "a bicycle", "the laptop")
 _CAMERA_HEIGHT_M = 1.1
 _VERBS = ("go to", "drive to", "head to", "move to")
-_TASKS_DIR = DATA_DIR / "tasks" / "mobile"
+_TASKS_ROOT = DATA_DIR / "tasks"
 
 
 def _free(occ: np.ndarray, cell: float, xy) -> bool:
@@ -270,19 +288,25 @@ def generate_room_suite(
 
 
 def write_room_suites(
-    out_dir: Path = _TASKS_DIR, cache_dir="out/eval-cache", only=None
+    out_root: Path = _TASKS_ROOT, cache_dir="out/eval-cache", only=None
 ) -> list[Path]:
-    """Scan each room of :data:`ROOM_SUITES` (or take the cached scan) and write its task
-    file into ``out_dir``."""
+    """Scan each room of :data:`SUITE_DIRS` (or take the cached scan) and write its task
+    file into ``out_root/<suite directory>/``."""
+    written = []
+    for dirname, suites in SUITE_DIRS.items():
+        written += _write(Path(out_root) / dirname, suites, cache_dir, only)
+    return written
+
+
+def _write(out_dir: Path, suites: dict, cache_dir, only) -> list[Path]:
     from tabletop.eval.room import cached_room_recording
     from tabletop.eval.tasks import room_ref
 
-    out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
     written = []
-    for name, (room, scan, seed) in ROOM_SUITES.items():
+    for name, (room, scan, seed) in suites.items():
         if only and name not in only:
             continue
+        out_dir.mkdir(parents=True, exist_ok=True)
         spec = room_ref(room, name).load()
         cache = Path(cache_dir) if cache_dir is not None else None
         rec, _, _ = cached_room_recording(name, dict(scan), spec, cache)
@@ -299,7 +323,7 @@ def write_room_suites(
 
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--out", default=str(_TASKS_DIR))
+    p.add_argument("--out", default=str(_TASKS_ROOT), help="the tasks directory")
     p.add_argument("--cache-dir", default="out/eval-cache")
     p.add_argument("--only", action="append")
     a = p.parse_args(argv)

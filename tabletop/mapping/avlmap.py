@@ -392,8 +392,11 @@ class AVLMap:
                     "feature_sums": a["voxel_feature_sums"],
                     "counts": a["voxel_counts"],
                     "color_sums": a["voxel_color_sums"],
+                    **({"height_sums": a["voxel_height_sums"]} if "voxel_height_sums" in a else {}),
                 }
             )
+            if not m.voxels.has_heights:
+                lacks.append("point heights (object heights judged by voxel centres)")
             if "voxel_instance" in a:
                 m.objects.instances.restore(a["voxel_instance"])
             else:
@@ -502,10 +505,13 @@ class AVLMap:
     def surfaces(self) -> list[TableFit]:
         """Every horizontal surface of the map, largest first
         (:func:`~tabletop.mapping.table_regions.fit_surfaces`: a room's floor, table tops,
-        shelves), cached until the voxels change."""
+        shelves), cached until the voxels change. Their heights come from the voxels' points
+        where the segmentation judges heights so (``object.segmentation.heights``)."""
         key = (self.voxels.n, self.voxels.version)
         if self._surfaces is None or self._surfaces[0] != key:
-            self._surfaces = (key, fit_surfaces(self.grid, self.voxels.indices))
+            by_points = self.config.object.segmentation.heights == "points"
+            heights = self.voxels.mean_heights() if by_points else None
+            self._surfaces = (key, fit_surfaces(self.grid, self.voxels.indices, heights=heights))
         return self._surfaces[1]
 
     def supports(self) -> TableFit | list[TableFit] | None:

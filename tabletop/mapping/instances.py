@@ -48,6 +48,8 @@ __all__ = [
 
 #: What :attr:`InstanceConfig.supports` may name.
 SUPPORTS = ("table", "surfaces")
+#: What :attr:`InstanceConfig.heights` may name.
+HEIGHTS = ("voxel", "points")
 
 
 @dataclass(frozen=True)
@@ -74,10 +76,18 @@ class InstanceConfig:
     max_height_m: float | None = None
     """A voxel more than this [m] above its support is not an object's (None: no bound; a
     room's shelves above a table are not on it)."""
+    heights: str = "voxel"
+    """How high a voxel is, for the tests above: "voxel" (its centre) or "points" (the mean
+    height of the points fused into it, where the map knows them). With voxels as tall as a
+    flat object (a room's 3 cm), the object lies in the table top's own voxel layer and only
+    the points' heights tell the two apart; the surfaces' heights are then measured from the
+    points too (:func:`~tabletop.mapping.table_regions.fit_surfaces`)."""
 
     def __post_init__(self) -> None:
         if self.supports not in SUPPORTS:
             raise ConfigError(f"supports must be one of {list(SUPPORTS)}, got {self.supports!r}")
+        if self.heights not in HEIGHTS:
+            raise ConfigError(f"heights must be one of {list(HEIGHTS)}, got {self.heights!r}")
         if not self.min_support_height_m >= 0:
             raise ConfigError(
                 f"min_support_height_m must be >= 0 [m], got {self.min_support_height_m!r}"
@@ -171,6 +181,8 @@ def segment_instances(
     if not supports or voxels.n == 0:
         return []
     centers = voxels.centers
+    heights = voxels.mean_heights() if config.heights == "points" else None
+    z = centers[:, 2] if heights is None else heights
     m = config.table_margin_m
     top = np.inf if config.max_height_m is None else config.max_height_m
     inside = np.zeros(voxels.n, bool)
@@ -183,8 +195,8 @@ def segment_instances(
         )
         # A higher support over this one (a shelf board over a shelf board) ends its objects.
         inside = np.where(
-            over & (centers[:, 2] > sup.z - config.above_table_m),
-            (centers[:, 2] > sup.z + config.above_table_m) & (centers[:, 2] <= sup.z + top),
+            over & (z > sup.z - config.above_table_m),
+            (z > sup.z + config.above_table_m) & (z <= sup.z + top),
             inside,
         )
     cand = np.nonzero(inside)[0]

@@ -1,12 +1,12 @@
-"""Saving and loading an AVLMap: one ``.npz`` file with a JSON header (``tabletop-avlmap`` v4).
+"""Saving and loading an AVLMap: one ``.npz`` file with a JSON header (``tabletop-avlmap`` v5).
 
 The header holds the format name and version, the map config (:meth:`MapConfig.to_dict`: every
 field, so a loaded map answers exactly as the saved one), the encoder set's name and what is
 needed to re-create it (the oracle's labels and sound events), the confidence calibration the
 map was given, and the counts every array must agree with. Arrays: the voxel state (linear
-indices, feature sums, point counts, colour sums), the object instances (``voxel_instance``:
-per voxel its instance id, -1 for none), the area module's per-frame embeddings and
-camera poses, the audio module's segments' embeddings and positions, and the visual
+indices, feature sums, point counts, colour sums, point height sums), the object instances
+(``voxel_instance``: per voxel its instance id, -1 for none), the area module's per-frame
+embeddings and camera poses, the audio module's segments' embeddings and positions, and the visual
 localization module's reference frames (``visual_*`` arrays, described by the header's
 ``visual`` entry).
 
@@ -14,7 +14,8 @@ Older files still load and say what they lack (:attr:`AVLMap.lacks`, filled by
 :meth:`AVLMap.load`): version 1 has no visual module (image goals are not found), versions 1-2
 have no saved calibration (the prior, unless one is passed to :meth:`AVLMap.load`), nor the
 image target's size and the area module's config (defaults), versions 1-3 have no saved
-object instances (segmented again on load, with this version's segmentation).
+object instances (segmented again on load, with this version's segmentation), versions 1-4
+have no point heights (object heights judged by voxel centres).
 Writing is atomic (a temporary file, then a rename); loading validates and names what is wrong.
 See ``docs/mapping.md``.
 """
@@ -47,10 +48,10 @@ __all__ = [
 log = logging.getLogger(__name__)
 
 MAP_FORMAT = "tabletop-avlmap"
-MAP_VERSION = 4
+MAP_VERSION = 5
 #: Versions this code reads: 1 (no visual module), 2 (no saved calibration), 3 (no saved
-#: object instances) and 4.
-READABLE_VERSIONS = (1, 2, 3, 4)
+#: object instances), 4 (no point heights) and 5.
+READABLE_VERSIONS = (1, 2, 3, 4, 5)
 
 
 def _read_header(path: Path) -> dict:
@@ -151,6 +152,7 @@ def save_map(m, path: str | Path, *, rebuild: dict | None = None) -> Path:
         "voxel_counts": st["counts"],
         "voxel_color_sums": st["color_sums"],
         "voxel_instance": m.objects.instances.labels(),
+        **({"voxel_height_sums": st["height_sums"]} if "height_sums" in st else {}),
         "frame_embeddings": np.array(areas.embeddings, np.float32).reshape(-1, d),
         "frame_poses": np.array(areas.poses, np.float64).reshape(-1, 4, 4),
         "segment_embeddings": np.array(sounds.embeddings, np.float32).reshape(-1, d),
@@ -206,6 +208,8 @@ def read_map_file(path: str | Path) -> tuple[dict, dict[str, np.ndarray]]:
     }
     if h["version"] >= 4:
         expect["voxel_instance"] = (h["n_voxels"],)
+    if "voxel_height_sums" in arrays:
+        expect["voxel_height_sums"] = (h["n_voxels"],)
     for name, shape in expect.items():
         if name not in arrays:
             raise MapFormatError(f"{path}: array {name!r} is missing")

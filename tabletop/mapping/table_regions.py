@@ -219,6 +219,7 @@ def fit_surfaces(
     min_area_m2: float = 0.04,
     above_m: float = 0.10,
     max_covered: float = 0.5,
+    heights: np.ndarray | None = None,
 ) -> list[TableFit]:
     """Every horizontal surface of the occupied voxels ``indices`` (N, 3), largest first: a
     room's floor, its table tops, a cabinet's top, a shelf's boards.
@@ -230,9 +231,17 @@ def fit_surfaces(
     table top carries objects on part of it; a vertical side cut by the layer is occupied
     above it too). A patch already taken by a surface a layer away is the same surface. Each
     surface's
-    height is the count-weighted mean of its two layers' centres, its extent the 1st-99th
-    percentile of its cells (as :func:`fit_table`)."""
+    height is the count-weighted mean of its two layers' centres, or, given ``heights`` (N,)
+    [m] (the mean height of each voxel's points, :meth:`VoxelMap.mean_heights`), the median
+    of its voxels' point heights (what stands on it covers at most ``max_covered``); its extent
+    is the 1st-99th percentile of its cells (as :func:`fit_table`)."""
     idx = np.asarray(indices)
+    if heights is not None:
+        heights = np.asarray(heights, np.float64)
+        if heights.shape != (len(idx),):
+            raise ConfigError(f"heights must be ({len(idx)},), got {heights.shape}")
+        height_of = np.full(grid.shape, np.nan)
+        height_of[tuple(idx.T)] = heights
     min_cells = max(int(np.ceil(min_area_m2 / grid.voxel_size**2)), 9)
     above_cells = max(round(above_m / grid.voxel_size), 1)
     if len(idx) < min_cells:
@@ -265,8 +274,11 @@ def fit_surfaces(
             over = layers[:, :, min(k + 2, nz) : min(k + 2 + above_cells, nz)].any(axis=2)
             if (patch & over).sum() > max_covered * area:
                 continue
-            per_layer = np.array([(layers[:, :, j] & patch).sum() for j in pair], np.float64)
-            z = float(np.average(zs[pair], weights=per_layer + 1e-9))
+            if heights is not None:
+                z = float(np.nanmedian(height_of[:, :, pair][patch]))
+            else:
+                per_layer = [(layers[:, :, j] & patch).sum() for j in pair]
+                z = float(np.average(zs[pair], weights=np.array(per_layer, np.float64) + 1e-9))
             ij = np.argwhere(patch)
             px, py = xs[ij[:, 0]], ys[ij[:, 1]]
             out.append(

@@ -31,7 +31,9 @@ def frame_points(depth: np.ndarray, K: np.ndarray, T_world_cam: np.ndarray, step
 
 
 class VoxelMap:
-    """Occupied voxels with feature sums, point counts and colour sums."""
+    """Occupied voxels with feature sums, point counts, colour sums and height sums (the mean
+    height of a voxel's points places a surface within its voxel: a flat object lying in a
+    table top's voxel layer still stands above the table's own voxels)."""
 
     def __init__(self, grid: VoxelGrid, dim: int, capacity: int = 4096) -> None:
         if dim < 0:
@@ -43,6 +45,10 @@ class VoxelMap:
         self._feat = np.zeros((capacity, self.dim), np.float32)  # feature sums
         self._count = np.zeros(capacity, np.int64)  # points per voxel
         self._rgb = np.zeros((capacity, 3), np.float64)  # colour sums
+        self._z = np.zeros(capacity, np.float64)  # point height sums [m]
+        self.has_heights = True
+        """Whether the point heights are known (a map restored from a file that lacks them
+        is not)."""
         self.n = 0
         self.version = 0
         """Counts the integrations: a cache of anything derived from the voxels keys on it."""
@@ -59,6 +65,7 @@ class VoxelMap:
         self._feat = feat
         self._count = np.concatenate([self._count, np.zeros(new - cap, np.int64)])
         self._rgb = np.concatenate([self._rgb, np.zeros((new - cap, 3))])
+        self._z = np.concatenate([self._z, np.zeros(new - cap)])
 
     def integrate(
         self,
@@ -113,6 +120,7 @@ class VoxelMap:
             )
             self._feat[rows] += F @ np.asarray(features, np.float32)
         self._count[rows] += np.bincount(inv, minlength=len(uniq))
+        self._z[rows] += np.bincount(inv, weights=points[inside, 2], minlength=len(uniq))
         if colors is not None:
             c = np.asarray(colors, np.float64)[inside]
             self._rgb[rows] += np.stack(
@@ -152,6 +160,13 @@ class VoxelMap:
         c = self._rgb[: self.n] / np.maximum(self._count[: self.n, None], 1)
         return np.clip(np.round(c), 0, 255).astype(np.uint8)
 
+    def mean_heights(self) -> np.ndarray | None:
+        """(n,) [m] the mean height of the points fused into each occupied voxel; None when
+        they are not known (:attr:`has_heights`)."""
+        if not self.has_heights:
+            return None
+        return self._z[: self.n] / np.maximum(self._count[: self.n], 1)
+
     def occupancy(self) -> np.ndarray:
         """Dense boolean occupancy over the grid's shape."""
         occ = np.zeros(self.grid.size, bool)
@@ -159,13 +174,17 @@ class VoxelMap:
         return occ.reshape(self.grid.shape)
 
     def state(self) -> dict[str, np.ndarray]:
-        """Arrays that fully describe the map (for saving); copies trimmed to ``n``."""
-        return {
+        """Arrays that fully describe the map (for saving); copies trimmed to ``n``
+        (``height_sums`` only where the heights are known)."""
+        st = {
             "linear": self._lin[: self.n].copy(),
             "feature_sums": self._feat[: self.n].copy(),
             "counts": self._count[: self.n].copy(),
             "color_sums": self._rgb[: self.n].copy(),
         }
+        if self.has_heights:
+            st["height_sums"] = self._z[: self.n].copy()
+        return st
 
     @classmethod
     def from_state(cls, grid: VoxelGrid, dim: int, state: dict[str, np.ndarray]) -> VoxelMap:
@@ -174,12 +193,16 @@ class VoxelMap:
         return m
 
     def restore(self, state: dict[str, np.ndarray]) -> None:
-        """Fill this empty map with a :meth:`state` (in place: whatever holds the map sees it)."""
+        """Fill this empty map with a :meth:`state` (in place: whatever holds the map sees it).
+        A state without ``height_sums`` (an older file) leaves the heights unknown."""
         if self.n:
             raise ConfigError(f"restore needs an empty voxel map, this one holds {self.n} voxels")
         n = len(state["linear"])
         if state["feature_sums"].shape != (n, self.dim) or len(state["counts"]) != n:
             raise ConfigError("voxel map arrays disagree in length or feature dim")
+        heights = state.get("height_sums")
+        if heights is not None and np.shape(heights) != (n,):
+            raise ConfigError(f"voxel height sums have shape {np.shape(heights)}, expected ({n},)")
         if n and (state["linear"].min() < 0 or state["linear"].max() >= self.grid.size):
             raise ConfigError("voxel map indices lie outside its grid")
         self._grow(n)
@@ -187,6 +210,9 @@ class VoxelMap:
         self._feat[:n] = state["feature_sums"]
         self._count[:n] = state["counts"]
         self._rgb[:n] = state["color_sums"]
+        self.has_heights = heights is not None
+        if heights is not None:
+            self._z[:n] = heights
         self._row_of[state["linear"]] = np.arange(n, dtype=np.int32)
         self.n = n
         self.version += 1
@@ -194,4 +220,5 @@ class VoxelMap:
     @property
     def nbytes(self) -> int:
         """Memory held by the map's arrays [bytes]."""
-        return sum(a.nbytes for a in (self._row_of, self._lin, self._feat, self._count, self._rgb))
+        arrays = (self._row_of, self._lin, self._feat, self._count, self._rgb, self._z)
+        return sum(a.nbytes for a in arrays)
