@@ -43,7 +43,6 @@ from tabletop.sim.world import (
     PyBulletClient,
     _quiet_stdout,
     create_object_body,
-    load_egl_plugin,
     render_camera,
 )
 from tabletop.transforms import make_transform, quat_from_matrix, quat_to_matrix, rotation_about
@@ -132,21 +131,11 @@ class RoomWorld(PyBulletClient):
         self._pb = pb
         self._client = pb.connect(pb.DIRECT)
         self._projection = gl_projection_matrix(self.intrinsics, self.camera.near, self.camera.far)
-        self.renderer = "tiny"
-        if renderer in ("auto", "egl") and load_egl_plugin(pb, self._client):
-            self.renderer = "egl"
-        elif renderer == "egl":
-            self.close()
-            raise SimulationError("EGL renderer plugin could not be loaded; use renderer='tiny'")
+        self._start_renderer(renderer)
         self._build()
         self.driver = PyBulletBaseDriver(self, drift=drift)
         """The base's driver (one per world)."""
-        if self.renderer == "egl" and not self._egl_renders():
-            if renderer == "egl":
-                self.close()
-                raise SimulationError("EGL renderer produced an empty image")
-            log.warning("EGL renderer produced an empty image; falling back to TinyRenderer")
-            self.renderer = "tiny"
+        self._check_renderer(renderer)
 
     # ------------------------------------------------------------------ building
     def _box(self, half, center, yaw: float, rgba, visual: bool = True, collision: bool = True):

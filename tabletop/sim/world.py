@@ -44,6 +44,7 @@ __all__ = [
     "CameraImage",
     "SimWorld",
     "create_object_body",
+    "egl_holder",
     "load_egl_plugin",
     "render_camera",
 ]
@@ -95,9 +96,32 @@ def _quiet_stdout():
         os.close(devnull)
 
 
+#: Clients that loaded PyBullet's EGL renderer plugin. The plugin keeps one scene per process:
+#: a second client's bodies replace the first's, and the first then renders the second's scene.
+_EGL_CLIENTS: set[int] = set()
+
+
+def egl_holder(pb) -> int | None:
+    """The connected client of this process that holds the EGL renderer (None: none)."""
+    for c in list(_EGL_CLIENTS):
+        if not pb.isConnected(c):
+            _EGL_CLIENTS.discard(c)
+    return min(_EGL_CLIENTS, default=None)
+
+
 def load_egl_plugin(pb, client: int) -> bool:
     """Load PyBullet's EGL renderer plugin into ``client`` (before any body); False if the
-    machine has none."""
+    machine has none, or if another connected client holds it (:func:`egl_holder`: the
+    plugin renders one scene per process, so a second world renders with TinyRenderer)."""
+    holder = egl_holder(pb)
+    if holder is not None and holder != client:
+        log.warning(
+            "PyBullet client %d holds the EGL renderer, which renders one scene per process; "
+            "client %d renders with TinyRenderer",
+            holder,
+            client,
+        )
+        return False
     loader = pkgutil.get_loader("eglRenderer")
     if loader is None:
         return False
@@ -108,7 +132,20 @@ def load_egl_plugin(pb, client: int) -> bool:
             )
     except Exception:  # pragma: no cover - depends on the machine's GL stack
         return False
+    if plugin >= 0:
+        _EGL_CLIENTS.add(client)
     return plugin >= 0
+
+
+def egl_unavailable(pb) -> str:
+    """Why ``renderer="egl"`` cannot be had, for an error message."""
+    holder = egl_holder(pb)
+    if holder is not None:
+        return (
+            f"another world (PyBullet client {holder}) holds the EGL renderer, which renders one "
+            f"scene per process: close that world first, or use renderer='tiny'"
+        )
+    return "EGL renderer plugin could not be loaded; use renderer='tiny'"
 
 
 def create_object_body(pb, client: int, kind_name: str, color: str, T_world_obj: np.ndarray) -> int:
@@ -194,10 +231,32 @@ class PyBulletClient:
         if self._client is not None and self._pb.isConnected(self._client):
             with _quiet_stdout():
                 self._pb.disconnect(self._client)
+        _EGL_CLIENTS.discard(self._client)
         self._client = None
 
     def __enter__(self) -> Self:
         return self
+
+    def _start_renderer(self, renderer: str) -> None:
+        """Load the EGL renderer where ``renderer`` ("auto", "egl", "tiny") asks for it and it
+        can be had (before any body); ``self.renderer`` says which renders."""
+        self.renderer = "tiny"
+        if renderer in ("auto", "egl") and load_egl_plugin(self._pb, self._client):
+            self.renderer = "egl"
+        elif renderer == "egl":
+            why = egl_unavailable(self._pb)
+            self.close()
+            raise SimulationError(why)
+
+    def _check_renderer(self, renderer: str) -> None:
+        """After building: an EGL renderer that renders nothing falls back to TinyRenderer
+        (or raises where ``renderer`` insisted on EGL)."""
+        if self.renderer == "egl" and not self._egl_renders():
+            if renderer == "egl":
+                self.close()
+                raise SimulationError("EGL renderer produced an empty image")
+            log.warning("EGL renderer produced an empty image; falling back to TinyRenderer")
+            self.renderer = "tiny"
 
     def __exit__(self, *exc: object) -> None:
         self.close()
@@ -221,24 +280,12 @@ class SimWorld(PyBulletClient):
         self.intrinsics = self.camera.intrinsics
         self._pb = pb
         self._client = pb.connect(pb.DIRECT)
-        self.renderer = "tiny"
         self._projection = gl_projection_matrix(self.intrinsics, self.camera.near, self.camera.far)
-        if renderer in ("auto", "egl") and self._load_egl():
-            self.renderer = "egl"
-        elif renderer == "egl":
-            self.close()
-            raise SimulationError("EGL renderer plugin could not be loaded; use renderer='tiny'")
+        self._start_renderer(renderer)
         self._build()
-        if self.renderer == "egl" and not self._egl_renders():
-            if renderer == "egl":
-                self.close()
-                raise SimulationError("EGL renderer produced an empty image")
-            log.warning("EGL renderer produced an empty image; falling back to TinyRenderer")
-            self.renderer = "tiny"
+        self._check_renderer(renderer)
 
     # ------------------------------------------------------------------ building
-    def _load_egl(self) -> bool:
-        return load_egl_plugin(self._pb, self._client)
 
     def _egl_renders(self) -> bool:
         T = make_transform(np.diag([1.0, -1.0, -1.0]), (0.4, 0.0, 0.8))
