@@ -94,3 +94,47 @@ def test_a_goal_out_of_reach_is_not_driven_to(room):
     robot = MobileRobot(m, KinematicBaseDriver(TABLETOP_BASE))
     res = robot.move_to([50.0, 50.0, 0.0])
     assert not res.reached and res.reason == "outside_map" and len(res.driven) == 0
+
+
+def test_an_image_taken_off_the_scans_path_is_found_by_searching_the_map(room):
+    """The short scan drove about a metre from the start; images taken 1.1-2 m away from its
+    path, looking at the dining table it saw from afar, share few features with its frames.
+    The map search finds where they were taken; images of another room are refused."""
+    import dataclasses
+
+    from tabletop.eval.images import render_view, view_pose
+    from tabletop.eval.tasks import ImageView
+    from tabletop.sim.room import generate_room
+
+    spec, rec, m = room
+    db = m.images.database
+    assert db.config.search  # a room map searches
+    path = rec.T_world_cam[:, :2, 3]
+    up = (0.0, 0.0, 1.0)  # an upright camera
+    eyes = ((2.0, 3.0, 1.1), (1.2, 2.2, 1.1))
+    views = [ImageView(eye=e, look_at=(2.0, 3.7, 0.65), up=up) for e in eyes]
+    h, w = rec.rgb.shape[1:3]
+    with RoomWorld(spec, mast_camera_config(width=w, height=h)) as world:
+        images = [render_view(world, v) for v in views]
+    for v, rgb in zip(views, images, strict=True):
+        assert np.linalg.norm(path - v.eye[:2], axis=1).min() > 1.0
+        loc = m.images.localize(rgb)
+        assert loc.ok and loc.searched, loc.reason
+        assert np.linalg.norm(loc.position[:2] - view_pose(v)[:2, 3]) < 0.3
+    # without the search, feature matching alone finds neither
+    search = db.config
+    db.config = dataclasses.replace(search, search=False)
+    try:
+        assert not any(m.images.localize(rgb).ok for rgb in images)
+    finally:
+        db.config = search
+    # a room the map never saw, looked at from beside its tables: not found, with a reason
+    other = generate_room(1)
+    tables = [f for f in other.furniture if f.category == "table"]
+    with RoomWorld(other, mast_camera_config(width=w, height=h)) as world:
+        for t in tables:
+            x, y = t.position
+            view = ImageView(eye=(x - 1.2, y - 0.3, 1.1), look_at=(x, y, 0.65), up=up)
+            rgb = render_view(world, view)
+            loc = m.images.localize(rgb)
+            assert not loc.ok and "no pose found" in loc.reason

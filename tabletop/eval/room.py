@@ -78,6 +78,8 @@ def room_map_settings(
                 "require_look_down": False,
                 "max_depth_m": 5.0,
                 "min_agreement": 0.5,
+                # an image taken a metre or two off the scan's path matches few features
+                "search": True,
             },
         },
     }

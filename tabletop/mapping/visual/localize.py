@@ -124,26 +124,60 @@ def _checked(cand: dict, check: PhotometricCheck, rgb, K, config) -> dict:
     reason) when the check refuses it."""
     if cand["T"] is None:
         return cand
-    cov, agree, kappa = check.score(cand["T"], K, rgb, config)
+    d = check.details(cand["T"], K, rgb, config)
+    cov, agree, kappa = d["coverage"], d["agreement"], d["kappa"]
     cand = {**cand, "coverage": cov, "agreement": agree, "kappa": kappa}
+    pose = (
+        "the best pose the map search found"
+        if cand.get("searched")
+        else f"a pose with {cand['inliers']} inliers"
+    )
     if cov < config.min_coverage:
-        reason = (
-            f"a pose with {cand['inliers']} inliers sees the map in {cov:.0%} of the image "
-            f"(need {config.min_coverage:.0%})"
-        )
+        reason = f"{pose} sees the map in {cov:.0%} of the image (need {config.min_coverage:.0%})"
     elif agree < config.min_agreement:
         reason = (
-            f"a pose with {cand['inliers']} inliers reproduces {agree:.0%} of the image's "
-            f"colours from the map (need {config.min_agreement:.0%})"
+            f"{pose} reproduces {agree:.0%} of the image's colours from the map "
+            f"(need {config.min_agreement:.0%})"
         )
     elif kappa < config.min_kappa:
         reason = (
-            f"a pose with {cand['inliers']} inliers agrees with the map hardly beyond chance "
+            f"{pose} agrees with the map hardly beyond chance "
             f"(kappa {kappa:.2f}, need {config.min_kappa})"
+        )
+    elif cand.get("searched") and kappa < config.search_min_kappa:
+        reason = (
+            f"{pose} agrees with the map too little beyond chance for a searched pose "
+            f"(kappa {kappa:.2f}, need {config.search_min_kappa})"
+        )
+    elif cand.get("searched") and d["rare"] < config.search_min_rare:
+        reason = (
+            f"the image shows too little that sets a place apart ({d['rare']} sample pixels "
+            f"of colours rare in the map, need {config.search_min_rare}): only floor, walls "
+            f"or furniture the whole map has"
+        )
+    elif cand.get("searched") and d["rare_agreement"] < config.search_min_rare_agreement:
+        reason = (
+            f"{pose} reproduces the image's floor and walls but {d['rare_agreement']:.0%} of "
+            f"its rare colours (need {config.search_min_rare_agreement:.0%}): the image "
+            f"was not taken in this map"
         )
     else:
         return cand
     return {**cand, "T": None, "reason": reason}
+
+
+def _searched(search, check: PhotometricCheck, rgb, K, config) -> dict | None:
+    """The best of the map search's candidate poses as the photometric check judges them
+    (None: no search, or no place to search from)."""
+    s = search() if search is not None else None
+    best = None
+    for _, T in s.candidates(rgb, K, config.search_candidates) if s is not None else ():
+        cand = {"T": T, "inliers": 0, "matches": 0, "references": (), "searched": True}
+        cand = _checked(cand, check, rgb, K, config)
+        key = (cand["T"] is not None, cand["agreement"])
+        if best is None or key > (best["T"] is not None, best["agreement"]):
+            best = cand
+    return best
 
 
 def localize_image(
@@ -151,6 +185,7 @@ def localize_image(
     rgb: np.ndarray,
     K: np.ndarray | None = None,
     check: PhotometricCheck | None = None,
+    search=None,
 ) -> VisualLocalization:
     """Pose of the camera that took ``rgb`` (H, W, 3) uint8, in the database's world frame.
 
@@ -165,7 +200,11 @@ def localize_image(
     with the most inliers wins. With a :class:`PhotometricCheck` of the map, candidates need
     only ``verify_min_inliers`` inliers but must reproduce the image (``min_coverage``,
     ``min_agreement``, ``min_kappa``); the best-agreeing one wins, and one that agrees surely
-    (``sure_agreement``, ``sure_kappa``) ends the search. Returns ``ok=False`` with a reason when
+    (``sure_agreement``, ``sure_kappa``) ends the search. When no matched pose counts and
+    ``search`` (a callable returning the map's
+    :class:`~tabletop.mapping.visual.panorama.PanoramaSearch`, or None) is given with a check
+    and the config's ``search`` is on, the check judges the map search's best poses the same
+    way (the result's ``searched`` is then True). Returns ``ok=False`` with a reason when
     nothing counts; raises :class:`ConfigError` only for malformed input.
     """
     t0 = time.perf_counter()
@@ -213,7 +252,12 @@ def localize_image(
                 break
         if best["T"] is not None:
             break
+    if best["T"] is None and check is not None and config.search:
+        found = _searched(search, check, rgb, K, config)
+        if found is not None and (found["T"] is not None or not best.get("agreement")):
+            best = found
     kw = {k: best[k] for k in ("inliers", "matches", "references")}
+    kw["searched"] = bool(best.get("searched"))
     kw.update({k: best[k] for k in ("agreement", "kappa", "coverage") if k in best})
     if best["T"] is None:
         need = (

@@ -20,6 +20,7 @@ from tabletop.mapping.visual.database import VisualDatabase
 from tabletop.mapping.visual.inputs import check_rgb
 from tabletop.mapping.visual.localization import VisualLocalization, VisualLocalizationConfig
 from tabletop.mapping.visual.localize import localize_image
+from tabletop.mapping.visual.panorama import PanoramaSearch
 from tabletop.mapping.visual.photometric import PhotometricCheck
 from tabletop.mapping.voxel_map import VoxelMap
 from tabletop.transforms import pixel_rays
@@ -82,6 +83,7 @@ class VisualModule:
         self.target_px = float(target_px)
         self.target = target
         self._check: tuple[tuple[int, int], PhotometricCheck] | None = None
+        self._search: tuple[tuple[int, int], PanoramaSearch | None] | None = None
 
     def photometric_check(self) -> PhotometricCheck:
         """The map's voxel colours as a :class:`PhotometricCheck` of candidate camera poses
@@ -91,6 +93,21 @@ class VisualModule:
             v = self.voxels
             self._check = (key, PhotometricCheck(v.grid, v.indices, v.mean_colors()))
         return self._check[1]
+
+    def panorama_search(self) -> PanoramaSearch | None:
+        """The map's :class:`PanoramaSearch` (built on first use, again after the voxels
+        changed), at the median height of the reference cameras; None where the config does
+        not search or there are no reference frames."""
+        db = self.database
+        if db is None or not db.config.search or not len(db):
+            return None
+        key = (self.voxels.n, self.voxels.version)
+        if self._search is None or self._search[0] != key:
+            v = self.voxels
+            height = float(np.median(db.T_world_cam[:, 2, 3]))
+            search = PanoramaSearch(v.grid, v.indices, v.mean_colors(), height, db.config)
+            self._search = (key, search)
+        return self._search[1]
 
     def localize(self, rgb: np.ndarray, K: np.ndarray | None = None) -> VisualLocalization:
         """Where the camera was when it took ``rgb`` (H, W, 3) uint8; ``ok=False`` with a
@@ -111,7 +128,9 @@ class VisualModule:
                 f"the image is {size[0]}x{size[1]} px but the map's camera "
                 f"{db.image_size[0]}x{db.image_size[1]}: pass its intrinsics K"
             )
-        return localize_image(db, rgb, K, check=self.photometric_check())
+        return localize_image(
+            db, rgb, K, check=self.photometric_check(), search=self.panorama_search
+        )
 
     def image_target(
         self, T_world_cam: np.ndarray, K: np.ndarray, image_size: tuple[int, int]

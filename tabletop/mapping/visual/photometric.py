@@ -4,12 +4,16 @@ from __future__ import annotations
 
 import cv2
 import numpy as np
+from scipy import ndimage
 
 from tabletop.errors import ConfigError
 from tabletop.mapping.visual.localization import VisualLocalizationConfig
 from tabletop.transforms import pixel_rays
 
 __all__ = ["PhotometricCheck"]
+
+#: Colour bins per RGB channel of the map's colour histogram (:meth:`PhotometricCheck.commonness`).
+_BINS = 16
 
 
 class PhotometricCheck:
@@ -42,10 +46,30 @@ class PhotometricCheck:
         self._colour = np.full((*grid.shape, 3), -1, np.int16)  # -1: empty voxel
         self._colour[tuple(indices.T)] = colours
         self._occupied = self._colour[..., 0] >= 0
+        # How common each colour is in the map: voxel counts in 16 x 16 x 16 RGB bins
+        hist = np.zeros((_BINS,) * 3)
+        np.add.at(hist, tuple((colours.astype(np.int64) // (256 // _BINS)).T), 1.0)
+        self._hist = hist / max(len(colours), 1)
+        self._common: dict[float, np.ndarray] = {}
 
     def __len__(self) -> int:
         """Occupied voxels."""
         return int(np.count_nonzero(self._occupied))
+
+    def commonness(self, colours: np.ndarray, tolerance: float) -> np.ndarray:
+        """(n,) the share of the map's voxels whose colour lies within about ``tolerance``
+        (RGB distance) of each of ``colours`` (n, 3): near 1 for the floor's colour, near 0
+        for a colour only one small object has (counted in 16-level RGB bins)."""
+        if tolerance not in self._common:
+            step = 256 // _BINS
+            r = int(np.ceil(tolerance / step))
+            o = np.arange(-r, r + 1)
+            ball = np.add.outer(np.add.outer(o**2, o**2), o**2) * step**2 <= tolerance**2
+            self._common[tolerance] = ndimage.convolve(
+                self._hist, ball.astype(np.float64), mode="constant"
+            )
+        bins = np.clip(np.asarray(colours, np.int64) // (256 // _BINS), 0, _BINS - 1)
+        return self._common[tolerance][tuple(bins.T)]
 
     def score(
         self, T_world_cam: np.ndarray, K: np.ndarray, rgb: np.ndarray, config=None
@@ -53,6 +77,16 @@ class PhotometricCheck:
         """``(coverage, agreement, kappa)`` of the pose ``T_world_cam`` (4, 4) for the image
         ``rgb`` (H, W, 3) uint8 with intrinsics ``K`` (3, 3) [px]: coverage and agreement in
         [0, 1], kappa (agreement beyond chance) in [-1, 1]."""
+        d = self.details(T_world_cam, K, rgb, config)
+        return d["coverage"], d["agreement"], d["kappa"]
+
+    def details(self, T_world_cam: np.ndarray, K: np.ndarray, rgb: np.ndarray, config=None):
+        """:meth:`score`'s ``coverage``, ``agreement`` and ``kappa`` with what sets a place
+        apart: ``rare`` (how many sample pixels the map shows whose colour at most
+        ``config.search_rare_share`` of the map has: an object's, not the floor's or a wall's)
+        and ``rare_agreement`` (the share of those that agree). An image of another room
+        agrees with this map on floors, walls and table tops; only the right place reproduces
+        its rare colours."""
         config = config or VisualLocalizationConfig()
         h, w = rgb.shape[:2]
         step = config.check_step_px
@@ -64,13 +98,22 @@ class PhotometricCheck:
         far = float(np.linalg.norm(np.maximum(np.abs(lo - c), np.abs(hi - c))))
         hit, point = self.grid.march(c, rays, self._occupied, far)
         if not hit.any():
-            return 0.0, 0.0, 0.0
+            none = {"coverage": 0.0, "agreement": 0.0, "kappa": 0.0}
+            return {**none, "rare": 0, "rare_agreement": 0.0}
         first = self._colour[tuple(self.grid.world_to_index(point[hit])[0].T)].astype(np.float64)
         seen = cv2.GaussianBlur(rgb, (5, 5), 0)[v, u][hit].astype(np.float64)
         tol = config.colour_tolerance
-        agreement = float(np.mean(np.linalg.norm(first - seen, axis=1) <= tol))
+        agree = np.linalg.norm(first - seen, axis=1) <= tol
+        agreement = float(np.mean(agree))
+        rare = self.commonness(seen, tol) <= config.search_rare_share
         # Chance agreement: each seen colour against the map colours of (a quarter of) the
         # other sample pixels, as if the pose were unrelated to the image.
         chance = float(np.mean(np.linalg.norm(seen[:, None] - first[None, ::4], axis=2) <= tol))
         kappa = (agreement - chance) / (1.0 - chance) if chance < 1.0 else 0.0
-        return float(hit.mean()), agreement, float(kappa)
+        return {
+            "coverage": float(hit.mean()),
+            "agreement": agreement,
+            "kappa": float(kappa),
+            "rare": int(rare.sum()),
+            "rare_agreement": float(agree[rare].mean()) if rare.any() else 0.0,
+        }

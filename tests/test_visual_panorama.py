@@ -1,0 +1,62 @@
+"""The map search (tabletop/mapping/visual/panorama.py): its poses are upright cameras in the
+eval's image convention, its settings are checked, and the check's colour rarity counts what
+the map holds."""
+
+import numpy as np
+import pytest
+
+from tabletop.errors import ConfigError
+from tabletop.eval.images import view_pose
+from tabletop.eval.tasks import ImageView
+from tabletop.grid import VoxelGrid
+from tabletop.mapping.visual import PhotometricCheck, VisualLocalizationConfig
+from tabletop.mapping.visual.panorama import PanoramaSearch, upright_pose
+
+
+@pytest.mark.parametrize("yaw_deg, pitch_deg", [(0, 0), (90, -20), (-135, -40), (200, 10)])
+def test_an_upright_pose_looks_where_an_upright_view_looks(yaw_deg, pitch_deg):
+    yaw, pitch = np.radians(yaw_deg), np.radians(pitch_deg)
+    eye = np.array([1.0, 2.0, 1.1])
+    d = np.array([np.cos(yaw) * np.cos(pitch), np.sin(yaw) * np.cos(pitch), np.sin(pitch)])
+    view = ImageView(eye=tuple(eye), look_at=tuple(eye + d), up=(0.0, 0.0, 1.0))
+    np.testing.assert_allclose(upright_pose(eye, pitch, yaw), view_pose(view), atol=1e-9)
+
+
+def test_search_settings_are_checked():
+    for kw, word in [
+        ({"search_step_m": 0}, "search_step_m"),
+        ({"search_pitch_min_deg": 20, "search_pitch_max_deg": 10}, "search_pitch_min_deg"),
+        ({"search_min_kappa": 1.5}, "search_min_kappa"),
+        ({"search_rare_share": -0.1}, "search_rare_share"),
+        ({"search_candidates": 0}, "search_candidates"),
+    ]:
+        with pytest.raises(ConfigError, match=word):
+            VisualLocalizationConfig(**kw)
+
+
+def _room():
+    """A 3 x 3 m floor (grey) with a red box standing on it: the places, their panoramas."""
+    grid = VoxelGrid(lower=(0.0, 0.0, -0.03), upper=(3.0, 3.0, 1.5), voxel_size=0.05)
+    ij = np.argwhere(np.ones(grid.shape[:2], bool))
+    floor = np.column_stack([ij, np.zeros(len(ij), int)])
+    box = np.argwhere(np.ones((4, 4, 8), bool)) + np.array([28, 28, 1])  # 1.4-1.6 m, to 0.4 m
+    idx = np.concatenate([floor, box])
+    rgb = np.concatenate(
+        [np.tile([(120, 120, 120)], (len(floor), 1)), np.tile([(200, 30, 30)], (len(box), 1))]
+    ).astype(np.uint8)
+    return grid, idx, rgb
+
+
+def test_places_are_free_floor_and_rare_colours_are_the_objects():
+    grid, idx, rgb = _room()
+    search = PanoramaSearch(grid, idx, rgb, 1.1, VisualLocalizationConfig(search_step_m=0.25))
+    assert len(search) > 50 and np.all(search.positions[:, 2] == 1.1)
+    # no place within the clearance of the box
+    near = np.abs(search.positions[:, :2] - 1.5).max(axis=1) < 0.1 + 0.15
+    assert not near.any()
+    assert search.panoramas.shape == (len(search), search.elevations, search.azimuths, 3)
+    check = PhotometricCheck(grid, idx, rgb)
+    common = check.commonness(np.array([(120, 120, 120), (200, 30, 30), (30, 30, 200)]), 40.0)
+    assert common[0] > 0.9 and 0 < common[1] < 0.05 and common[2] == 0.0
+    with pytest.raises(ConfigError, match="camera_height"):
+        PanoramaSearch(grid, idx, rgb, float("nan"))
