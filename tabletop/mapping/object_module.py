@@ -281,7 +281,9 @@ class ObjectModule:
         background concepts there."""
         self._refresh()
         s = self._features @ self.text.encode_text([query])[0]
-        return s, s > self._background
+        # a tie is no win: a query that is a background concept scores that concept's own
+        # value, give or take the float noise of encoding it alone or in a batch
+        return s, s > self._background + BACKGROUND_TIE
 
     # ------------------------------------------------------------------ instances
     @property
@@ -615,6 +617,9 @@ class ObjectModule:
         reason = "" if found else f"best match {best:.2f} is weak (confidence {conf:.2f})"
         return Heatmap(grid, values, query, "object", decay, conf, found, reason, margin)
 
+
+#: A voxel's score must beat its best background concept by more than this to count.
+BACKGROUND_TIE = 1e-4
 
 #: A palette colour covering less of an instance than this share does not speak for it.
 PALETTE_MIN_SHARE = 0.25
