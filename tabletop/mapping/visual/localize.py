@@ -132,8 +132,6 @@ def _checked(cand: dict, check: PhotometricCheck, rgb, K, config) -> dict:
         if cand.get("searched")
         else f"a pose with {cand['inliers']} inliers"
     )
-    # in a map that searches (a room), a matched pose must single out its place as well
-    strict = cand.get("searched") or config.search
     if cov < config.min_coverage:
         reason = f"{pose} sees the map in {cov:.0%} of the image (need {config.min_coverage:.0%})"
     elif agree < config.min_agreement:
@@ -146,18 +144,18 @@ def _checked(cand: dict, check: PhotometricCheck, rgb, K, config) -> dict:
             f"{pose} agrees with the map hardly beyond chance "
             f"(kappa {kappa:.2f}, need {config.min_kappa})"
         )
-    elif strict and kappa < config.search_min_kappa:
+    elif cand.get("searched") and kappa < config.search_min_kappa:
         reason = (
-            f"{pose} agrees with the map too little beyond chance to single out a place "
+            f"{pose} agrees with the map too little beyond chance for a searched pose "
             f"(kappa {kappa:.2f}, need {config.search_min_kappa})"
         )
-    elif strict and d["rare"] < config.search_min_rare:
+    elif cand.get("searched") and d["rare"] < config.search_min_rare:
         reason = (
             f"the image shows too little that sets a place apart ({d['rare']} sample pixels "
             f"of colours rare in the map, need {config.search_min_rare}): only floor, walls "
             f"or furniture the whole map has"
         )
-    elif strict and d["rare_agreement"] < config.search_min_rare_agreement:
+    elif cand.get("searched") and d["rare_agreement"] < config.search_min_rare_agreement:
         reason = (
             f"{pose} reproduces the image's floor and walls but {d['rare_agreement']:.0%} of "
             f"its rare colours (need {config.search_min_rare_agreement:.0%}): the image "
