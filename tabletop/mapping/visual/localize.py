@@ -170,8 +170,10 @@ def _searched(search, check: PhotometricCheck, rgb, K, config) -> dict | None:
     """The best of the map search's candidate poses as the photometric check judges them
     (None: no search, or no place to search from)."""
     s = search() if search is not None else None
+    if s is None:
+        return None
     best = None
-    for _, T in s.candidates(rgb, K, config.search_candidates) if s is not None else ():
+    for _, T in s.candidates(rgb, K, config.search_candidates):
         cand = {"T": T, "inliers": 0, "matches": 0, "references": (), "searched": True}
         cand = _checked(cand, check, rgb, K, config)
         key = (cand["T"] is not None, cand["agreement"])

@@ -35,6 +35,7 @@ from scipy import ndimage
 
 from tabletop.errors import ConfigError
 from tabletop.mapping.visual.localization import VisualLocalizationConfig
+from tabletop.mapping.visual.photometric import voxel_colours
 
 __all__ = ["PanoramaSearch", "upright_pose"]
 
@@ -79,13 +80,7 @@ class PanoramaSearch:
         camera_height: float,
         config: VisualLocalizationConfig | None = None,
     ) -> None:
-        indices = np.asarray(indices)
-        colours = np.asarray(colours)
-        if indices.ndim != 2 or indices.shape[1] != 3 or colours.shape != indices.shape:
-            raise ConfigError(
-                f"PanoramaSearch needs (n, 3) indices and (n, 3) colours, got "
-                f"{indices.shape} and {colours.shape}"
-            )
+        indices, colours = voxel_colours(indices, colours, "PanoramaSearch")
         if not np.isfinite(camera_height):
             raise ConfigError(f"camera_height must be finite [m], got {camera_height}")
         t0 = time.perf_counter()

@@ -16,6 +16,19 @@ __all__ = ["PhotometricCheck"]
 _BINS = 16
 
 
+def voxel_colours(indices, colours, owner: str) -> tuple[np.ndarray, np.ndarray]:
+    """``indices`` (n, 3) int voxel indices and ``colours`` (n, 3) their colours as arrays,
+    checked for ``owner`` (a class name, for the message)."""
+    indices = np.asarray(indices)
+    colours = np.asarray(colours)
+    if indices.ndim != 2 or indices.shape[1] != 3 or colours.shape != indices.shape:
+        raise ConfigError(
+            f"{owner} needs (n, 3) indices and (n, 3) colours, got "
+            f"{indices.shape} and {colours.shape}"
+        )
+    return indices, colours
+
+
 class PhotometricCheck:
     """Does the map, seen from a candidate camera pose, look like the query image?
 
@@ -35,22 +48,12 @@ class PhotometricCheck:
     def __init__(self, grid, indices: np.ndarray, colours: np.ndarray) -> None:
         """``grid`` a :class:`~tabletop.grid.VoxelGrid`; ``indices`` (n, 3) int voxel
         indices of the occupied voxels; ``colours`` (n, 3) uint8 their mean colours."""
-        indices = np.asarray(indices)
-        colours = np.asarray(colours)
-        if indices.ndim != 2 or indices.shape[1] != 3 or colours.shape != indices.shape:
-            raise ConfigError(
-                f"PhotometricCheck needs (n, 3) indices and (n, 3) colours, got "
-                f"{indices.shape} and {colours.shape}"
-            )
+        indices, colours = voxel_colours(indices, colours, "PhotometricCheck")
         self.grid = grid
         self._colour = np.full((*grid.shape, 3), -1, np.int16)  # -1: empty voxel
         self._colour[tuple(indices.T)] = colours
         self._occupied = self._colour[..., 0] >= 0
-        # How common each colour is in the map: voxel counts in 16 x 16 x 16 RGB bins
-        hist = np.zeros((_BINS,) * 3)
-        np.add.at(hist, tuple((colours.astype(np.int64) // (256 // _BINS)).T), 1.0)
-        self._hist = hist / max(len(colours), 1)
-        self._common: dict[float, np.ndarray] = {}
+        self._common: dict[float, np.ndarray] = {}  # tolerance -> commonness per colour bin
 
     def __len__(self) -> int:
         """Occupied voxels."""
@@ -61,12 +64,17 @@ class PhotometricCheck:
         (RGB distance) of each of ``colours`` (n, 3): near 1 for the floor's colour, near 0
         for a colour only one small object has (counted in 16-level RGB bins)."""
         if tolerance not in self._common:
+            # the map's voxels counted in 16 x 16 x 16 RGB bins, summed over a ball
             step = 256 // _BINS
+            colours_in_map = self._colour[self._occupied].astype(np.int64) // step
+            hist = np.zeros((_BINS,) * 3)
+            np.add.at(hist, tuple(colours_in_map.T), 1.0)
+            hist /= max(len(colours_in_map), 1)
             r = int(np.ceil(tolerance / step))
             o = np.arange(-r, r + 1)
             ball = np.add.outer(np.add.outer(o**2, o**2), o**2) * step**2 <= tolerance**2
             self._common[tolerance] = ndimage.convolve(
-                self._hist, ball.astype(np.float64), mode="constant"
+                hist, ball.astype(np.float64), mode="constant"
             )
         bins = np.clip(np.asarray(colours, np.int64) // (256 // _BINS), 0, _BINS - 1)
         return self._common[tolerance][tuple(bins.T)]
