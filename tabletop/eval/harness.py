@@ -138,6 +138,7 @@ QUERY_TIME_SOURCES = frozenset(
         "mapping/targets.py",
         "mapping/render.py",
         "mapping/bench.py",
+        "sim/views.py",
         *(
             f"arm/{m}.py"
             for m in (

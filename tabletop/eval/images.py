@@ -29,6 +29,10 @@ def view_pose(view: ImageView) -> np.ndarray:
 
 
 def render_view(world, view: ImageView) -> np.ndarray:
-    """(H, W, 3) uint8 RGB of ``view`` rendered by a :class:`tabletop.sim.SimWorld` (with the
-    recording's camera model and renderer, so the query looks like the scan's frames)."""
-    return np.ascontiguousarray(world.render(view_pose(view)).rgb)
+    """(H, W, 3) uint8 RGB of ``view`` rendered by a :class:`tabletop.sim.SimWorld` or
+    :class:`tabletop.sim.room_world.RoomWorld` (with the recording's camera model and
+    renderer, so the query looks like the scan's frames). The robot is out of the picture:
+    a query image shows the scene, the same whatever the robot did before."""
+    from tabletop.sim.views import render_without_robot
+
+    return np.ascontiguousarray(render_without_robot(world, view_pose(view)).rgb)
