@@ -60,3 +60,59 @@ def test_places_are_free_floor_and_rare_colours_are_the_objects():
     assert common[0] > 0.9 and 0 < common[1] < 0.05 and common[2] == 0.0
     with pytest.raises(ConfigError, match="camera_height"):
         PanoramaSearch(grid, idx, rgb, float("nan"))
+
+
+def _tiled_room():
+    """A 3 x 3 m floor of 30 cm tiles in random colours with three coloured boxes on it."""
+    rng = np.random.default_rng(3)
+    grid = VoxelGrid(lower=(0.0, 0.0, -0.03), upper=(3.0, 3.0, 1.5), voxel_size=0.05)
+    ij = np.argwhere(np.ones(grid.shape[:2], bool))
+    tiles = rng.integers(40, 220, size=(10, 10, 3))
+    idx = [np.column_stack([ij, np.zeros(len(ij), int)])]
+    rgb = [tiles[ij[:, 0] // 6, ij[:, 1] // 6]]
+    for corner, colour in [
+        ((10, 40), (220, 20, 20)),
+        ((40, 12), (20, 200, 40)),
+        ((45, 45), (240, 220, 10)),
+    ]:
+        box = np.argwhere(np.ones((5, 5, 10), bool)) + np.array([*corner, 1])
+        idx.append(box)
+        rgb.append(np.tile([colour], (len(box), 1)))
+    return grid, np.concatenate(idx), np.concatenate(rgb).astype(np.uint8)
+
+
+def _view_of_map(check, T, K, w=320, h=240, every=4):
+    """What the map shows from ``T``: every ``every``-th pixel marched, blown up to (h, w)."""
+    v, u = np.mgrid[every // 2 : h : every, every // 2 : w : every]
+    hit, first = check._first_colours(T, K, u.ravel(), v.ravel())
+    small = np.full((u.size, 3), 255.0)  # sky: white
+    small[hit] = first
+    small = small.reshape(*u.shape, 3).astype(np.uint8)
+    return np.repeat(np.repeat(small, every, axis=0), every, axis=1)
+
+
+def test_refinement_brings_a_grid_pose_back_to_where_the_image_was_taken():
+    grid, idx, rgb = _tiled_room()
+    check = PhotometricCheck(grid, idx, rgb)
+    K = np.array([[260.0, 0, 160], [0, 260.0, 120], [0, 0, 1]])
+    truth = upright_pose((0.6, 0.7, 1.1), np.radians(-30), np.radians(40))
+    image = _view_of_map(check, truth, K)
+    config = VisualLocalizationConfig()
+    # a grid pose a decimetre and a few degrees off, as the map search gives them
+    start = upright_pose((0.7, 0.62, 1.1), np.radians(-25), np.radians(43))
+    refined, tries = check.refine_upright(start, K, image, config)
+    before, after = (check.details(T, K, image, config) for T in (start, refined))
+    assert before["kappa"] < 0.3 and after["kappa"] > 0.7
+    # nearer the truth; looking where the image looks (height and pitch trade off a little
+    # over a flat floor)
+    assert np.linalg.norm(refined[:2, 3] - truth[:2, 3]) < np.linalg.norm(
+        start[:2, 3] - truth[:2, 3]
+    )
+
+    def angle(T):
+        return np.degrees(np.arccos(np.clip(T[:3, 2] @ truth[:3, 2], -1.0, 1.0)))
+
+    assert angle(refined) < 0.7 * angle(start)
+    assert 1 < tries <= 120
+    # the refined pose stays upright (no roll): its x axis is horizontal
+    assert abs(refined[2, 0]) < 1e-9

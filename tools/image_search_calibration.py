@@ -7,7 +7,7 @@ and generated room 1), ``--views`` random upright views at 1.1 m on the first ro
 floor, pitched 6-34 degrees down, are localised in the *first* room's map ("pos": where were
 they taken?), and as many views of the *second* room in the same map ("neg": they must not
 be found). Per view: whether feature matching alone localised it (and how far off), and each
-of the search's best candidate poses as the photometric check scores it, and the result as
+of the search's best candidate poses (refined) as the photometric check scores it, and the result as
 the map is configured. Printed: that result, and for a grid of acceptance settings (applied
 to the searched poses only; matched poses as feature matching alone accepts them), how
 many "pos" views end within 1 m of the truth, how many far off, and how many "neg" views were
@@ -33,6 +33,7 @@ from tabletop.eval.images import render_view
 from tabletop.eval.room import cached_room_recording, room_map_settings, room_recording_key
 from tabletop.eval.room_suites import ROOM_SUITES
 from tabletop.eval.tasks import ImageView, room_ref
+from tabletop.mapping.visual.localize import searched_poses
 from tabletop.sim.room_world import RoomWorld, mast_camera_config
 
 
@@ -61,10 +62,10 @@ def _rows(m, spec, label: str, views: list[ImageView]) -> list[dict]:
         for v in views:
             rgb = render_view(world, v)
             truth = np.asarray(v.eye[:2])
-            cands = []
-            for score, T in search.candidates(rgb, db.K, config.search_candidates):
-                d = check.details(T, db.K, rgb, config)
-                cands.append({**d, "score": score, "err": float(np.linalg.norm(T[:2, 3] - truth))})
+            cands = [
+                {**d, "err": float(np.linalg.norm(T[:2, 3] - truth))}
+                for T, d in searched_poses(lambda: search, check, rgb, db.K, config)
+            ]
             db.config = dataclasses.replace(config, search=False)
             try:
                 loc = m.images.localize(rgb)
@@ -146,7 +147,7 @@ def main(argv=None) -> int:
     )
     base = rooms[names[0]][1].images.database.config
     print("kappa  rare  rare_agreement -> pos within 1 m / pos wrong / pos | neg found / neg")
-    for kappa, rare, ra in itertools.product((0.3, 0.55, 0.6), (0, 15), (0.0, 0.1)):
+    for kappa, rare, ra in itertools.product((0.3, 0.45, 0.5, 0.55, 0.6), (15,), (0.1, 0.2, 0.3)):
         o = outcome(rows, kappa, rare, ra, base)
         print(
             f"{kappa:5.2f} {rare:5d} {ra:8.2f}       -> {o['pos_within_1m']} / {o['pos_wrong']} / "

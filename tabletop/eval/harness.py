@@ -126,9 +126,10 @@ def build_map(recording, encoders: str, config=None, progress=None, **kwargs):
     )
 
 
-#: Modules that only answer queries on a built map, or move the arm on it: nothing a saved map
-#: holds comes from them, so editing them keeps cached maps (the calibration, also read at query
-#: time, is applied afresh to every map taken from the cache). Of the arm, a map reads only the
+#: Modules that only answer queries on a built map (or render their query images), or move the
+#: arm on it: nothing a saved map or a scan holds comes from them, so editing them keeps cached
+#: maps (the calibration, also read at query time, is applied afresh to every map taken from
+#: the cache). Of the arm, a map reads only the
 #: self-filter (``arm/self_filter.py`` on ``arm/model.py``).
 QUERY_TIME_SOURCES = frozenset(
     (
@@ -138,6 +139,9 @@ QUERY_TIME_SOURCES = frozenset(
         "mapping/targets.py",
         "mapping/render.py",
         "mapping/bench.py",
+        "mapping/visual/localize.py",
+        "mapping/visual/photometric.py",
+        "mapping/visual/panorama.py",
         "sim/views.py",
         *(
             f"arm/{m}.py"

@@ -1,11 +1,13 @@
 """Task files for the mobile base, generated from a room scan's ground truth.
 
 ``python -m tabletop.eval.room_suites [--only NAME]`` writes ``tabletop/data/tasks/mobile/``
-(:data:`ROOM_SUITES`) and ``tabletop/data/tasks/mobile-heldout/`` (:data:`HELDOUT_ROOM_SUITES`:
+(:data:`ROOM_SUITES`), ``tabletop/data/tasks/mobile-heldout/`` (:data:`HELDOUT_ROOM_SUITES`:
 rooms of generator seeds no tuning saw; evaluate them at the end, do not read them while
-tuning): one task file per room (the shipped default room and generated rooms), each with every goal
-type of the arm's suites, worded with the catalog's labels and the sound bank's captions, and
-the robot section of a mobile base (``kind = "mobile"``, the paper's 1 m success radius).
+tuning) and ``mobile-heldout-2/`` (:data:`HELDOUT_ROOM_SUITES_2`, drawn after the first
+held-out pair had been looked at): one task file per room (the shipped default room and
+generated rooms), each with every goal type of the arm's suites, worded with the catalog's
+labels and the sound bank's captions, and the robot section of a mobile base
+(``kind = "mobile"``, the paper's 1 m success radius).
 
 What differs from the arm's suites (:mod:`tabletop.eval.suites`): a spatial goal is "between"
 two landmarks (side relations depend on which way the base faces, so their truth is not a
@@ -31,7 +33,13 @@ from tabletop.eval.truth import resolve_truth, sound_occurrences
 from tabletop.paths import DATA_DIR
 from tabletop.sim.ground_truth import GroundTruth
 
-__all__ = ["HELDOUT_ROOM_SUITES", "ROOM_SUITES", "generate_room_suite", "write_room_suites"]
+__all__ = [
+    "HELDOUT_ROOM_SUITES",
+    "HELDOUT_ROOM_SUITES_2",
+    "ROOM_SUITES",
+    "generate_room_suite",
+    "write_room_suites",
+]
 
 #: The shipped mobile suites: name -> ([room] section, [scan] section, goal seed).
 ROOM_SUITES = {
@@ -52,8 +60,26 @@ HELDOUT_ROOM_SUITES = {
         9302,
     ),
 }
+#: A second held-out pair, drawn when the first had been looked at (its figures reported once,
+#: then its image goals' pictures studied): for figures after that study.
+HELDOUT_ROOM_SUITES_2 = {
+    "room-heldout-3": (
+        {"random": {"seed": 9103}},
+        {"seed": 9103, "episodes": 3, "repeat_sounds": 1},
+        9303,
+    ),
+    "room-heldout-4": (
+        {"random": {"seed": 9104}},
+        {"seed": 9104, "episodes": 3, "repeat_sounds": 1},
+        9304,
+    ),
+}
 #: Where each set of suites is written, under ``tabletop/data/tasks/``.
-SUITE_DIRS = {"mobile": ROOM_SUITES, "mobile-heldout": HELDOUT_ROOM_SUITES}
+SUITE_DIRS = {
+    "mobile": ROOM_SUITES,
+    "mobile-heldout": HELDOUT_ROOM_SUITES,
+    "mobile-heldout-2": HELDOUT_ROOM_SUITES_2,
+}
 #: Goals per type in each suite (at most; fewer when the room has fewer).
 COUNTS = {
     "object": 8,

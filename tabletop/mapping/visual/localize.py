@@ -25,7 +25,7 @@ from tabletop.mapping.visual.localization import (
 )
 from tabletop.mapping.visual.photometric import PhotometricCheck
 
-__all__ = ["localize_image"]
+__all__ = ["localize_image", "searched_poses"]
 
 
 def _unturn(xy: np.ndarray, k: int, width: int, height: int) -> np.ndarray:
@@ -119,12 +119,12 @@ def _localize_turned(
     return {**out, "T": T, "reason": ""}
 
 
-def _checked(cand: dict, check: PhotometricCheck, rgb, K, config) -> dict:
+def _checked(cand: dict, check: PhotometricCheck, rgb, K, config, d=None) -> dict:
     """``cand`` with its photometric ``coverage`` and ``agreement``; its pose dropped (with a
-    reason) when the check refuses it."""
+    reason) when the check refuses it. ``d``: the check's details of the pose, when known."""
     if cand["T"] is None:
         return cand
-    d = check.details(cand["T"], K, rgb, config)
+    d = d if d is not None else check.details(cand["T"], K, rgb, config)
     cov, agree, kappa = d["coverage"], d["agreement"], d["kappa"]
     cand = {**cand, "coverage": cov, "agreement": agree, "kappa": kappa}
     pose = (
@@ -166,16 +166,34 @@ def _checked(cand: dict, check: PhotometricCheck, rgb, K, config) -> dict:
     return {**cand, "T": None, "reason": reason}
 
 
-def _searched(search, check: PhotometricCheck, rgb, K, config) -> dict | None:
-    """The best of the map search's candidate poses as the photometric check judges them
-    (None: no search, or no place to search from)."""
+def searched_poses(search, check: PhotometricCheck, rgb, K, config) -> list[tuple]:
+    """The map search's best candidate poses for ``rgb``, each refined
+    (:meth:`PhotometricCheck.refine_upright`) where it could pass the check (enough of the
+    map and of the map's rare colours in view): ``(T_world_cam, details)`` pairs in the
+    search's order, ``details`` as :meth:`PhotometricCheck.details` gives them for the pose.
+    Empty without a search or a place to search from."""
     s = search() if search is not None else None
     if s is None:
-        return None
-    best = None
+        return []
+    out = []
     for _, T in s.candidates(rgb, K, config.search_candidates):
+        d = check.details(T, K, rgb, config)
+        if d["coverage"] >= config.min_coverage and d["rare"] >= config.search_min_rare:
+            T2, _ = check.refine_upright(T, K, rgb, config)
+            d2 = check.details(T2, K, rgb, config)
+            if d2["agreement"] > d["agreement"]:
+                T, d = T2, d2
+        out.append((T, d))
+    return out
+
+
+def _searched(search, check: PhotometricCheck, rgb, K, config) -> dict | None:
+    """The best of the map search's (refined) candidate poses as the photometric check judges
+    them (None: no search, or no place to search from)."""
+    best = None
+    for T, d in searched_poses(search, check, rgb, K, config):
         cand = {"T": T, "inliers": 0, "matches": 0, "references": (), "searched": True}
-        cand = _checked(cand, check, rgb, K, config)
+        cand = _checked(cand, check, rgb, K, config, d)
         key = (cand["T"] is not None, cand["agreement"])
         if best is None or key > (best["T"] is not None, best["agreement"]):
             best = cand

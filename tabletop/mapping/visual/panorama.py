@@ -35,30 +35,14 @@ from scipy import ndimage
 
 from tabletop.errors import ConfigError
 from tabletop.mapping.visual.localization import VisualLocalizationConfig
-from tabletop.mapping.visual.photometric import voxel_colours
+from tabletop.mapping.visual.photometric import upright_pose, voxel_colours
 
 __all__ = ["PanoramaSearch", "upright_pose"]
 
-#: Camera optical frame (x right, y down, z forward) to world for a camera looking along +x.
-_CAM_TO_WORLD = np.array([[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])
 #: Sample pixels of a query image: every this many rows and columns.
 _SAMPLE_PX = 16
 #: Places nearer than this to a voxel do not splat it (it would cover the panorama).
 _NEAR_M = 0.2
-
-
-def upright_pose(position, pitch: float, yaw: float) -> np.ndarray:
-    """(4, 4) ``T_world_cam`` (OpenCV optical frame) of an upright camera at ``position``
-    (3,) [m] looking along azimuth ``yaw`` [rad] (0: +x, counter-clockwise), ``pitch`` [rad]
-    above the horizontal (negative: looking down)."""
-    c, s = np.cos(-pitch), np.sin(-pitch)
-    tilt = np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
-    cz, sz = np.cos(yaw), np.sin(yaw)
-    turn = np.array([[cz, -sz, 0.0], [sz, cz, 0.0], [0.0, 0.0, 1.0]])
-    T = np.eye(4)
-    T[:3, :3] = turn @ tilt @ _CAM_TO_WORLD
-    T[:3, 3] = position
-    return T
 
 
 class PanoramaSearch:
