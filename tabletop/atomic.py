@@ -17,7 +17,7 @@ import threading
 from collections.abc import Iterator
 from pathlib import Path
 
-__all__ = ["atomic_path", "exit_on_signals"]
+__all__ = ["atomic_path", "exclusive", "exit_on_signals"]
 
 
 @contextlib.contextmanager
@@ -42,6 +42,24 @@ def atomic_path(path: str | Path, *, directory: bool = False) -> Iterator[Path]:
         else:
             tmp.unlink(missing_ok=True)
         raise
+
+
+@contextlib.contextmanager
+def exclusive(path: str | Path) -> Iterator[None]:
+    """Within the block this process alone holds the lock of ``path`` (an advisory lock on the
+    sibling file ``.<name>.lock``); another process entering it for the same ``path`` waits.
+    For a cache: two processes that need the same missing entry make it once, the second
+    takes the first's (the lock file stays, empty)."""
+    import fcntl
+
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with open(path.with_name(f".{path.name}.lock"), "a") as f:
+        fcntl.flock(f, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(f, fcntl.LOCK_UN)
 
 
 def _raise_exit(signum, _frame) -> None:

@@ -133,3 +133,32 @@ def test_a_killed_write_leaves_no_hidden_temporary_directory(tmp_path, sig):
     # SIGTERM: SystemExit(143); SIGINT: KeyboardInterrupt, which Python ends by the signal
     assert rc == (128 + signal.SIGTERM if sig == "SIGTERM" else -signal.SIGINT)
     assert list(tmp_path.iterdir()) == []  # neither the recording nor its temporary directory
+
+
+def test_a_second_process_waits_for_the_first_to_leave_an_exclusive_block(tmp_path):
+    """Two evals that need the same missing cache entry make it once: the second enters the
+    block only when the first has left it (without the lock it would write in between)."""
+    import subprocess
+    import sys
+    import time
+
+    log, ready, target = tmp_path / "log", tmp_path / "ready", tmp_path / "cache" / "entry"
+    code = (
+        "import sys, time, pathlib\n"
+        "from tabletop.atomic import exclusive\n"
+        "log, ready, target, who, hold = sys.argv[1:6]\n"
+        "with exclusive(target):\n"
+        "    with open(log, 'a') as f: f.write(who + ' in\\n')\n"
+        "    pathlib.Path(ready).touch()\n"
+        "    time.sleep(float(hold))\n"
+        "    with open(log, 'a') as f: f.write(who + ' out\\n')\n"
+    )
+    args = [str(log), str(ready), str(target)]
+    first = subprocess.Popen([sys.executable, "-c", code, *args, "first", "1.5"])
+    t0 = time.monotonic()
+    while not ready.exists():
+        assert time.monotonic() - t0 < 60 and first.poll() is None
+        time.sleep(0.02)
+    second = subprocess.Popen([sys.executable, "-c", code, *args, "second", "0"])
+    assert first.wait(60) == 0 and second.wait(60) == 0
+    assert log.read_text().split("\n")[:4] == ["first in", "first out", "second in", "second out"]

@@ -203,21 +203,35 @@ def recording_key(spec, scan: dict, noise: dict | None = None) -> str:
 def cached_recording(name: str, scan: dict, spec, cache: Path | None, progress: Progress | None):
     """(recording, scan seconds, cached?) for a scene and scan settings (``ScanConfig``
     fields), through the cache."""
-    from tabletop.recording import load_recording, save_recording
     from tabletop.sim.scan import ScanConfig, run_scan
 
     path = cache / f"rec-{spec.name}-{recording_key(spec, scan)}" if cache else None
-    if path is not None and path.is_dir():
-        try:
-            return load_recording(path), 0.0, True
-        except TabletopError as e:
-            log.warning("cached recording %s is unusable (%s); scanning again", path, e)
-    t0 = time.perf_counter()
-    cb = (lambda d, n: progress(f"scan {name}", d, n)) if progress else None
-    rec, _ = run_scan(spec, ScanConfig(**scan), progress=cb)
-    scan_s = time.perf_counter() - t0
-    if path is not None:
-        cache.mkdir(parents=True, exist_ok=True)
+
+    def scan_it():
+        t0 = time.perf_counter()
+        cb = (lambda d, n: progress(f"scan {name}", d, n)) if progress else None
+        rec, _ = run_scan(spec, ScanConfig(**scan), progress=cb)
+        return rec, time.perf_counter() - t0
+
+    return through_cache(path, scan_it)
+
+
+def through_cache(path: Path | None, scan):
+    """(recording, scan seconds, cached?): the recording cached at ``path``, or ``scan()``'s
+    ``(recording, seconds)`` stored there. One process at a time per entry: a second process
+    that needs the same missing recording waits and loads the first's."""
+    from tabletop.atomic import exclusive
+    from tabletop.recording import load_recording, save_recording
+
+    if path is None:
+        return (*scan(), False)
+    with exclusive(path):
+        if path.is_dir():
+            try:
+                return load_recording(path), 0.0, True
+            except TabletopError as e:
+                log.warning("cached recording %s is unusable (%s); scanning again", path, e)
+        rec, scan_s = scan()
         save_recording(rec, path, overwrite=True)
     return rec, scan_s, False
 

@@ -93,28 +93,22 @@ def room_recording_key(spec, scan: dict) -> str:
 
 
 def cached_room_recording(name: str, scan: dict, spec, cache, progress=None):
-    """(recording, scan seconds, cached?) of a room scanned with ``scan``, through the cache."""
-    import logging
+    """(recording, scan seconds, cached?) of a room scanned with ``scan``, through the cache
+    (:func:`~tabletop.eval.harness.through_cache`)."""
     import time
+    from pathlib import Path
 
-    from tabletop.errors import TabletopError
-    from tabletop.recording import load_recording, save_recording
+    from tabletop.eval.harness import through_cache
     from tabletop.sim.room_scan import RoomScanConfig, run_room_scan
 
-    path = cache / f"rec-room-{spec.name}-{room_recording_key(spec, scan)}" if cache else None
-    if path is not None and path.is_dir():
-        try:
-            return load_recording(path), 0.0, True
-        except TabletopError as e:
-            logging.getLogger(__name__).warning(
-                "cached recording %s is unusable (%s); scanning again", path, e
-            )
-    t0 = time.perf_counter()
-    # the drive takes what the physics takes: the total is not known ahead
-    cb = (lambda d: progress(f"scan {name}", d, d)) if progress else None
-    rec = run_room_scan(spec, RoomScanConfig(**scan), progress=cb)
-    scan_s = time.perf_counter() - t0
-    if path is not None:
-        cache.mkdir(parents=True, exist_ok=True)
-        save_recording(rec, path, overwrite=True)
-    return rec, scan_s, False
+    key = room_recording_key(spec, scan)
+    path = Path(cache) / f"rec-room-{spec.name}-{key}" if cache is not None else None
+
+    def scan_it():
+        t0 = time.perf_counter()
+        # the drive takes what the physics takes: the total is not known ahead
+        cb = (lambda d: progress(f"scan {name}", d, d)) if progress else None
+        rec = run_room_scan(spec, RoomScanConfig(**scan), progress=cb)
+        return rec, time.perf_counter() - t0
+
+    return through_cache(path, scan_it)
