@@ -27,6 +27,7 @@ def test_search_settings_are_checked():
         ({"search_step_m": 0}, "search_step_m"),
         ({"search_pitch_min_deg": 20, "search_pitch_max_deg": 10}, "search_pitch_min_deg"),
         ({"search_min_kappa": 1.5}, "search_min_kappa"),
+        ({"search_weak_rare_agreement": -0.2}, "search_weak_rare_agreement"),
         ({"search_rare_share": -0.1}, "search_rare_share"),
         ({"search_candidates": 0}, "search_candidates"),
     ]:

@@ -119,6 +119,13 @@ def _localize_turned(
     return {**out, "T": T, "reason": ""}
 
 
+def _rare_needed(kappa: float, config) -> float:
+    """The share of an image's rare colours a searched pose of ``kappa`` must reproduce."""
+    if kappa >= config.search_strong_kappa:
+        return config.search_min_rare_agreement
+    return max(config.search_min_rare_agreement, config.search_weak_rare_agreement)
+
+
 def _checked(cand: dict, check: PhotometricCheck, rgb, K, config, d=None) -> dict:
     """``cand`` with its photometric ``coverage`` and ``agreement``; its pose dropped (with a
     reason) when the check refuses it. ``d``: the check's details of the pose, when known."""
@@ -155,11 +162,11 @@ def _checked(cand: dict, check: PhotometricCheck, rgb, K, config, d=None) -> dic
             f"of colours rare in the map, need {config.search_min_rare}): only floor, walls "
             f"or furniture the whole map has"
         )
-    elif cand.get("searched") and d["rare_agreement"] < config.search_min_rare_agreement:
+    elif cand.get("searched") and d["rare_agreement"] < _rare_needed(kappa, config):
         reason = (
             f"{pose} reproduces the image's floor and walls but {d['rare_agreement']:.0%} of "
-            f"its rare colours (need {config.search_min_rare_agreement:.0%}): the image "
-            f"was not taken in this map"
+            f"its rare colours (need {_rare_needed(kappa, config):.0%} at kappa {kappa:.2f}): "
+            f"the image was not taken in this map"
         )
     else:
         return cand
