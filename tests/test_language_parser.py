@@ -309,3 +309,52 @@ def test_the_arm_still_reads_forward_as_north():
 
     assert "robot.move_north(0.1)" in instruction_to_code("move forward 10 cm")
     assert "robot.move_south(0.05)" in instruction_to_code("go back 5 cm")
+
+
+@pytest.mark.parametrize(
+    "text, action",
+    [
+        # hedges before a relation
+        ("move a bit to the left of the soccer ball", Side("left", "soccer ball")),
+        ("go slightly behind the mug", Side("behind", "mug")),
+        (
+            "go somewhere between the mug and the tray",
+            Between(Goal(Part("obj", "mug")), Goal(Part("obj", "tray"))),
+        ),
+        # a sound named by what made it, without "the sound of"
+        (
+            "go to the cube closest to the dog barking",
+            GoTo(Goal(Part("obj", "cube"), (Part("sound", "dog barking"),))),
+        ),
+        ("go to the source of the barking", GoTo(Goal(Part("sound", "barking")))),
+        (
+            "find the thing that sounded like a cat and go there",
+            GoTo(Goal(Part("sound", "cat"))),
+        ),
+        # words that pick without describing
+        (
+            "go to whichever mug is closest to the alarm clock sound",
+            GoTo(Goal(Part("obj", "mug"), (Part("sound", "alarm clock"),))),
+        ),
+        # a side of the table said short, or with "hand"
+        (
+            "go to the blue block on the left",
+            GoTo(Goal(Part("obj", "blue block"), (Part("area", "left side of the table"),))),
+        ),
+        (
+            "go to the mug on the right hand side of the table",
+            GoTo(Goal(Part("obj", "mug"), (Part("area", "right side of the table"),))),
+        ),
+    ],
+)
+def test_wording_people_use(text, action):
+    assert only(text).action == action
+
+
+def test_an_object_is_not_a_sound_for_its_last_word_alone():
+    # "ringing" names a sound, but only after what rang; a lone object stays an object
+    assert only("go to the ring").action == GoTo(Goal(Part("obj", "ring")))
+    assert only("go to the playing card").action == GoTo(Goal(Part("obj", "playing card")))
+    # a base has no single table: "on the left" is not a table side there
+    with pytest.raises(ParseError):
+        parse_instruction("go to the blue block on the left", robot="mobile")

@@ -24,7 +24,9 @@ Typical use::
 
 from __future__ import annotations
 
+import functools
 import re
+import tomllib
 
 from tabletop.errors import ConfigError
 from tabletop.language.errors import ParseError
@@ -201,7 +203,7 @@ _SIDES = [
 _ABOVE = re.compile(r"^(?:right\s+|just\s+)?(?:above|over|on\s+top\s+of|the\s+top\s+of)\s+(.+)$")
 _TABLE_AREA = re.compile(
     r"\b(?:the\s+)?(left|right|front|back|far|near|centre|center|middle)"
-    r"(?:\s+(?:side|part|half|edge|end))?\s+of\s+the\s+table\b"
+    r"(?:[\s-]+hand)?(?:\s+(?:side|part|half|edge|end))?\s+of\s+the\s+table\b"
 )
 _AREA_PLACEHOLDER = re.compile(r"@area(\d+)@")
 _IMAGE_PLACE = re.compile(
@@ -313,6 +315,8 @@ class _Parser:
         text = re.sub(r"[.!?]+$", "", text).strip()
         text = _WAS_HEARD.sub(r"where you heard \1", text)
         text = _IMAGE_PLACE.sub(r"the image \1", text)
+        if self.robot == "arm":  # one table: "on the left" is its left side
+            text = _SHORT_SIDE.sub(r"on the \1 side of the table", text)
         text = self._hide_areas(text)
         clauses = [c.strip(" ,") for c in _STEP_SPLIT.split(text)]
         if any(not c for c in clauses):
@@ -324,6 +328,7 @@ class _Parser:
         body = _FIRST.sub("", clause)
         body = _POLITE_TAIL.sub("", _POLITE_HEAD.sub("", body, count=1)).strip(" ,")
         body = _GO_AND.sub("", body)
+        body = _AND_GO_THERE.sub("", body)
         body = _HOVER.sub("move ", body)
         times = 1
         m = _REPEAT.search(body)
@@ -428,7 +433,7 @@ class _Parser:
                 return Compass(_DIRECTIONS[direction], round(d, 6))
         if re.match(rf"^(?:to(?:wards)?\s+(?:the\s+)?)?{_DIR}(?:wards?)?$", rest):
             self.fail(rest, "a compass move needs a distance, e.g. 'move 10 cm north'")
-        rest = _PLACE_OF.sub("", rest)
+        rest = _HEDGE.sub("", _PLACE_OF.sub("", rest))
         m = _POSSESSIVE_SIDE.match(rest)
         if m:
             side = {"back": "behind", "rear": "behind"}.get(m.group(2), m.group(2))
@@ -511,9 +516,15 @@ class _Parser:
             return Part("obj", self.description(m.group(1), "object"))
         if m:
             return Part("sound", self.description(m.group(1), "sound"))
-        m = _SOUND_OF.match(text) or _SOUND_SUFFIX.match(text)
+        m = _SOUND_OF.match(text) or _SOUND_SUFFIX.match(text) or _SOUND_SOURCE.match(text)
         if m:
             return Part("sound", self.description(m.group(1), "sound"))
+        m = _PICK.match(text)
+        if m:
+            text = m.group(1)
+        words = _ARTICLES.sub("", text).split()
+        if len(words) >= 2 and words[-1] in _sound_verbs():  # "the dog barking"
+            return Part("sound", self.description(text, "sound"))
         if re.match(r"^(?:the\s+)?(?:image|picture|photo|photograph|snapshot)\b", text):
             self.fail(text, "an image goal needs a file path, e.g. 'the image ./goal.png'")
         m = _AREA_PLACEHOLDER.fullmatch(_ARTICLES.sub("", text))
@@ -563,6 +574,51 @@ class _Parser:
             return float(word)
         except ValueError:
             self.fail(clause, f"{word!r} is not a number")
+
+
+#: "a bit to the left of", "somewhere between", "slightly behind": a hedge before a relation.
+_HEDGE = re.compile(
+    r"^(?:a\s+(?:little\s+)?bit|a\s+little|slightly|somewhat|somewhere|just|right|directly)"
+    r"\s+(?:more\s+)?(?=(?:to|on)\s+the\s+(?:left|right)\b|(?:in\s+)?front\b|behind\b|"
+    r"(?:in\s+)?between\b|halfway\b|above\b|over\b)"
+)
+#: "find the duck and go there": the second half only says to go where the first points.
+_AND_GO_THERE = re.compile(
+    r"\s*,?\s+and\s+(?:then\s+)?(?:go|move|head|drive)\s+(?:(?:over\s+)?there|to\s+(?:it|that))$"
+)
+#: "whichever mug is", "the one": words that pick without describing.
+_PICK = re.compile(r"^(?:whichever|whatever|which)\s+(.+?)(?:\s+(?:is|are))?$")
+#: "the source of the barking", "what sounded like a cat", "the thing that made the ringing":
+#: a sound, told by what it was.
+_SOUND_SOURCE = re.compile(
+    r"^(?:(?:the\s+)?(?:source|origin)\s+of|(?:(?:the\s+)?(?:thing|one|object)\s+"
+    r"(?:that|which)|what|whatever)\s+(?:sounded\s+like|made|was\s+making|makes)|"
+    r"(?:the\s+)?(?:thing|one|object)\s+(?:making|that\s+makes)|whatever\s+makes)\s+(.+)$"
+)
+#: "the blue block on the left": a side of the table, said short (the arm's table only).
+_SHORT_SIDE = re.compile(
+    r"\bon\s+the\s+(left|right)(?:[\s-]+hand)?(?:\s+side)?(?![\s-]*(?:hand|side|of)\b)"
+)
+
+
+@functools.cache
+def _sound_verbs() -> frozenset[str]:
+    """Verbs a person names a sound by ("a dog barking", "the phone ringing"): the -ing words
+    of the sound bank's captions and phrasings (tabletop/data), so a landmark that ends in one
+    is a sound even without "the sound of"."""
+    from tabletop.paths import DATA_DIR
+
+    texts: list[str] = []
+    for name, key in (("sound_phrasings.toml", "phrasings"), ("sounds/captions.toml", None)):
+        try:
+            d = tomllib.loads((DATA_DIR / name).read_text())
+        except (OSError, tomllib.TOMLDecodeError):
+            continue
+        values = d.get(key, {}) if key else d
+        for v in values.values():
+            texts += [v] if isinstance(v, str) else [t for t in v if isinstance(t, str)]
+    words = {w.strip(",.") for t in texts for w in t.lower().split()}
+    return frozenset(w for w in words if len(w) > 5 and w.endswith("ing"))
 
 
 _RESERVED_SOUND = frozenset(
