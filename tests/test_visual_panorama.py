@@ -117,3 +117,30 @@ def test_refinement_brings_a_grid_pose_back_to_where_the_image_was_taken():
     assert 1 < tries <= 120
     # the refined pose stays upright (no roll): its x axis is horizontal
     assert abs(refined[2, 0]) < 1e-9
+
+
+def test_a_weak_matched_pose_gives_way_to_a_searched_pose_that_reproduces_more():
+    from tabletop.mapping.visual.localize import SEARCH_OVERRULES_BY, _better_searched, _checked
+
+    grid, idx, rgb = _tiled_room()
+    check = PhotometricCheck(grid, idx, rgb)
+    config = VisualLocalizationConfig(search=True, min_agreement=0.3, min_kappa=0.2)
+    search = PanoramaSearch(grid, idx, rgb, 1.1, config)
+    K = np.array([[260.0, 0, 160], [0, 260.0, 120], [0, 0, 1]])
+    truth = upright_pose((0.9, 0.8, 1.1), np.radians(-30), np.radians(40))
+    image = _view_of_map(check, truth, K)
+
+    def matched(T):
+        return _checked(
+            {"T": T, "inliers": 20, "matches": 30, "references": ()}, check, image, K, config
+        )
+
+    # a pose half a metre off that a few matches might support, passing the plain check
+    wrong = matched(upright_pose((0.5, 1.2, 1.1), np.radians(-30), np.radians(40)))
+    assert wrong["T"] is not None  # it passes the plain check
+    better = _better_searched(lambda: search, check, image, K, config, wrong)
+    assert better is not None and better["searched"]
+    assert better["agreement"] >= wrong["agreement"] + SEARCH_OVERRULES_BY
+    assert np.linalg.norm(better["T"][:2, 3] - truth[:2, 3]) < 0.2
+    # the true pose itself is not overruled
+    assert _better_searched(lambda: search, check, image, K, config, matched(truth)) is None

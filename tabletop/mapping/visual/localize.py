@@ -207,6 +207,29 @@ def _searched(search, check: PhotometricCheck, rgb, K, config) -> dict | None:
     return best
 
 
+#: How much more of the image a searched pose must reproduce to replace a matched one.
+SEARCH_OVERRULES_BY = 0.05
+
+
+def _better_searched(search, check: PhotometricCheck, rgb, K, config, matched: dict):
+    """The map search's (refined) pose that passes the check's plain tests (as a matched pose
+    does) and reproduces at least :data:`SEARCH_OVERRULES_BY` more of the image than the
+    ``matched`` candidate, with no less kappa; None when there is none."""
+    best = None
+    for T, d in searched_poses(search, check, rgb, K, config):
+        cand = {"T": T, "inliers": 0, "matches": 0, "references": ()}
+        cand = _checked(cand, check, rgb, K, config, d)
+        if cand["T"] is None:
+            continue
+        if (
+            cand["agreement"] >= matched["agreement"] + SEARCH_OVERRULES_BY
+            and cand["kappa"] >= matched["kappa"]
+            and (best is None or cand["agreement"] > best["agreement"])
+        ):
+            best = {**cand, "searched": True}
+    return best
+
+
 def localize_image(
     database: VisualDatabase,
     rgb: np.ndarray,
@@ -231,7 +254,9 @@ def localize_image(
     ``search`` (a callable returning the map's
     :class:`~tabletop.mapping.visual.panorama.PanoramaSearch`, or None) is given with a check
     and the config's ``search`` is on, the check judges the map search's best poses the same
-    way (the result's ``searched`` is then True). Returns ``ok=False`` with a reason when
+    way (the result's ``searched`` is then True); a matched pose that is not sure is compared
+    with the search's poses, and one that reproduces the image clearly better replaces it
+    (:data:`SEARCH_OVERRULES_BY`). Returns ``ok=False`` with a reason when
     nothing counts; raises :class:`ConfigError` only for malformed input.
     """
     t0 = time.perf_counter()
@@ -283,6 +308,13 @@ def localize_image(
         found = _searched(search, check, rgb, K, config)
         if found is not None and (found["T"] is not None or not best.get("agreement")):
             best = found
+    elif check is not None and config.search and not sure(best):
+        # A matched pose that is not sure may be a wrong place that a few matches among
+        # repeated textures support: the map search's pose replaces it where it reproduces
+        # the image clearly better (the matches already say the image is of this map).
+        better = _better_searched(search, check, rgb, K, config, best)
+        if better is not None:
+            best = better
     kw = {k: best[k] for k in ("inliers", "matches", "references")}
     kw["searched"] = bool(best.get("searched"))
     kw.update({k: best[k] for k in ("agreement", "kappa", "coverage") if k in best})
