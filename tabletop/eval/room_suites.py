@@ -43,52 +43,34 @@ __all__ = [
     "write_room_suites",
 ]
 
+
+def _generated(seed: int, goal_seed: int) -> tuple[dict, dict, int]:
+    """A suite of generated room ``seed``: its [room] and [scan] sections and goal seed."""
+    return {"random": {"seed": seed}}, {"seed": seed, "episodes": 3, "repeat_sounds": 1}, goal_seed
+
+
 #: The shipped mobile suites: name -> ([room] section, [scan] section, goal seed).
 ROOM_SUITES = {
     "room-default": ({"name": "default"}, {"seed": 0, "episodes": 3, "repeat_sounds": 1}, 300),
-    "room-random-1": ({"random": {"seed": 1}}, {"seed": 1, "episodes": 3, "repeat_sounds": 1}, 301),
+    "room-random-1": _generated(1, 301),
 }
 #: Held-out mobile suites: rooms drawn with generator seeds that neither the room settings'
 #: tuning nor any test used, goals drawn with seeds of their own.
 HELDOUT_ROOM_SUITES = {
-    "room-heldout-1": (
-        {"random": {"seed": 9101}},
-        {"seed": 9101, "episodes": 3, "repeat_sounds": 1},
-        9301,
-    ),
-    "room-heldout-2": (
-        {"random": {"seed": 9102}},
-        {"seed": 9102, "episodes": 3, "repeat_sounds": 1},
-        9302,
-    ),
+    "room-heldout-1": _generated(9101, 9301),
+    "room-heldout-2": _generated(9102, 9302),
 }
 #: A second held-out pair, drawn when the first had been looked at (its figures reported once,
 #: then its image goals' pictures studied): for figures after that study.
 HELDOUT_ROOM_SUITES_2 = {
-    "room-heldout-3": (
-        {"random": {"seed": 9103}},
-        {"seed": 9103, "episodes": 3, "repeat_sounds": 1},
-        9303,
-    ),
-    "room-heldout-4": (
-        {"random": {"seed": 9104}},
-        {"seed": 9104, "episodes": 3, "repeat_sounds": 1},
-        9304,
-    ),
+    "room-heldout-3": _generated(9103, 9303),
+    "room-heldout-4": _generated(9104, 9304),
 }
 #: A third held-out pair, drawn when the second had been run once and its two missed image
 #: goals diagnosed: for figures after that.
 HELDOUT_ROOM_SUITES_3 = {
-    "room-heldout-5": (
-        {"random": {"seed": 9105}},
-        {"seed": 9105, "episodes": 3, "repeat_sounds": 1},
-        9305,
-    ),
-    "room-heldout-6": (
-        {"random": {"seed": 9106}},
-        {"seed": 9106, "episodes": 3, "repeat_sounds": 1},
-        9306,
-    ),
+    "room-heldout-5": _generated(9105, 9305),
+    "room-heldout-6": _generated(9106, 9306),
 }
 #: Where each set of suites is written, under ``tabletop/data/tasks/``.
 SUITE_DIRS = {

@@ -26,7 +26,6 @@ from __future__ import annotations
 
 import functools
 import re
-import tomllib
 
 from tabletop.errors import ConfigError
 from tabletop.language.errors import ParseError
@@ -245,6 +244,44 @@ _PATH = re.compile(
     r"""(?=[\s,;]|[.!?]?\s*$|[.!?]\s)""",
     re.IGNORECASE,
 )
+
+
+#: "a bit to the left of", "somewhere between", "slightly behind": a hedge before a relation.
+_HEDGE = re.compile(
+    r"^(?:a\s+(?:little\s+)?bit|a\s+little|slightly|somewhat|somewhere|just|right|directly)"
+    r"\s+(?:more\s+)?(?=(?:to|on)\s+the\s+(?:left|right)\b|(?:in\s+)?front\b|behind\b|"
+    r"(?:in\s+)?between\b|halfway\b|above\b|over\b)"
+)
+#: "find the duck and go there": the second half only says to go where the first points.
+_AND_GO_THERE = re.compile(
+    r"\s*,?\s+and\s+(?:then\s+)?(?:go|move|head|drive)\s+(?:(?:over\s+)?there|to\s+(?:it|that))$"
+)
+#: "whichever mug is", "the one": words that pick without describing.
+_PICK = re.compile(r"^(?:whichever|whatever|which)\s+(.+?)(?:\s+(?:is|are))?$")
+#: "the source of the barking", "what sounded like a cat", "the thing that made the ringing":
+#: a sound, told by what it was.
+_SOUND_SOURCE = re.compile(
+    r"^(?:(?:the\s+)?(?:source|origin)\s+of|(?:(?:the\s+)?(?:thing|one|object)\s+"
+    r"(?:that|which)|what|whatever)\s+(?:sounded\s+like|made|was\s+making|makes)|"
+    r"(?:the\s+)?(?:thing|one|object)\s+(?:making|that\s+makes)|whatever\s+makes)\s+(.+)$"
+)
+#: "the blue block on the left": a side of the table, said short (the arm's table only).
+_SHORT_SIDE = re.compile(
+    r"\bon\s+the\s+(left|right)(?:[\s-]+hand)?(?:\s+side)?(?![\s-]*(?:hand|side|of)\b)"
+)
+
+
+@functools.cache
+def _sound_verbs() -> frozenset[str]:
+    """Verbs a person names a sound by ("a dog barking", "the phone ringing"): the -ing words
+    of the sound bank's captions and phrasings, so a landmark that ends in one is a sound even
+    without "the sound of"."""
+    from tabletop.mapping.sound_vocabulary import load_phrasings
+    from tabletop.sim.sound_bank import CAPTIONS
+
+    texts = [*CAPTIONS.values(), *(t for ts in load_phrasings().values() for t in ts)]
+    words = {w.strip(",.") for t in texts for w in t.lower().split()}
+    return frozenset(w for w in words if len(w) > 5 and w.endswith("ing"))
 
 
 # ---------------------------------------------------------------------- parsing
@@ -574,51 +611,6 @@ class _Parser:
             return float(word)
         except ValueError:
             self.fail(clause, f"{word!r} is not a number")
-
-
-#: "a bit to the left of", "somewhere between", "slightly behind": a hedge before a relation.
-_HEDGE = re.compile(
-    r"^(?:a\s+(?:little\s+)?bit|a\s+little|slightly|somewhat|somewhere|just|right|directly)"
-    r"\s+(?:more\s+)?(?=(?:to|on)\s+the\s+(?:left|right)\b|(?:in\s+)?front\b|behind\b|"
-    r"(?:in\s+)?between\b|halfway\b|above\b|over\b)"
-)
-#: "find the duck and go there": the second half only says to go where the first points.
-_AND_GO_THERE = re.compile(
-    r"\s*,?\s+and\s+(?:then\s+)?(?:go|move|head|drive)\s+(?:(?:over\s+)?there|to\s+(?:it|that))$"
-)
-#: "whichever mug is", "the one": words that pick without describing.
-_PICK = re.compile(r"^(?:whichever|whatever|which)\s+(.+?)(?:\s+(?:is|are))?$")
-#: "the source of the barking", "what sounded like a cat", "the thing that made the ringing":
-#: a sound, told by what it was.
-_SOUND_SOURCE = re.compile(
-    r"^(?:(?:the\s+)?(?:source|origin)\s+of|(?:(?:the\s+)?(?:thing|one|object)\s+"
-    r"(?:that|which)|what|whatever)\s+(?:sounded\s+like|made|was\s+making|makes)|"
-    r"(?:the\s+)?(?:thing|one|object)\s+(?:making|that\s+makes)|whatever\s+makes)\s+(.+)$"
-)
-#: "the blue block on the left": a side of the table, said short (the arm's table only).
-_SHORT_SIDE = re.compile(
-    r"\bon\s+the\s+(left|right)(?:[\s-]+hand)?(?:\s+side)?(?![\s-]*(?:hand|side|of)\b)"
-)
-
-
-@functools.cache
-def _sound_verbs() -> frozenset[str]:
-    """Verbs a person names a sound by ("a dog barking", "the phone ringing"): the -ing words
-    of the sound bank's captions and phrasings (tabletop/data), so a landmark that ends in one
-    is a sound even without "the sound of"."""
-    from tabletop.paths import DATA_DIR
-
-    texts: list[str] = []
-    for name, key in (("sound_phrasings.toml", "phrasings"), ("sounds/captions.toml", None)):
-        try:
-            d = tomllib.loads((DATA_DIR / name).read_text())
-        except (OSError, tomllib.TOMLDecodeError):
-            continue
-        values = d.get(key, {}) if key else d
-        for v in values.values():
-            texts += [v] if isinstance(v, str) else [t for t in v if isinstance(t, str)]
-    words = {w.strip(",.") for t in texts for w in t.lower().split()}
-    return frozenset(w for w in words if len(w) > 5 and w.endswith("ing"))
 
 
 _RESERVED_SOUND = frozenset(

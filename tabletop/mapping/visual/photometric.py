@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import itertools
+
 import cv2
 import numpy as np
 from scipy import ndimage
@@ -160,16 +162,13 @@ class PhotometricCheck:
             moved = True
             while moved and tries < REFINE_MAX_TRIES:
                 moved = False
-                for i in range(len(x)):
-                    for sign in (1.0, -1.0):
-                        trial = x.copy()
-                        trial[i] += sign * steps[i]
-                        g = gain(trial)
-                        tries += 1
-                        if g > best:
-                            best, x, moved = g, trial, True
-                            break
-                    if moved:
+                for i, sign in itertools.product(range(len(x)), (1.0, -1.0)):
+                    trial = x.copy()
+                    trial[i] += sign * steps[i]
+                    g = gain(trial)
+                    tries += 1
+                    if g > best:  # first gain taken: start over from the new pose
+                        best, x, moved = g, trial, True
                         break
             steps /= 2
         return _upright(x), tries
