@@ -102,6 +102,20 @@ def test_between_moves_between_two_landmarks_objects_by_name_others_as_heatmaps(
     check_code(code)
 
 
+def test_a_relation_to_a_narrowed_object_passes_its_fused_heatmap():
+    code = instruction_to_code("move to the left of the mug near the sound of a dog barking")
+    assert code.splitlines()[1:] == [
+        'obj_map = robot.get_major_map(obj="mug")',
+        'sound_map = robot.get_map(sound="dog barking")',
+        "fuse_map = obj_map * sound_map",
+        "robot.move_to_left(fuse_map)",
+    ]
+    check_code(code)
+    assert instruction_to_code("go above the mug").splitlines()[1:] == [
+        'robot.move_to_object("mug")'
+    ]
+
+
 def test_repetition_loops_over_the_motion_only():
     code = instruction_to_code("move 5 cm north 3 times")
     assert "for _ in range(3):\n    robot.move_north(0.05)" in code

@@ -232,7 +232,7 @@ def test_quotes_in_descriptions_cannot_break_out_of_the_string():
         ("go north", "north", "distance"),
         ("move 2 m west", "2 m west", "at most 1.0 m"),
         ("go to the mug 21 times", "21 times", "1 to 20"),
-        ("go to the left of the mug near the duck", "the mug near the duck", "one object"),
+        ("go to the left of the sound of rain", "the sound of rain", "an object"),
         ("go to the picture", "the picture", "file path"),
         ("go to the mug slowly", "the mug slowly", "'slowly'"),
         ("go to the image a.png b.png", "the image a.png b.png", "one path"),
@@ -344,6 +344,39 @@ def test_the_arm_still_reads_forward_as_north():
         (
             "go to the mug on the right hand side of the table",
             GoTo(Goal(Part("obj", "mug"), (Part("area", "right side of the table"),))),
+        ),
+        # a relation to an object that a sound or another object singles out
+        (
+            "please move in front of the blue mug that is near the crying baby",
+            Side("front", Goal(Part("obj", "blue mug"), (Part("sound", "crying baby"),))),
+        ),
+        (
+            "go to the right of the bowl near the sound of a cat",
+            Side("right", Goal(Part("obj", "bowl"), (Part("sound", "cat"),))),
+        ),
+        # a place without a verb, "next to" as the motion, "that's closest to"
+        ("I want you at the left of the yellow duck", Side("left", "yellow duck")),
+        ("I'd like you behind the tray", Side("behind", "tray")),
+        ("go next to the bowl", GoTo(Goal(Part("obj", "bowl")))),
+        (
+            "find the cup that's closest to where the phone rang",
+            GoTo(Goal(Part("obj", "cup"), (Part("sound", "phone rang"),))),
+        ),
+        # a sound told by what was making it, or by its verb alone
+        ("head to whatever is making the ticking noise", GoTo(Goal(Part("sound", "ticking")))),
+        ("move the hand towards the thing that was meowing", GoTo(Goal(Part("sound", "meowing")))),
+        (
+            "go to the purple thing near the clapping",
+            GoTo(Goal(Part("obj", "purple thing"), (Part("sound", "clapping"),))),
+        ),
+        # a corner of the table, with or without "of the table"
+        (
+            "move to the far left corner of the table",
+            GoTo(Goal(Part("area", "far left corner of the table"))),
+        ),
+        (
+            "go to the front right corner",
+            GoTo(Goal(Part("area", "front right corner of the table"))),
         ),
     ],
 )

@@ -466,7 +466,8 @@ def _shape(action) -> tuple:
         a, b = goal(action.a), goal(action.b)
         return ("between", *a, *b) if len(a) == len(b) == 1 else ("between-near",)
     if isinstance(action, Side):
-        return ("side", action.side, action.landmark)
+        lm = action.landmark
+        return ("side", action.side, *((lm,) if isinstance(lm, str) else goal(lm)))
     return (type(action).__name__,)
 
 

@@ -132,6 +132,11 @@ def _point(goal: Goal, lines: list[str], names: _Names, var: str) -> None:
     lines.append(f"{var} = {_call(_ARGMAX, heat)}")
 
 
+def _named(landmark: str | Goal, lines: list[str], names: _Names) -> str:
+    """A relation's landmark as an argument: an object's name, or a narrowed goal's heatmap."""
+    return _q(landmark) if isinstance(landmark, str) else _landmark(landmark, lines, names)
+
+
 def _step_code(step: Step, names: _Names) -> list[str]:
     a = step.action
     setup: list[str] = []
@@ -149,9 +154,9 @@ def _step_code(step: Step, names: _Names) -> list[str]:
         lb = _landmark(a.b, setup, names)
         moves = [_call(_MOVE_BETWEEN, la, lb)]
     elif isinstance(a, Side):
-        moves = [_call(_MOVE_SIDE[a.side], _q(a.landmark))]
+        moves = [_call(_MOVE_SIDE[a.side], _named(a.landmark, setup, names))]
     elif isinstance(a, Above):
-        moves = [_call(_MOVE_ABOVE, _q(a.landmark))]
+        moves = [_call(_MOVE_ABOVE, _named(a.landmark, setup, names))]
     elif isinstance(a, Compass):
         moves = [_call(_MOVE_COMPASS[a.direction], repr(a.distance_m))]
     elif isinstance(a, Forward):
@@ -159,7 +164,7 @@ def _step_code(step: Step, names: _Names) -> list[str]:
     elif isinstance(a, Turn):
         moves = [_call(_TURN, repr(a.angle_deg))]
     elif isinstance(a, Face):
-        moves = [_call(_FACE, _q(a.landmark))]
+        moves = [_call(_FACE, _named(a.landmark, setup, names))]
     elif isinstance(a, BackAndForth):
         # the two points once, outside the loop: each pass goes to the same places
         p1, p2 = names("pos1"), names("pos2")

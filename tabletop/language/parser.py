@@ -131,7 +131,7 @@ _VERB = re.compile(
     r"(?:\s+(?:(?:the|your)\s+)?(?:arm|gripper|hand|robot|end[\s-]effector|tcp)|\s+yourself"
     r"|\s+your\s+way)?"
     r"(?:\s+back\s+to|\s+over\s+to|\s+up\s+to|\s+straight\s+to|\s+(?:closer|close|near)"
-    r"(?:\s+to)?|\s+to|\s+towards?|\s+into|\s+onto)?"
+    r"(?:\s+to)?|\s+next\s+to|\s+beside|\s+to|\s+towards?|\s+into|\s+onto)?"
     r"|(?:make|find)\s+your\s+way\s+to|return\s+to|reach(?:\s+for)?|approach|visit|find|"
     r"locate|touch|point\s+(?:at|to)"
     r")(?:\s+|$)"
@@ -142,6 +142,12 @@ _POLITE_HEAD = re.compile(
     r"(?:(?:could|can|would|will)\s+you\s+(?:please\s+)?|please\s+|"
     r"i(?:\s+would|'d)?\s+(?:want|like|need)\s+you\s+to\s+|you\s+(?:should|must|need\s+to)\s+|"
     r"(?:try|be\s+sure|make\s+sure)\s+to\s+)?"
+)
+#: "I want you at the mug", "I'd like you behind the tray": a place without a verb.
+_WANT_YOU_AT = re.compile(
+    r"^i(?:\s+would|'d)?\s+(?:want|like|need)\s+(?:you|the\s+(?:arm|gripper|robot))\s+"
+    r"(?:to\s+be\s+)?(?:at\s+|by\s+)?(?=the\s|behind\s|between\s|in\s|on\s|above\s|over\s|"
+    r"next\s|near\s|beside\s|close\s|right\s|left\s)"
 )
 _POLITE_TAIL = re.compile(r"(?:\s*,?\s+(?:please|for\s+me|now|right\s+away|if\s+you\s+can))+$")
 #: "go and touch the ball", "go ahead and reach the mug": the second verb is the step's.
@@ -204,6 +210,12 @@ _TABLE_AREA = re.compile(
     r"\b(?:the\s+)?(left|right|front|back|far|near|centre|center|middle)"
     r"(?:[\s-]+hand)?(?:\s+(?:side|part|half|edge|end))?\s+of\s+the\s+table\b"
 )
+#: "the far left corner (of the table)", "the front right corner": a corner, a lateral and a
+#: depth word together (the table regions read the phrase itself).
+_TABLE_CORNER = re.compile(
+    r"\b(?:the\s+)?(?:(?:far|near|front|back)[\s-]+(?:left|right)|(?:left|right)[\s-]+"
+    r"(?:far|near|front|back))(?:[\s-]+hand)?\s+corner(?:\s+of\s+the\s+table)?\b"
+)
 _AREA_PLACEHOLDER = re.compile(r"@area(\d+)@")
 _IMAGE_PLACE = re.compile(
     r"\b(?:the\s+)?(?:place|spot|location|view|scene)\s+(?:(?:shown|seen|depicted)\s+)?"
@@ -230,7 +242,7 @@ _HEARD = re.compile(
 )
 _WAS_HEARD = re.compile(r"\bwhere\s+(.+?)\s+(?:was|were)\s+heard\b")
 _CONNECT = re.compile(
-    r"\s+(?:(?:that|which)\s+(?:is|was)\s+)?"
+    r"\s+(?:(?:that|which)(?:\s+(?:is|was)|'s)\s+)?"
     r"(near(?:\s+to)?|next\s+to|close\s+to|closest\s+to|nearest(?:\s+to)?|beside|by|around|in|"
     r"on|where\s+(?:you|i|we)\s+heard)\s+"
 )
@@ -263,7 +275,10 @@ _PICK = re.compile(r"^(?:whichever|whatever|which)\s+(.+?)(?:\s+(?:is|are))?$")
 _SOUND_SOURCE = re.compile(
     r"^(?:(?:the\s+)?(?:source|origin)\s+of|(?:(?:the\s+)?(?:thing|one|object)\s+"
     r"(?:that|which)|what|whatever)\s+(?:sounded\s+like|made|was\s+making|makes)|"
-    r"(?:the\s+)?(?:thing|one|object)\s+(?:making|that\s+makes)|whatever\s+makes)\s+(.+)$"
+    r"(?:the\s+)?(?:thing|one|object)\s+(?:making|that\s+makes)|"
+    r"(?:whatever|what|something)\s+(?:makes|(?:is|was)\s+making)|"
+    r"(?:the\s+)?(?:thing|one|object|animal)\s+(?:that|which)\s+(?:is|was)(?=\s+\w+ing\b))"
+    r"\s+(.+)$"
 )
 #: "the blue block on the left": a side of the table, said short (the arm's table only).
 _SHORT_SIDE = re.compile(
@@ -282,6 +297,15 @@ def _sound_verbs() -> frozenset[str]:
     texts = [*CAPTIONS.values(), *(t for ts in load_phrasings().values() for t in ts)]
     words = {w.strip(",.") for t in texts for w in t.lower().split()}
     return frozenset(w for w in words if len(w) > 5 and w.endswith("ing"))
+
+
+@functools.cache
+def _sound_names() -> frozenset[str]:
+    """The sound bank's categories of several words, as words ("crying baby", "church
+    bells"): no object is called so. One-word categories ("duck", "dice") may be objects."""
+    from tabletop.sim.sound_bank import CAPTIONS
+
+    return frozenset(c.replace("_", " ") for c in CAPTIONS if "_" in c)
 
 
 # ---------------------------------------------------------------------- parsing
@@ -337,7 +361,14 @@ class _Parser:
             self.areas.append((m.group(0), _AREA_NAMES[m.group(1)]))
             return f"@area{len(self.areas) - 1}@"
 
-        return _TABLE_AREA.sub(repl, text)
+        def corner(m: re.Match) -> str:
+            name = _ARTICLES.sub("", m.group(0))
+            if "table" not in name:
+                name += " of the table"
+            self.areas.append((m.group(0), name))
+            return f"@area{len(self.areas) - 1}@"
+
+        return _TABLE_AREA.sub(repl, _TABLE_CORNER.sub(corner, text))
 
     def _hide_paths(self, text: str) -> str:
         def repl(m: re.Match) -> str:
@@ -362,7 +393,7 @@ class _Parser:
 
     # --------------------------------------------------------------- one step
     def step(self, clause: str, first: bool) -> Step:
-        body = _FIRST.sub("", clause)
+        body = _WANT_YOU_AT.sub("go to ", _FIRST.sub("", clause), count=1)
         body = _POLITE_TAIL.sub("", _POLITE_HEAD.sub("", body, count=1)).strip(" ,")
         body = _GO_AND.sub("", body)
         body = _AND_GO_THERE.sub("", body)
@@ -493,15 +524,18 @@ class _Parser:
             return Above(self.landmark(m.group(1), "above"))
         return GoTo(self.goal(rest))
 
-    def landmark(self, text: str, relation: str) -> str:
+    def landmark(self, text: str, relation: str) -> str | Goal:
+        """A relation's landmark: an object's name, or an object goal narrowed by others ("the
+        mug near the sound of X") as the :class:`Goal` itself."""
         goal = self.goal(text)
-        if goal.near or goal.primary.kind != "obj":
+        if goal.primary.kind != "obj":
             self.fail(
                 text,
-                f"'{relation}' needs one object as its landmark (e.g. 'the left of the red mug'); "
-                "sound, image and area goals or 'X near Y' work with go to, between and near",
+                f"'{relation}' needs an object as its landmark (e.g. 'the left of the red mug', "
+                "'the left of the mug near the sound of S'); sound, image and area goals work "
+                "with go to, between and near",
             )
-        return goal.primary.text
+        return goal if goal.near else goal.primary.text
 
     def two_goals(self, text: str, what: str, sep: str = r"\s+and\s+") -> tuple[Goal, Goal]:
         """Split ``A and B`` at the first 'and' where both sides are goals."""
@@ -555,12 +589,16 @@ class _Parser:
             return Part("sound", self.description(m.group(1), "sound"))
         m = _SOUND_OF.match(text) or _SOUND_SUFFIX.match(text) or _SOUND_SOURCE.match(text)
         if m:
-            return Part("sound", self.description(m.group(1), "sound"))
+            said = m.group(1)  # "whatever is making the ticking (noise)": the ticking
+            m = _SOUND_SOURCE.match(said)
+            return Part("sound", self.description(m.group(1) if m else said, "sound"))
         m = _PICK.match(text)
         if m:
             text = m.group(1)
         words = _ARTICLES.sub("", text).split()
-        if len(words) >= 2 and words[-1] in _sound_verbs():  # "the dog barking"
+        if words and words[-1] in _sound_verbs():  # "the dog barking", "the clapping"
+            return Part("sound", self.description(text, "sound"))
+        if " ".join(words) in _sound_names():  # "the crying baby", "the church bells"
             return Part("sound", self.description(text, "sound"))
         if re.match(r"^(?:the\s+)?(?:image|picture|photo|photograph|snapshot)\b", text):
             self.fail(text, "an image goal needs a file path, e.g. 'the image ./goal.png'")

@@ -71,17 +71,18 @@ class Between:
 
 @dataclass(frozen=True)
 class Side:
-    """``side`` in left, right, front, behind of the object ``landmark``."""
+    """``side`` in left, right, front, behind of ``landmark``: an object's name, or an object
+    goal narrowed by others ("the mug near the sound of X": the fused heatmap's region)."""
 
     side: str
-    landmark: str
+    landmark: str | Goal
 
 
 @dataclass(frozen=True)
 class Above:
-    """Go above the object ``landmark``."""
+    """Go above ``landmark`` (an object's name or a narrowed object goal, as for :class:`Side`)."""
 
-    landmark: str
+    landmark: str | Goal
 
 
 @dataclass(frozen=True)
@@ -116,9 +117,9 @@ class Turn:
 
 @dataclass(frozen=True)
 class Face:
-    """A mobile base turns on the spot towards the object ``landmark``."""
+    """A mobile base turns on the spot towards ``landmark`` (as for :class:`Side`)."""
 
-    landmark: str
+    landmark: str | Goal
 
 
 Action = GoTo | Between | Side | Above | Compass | BackAndForth | Forward | Turn | Face
