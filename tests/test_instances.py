@@ -64,8 +64,22 @@ def test_touching_objects_split_where_colour_and_features_change():
     vm = coloured_voxels(boxes)
     assert sorted(_which(_segment(vm), boxes)) == sorted(boxes)
     # with the split disabled they are one component
-    merged = _segment(vm, InstanceConfig(split_delta_e=1000.0))
+    merged = _segment(vm, InstanceConfig(split_delta_e=1000.0, split_cos_alone=-1.0))
     assert len(merged) == 1
+
+
+def test_touching_objects_of_one_colour_split_where_the_features_alone_change():
+    boxes = {
+        "blue lego brick": ((0.10, -0.05, 0.01), (0.16, 0.01, 0.05), BLUE),
+        "blue ball": ((0.16, -0.05, 0.01), (0.22, 0.01, 0.07), BLUE),  # shares a face
+    }
+    vm = coloured_voxels(boxes)
+    assert sorted(_which(_segment(vm), boxes)) == sorted(boxes)
+    # colour cannot tell them apart: without the features' own split they are one
+    assert len(_segment(vm, InstanceConfig(split_cos_alone=-1.0))) == 1
+    # one object of one kind, features alike throughout, stays whole
+    one = coloured_voxels({"blue ball": ((0.10, -0.05, 0.01), (0.22, 0.01, 0.07), BLUE)})
+    assert len(_segment(one)) == 1
 
 
 def test_specks_are_dropped_and_no_table_means_no_instances():
@@ -115,6 +129,8 @@ def test_restore_round_trips_and_rejects_bad_labels():
 
 
 def test_config_is_checked():
+    with pytest.raises(ConfigError, match="split_cos_alone"):
+        InstanceConfig(split_cos_alone=0.95)
     with pytest.raises(ConfigError, match="min_voxels"):
         InstanceConfig(min_voxels=0)
     with pytest.raises(ConfigError, match="split_cos"):

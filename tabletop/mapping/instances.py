@@ -7,7 +7,10 @@
 2. voxels above that surface and over it are connected (26-neighbourhood) into components;
 3. a component is split where the measured colour changes sharply between neighbouring
    voxels (CIELAB ΔE above ``split_delta_e``) *and* the fused features change too (cosine
-   below ``split_cos``) — two objects that touch — and fragments smaller than
+   below ``split_cos``) — two objects that touch — or where the features alone change
+   strongly (cosine below ``split_cos_alone``: two touching objects of one colour, which
+   colour cannot tell apart; one object's two colours, a soccer ball's panels, keep their
+   features alike and stay joined), and fragments smaller than
    ``min_voxels`` rejoin the neighbour they touch most; components smaller than
    ``min_voxels`` are dropped (specks, sensor noise).
 
@@ -64,8 +67,11 @@ class InstanceConfig:
     """...and lies over the table, within this margin [m] of its fitted edges."""
     split_delta_e: float = 25.0
     """Neighbouring voxels whose colours differ by more than this CIELAB ΔE..."""
-    split_cos: float = 0.8
+    split_cos: float = 0.9
     """...and whose fused features' cosine is below this belong to different objects."""
+    split_cos_alone: float = 0.6
+    """Neighbouring voxels whose fused features' cosine is below this belong to different
+    objects whatever their colours (two objects of one colour that touch); -1: never."""
     supports: str = "table"
     """What objects stand on: "table" (the map's one fitted table: a tabletop scan) or
     "surfaces" (every horizontal surface :data:`min_support_height_m` above the lowest one,
@@ -102,6 +108,11 @@ class InstanceConfig:
             raise ConfigError(
                 f"split_delta_e must be > 0 and split_cos in [-1, 1], got "
                 f"{self.split_delta_e}, {self.split_cos}"
+            )
+        if not -1 <= self.split_cos_alone <= self.split_cos:
+            raise ConfigError(
+                f"split_cos_alone must be in [-1, split_cos={self.split_cos}], got "
+                f"{self.split_cos_alone}"
             )
 
 
@@ -225,7 +236,7 @@ def segment_instances(
     b = np.concatenate(b_list)
     de = delta_e(lab[a], lab[b])
     cos = np.einsum("ij,ij->i", feats[a], feats[b])
-    cut = (de > config.split_delta_e) & (cos < config.split_cos)
+    cut = ((de > config.split_delta_e) & (cos < config.split_cos)) | (cos < config.split_cos_alone)
     keep = ~cut
     g = coo_matrix((np.ones(int(keep.sum())), (a[keep], b[keep])), shape=(len(cand),) * 2)
     _, frag = connected_components(g, directed=False)
