@@ -27,8 +27,13 @@ def test_lab_of_reference_colours():
         ("an off-white bear", "off-white", "an bear"),
         # compounds ending in a colour name are one colour phrase
         ("the round toy pillar in grass-green", "grass-green", "the round toy pillar"),
-        ("the jet-black domino", "jet-black", "the domino"),
-        ("the little snow-white duck", "snow-white", "the little duck"),
+        ("the sage-green block", "sage-green", "the block"),
+        # ... or the lexicon's own two-word name, hyphenated
+        ("the jet-black domino", "jet black", "the domino"),
+        ("the little snow-white duck", "snow white", "the little duck"),
+        # a gem, a fruit or a paint name is a colour; a material or a drink stays the thing's
+        ("the sapphire ball", "sapphire", "the ball"),
+        ("the coffee mug", "", "the coffee mug"),
         # words that only tie the colour to the thing go with it
         ("the cube toy in red", "red", "the cube toy"),
         ("red coloured cube-shaped toy", "red", "cube shaped toy"),

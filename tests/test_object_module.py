@@ -232,6 +232,34 @@ def test_a_shaded_colour_keeps_its_name_and_a_neighbouring_term_does_not_take_it
     assert min(fits["white"][1], fits["grey"][1]) > 0.6 and fits["yellow"][1] < 0.3
 
 
+def test_colour_names_people_use_mean_their_basic_colour(scene):
+    from tabletop.mapping.colors import BASIC_COLOURS, COLOR_NAMES
+
+    def family(phrase):
+        w = scene.colour_weights(phrase)
+        per = np.zeros(len(BASIC_COLOURS))
+        for wi, v in zip(w, COLOR_NAMES.values(), strict=True):
+            per[BASIC_COLOURS.index(v[1])] += wi
+        return BASIC_COLOURS[int(np.argmax(per))]
+
+    # names the text encoder alone places elsewhere ("sapphire" nearest "emerald")
+    for phrase, want in (
+        ("sapphire", "blue"),
+        ("jade", "green"),
+        ("mauve", "purple"),
+        ("ebony", "black"),
+        ("slate", "grey"),
+        ("ruby", "red"),
+    ):
+        assert family(phrase) == want, phrase
+    # a compound is a shade of its last word, whatever the first is nearest on its own
+    assert family("rose") == "pink" and family("rose red") == "red"
+    assert family("teal") == "blue" and family("teal green") == "green"
+    blue_mug, green_mug = _instance((20, 60, 170)), _instance((30, 140, 40))
+    fit = scene.colour_match(scene.colour_weights("sapphire"), [blue_mug, green_mug])
+    assert fit[0] > 0.5 > 0.2 > fit[1]
+
+
 def test_a_two_coloured_object_fits_either_of_its_colours_but_no_other(scene):
     # A domino: black faces, white edges; its mean colour is a grey neither of them is.
     domino = _instance((100, 100, 100), [(25, 25, 25), (225, 225, 225)], [0.7, 0.3])

@@ -48,6 +48,7 @@ before instances existed: the voxels where the query beats the background and sc
 
 from __future__ import annotations
 
+import re
 import tomllib
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
@@ -451,6 +452,11 @@ class ObjectModule:
             self._family = [names.index(v[1]) for v in COLOR_NAMES.values()]
             self._family_id = np.array([BASIC_COLOURS.index(v[1]) for v in COLOR_NAMES.values()])
         sim = self._lexicon[0] @ self.text.encode_text([colour])[0]
+        head = re.split(r"[\s-]+", colour.strip())[-1]
+        if colour not in COLOR_NAMES and head in BASIC_COLOURS:
+            # "rose red", "teal green", "grass-green": a shade of the last word's colour,
+            # whatever the word before it is nearest to on its own ("rose" is a pink)
+            sim = np.where(self._family_id == BASIC_COLOURS.index(head), sim, -np.inf)
         w = np.exp((sim - sim.max()) / 0.02)
         return w / w.sum()
 
