@@ -32,7 +32,7 @@ def test_lab_of_reference_colours():
         ("the jet-black domino", "jet black", "the domino"),
         ("the little snow-white duck", "snow white", "the little duck"),
         # a gem, a fruit or a paint name is a colour; a material or a drink stays the thing's
-        ("the sapphire ball", "sapphire", "the ball"),
+        ("the azure ball", "azure", "the ball"),
         ("the coffee mug", "", "the coffee mug"),
         # words that only tie the colour to the thing go with it
         ("the cube toy in red", "red", "the cube toy"),

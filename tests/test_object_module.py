@@ -242,21 +242,21 @@ def test_colour_names_people_use_mean_their_basic_colour(scene):
             per[BASIC_COLOURS.index(v[1])] += wi
         return BASIC_COLOURS[int(np.argmax(per))]
 
-    # names the text encoder alone places elsewhere ("sapphire" nearest "emerald")
+    # names the text encoder alone places elsewhere ("cerulean" nearest "olive")
     for phrase, want in (
-        ("sapphire", "blue"),
-        ("jade", "green"),
+        ("cerulean", "blue"),
+        ("viridian", "green"),
         ("mauve", "purple"),
-        ("ebony", "black"),
+        ("onyx", "black"),
         ("slate", "grey"),
-        ("ruby", "red"),
+        ("vermilion", "red"),
     ):
         assert family(phrase) == want, phrase
     # a compound is a shade of its last word, whatever the first is nearest on its own
     assert family("rose") == "pink" and family("rose red") == "red"
     assert family("teal") == "blue" and family("teal green") == "green"
     blue_mug, green_mug = _instance((20, 60, 170)), _instance((30, 140, 40))
-    fit = scene.colour_match(scene.colour_weights("sapphire"), [blue_mug, green_mug])
+    fit = scene.colour_match(scene.colour_weights("cerulean"), [blue_mug, green_mug])
     assert fit[0] > 0.5 > 0.2 > fit[1]
 
 
