@@ -31,10 +31,6 @@ SHORT = dict(
     look_around=False,
     episodes=1,
     episode_s=1.5,
-    # one renderer for every scan of this module: which one "auto" picks depends on whether
-    # another world is open in the process (a second world renders with TinyRenderer), and
-    # the two render different pixels
-    renderer="tiny",
 )
 
 
