@@ -274,9 +274,8 @@ _PICK = re.compile(r"^(?:whichever|whatever|which)\s+(.+?)(?:\s+(?:is|are))?$")
 #: a sound, told by what it was.
 _SOUND_SOURCE = re.compile(
     r"^(?:(?:the\s+)?(?:source|origin)\s+of|(?:(?:the\s+)?(?:thing|one|object)\s+"
-    r"(?:that|which)|what|whatever)\s+(?:sounded\s+like|made|was\s+making|makes)|"
-    r"(?:the\s+)?(?:thing|one|object)\s+(?:making|that\s+makes)|"
-    r"(?:whatever|what|something)\s+(?:makes|(?:is|was)\s+making)|"
+    r"(?:that|which)|what|whatever|something)\s+(?:sounded\s+like|made|(?:is|was)\s+making|"
+    r"makes)|(?:the\s+)?(?:thing|one|object)\s+(?:making|that\s+makes)|"
     r"(?:the\s+)?(?:thing|one|object|animal)\s+(?:that|which)\s+(?:is|was)(?=\s+\w+ing\b))"
     r"\s+(.+)$"
 )
