@@ -288,6 +288,9 @@ CHECKED_BEFORE_WORK = [
     (["calibrate", "--scenes", "99", "--out", "TMP/c.json"], ("--scenes", "99", "1..")),
     (["calibrate", "--cache-dir", AFILE_JSON, "--out", "TMP/c.json"],
      ("--cache-dir", "afile.json", "directory")),
+    # only white space and commas: names no modality (a generated case once started a scan)
+    (["calibrate", "--keep-prior", " ,\t", "--out", "TMP/c.json"],
+     ("--keep-prior", "object", "sound")),
     (["scan", "--out", "TMP/rec", "--width", "100000000"],
      ("--width", "100000000", "at most 1920x1440")),
     (["scan", "--out", "TMP/rec", "--height", "100000000"],

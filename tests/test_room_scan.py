@@ -147,6 +147,16 @@ def test_unknown_tables_are_named(spec):
 
 
 def test_run_room_scan_returns_the_same_recording_again(spec, scan):
-    """run_room_scan is scan_room without the timing figures, and a scan is deterministic."""
-    rec = run_room_scan(spec, RoomScanConfig(**SHORT))
-    assert_same(rec, scan[0])
+    """run_room_scan is scan_room without the timing figures, and a scan is deterministic.
+
+    Both scans name one renderer (TinyRenderer, which every machine has): with "auto", whether
+    another PyBullet world holds EGL in this process picks the renderer, and EGL on a software
+    GL stack is not promised to give bit-equal pictures twice (a clean-clone run once saw RGB
+    differ while nothing else did)."""
+    tiny = RoomScanConfig(**{**SHORT, "renderer": "tiny"})
+    a, b = scan_room(spec, tiny)[0], run_room_scan(spec, tiny)
+    assert a.meta["renderer"] == b.meta["renderer"] == "tiny"
+    assert_same(a, b)
+    # the shared scan was the same drive: everything but the pictures' renderer agrees
+    for name in ("timestamps", "joint_positions", "T_world_hand", "audio"):
+        assert np.array_equal(getattr(a, name), getattr(scan[0], name)), name

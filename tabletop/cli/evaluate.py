@@ -360,6 +360,8 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     # every flag before a quarter of an hour of scanning, not after
     keep_prior = [m.strip() for m in args.keep_prior.split(",") if m.strip()]
     bad = sorted(set(keep_prior) - set(MODALITIES))
+    if args.keep_prior and not keep_prior:  # given, but only commas and white space
+        bad = [args.keep_prior]
     if bad:
         print(f"tabletop calibrate: --keep-prior {bad}: valid {list(MODALITIES)}", file=sys.stderr)
         return 2
