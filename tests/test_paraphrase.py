@@ -18,11 +18,12 @@ import pytest
 from tabletop.errors import AssetError, ConfigError
 from tabletop.eval.paraphrase import (
     AREA_KEYS,
-    HELDOUT_SEEDS,
+    HELDOUT_POOLS,
     MIN_ABSENT,
+    POOL_SEEDS,
     POOLS,
     SUITE_DIRS,
-    TUNE_SEEDS,
+    TUNE_POOLS,
     load_bank,
     paraphrase_suite,
     suite_sections,
@@ -137,21 +138,24 @@ def test_both_pools_cover_every_kind_colour_sound_area_and_instruction():
             assert len(ph.names) >= 2, (pool, k)
 
 
-def test_the_pools_are_disjoint():
-    tune = {bag(v): k for k, v in _bank_entries("tune").items()}
-    shared = sorted(k for k, v in _bank_entries("heldout").items() if bag(v) in tune)
+@pytest.mark.parametrize("heldout", HELDOUT_POOLS)
+def test_the_pools_are_disjoint(heldout):
+    tune = {bag(v): f"{p}:{k}" for p in TUNE_POOLS for k, v in _bank_entries(p).items()}
+    shared = sorted(k for k, v in _bank_entries(heldout).items() if bag(v) in tune)
     assert not shared, f"held-out entries equal to a tune phrasing: {shared}"
 
 
-def test_no_held_out_phrasing_is_a_training_text(trained):
+@pytest.mark.parametrize("heldout", HELDOUT_POOLS)
+def test_no_held_out_phrasing_is_a_training_text(trained, heldout):
     assert bag("a dog barking") in trained and bag("a coffee cup") in trained  # it reads them
-    hits = sorted(k for k, v in _bank_entries("heldout").items() if bag(v) in trained)
+    hits = sorted(k for k, v in _bank_entries(heldout).items() if bag(v) in trained)
     assert not hits, f"held-out entries equal to a training text: {hits}"
 
 
-def test_held_out_suite_queries_are_no_training_texts(trained):
+@pytest.mark.parametrize("heldout", HELDOUT_POOLS)
+def test_held_out_suite_queries_are_no_training_texts(trained, heldout):
     hits = []
-    for tf in _suites("heldout"):
+    for tf in _suites(heldout):
         for g in tf.goals:
             texts = [g.instruction] if g.instruction else []
             for lm in [g.query] if g.query else g.landmarks:
@@ -285,7 +289,7 @@ def _suites(pool: str):
     return [load_tasks(p) for p in sorted(d.glob("*.toml"))]
 
 
-@pytest.mark.parametrize(("pool", "seeds"), [("tune", TUNE_SEEDS), ("heldout", HELDOUT_SEEDS)])
+@pytest.mark.parametrize(("pool", "seeds"), list(POOL_SEEDS.items()))
 def test_shipped_paraphrase_suites_load_and_cover_every_goal_type(pool, seeds):
     from tabletop.eval.runner import collect_task_files
 
@@ -309,8 +313,8 @@ def test_paraphrase_seeds_are_used_nowhere_else():
     from tabletop.eval.suites import DEFAULT_SUITES
     from tabletop.train.vision import EVAL_SEED_BASE, VisionTrainConfig
 
-    ours = set(TUNE_SEEDS) | set(HELDOUT_SEEDS)
-    assert len(ours) == len(TUNE_SEEDS) + len(HELDOUT_SEEDS)
+    ours = {s for seeds in POOL_SEEDS.values() for s in seeds}
+    assert len(ours) == sum(len(seeds) for seeds in POOL_SEEDS.values())  # no two pools share
     shipped = {s["random"]["seed"] for _, s, _ in DEFAULT_SUITES if "random" in s}
     scans = {scan["seed"] for _, _, scan in DEFAULT_SUITES}
     cfg = VisionTrainConfig()
