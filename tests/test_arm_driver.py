@@ -4,7 +4,7 @@ import numpy as np
 import pybullet as pb
 import pytest
 
-from tabletop.arm.driver import ArmDriver, KinematicDriver, PyBulletDriver
+from tabletop.arm.driver import ArmDriver, KinematicDriver, PyBulletDriver, touching_points
 from tabletop.arm.errors import DriverError
 from tabletop.arm.model import HOME_Q, PandaModel
 from tabletop.arm.obstacles import Box, table_box
@@ -131,3 +131,23 @@ def test_reach_with_physics_touches_nothing(world):
         res = ctrl.move_to(target)
         assert res.reason == ReachReason.REACHED and res.error_m <= 0.01
     assert contacts == 0
+
+
+def test_touching_points_count_touches_not_close_passes():
+    """PyBullet reports a sphere 0.3 mm above a box as a contact point (positive distance):
+    a close pass, not a contact. One that overlaps by 1 mm touches."""
+    c = pb.connect(pb.DIRECT)
+    try:
+        box = pb.createCollisionShape(pb.GEOM_BOX, halfExtents=[0.05] * 3, physicsClientId=c)
+        ball = pb.createCollisionShape(pb.GEOM_SPHERE, radius=0.02, physicsClientId=c)
+        table = pb.createMultiBody(0, box, basePosition=[0, 0, 0], physicsClientId=c)
+        seen = {}
+        for gap in (0.0003, -0.001, 0.01):
+            b = pb.createMultiBody(1, ball, basePosition=[0, 0, 0.07 + gap], physicsClientId=c)
+            pb.performCollisionDetection(physicsClientId=c)
+            reported = len(pb.getContactPoints(table, b, physicsClientId=c))
+            seen[gap] = (reported, touching_points(pb, table, b, c))
+            pb.removeBody(b, physicsClientId=c)
+        assert seen == {0.0003: (1, 0), -0.001: (1, 1), 0.01: (0, 0)}
+    finally:
+        pb.disconnect(c)

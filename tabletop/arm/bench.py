@@ -42,7 +42,7 @@ import numpy as np
 
 from tabletop.arm.collision import CollisionChecker
 from tabletop.arm.diffik import MinkDiffIK, top_down_rotation
-from tabletop.arm.driver import PyBulletDriver
+from tabletop.arm.driver import PyBulletDriver, touching_points
 from tabletop.arm.ik import solve_ik
 from tabletop.arm.model import ARM_JOINT_NAMES, HOME_Q, PandaModel
 from tabletop.arm.obstacles import Box, Cylinder, table_box
@@ -283,7 +283,7 @@ def run_arm_benchmark(
         def count_contacts():  # after every physics step, local steps and trajectories alike
             nonlocal contacts
             for b in bodies:
-                contacts += len(pb.getContactPoints(robot, b, physicsClientId=cid))
+                contacts += touching_points(pb, robot, b, cid)
 
         driver.on_step = count_contacts
 

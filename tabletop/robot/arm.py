@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from tabletop.arm.driver import ArmDriver, PyBulletDriver
+from tabletop.arm.driver import ArmDriver, PyBulletDriver, touching_points
 from tabletop.arm.model import HOME_Q, PandaModel
 from tabletop.arm.reach import ReachConfig, ReachController, ReachResult
 from tabletop.mapping.targets import APPROACH_RADIUS_M, approach_point, surface_z
@@ -35,7 +35,8 @@ __all__ = ["ArmRobot", "SimArm"]
 
 class _ContactCountingDriver(PyBulletDriver):
     """A PyBulletDriver that counts robot contacts with given bodies after every physics step
-    (control steps and planned trajectories alike)."""
+    (control steps and planned trajectories alike): points that touch or overlap
+    (:func:`~tabletop.arm.driver.touching_points`)."""
 
     def __init__(self, client_id: int, body_id: int, others: list[int], **kw) -> None:
         super().__init__(client_id, body_id, on_step=self._count, **kw)
@@ -45,9 +46,7 @@ class _ContactCountingDriver(PyBulletDriver):
     def _count(self) -> None:
         pb = self._pb
         for b in self.others:
-            self.contacts += len(
-                pb.getContactPoints(self.body_id, b, physicsClientId=self.client_id)
-            )
+            self.contacts += touching_points(pb, self.body_id, b, self.client_id)
 
 
 class ArmRobot(RobotAPI):
