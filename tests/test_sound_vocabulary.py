@@ -178,3 +178,25 @@ def test_config_errors_name_the_field():
         AudioConfig(keep_ratio=0.0)
     with pytest.raises(ConfigError, match="text_min"):
         AudioConfig(text_min=2.0)
+
+
+def test_a_bank_sound_the_vocabulary_lacks_is_not_read_as_a_known_one(module):
+    """With the bank's other sounds as the alternative, words nearer a sound the encoder never
+    learnt (a thunderstorm, a car horn) read as that sound and are refused with it named; known
+    sounds in other words still read as themselves."""
+    text = text_encoder()
+    m = SoundMatcher(VOCAB, text)
+    assert "thunderstorm" in m.others and "dog" not in m.others
+    storm = m.match("thunder rumbling", np.zeros((1, 384)))
+    assert not storm.known and storm.other == "thunderstorm"
+    assert storm.other_score > storm.text_score + m.other_margin
+    # without the alternative, the same words ask for a known sound
+    alone = SoundMatcher(VOCAB, text, others={})
+    assert alone.match("thunder rumbling", np.zeros((1, 384))).other == ""
+    # known sounds in other words still read as themselves
+    for q in ("a dog woofing", "a ringing telephone", "someone banging nails in"):
+        assert m.match(q, np.zeros((1, 384))).known, q
+    h = module.heatmap("a car horn honking", 10.0, text, judge_at(0.5))
+    assert not h.found and "reads as 'car horn'" in h.reason and "not trained" in h.reason
+    with pytest.raises(ConfigError, match="other_margin"):
+        AudioConfig(other_margin=-0.1)

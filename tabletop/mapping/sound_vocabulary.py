@@ -11,7 +11,10 @@ A sound query is answered in two steps (:class:`SoundMatcher`):
    every category (the best phrasing counts: a prompt ensemble). The categories within
    ``text_margin`` of the best are what the query asks for ("a bird" may be chirping birds, an
    owl or a crow). A query below ``text_min`` to every phrasing names no sound the encoder knows:
-   it is not found, and the reason names the nearest known sound.
+   it is not found, and the reason names the nearest known sound. A query nearer (by more
+   than ``other_margin``) to a phrasing of a bank sound the vocabulary lacks than to every
+   known one reads as that sound ("thunder rumbling" is a thunderstorm, not rain): not found,
+   since the encoder was never taught to hear it.
 2. **Segments -> categories.** Each heard segment's embedding gives a posterior over the known
    categories: a softmax, at the learned temperature, of its cosine with each category's
    prototype (the normalised mean of the category's phrasing embeddings). A segment's score
@@ -183,6 +186,11 @@ class SoundQuery:
     log_odds: np.ndarray = field(repr=False)
     """(n_segments,) float64: ``log(scores / (1 - scores))``, computed without rounding to 1
     (what ranks segments whose posteriors all round to 1)."""
+    other: str = ""
+    """A bank sound the vocabulary lacks that the query reads as (then ``categories`` is
+    empty: the encoder was never taught to hear it)."""
+    other_score: float = -1.0
+    """The query's best cosine with ``other``'s phrasings."""
 
     @property
     def known(self) -> bool:
@@ -200,12 +208,19 @@ class SoundMatcher:
         text,
         text_min: float = 0.42,
         text_margin: float = 0.05,
+        others: Mapping[str, tuple[str, ...]] | None = None,
+        other_margin: float = 0.12,
     ) -> None:
         self.vocabulary = vocabulary
         self.text = text
         self.text_min = float(text_min)
         self.text_margin = float(text_margin)
+        if others is None:  # the bank's sounds this vocabulary lacks
+            others = {c: v for c, v in load_phrasings().items() if c not in vocabulary.categories}
+        self.others = {str(c): tuple(v) for c, v in others.items() if v}
+        self.other_margin = float(other_margin)
         self._targets: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+        self._other_targets: tuple[np.ndarray, list[str]] | None = None
 
     def targets(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(phrasing embeddings (T, dim), their category index (T,), prototypes (C, dim))."""
@@ -241,23 +256,54 @@ class SoundMatcher:
             return np.full(len(z), np.inf)
         return logsumexp(z[:, want], axis=1) - logsumexp(z[:, ~want], axis=1)
 
-    def category_scores(self, query: str) -> np.ndarray:
+    def category_scores(self, query: str, embedding: np.ndarray | None = None) -> np.ndarray:
         """(C,): the query's best cosine with each category's texts."""
         emb, owner, proto = self.targets()
-        s = emb @ np.asarray(self.text.encode_text([query])[0], np.float32)
+        if embedding is None:
+            embedding = self.text.encode_text([query])[0]
+        s = emb @ np.asarray(embedding, np.float32)
         out = np.full(len(proto), -np.inf)
         np.maximum.at(out, owner, s)
         return out
 
+    def nearest_other(self, embedding: np.ndarray) -> tuple[str, float]:
+        """The sound of :attr:`others` whose phrasing is nearest a query's ``embedding``, and
+        that cosine (``("", -1.0)`` without others)."""
+        if not self.others:
+            return "", -1.0
+        if self._other_targets is None:
+            texts, owner = [], []
+            for c, v in self.others.items():
+                texts += list(v)
+                owner += [c] * len(v)
+            self._other_targets = (np.asarray(self.text.encode_text(texts), np.float32), owner)
+        emb, owner = self._other_targets
+        s = emb @ np.asarray(embedding, np.float32)
+        j = int(np.argmax(s))
+        return owner[j], float(s[j])
+
     def match(self, query: str, embeddings: np.ndarray) -> SoundQuery:
         """``query`` against segments with these embeddings (N, dim)."""
-        per = self.category_scores(query)
+        e = np.asarray(self.text.encode_text([query])[0], np.float32)
+        per = self.category_scores(query, e)
         best = int(np.argmax(per))
         cats = self.vocabulary.categories
         n = len(embeddings)
         if per[best] < self.text_min:
             return SoundQuery(
                 query, (), float(per[best]), cats[best], np.zeros(n), np.full(n, -np.inf)
+            )
+        other, other_score = self.nearest_other(e)
+        if other and other_score > per[best] + self.other_margin:
+            return SoundQuery(
+                query,
+                (),
+                float(per[best]),
+                cats[best],
+                np.zeros(n),
+                np.full(n, -np.inf),
+                other,
+                other_score,
             )
         want = per >= per[best] - self.text_margin
         lo = self.log_odds(embeddings, want) if n else np.zeros(0)
