@@ -13,9 +13,10 @@ Geometric phrasings (case and the articles "the"/"a" aside; "table" may be left 
 - lateral: "left", "left-hand", "leftmost" / "right", "right-hand", "rightmost" (the outer
   thirds of the table's width);
 - depth: "front", "far", "farthest", "furthest", "opposite", "far side", "far end", "away from
-  the robot" (the half away from the robot) / "back", "near", "nearest", "closest", "near side",
-  "close to the robot", "next to the robot", "by the robot" (the half nearest the robot;
-  "arm" or "base" may stand for "robot");
+  the robot", "opposite the robot" (the half away from the robot) / "back", "near", "nearest",
+  "closest", "near side", "close to the robot", "next to the robot", "by the robot", "the
+  robot's side" / "end" / "half" (the half nearest the robot; "arm" or "base" may stand for
+  "robot");
 - "center"/"centre"/"central"/"middle" alone: the middle third in both directions; with a
   lateral or a depth word it is the middle of the other direction ("the middle of the left side");
 - corners: a lateral and a depth word together ("the far right corner", "front left").
@@ -60,11 +61,12 @@ _RIGHT = r"right\s+hand|rightmost|right"
 _ROBOT = r"(?:the\s+)?(?:robot|arm|base)"
 _FAR = (
     rf"(?:far(?:thest|ther)?|furthest|further)(?:\s+(?:end|side|part))?\s+(?:away\s+)?from\s+"
-    rf"{_ROBOT}|away\s+from\s+{_ROBOT}|"
+    rf"{_ROBOT}|away\s+from\s+{_ROBOT}|opposite\s+(?:to\s+|from\s+)?{_ROBOT}|"
     r"far\s+(?:side|end)|front|far(?:thest|ther)?|furthest|further|opposite"
 )
 _NEAR = (
     rf"(?:close(?:st)?|near(?:est)?|next)\s+(?:to\s+)?{_ROBOT}|by\s+{_ROBOT}|"
+    rf"{_ROBOT}\s+(?:side|end|half)|"
     r"near\s+(?:side|end)|back|near(?:est|er)?|closest"
 )
 _MID = r"center|centre|central|middle"
