@@ -180,10 +180,10 @@ def test_config_errors_name_the_field():
         AudioConfig(text_min=2.0)
 
 
-def test_a_bank_sound_the_vocabulary_lacks_is_not_read_as_a_known_one(module):
-    """With the bank's other sounds as the alternative, words nearer a sound the encoder never
-    learnt (a thunderstorm, a car horn) read as that sound and are refused with it named; known
-    sounds in other words still read as themselves."""
+def test_a_sound_the_vocabulary_lacks_is_not_read_as_a_known_one(module):
+    """With the phrasings file's other sounds as the alternative, words nearer a sound the
+    encoder never learnt (a thunderstorm, a car horn) read as that sound and are refused with
+    it named; known sounds in other words still read as themselves."""
     text = text_encoder()
     m = SoundMatcher(VOCAB, text)
     assert "thunderstorm" in m.others and "dog" not in m.others

@@ -69,12 +69,13 @@ class AudioConfig:
     text_margin: float = 0.05
     """Categories within this cosine of the query's best one are asked for too."""
     other_margin: float = 0.12
-    """A query nearer by more than this cosine to a phrasing of a bank sound the encoder's
-    vocabulary lacks (``tabletop/data/sound_phrasings.toml``) than to every known sound reads as
-    that sound: not found. Chosen on the tune pools' phrasings: the present sounds' gaps reach
-    0.10 ("finger clicks": mouse click over finger snapping), the absent sounds' start at 0.14
-    ("a submarine": sea waves over a toilet flush); only "a dripping tap", which the bank files
-    under water drops, is refused among 410 present phrasings, and 7 of 24 absent sounds are."""
+    """A query nearer by more than this cosine to a phrasing of a sound the encoder's vocabulary
+    lacks (``tabletop/data/sound_phrasings.toml`` names 14 sounds outside the bank) than to every
+    known sound reads as that sound: not found. Chosen on the tune pools' phrasings: the present
+    sounds' gaps reach 0.10 ("finger clicks": mouse click over finger snapping), the absent
+    sounds' start at 0.14 ("a submarine": sea waves over a toilet flush); only "a dripping tap"
+    (water drops in the phrasings file) is refused among 410 present phrasings, and 7 of 24
+    absent sounds are."""
     keep_ratio: float = 0.5
     """Segments scoring at least this share of the best stay hot."""
     tie_break: float = 0.05

@@ -12,9 +12,10 @@ A sound query is answered in two steps (:class:`SoundMatcher`):
    ``text_margin`` of the best are what the query asks for ("a bird" may be chirping birds, an
    owl or a crow). A query below ``text_min`` to every phrasing names no sound the encoder knows:
    it is not found, and the reason names the nearest known sound. A query nearer (by more
-   than ``other_margin``) to a phrasing of a bank sound the vocabulary lacks than to every
-   known one reads as that sound ("thunder rumbling" is a thunderstorm, not rain): not found,
-   since the encoder was never taught to hear it.
+   than ``other_margin``) to a phrasing of a sound the vocabulary lacks (the phrasings file
+   names 14 sounds outside the bank) than to every known one reads as that sound ("thunder
+   rumbling" is a thunderstorm, not rain): not found, since the encoder was never taught to
+   hear it.
 2. **Segments -> categories.** Each heard segment's embedding gives a posterior over the known
    categories: a softmax, at the learned temperature, of its cosine with each category's
    prototype (the normalised mean of the category's phrasing embeddings). A segment's score
@@ -187,8 +188,8 @@ class SoundQuery:
     """(n_segments,) float64: ``log(scores / (1 - scores))``, computed without rounding to 1
     (what ranks segments whose posteriors all round to 1)."""
     other: str = ""
-    """A bank sound the vocabulary lacks that the query reads as (then ``categories`` is
-    empty: the encoder was never taught to hear it)."""
+    """A sound of the phrasings file that the vocabulary lacks and the query reads as (then
+    ``categories`` is empty: the encoder was never taught to hear it)."""
     other_score: float = -1.0
     """The query's best cosine with ``other``'s phrasings."""
 
@@ -215,7 +216,7 @@ class SoundMatcher:
         self.text = text
         self.text_min = float(text_min)
         self.text_margin = float(text_margin)
-        if others is None:  # the bank's sounds this vocabulary lacks
+        if others is None:  # the phrasings file's sounds this vocabulary lacks
             others = {c: v for c, v in load_phrasings().items() if c not in vocabulary.categories}
         self.others = {str(c): tuple(v) for c, v in others.items() if v}
         self.other_margin = float(other_margin)
