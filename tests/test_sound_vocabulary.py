@@ -200,3 +200,24 @@ def test_a_sound_the_vocabulary_lacks_is_not_read_as_a_known_one(module):
     assert not h.found and "reads as 'car horn'" in h.reason and "not trained" in h.reason
     with pytest.raises(ConfigError, match="other_margin"):
         AudioConfig(other_margin=-0.1)
+
+
+def test_a_sound_sharing_a_phrasing_with_a_known_one_leads_to_it():
+    """Water drops (outside the bank) and water both have "water dripping": water drops'
+    words ("a dripping tap") ask for water instead of being refused; a sound that shares
+    nothing (a thunderstorm) still reads as itself."""
+    vocab = SoundVocabulary(
+        {
+            "water": tuple(phrases_for("water", "the sound of splashing, dripping water")),
+            "rain": tuple(phrases_for("rain", "the sound of rain falling")),
+        }
+    )
+    m = SoundMatcher(vocab, text_encoder())
+    assert "a dripping tap" in m.aliases["water"]
+    assert "water_drops" not in m.others and "thunderstorm" in m.others
+    tap = m.match("a dripping tap", np.zeros((1, 384)))
+    assert tap.categories == ("water",) and tap.other == ""
+    assert m.match("thunder rumbling", np.zeros((1, 384))).other == "thunderstorm"
+    # the prototypes are the vocabulary's own phrasings' (what the encoder was trained against)
+    plain = SoundMatcher(vocab, text_encoder(), others={})
+    np.testing.assert_allclose(m.targets()[2], plain.targets()[2])

@@ -218,21 +218,39 @@ class SoundMatcher:
         self.text_margin = float(text_margin)
         if others is None:  # the phrasings file's sounds this vocabulary lacks
             others = {c: v for c, v in load_phrasings().items() if c not in vocabulary.categories}
-        self.others = {str(c): tuple(v) for c, v in others.items() if v}
+        # A sound that shares a phrasing with a known category is a kind of it (water drops and
+        # water both "water dripping"): its phrasings lead to that category, not to a refusal.
+        own = {t.lower(): c for c in vocabulary.categories for t in vocabulary.texts[c]}
+        self.aliases: dict[str, tuple[str, ...]] = {}
+        self.others = {}
+        for c, v in others.items():
+            shared = [own[t.lower()] for t in v if t.lower() in own]
+            if shared:
+                self.aliases[shared[0]] = (*self.aliases.get(shared[0], ()), *v)
+            elif v:
+                self.others[str(c)] = tuple(v)
         self.other_margin = float(other_margin)
         self._targets: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
         self._other_targets: tuple[np.ndarray, list[str]] | None = None
 
     def targets(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(phrasing embeddings (T, dim), their category index (T,), prototypes (C, dim))."""
+        """(phrasing embeddings (T, dim), their category index (T,), prototypes (C, dim)). The
+        phrasings are the vocabulary's, then its :attr:`aliases` (which words lead to a
+        category); the prototypes are the vocabulary's phrasings' alone (what the encoder was
+        trained against)."""
         if self._targets is None:
             texts, owner = [], []
             for i, c in enumerate(self.vocabulary.categories):
                 texts += list(self.vocabulary.texts[c])
                 owner += [i] * len(self.vocabulary.texts[c])
+            n = len(texts)
+            for c, v in self.aliases.items():
+                texts += list(v)
+                owner += [self.vocabulary.categories.index(c)] * len(v)
             emb = np.asarray(self.text.encode_text(texts), np.float32)
             owner = np.array(owner)
-            proto = np.stack([emb[owner == i].mean(axis=0) for i in range(owner.max() + 1)])
+            own, mine = emb[:n], owner[:n]
+            proto = np.stack([own[mine == i].mean(axis=0) for i in range(mine.max() + 1)])
             proto /= np.linalg.norm(proto, axis=1, keepdims=True)
             self._targets = (emb, owner, proto)
         return self._targets
