@@ -90,15 +90,58 @@ class OracleGlobalImageEncoder:
         return l2_normalize(counts @ self._dense._table)
 
 
+def _default_sound_texts() -> dict[str, tuple[str, ...]] | None:
+    """The embedded default audio encoder's vocabulary texts (its checkpoint's), or None."""
+    try:
+        from tabletop.mapping.encoders.audio import DEFAULT_AUDIO_WEIGHTS, load_audio_checkpoint
+        from tabletop.mapping.sound_vocabulary import SoundVocabulary
+
+        meta = load_audio_checkpoint(DEFAULT_AUDIO_WEIGHTS)[1]
+        vocabulary = SoundVocabulary.from_meta(meta.get("vocabulary"))
+    except Exception:  # no torch, no weights, or foreign weights: the phrasings file instead
+        return None
+    return None if vocabulary is None else dict(vocabulary.texts)
+
+
 class OracleAudioEncoder:
-    """The caption embedding of the inserted clip that overlaps the segment most."""
+    """The label of the inserted clip that overlaps the segment most, as the prototype of its
+    category: an audio encoder that is never wrong, behind the same words -> categories step
+    as the embedded default (:mod:`tabletop.mapping.sound_vocabulary`; its vocabulary is the
+    default audio checkpoint's, or, where that cannot be read, every sound of the phrasings
+    file), so that the oracle row differs from the default's by what the audio network hears,
+    not by how words are read. A clip of a category outside the vocabulary, and events without
+    a category (older recordings), fall back to the caption's embedding."""
 
     BACKGROUND = "background noise"
+    #: Inverse temperature of the vocabulary: a segment's posterior is all on its own category.
+    LOGIT_SCALE = 100.0
 
     def __init__(self, text: TextEncoder, sound_events: list[dict]) -> None:
+        from tabletop.mapping.sound_vocabulary import (
+            SoundVocabulary,
+            load_phrasings,
+            phrases_for,
+        )
+
         self.text = text
         self.space, self.dim = text.space, text.dim
         self.events = [dict(e) for e in sound_events]
+        texts = _default_sound_texts()
+        if texts is None:
+            texts = {c: tuple(v) for c, v in load_phrasings().items()}
+            for e in self.events:
+                c = e.get("category")
+                if isinstance(c, str) and c:
+                    texts[c] = tuple(phrases_for(c, e["caption"]))
+        self.vocabulary = SoundVocabulary(texts, logit_scale=self.LOGIT_SCALE)
+        self._prototypes: dict[str, np.ndarray] = {}
+
+    def _prototype(self, category: str) -> np.ndarray:
+        """The normalised mean embedding of the category's texts (what the matcher uses)."""
+        if category not in self._prototypes:
+            emb = np.asarray(self.text.encode_text(list(self.vocabulary.texts[category])))
+            self._prototypes[category] = l2_normalize(emb.mean(axis=0))
+        return self._prototypes[category]
 
     def encode_audio(
         self, audio: np.ndarray, sample_rate: int, context: dict | None = None
@@ -109,5 +152,7 @@ class OracleAudioEncoder:
             o = min(t1, e["offset_s"]) - max(t0, e["onset_s"])
             if o > overlap:
                 best, overlap = e, o
+        if best is not None and best.get("category") in self.vocabulary.texts:
+            return self._prototype(best["category"])
         caption = best["caption"] if best is not None else self.BACKGROUND
         return self.text.encode_text([caption])[0]
