@@ -68,6 +68,29 @@ def test_region_box_of_an_object_and_of_a_place():
     assert hi[2] == pytest.approx(0.03) and np.array_equal(hi[:2], c[:2])  # the object's top
 
 
+def test_a_narrowed_object_is_a_landmark_by_its_whole_box():
+    from tabletop.mapping.heatmaps import fuse, point_heatmap_3d, scored_points_heatmap_xy
+
+    duck = np.zeros(GRID.shape, bool)
+    duck[10:16, 20:26, 0:5] = True  # a 6 x 6 x 5 cm object
+    other = np.zeros(GRID.shape, bool)
+    other[30:36, 20:26, 0:5] = True  # one of the same kind, 14 cm away
+    obj = Heatmap(GRID, point_heatmap_3d(GRID, duck | other, 10.0), "duck", "object", 10.0,
+                  0.9, True)  # fmt: skip
+    # a sound heard 10 cm to the duck's right: broad heat, highest at the duck's right edge
+    xy = GRID.centers(np.array([[12, 10, 0]]))[:, :2]
+    snd = Heatmap(GRID, scored_points_heatmap_xy(GRID, xy, np.ones(1), 2.5), "dog", "sound",
+                  2.5, 0.9, True)  # fmt: skip
+    fused = fuse(obj, snd)
+    occ = duck | other
+    # the product peaks on the duck's voxels nearest the sound, but the landmark is the duck
+    assert hottest_region(fused).sum() < duck.sum()
+    c, lo, hi = region_box(fused, occ)
+    np.testing.assert_allclose(lo, GRID.centers(np.array([[10, 20, 0]]))[0] - 0.005, atol=1e-9)
+    np.testing.assert_allclose(hi, GRID.centers(np.array([[15, 25, 4]]))[0] + 0.005, atol=1e-9)
+    np.testing.assert_allclose(c, GRID.centers(np.argwhere(duck)).mean(axis=0), atol=1e-9)
+
+
 def test_approach_point_clears_the_highest_surface_around():
     occ = np.zeros(GRID.shape, bool)
     occ[10, 20, :6] = True  # a 6 cm object at (0.105, 0.005)

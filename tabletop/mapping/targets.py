@@ -113,6 +113,28 @@ def max_position(heatmap: Heatmap, occupancy: np.ndarray) -> np.ndarray:
     return _centroid(heatmap.grid, occupancy, idx)
 
 
+def _landmark_region(heatmap: Heatmap) -> np.ndarray:
+    """Grid-shaped bool mask of the region a landmark occupies: the hottest region, or for a
+    fused heatmap whose first factor is a 3D region (an object narrowed by a sound or another
+    object: "the mug near the sound of X"), the whole region of that factor the product's
+    peak lies on. The product alone peaks at the object's voxel nearest the other factor, and
+    a relation to that one voxel would start from the object's edge, not its centre."""
+    mask = hottest_region(heatmap)
+    if heatmap.modality != "fused" or not heatmap.parts:
+        return mask
+    first = heatmap.parts[0]
+    idx = np.argwhere(mask)
+    peak = tuple(idx[int(np.argmax(heatmap.values[mask]))])
+    level = float(first.values[peak])
+    if not level >= 0.5 * first.peak:  # the peak is not on the first factor's own region
+        return mask
+    labels, _ = ndimage.label(first.values >= level - _TIE, structure=np.ones((3, 3, 3)))
+    region = labels == labels[peak]
+    if _is_column(heatmap.grid, np.argwhere(region)):
+        return mask  # a place seen from above (a sound, an area) has no box to keep
+    return region
+
+
 def region_box(
     heatmap: Heatmap, occupancy: np.ndarray, radius: float = APPROACH_RADIUS_M
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -124,7 +146,7 @@ def region_box(
     within ``radius`` of it (an object's top, else the table): a target level with the
     landmark's top clears what stands there.
     """
-    idx = np.argwhere(hottest_region(heatmap))
+    idx = np.argwhere(_landmark_region(heatmap))
     grid = heatmap.grid
     p = _centroid(grid, occupancy, idx)
     if _is_column(grid, idx):
