@@ -260,6 +260,11 @@ def test_one_or_two_sound_segments_are_judged_not_found_by_fiat(avlmap):
     m.sounds.segments.append(AudioSegment(0.0, 1.0))
     m.sounds.embeddings.append(m.audio_text.encode_text(["a dog barking"])[0])
     m.sounds.positions.append(np.array([0.4, 0.0, 0.3]))
+    # the oracle reads words through a vocabulary (which refuses the submarine by its words);
+    # the reference sounds stand in for an encoder without one
+    assert m.sounds.vocabulary is not None
+    assert "names no sound" in m.sound_heatmap("a submarine sonar ping").reason
+    m.sounds.vocabulary = None
     assert m.sound_heatmap("a dog barking").found
     absent = m.sound_heatmap("a submarine sonar ping")
     assert not absent.found and "confidence" in absent.reason
