@@ -84,7 +84,6 @@ POOL_SEEDS = {
     "tune-2": (760, 761, 762),
     "heldout-2": (810, 811, 812, 813),
 }
-_SEEDS = POOL_SEEDS
 
 #: Absent goals per scene: objects outside the catalog, catalog kinds the scene lacks, a colour
 #: no object of a present kind has, bank sounds the scan did not play, sounds outside the bank.
@@ -574,7 +573,7 @@ def absent_goals(
 # ---------------------------------------------------------------------------- suites
 def suite_sections(pool: str) -> list[tuple[str, dict, dict]]:
     """(file stem, [scene], [scan]) of the pool's suites: generated scenes of
-    :data:`TUNE_SEEDS` or :data:`HELDOUT_SEEDS`, scanned like the shipped random suites (the scan
+    :data:`POOL_SEEDS`, scanned like the shipped random suites (the scan
     seed is the scene seed)."""
     if pool not in POOLS:
         raise ConfigError(f"unknown paraphrase pool {pool!r}; valid: {list(POOLS)}")
@@ -584,7 +583,7 @@ def suite_sections(pool: str) -> list[tuple[str, dict, dict]]:
             {"random": {"seed": s, "count": 9, "duplicates": 2}},
             {"seed": s, **_SCAN},
         )
-        for s in _SEEDS[pool]
+        for s in POOL_SEEDS[pool]
     ]
 
 
