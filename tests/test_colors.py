@@ -3,7 +3,8 @@
 import numpy as np
 import pytest
 
-from tabletop.mapping.colors import BASIC_COLOURS, COLOR_NAMES, rgb_to_lab, split_color_words
+from tabletop.mapping.colors import BASIC_COLOURS, COLOR_NAMES, rgb_to_lab
+from tabletop.mapping.colour_words import color_parses, split_color_words
 
 
 def test_lab_of_reference_colours():
@@ -45,6 +46,38 @@ def test_lab_of_reference_colours():
 )
 def test_colour_words_are_split_from_the_rest(text, colour, rest):
     assert split_color_words(text) == (colour, rest)
+
+
+@pytest.mark.parametrize(
+    ("text", "readings"),
+    [
+        # a word right before a colour, with more of the thing after it: one colour name too
+        ("the lobster red duck", [("red", "the lobster duck"), ("lobster red", "the duck")]),
+        # a colour name that is no basic term, after a word: a compound noun too
+        (
+            "a milk chocolate bear",
+            [
+                ("chocolate", "a milk bear"),
+                ("milk chocolate", "a bear"),
+                ("", "a milk chocolate bear"),
+            ],
+        ),
+        (
+            "the blue milk chocolate mug",
+            [("blue chocolate", "the milk mug"), ("blue", "the milk chocolate mug")],
+        ),
+        # nothing before the colour, a modifier, or nothing after it: one reading
+        ("the red mug", [("red", "the mug")]),
+        ("the dark red mug", [("dark red", "the mug")]),
+        ("the mug that is red", [("red", "the mug that is")]),
+        ("the cube in red", [("red", "the cube")]),
+        ("the ball with black patches", [("black", "the ball with patches")]),
+        ("the orange", [("", "the orange")]),
+    ],
+)
+def test_colour_readings_come_first_and_compounds_after(text, readings):
+    assert color_parses(text) == readings
+    assert split_color_words(text) == readings[0]
 
 
 def test_every_name_belongs_to_a_basic_colour_term():

@@ -134,6 +134,7 @@ def build_map(recording, encoders: str, config=None, progress=None, **kwargs):
 QUERY_TIME_SOURCES = frozenset(
     (
         "mapping/object_module.py",
+        "mapping/colour_words.py",
         "mapping/shape.py",
         "mapping/heatmaps.py",
         "mapping/targets.py",

@@ -14,26 +14,20 @@ comparison goes through the text encoder, so it is not a lookup of the simulator
   those names; any word the text encoder places near a lexicon name scores — "scarlet" near
   "red", "navy" near "dark blue" — not only the lexicon's own names.
 
-:func:`split_color_words` says which words of a query are colour words: lexicon names, their
-"-ish" forms and light/dark/pale/bright modifiers.
+:mod:`tabletop.mapping.colour_words` says which words of a query are colour words.
 """
 
 from __future__ import annotations
-
-import re
 
 import numpy as np
 
 __all__ = [
     "BASIC_COLOURS",
-    "COLOR_LINK_WORDS",
     "COLOR_MODIFIERS",
     "COLOR_NAMES",
-    "FILLER_WORDS",
     "delta_e",
     "rgb_to_lab",
     "shaded_lab",
-    "split_color_words",
 ]
 
 #: The basic colour terms of English: every lexicon name belongs to one of them.
@@ -251,85 +245,3 @@ def rgb_to_lab(rgb) -> np.ndarray:
     a = 500 * (f[..., 0] - f[..., 1])
     b = 200 * (f[..., 1] - f[..., 2])
     return np.stack([L, a, b], axis=-1)
-
-
-_THING = frozenset(("one", "thing", "object", "something", "item"))
-#: Words that name no particular thing: "the red one", "something red".
-FILLER_WORDS = _THING | {"the", "a", "an", "that", "is", "this", "its", "it"}
-_WORD = re.compile(r"[a-z]+(?:-[a-z]+)*")
-
-#: Words that only tie a colour to the thing: "the cube in red", "a red-coloured cube", "the
-#: block painted blue". Dropped with the colour phrase when they stand next to it.
-COLOR_LINK_WORDS = frozenset(
-    """in coloured colored colour color painted tinted hued shaded toned""".split()
-)
-
-
-def split_color_words(text: str) -> tuple[str, str]:
-    """(colour phrase, the rest) of a query: "the dark blue coffee mug" -> ("dark blue",
-    "the coffee mug"). Colour words are lexicon names (one or two words), their "-ish" forms
-    ("reddish", "bluish"), the :data:`COLOR_MODIFIERS` before one and hyphenated compounds
-    that end in one, whatever their first word ("grass-green", "sky-blue"); words that only tie
-    the colour to the thing ("in red", "red-coloured": :data:`COLOR_LINK_WORDS`) go with the
-    colour. The colour phrase is "" when the query names none, or when nothing but a colour
-    name is left ("the orange", "a lemon": then the name is the thing asked for)."""
-    raw = _WORD.findall(str(text).lower())
-    words: list[str] = []
-    for w in raw:
-        parts = w.split("-")
-        if w in COLOR_NAMES or len(parts) == 1:
-            words.append(w)
-        elif " ".join(parts) in COLOR_NAMES or parts[0] in COLOR_MODIFIERS:
-            words += parts  # "light-grey" is "light grey"
-        elif _ish(parts[-1]) in COLOR_NAMES or "-".join(parts[-2:]) in COLOR_NAMES:
-            words.append(w)  # "grass-green", "sky-blue", "jet-black": one colour word
-        else:
-            words += parts
-    names = set(COLOR_NAMES)
-
-    def is_colour(word: str) -> bool:
-        parts = word.split("-")
-        return _ish(word) in names or (len(parts) > 1 and _ish(parts[-1]) in names)
-
-    colour: list[str] = []
-    rest: list[str] = []
-    where: list[int] = []  # positions of the colour words
-    i = 0
-    while i < len(words):
-        w = words[i]
-        pair = " ".join(words[i : i + 2])
-        if pair in names:
-            colour.append(pair)
-            where += [i, i + 1]
-            i += 2
-            continue
-        if is_colour(w):
-            colour.append(_ish(w) if w not in names else w)
-            where.append(i)
-        elif w in COLOR_MODIFIERS and i + 1 < len(words) and is_colour(words[i + 1]):
-            colour.append(w)
-            where.append(i)
-        else:
-            rest.append(w)
-        i += 1
-    if colour and not [w for w in rest if w not in FILLER_WORDS]:
-        if not [w for w in rest if w in _THING]:
-            return "", " ".join(words)  # "the orange", "a lemon": the colour name is the noun
-    if colour:
-        near = {j for k in where for j in (k - 1, k + 1)}
-        rest = [
-            w
-            for k, w in enumerate(words)
-            if k not in where and not (w in COLOR_LINK_WORDS and k in near)
-        ]
-    return " ".join(colour), " ".join(rest)
-
-
-def _ish(word: str) -> str:
-    """ "reddish" -> "red", "bluish" -> "blue", "greyish" -> "grey"; other words unchanged."""
-    if word.endswith("ish") and len(word) > 5:
-        stem = word[:-3]
-        for cand in (stem, stem[:-1], stem + "e"):  # redd-ish, blu-ish, purpl-ish
-            if cand in COLOR_NAMES:
-                return cand
-    return word

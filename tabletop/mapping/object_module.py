@@ -5,8 +5,9 @@ geometry, each with a fused embedding and a measured colour). A query is answere
 steps, each with its own reason when it fails:
 
 1. **Words to the vocabulary.** The query is split into a colour phrase and the rest
-   (:func:`~tabletop.mapping.colors.split_color_words`). The rest is scored by the text encoder
-   against every name of the map's vocabulary and that name's descriptions (what it is, its
+   (:func:`~tabletop.mapping.colour_words.color_parses`: its readings are tried in order, and
+   the first that finds something answers). The rest is scored by the text encoder against
+   every name of the map's vocabulary and that name's descriptions (what it is, its
    shape, material, use): a person's word for a thing ("coffee cup", "plush bear") lands on the
    name ("mug", "teddy bear") even where the image network never saw that word. The words are
    also scored against ``others``, everyday things none of the vocabulary is
@@ -57,14 +58,8 @@ from pathlib import Path
 import numpy as np
 
 from tabletop.errors import AssetError, ConfigError
-from tabletop.mapping.colors import (
-    BASIC_COLOURS,
-    COLOR_NAMES,
-    FILLER_WORDS,
-    delta_e,
-    shaded_lab,
-    split_color_words,
-)
+from tabletop.mapping.colors import BASIC_COLOURS, COLOR_NAMES, delta_e, shaded_lab
+from tabletop.mapping.colour_words import FILLER_WORDS, color_parses, split_color_words
 from tabletop.mapping.heatmaps import Heatmap, Judge, point_heatmap_3d
 from tabletop.mapping.instances import InstanceConfig, InstanceSet, ObjectInstance, support_of
 from tabletop.mapping.voxel_map import VoxelMap
@@ -372,10 +367,11 @@ class ObjectModule:
                 done[i] = shape_features(centers[i.rows], vs, base.z)
         return np.stack([done[i] for i in instances])
 
-    def match(self, query: str) -> InstanceMatch:
-        """Score ``query`` against every instance (see the module docstring)."""
+    def match(self, query: str, reading: tuple[str, str] | None = None) -> InstanceMatch:
+        """Score ``query`` against every instance (see the module docstring), its words read
+        as ``reading`` ((colour phrase, the rest): default :func:`split_color_words`'s)."""
         cfg = self.config
-        colour, words = split_color_words(query)
+        colour, words = reading if reading is not None else split_color_words(query)
         inst = self.instances.items
         n = len(inst)
         T, owner, _, _ = self._vocab_targets()
@@ -392,7 +388,14 @@ class ObjectModule:
             want |= np.array([content[-1] in name.split() for name in self.vocabulary])
             names = tuple(str(x) for x in np.array(self.vocabulary)[want])
             weight = np.exp((per - per[best]) / cfg.name_temperature)
-            other, other_score = self._nearest_other(e)
+            # "the tin-can-shaped toy" is a toy: a thing it is likened to is no other thing
+            plain = _without_likeness(words)
+            if plain == words:
+                other, other_score = self._nearest_other(e)
+            elif [w for w in plain.split() if w not in FILLER_WORDS]:
+                other, other_score = self._nearest_other(self.text.encode_text([plain])[0])
+            else:
+                other, other_score = "", -1.0
         else:  # "something red": any object
             names, text_score, nearest = self.vocabulary, 1.0, ""
             other, other_score = "", -1.0
@@ -548,7 +551,18 @@ class ObjectModule:
             return Heatmap.not_found(grid, query, "object", decay, "the map is empty")
         if not self.uses_instances:
             return self._voxel_heatmap(query, decay, judge)
-        m = self.match(query)
+        first = None
+        for reading in color_parses(query):
+            h = self._instance_heatmap(query, self.match(query, reading), decay, judge)
+            if h.found:
+                return h
+            first = first or h
+        return first
+
+    def _instance_heatmap(self, query: str, m: InstanceMatch, decay: float, judge: Judge):
+        """Heat around the instances ``m`` ranks best; not found, with the reason, when none
+        is what the query asks."""
+        grid = self.voxels.grid
         if m.text_score < self.config.text_min:
             return Heatmap.not_found(
                 grid,
@@ -629,6 +643,25 @@ BACKGROUND_TIE = 1e-4
 
 #: A palette colour covering less of an instance than this share does not speak for it.
 PALETTE_MIN_SHARE = 0.25
+
+
+#: "X-shaped", "shaped like X", "in the shape of X", "like X": words that liken the thing to
+#: another (hyphens are spaces here; X is one or two words, or up to a joining word).
+_LIKENESS = re.compile(
+    r"\b(?:shaped\s+like|in\s+the\s+shape\s+of|looks?\s+like|like)\s+(?:(?:a|an|the)\s+)?"
+    r"[a-z']+(?:\s+(?!with\b|and\b|near\b|on\b|by\b)[a-z']+)?"
+    r"|(?:\b(?!a\b|an\b|the\b)[a-z']+\s+)?\b[a-z']+\s+shaped\b(?!\s+like)"
+)
+
+
+def _without_likeness(words: str) -> str:
+    """``words`` without what they liken the thing to ("the tin can shaped toy" -> "the toy",
+    "a toy shaped like a barrel" -> "a toy"); the words themselves when they liken nothing."""
+    return (
+        " ".join(_LIKENESS.sub(" ", words).split())
+        if "shape" in words or "like" in words
+        else words
+    )
 
 
 def _colour_of_a_part(query: str, colour: str) -> bool:

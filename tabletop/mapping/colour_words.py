@@ -1,0 +1,161 @@
+"""Colour words of a query: which words name a colour, and which name the thing.
+
+:func:`split_color_words` splits a query into its colour phrase and the rest ("the dark blue
+coffee mug" -> "dark blue", "the coffee mug"); :func:`color_parses` adds the other readings a
+noun phrase allows ("tomato red" one colour; "hot chocolate" a drink, not a colour), for the
+object module to try in order. The colour names are :data:`~tabletop.mapping.colors.COLOR_NAMES`.
+
+Read at query time only (a map holds nothing this module computes).
+"""
+
+from __future__ import annotations
+
+import re
+
+from tabletop.mapping.colors import BASIC_COLOURS, COLOR_MODIFIERS, COLOR_NAMES
+
+__all__ = ["COLOR_LINK_WORDS", "FILLER_WORDS", "color_parses", "split_color_words"]
+
+_THING = frozenset(("one", "thing", "object", "something", "item"))
+#: Words that name no particular thing: "the red one", "something red".
+FILLER_WORDS = _THING | {"the", "a", "an", "that", "is", "this", "its", "it"}
+_WORD = re.compile(r"[a-z]+(?:-[a-z]+)*")
+
+#: Words that only tie a colour to the thing: "the cube in red", "a red-coloured cube", "the
+#: block painted blue". Dropped with the colour phrase when they stand next to it.
+COLOR_LINK_WORDS = frozenset(
+    """in coloured colored colour color painted tinted hued shaded toned""".split()
+)
+
+
+def split_color_words(text: str) -> tuple[str, str]:
+    """(colour phrase, the rest) of a query: "the dark blue coffee mug" -> ("dark blue",
+    "the coffee mug"). Colour words are lexicon names (one or two words), their "-ish" forms
+    ("reddish", "bluish"), the :data:`COLOR_MODIFIERS` before one and hyphenated compounds
+    that end in one, whatever their first word ("grass-green", "sky-blue"); words that only tie
+    the colour to the thing ("in red", "red-coloured": :data:`COLOR_LINK_WORDS`) go with the
+    colour. The colour phrase is "" when the query names none, or when nothing but a colour
+    name is left ("the orange", "a lemon": then the name is the thing asked for)."""
+    return color_parses(text)[0]
+
+
+#: Words that join the parts of a noun phrase; never the first word of a compound.
+_JOINING = frozenset(
+    """with of on in at to and or near by from for like as than that which who has have
+    having""".split()
+)
+
+
+def color_parses(text: str) -> list[tuple[str, str]]:
+    """The ways to read a query's colour words, most likely first: (colour phrase, the rest)
+    pairs, the first being :func:`split_color_words`'s. Two other readings follow where a word
+    stands right before a colour name with more of the noun phrase after it:
+
+    - the word and the colour are one colour name ("tomato red", "peacock blue", "soot
+      black"): the word joins the colour phrase, rather than being read as the thing;
+    - a colour name that is not a basic term is part of a compound noun with the word before
+      it ("hot chocolate" in "the hot chocolate mug"): it stays with the thing.
+
+    A caller tries them in order and keeps the first that finds something: the first
+    reading when it does, so that words the lexicon calls colours stay colours."""
+    words, where = _colour_positions(text)
+    first = _reading(words, where)
+    out = [first]
+    if not where:
+        return out
+    content = [
+        k
+        for k, w in enumerate(words)
+        if k not in where and w not in FILLER_WORDS and w not in COLOR_LINK_WORDS
+    ]
+    i = min(where)
+    prev = i - 1
+    after = [k for k in content if k > max(where)]
+    if (
+        prev >= 0
+        and prev in content
+        and words[prev] not in _JOINING
+        and words[prev] not in COLOR_MODIFIERS
+        and after
+        and first[0]
+    ):
+        out.append(_reading(words, sorted({prev, *where})))
+    for k in sorted(where):
+        name = _ish(words[k])
+        single = name in COLOR_NAMES and " " not in name and name not in BASIC_COLOURS
+        if (
+            single
+            and k - 1 in content
+            and words[k - 1] not in _JOINING
+            and [j for j in content if j > k]
+        ):
+            out.append(_reading(words, [j for j in where if j != k], keep_names=True))
+    seen: set[tuple[str, str]] = set()
+    return [r for r in out if not (r in seen or seen.add(r))]
+
+
+def _colour_positions(text: str) -> tuple[list[str], list[int]]:
+    """The query's words (hyphenated colour compounds one word, others split) and the
+    positions of its colour words."""
+    raw = _WORD.findall(str(text).lower().replace("-ish", "ish"))
+    words: list[str] = []
+    for w in raw:
+        parts = w.split("-")
+        if w in COLOR_NAMES or len(parts) == 1:
+            words.append(w)
+        elif " ".join(parts) in COLOR_NAMES or parts[0] in COLOR_MODIFIERS:
+            words += parts  # "light-grey" is "light grey"
+        elif _ish(parts[-1]) in COLOR_NAMES or "-".join(parts[-2:]) in COLOR_NAMES:
+            words.append(w)  # "grass-green", "sky-blue", "jet-black": one colour word
+        else:
+            words += parts
+    names = set(COLOR_NAMES)
+
+    def is_colour(word: str) -> bool:
+        parts = word.split("-")
+        return _ish(word) in names or (len(parts) > 1 and _ish(parts[-1]) in names)
+
+    where: list[int] = []
+    i = 0
+    while i < len(words):
+        if i + 1 < len(words) and " ".join(words[i : i + 2]) in names:
+            where += [i, i + 1]
+            i += 2
+            continue
+        w = words[i]
+        if is_colour(w) or (
+            w in COLOR_MODIFIERS and i + 1 < len(words) and is_colour(words[i + 1])
+        ):
+            where.append(i)
+        i += 1
+    return words, where
+
+
+def _reading(words: list[str], where, keep_names: bool = False) -> tuple[str, str]:
+    """(colour phrase, the rest) with the words at ``where`` as the colour. With
+    ``keep_names`` a lone colour name left in the rest is not taken for the thing asked."""
+    where = sorted(where)
+    colour = [_ish(words[k]) if words[k] not in COLOR_NAMES else words[k] for k in where]
+    rest = [w for k, w in enumerate(words) if k not in where]
+    if not colour:
+        return "", " ".join(words)
+    if not keep_names and not [w for w in rest if w not in FILLER_WORDS]:
+        if not [w for w in rest if w in _THING]:
+            return "", " ".join(words)  # "the orange", "a lemon": the colour name is the noun
+    near = {j for k in where for j in (k - 1, k + 1)}
+    rest = [
+        w
+        for k, w in enumerate(words)
+        if k not in where and not (w in COLOR_LINK_WORDS and k in near)
+    ]
+    return " ".join(colour), " ".join(rest)
+
+
+def _ish(word: str) -> str:
+    """ "reddish" -> "red", "bluish" -> "blue", "greyish" -> "grey"; other words unchanged."""
+    if word.endswith("ish") and len(word) > 5:
+        stem = word[:-3]
+        for cand in (stem, stem[:-1], stem + "e"):  # redd-ish, blu-ish, purpl-ish
+            if cand in COLOR_NAMES:
+                return cand
+    return word
