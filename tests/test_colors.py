@@ -62,9 +62,10 @@ def test_colour_words_are_split_from_the_rest(text, colour, rest):
                 ("", "a milk chocolate bear"),
             ],
         ),
+        # ... and the colour phrase in one piece comes before one a word of the thing splits
         (
             "the blue milk chocolate mug",
-            [("blue chocolate", "the milk mug"), ("blue", "the milk chocolate mug")],
+            [("blue", "the milk chocolate mug"), ("blue chocolate", "the milk mug")],
         ),
         # nothing before the colour, a modifier, or nothing after it: one reading
         ("the red mug", [("red", "the mug")]),
@@ -98,3 +99,18 @@ def test_shaded_lab_darkens_a_colour_and_keeps_it_at_full_light():
     assert np.all(lab[1, :, 0] < lab[0, :, 0] - 10)  # darker
     hue = np.arctan2(lab[:, 0, 2], lab[:, 0, 1])
     assert abs(hue[1] - hue[0]) < 0.1  # the same hue
+
+
+def test_the_survey_names_load_without_the_lexicons_and_a_bad_file_is_named(tmp_path):
+    from tabletop.errors import AssetError
+    from tabletop.mapping.colour_words import survey_colours, survey_words
+
+    names = survey_colours()
+    assert len(names) > 500 and not set(names) & set(COLOR_NAMES)
+    assert names["aubergine"] == (0x3D, 0x07, 0x34)
+    assert survey_words("the peacock blue and aubergine mug") == ["peacock blue", "aubergine"]
+    assert survey_words("the red mug") == []
+    bad = tmp_path / "bad.toml"
+    bad.write_text('format = "tabletop-colour-names"\nversion = 1\n[names]\nmoss = "green"\n')
+    with pytest.raises(AssetError, match="moss"):
+        survey_colours(bad)

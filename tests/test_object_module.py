@@ -140,8 +140,8 @@ def test_a_thing_outside_the_vocabulary_is_refused_by_rank_not_by_a_high_bar(sce
     assert ours.match("wine bottle").text_score >= ObjectConfig().text_min
     bottle = ours.heatmap("wine bottle", 10.0, judge_at(0.2))
     assert not bottle.found and "reads as 'wine bottle'" in bottle.reason and bottle.peak == 0.0
-    # without the other things the same query reaches the mugs
-    assert plain.heatmap("wine bottle", 10.0, judge_at(0.2)).found
+    # without the other things the same query reaches the mugs ("wine" would be a colour)
+    assert plain.heatmap("water bottle", 10.0, judge_at(0.2)).found
     # looser words for a mug than its label are still found
     cup = ours.heatmap("the thing you drink tea from", 10.0, judge_at(0.2))
     assert cup.found and (_lands_on(ours, cup, "red mug") or _lands_on(ours, cup, "blue mug"))
@@ -314,3 +314,42 @@ def test_of_two_objects_a_colour_fits_the_nearer_one_is_meant():
     for lo, hi, _ in bears.values():
         idx, _ = GRID.world_to_index(np.array([np.add(lo, hi) / 2]))
         assert both.values[tuple(idx[0])] == pytest.approx(1.0)
+
+
+def test_a_survey_colour_name_the_lexicon_lacks_reads_as_its_colour(scene):
+    """ "sapphire" and "cherry" are no lexicon names: the survey's colour for them picks the
+    mug, and a thing of no such colour stays not found; "tea" names a drink a mug holds as
+    well as a green, so "the tea mug" still finds a mug that is not green."""
+    from tabletop.mapping.colors import COLOR_NAMES
+    from tabletop.mapping.colour_words import survey_colours
+
+    assert "sapphire" not in COLOR_NAMES and "sapphire" in survey_colours()
+    for q, name in (("the sapphire mug", "blue mug"), ("the cherry mug", "red mug")):
+        h = scene.heatmap(q, 10.0, judge_at(0.2))
+        assert h.found and _lands_on(scene, h, name), (q, h.reason)
+    absent = scene.heatmap("the cherry duck", 10.0, judge_at(0.2))  # the duck is yellow
+    assert not absent.found and "cherry" in absent.reason
+    assert scene.readings("the cherry duck") == [("cherry", "the duck")]
+    tea = scene.readings("the tea mug")
+    assert tea[0] == ("tea", "the mug") and ("", "the tea mug") in tea
+    assert scene.heatmap("the tea mug", 10.0, judge_at(0.2)).found
+
+
+def test_other_readings_of_colour_words_are_tried_when_the_first_finds_nothing(scene):
+    # "lobster red": one colour, not a lobster; "milk chocolate": a drink, the mug is blue
+    h = scene.heatmap("the lobster red coffee mug", 10.0, judge_at(0.2))
+    assert h.found and _lands_on(scene, h, "red mug"), h.reason
+    h = scene.heatmap("the blue milk chocolate mug", 10.0, judge_at(0.2))
+    assert h.found and _lands_on(scene, h, "blue mug"), h.reason
+    assert not scene.heatmap("the purple milk chocolate mug", 10.0, judge_at(0.2)).found
+
+
+def test_a_thing_the_words_liken_the_object_to_is_no_other_thing(scene):
+    from tabletop.mapping.object_module import _without_likeness
+
+    assert _without_likeness("the tin can shaped toy") == "the toy"
+    assert _without_likeness("a toy shaped like a barrel") == "a toy"
+    assert _without_likeness("the wine bottle") == "the wine bottle"
+    assert scene.heatmap("the teapot shaped cup", 10.0, judge_at(0.2)).found
+    teapot = scene.heatmap("the teapot", 10.0, judge_at(0.2))
+    assert not teapot.found and "reads as" in teapot.reason

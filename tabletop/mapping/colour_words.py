@@ -11,10 +11,26 @@ Read at query time only (a map holds nothing this module computes).
 from __future__ import annotations
 
 import re
+import tomllib
+from functools import cache
+from pathlib import Path
 
+from tabletop.errors import AssetError
 from tabletop.mapping.colors import BASIC_COLOURS, COLOR_MODIFIERS, COLOR_NAMES
+from tabletop.paths import DATA_DIR
 
-__all__ = ["COLOR_LINK_WORDS", "FILLER_WORDS", "color_parses", "split_color_words"]
+__all__ = [
+    "COLOR_LINK_WORDS",
+    "FILLER_WORDS",
+    "SURVEY_PATH",
+    "color_parses",
+    "split_color_words",
+    "survey_colours",
+    "survey_words",
+]
+
+#: More colour names, beside the lexicon's: the xkcd colour survey's (CC0).
+SURVEY_PATH = DATA_DIR / "colours" / "survey.toml"
 
 _THING = frozenset(("one", "thing", "object", "something", "item"))
 #: Words that name no particular thing: "the red one", "something red".
@@ -46,7 +62,46 @@ _JOINING = frozenset(
 )
 
 
-def color_parses(text: str) -> list[tuple[str, str]]:
+@cache
+def survey_colours(path: str | Path = SURVEY_PATH) -> dict[str, tuple[int, int, int]]:
+    """Colour name -> sRGB (0-255) of the colour survey (:data:`SURVEY_PATH`), less the
+    lexicon's own names, the colour modifiers and the filler words. AssetError: a malformed
+    file (naming the entry)."""
+    try:
+        d = tomllib.loads(Path(path).read_text())
+    except (OSError, tomllib.TOMLDecodeError) as e:
+        raise AssetError(f"colour names {path} are unreadable: {e}") from None
+    if d.get("format") != "tabletop-colour-names" or not isinstance(d.get("names"), dict):
+        raise AssetError(f"{path}: expected format 'tabletop-colour-names' with a [names] table")
+    out = {}
+    for name, hexa in d["names"].items():
+        if not (isinstance(hexa, str) and re.fullmatch(r"#[0-9a-f]{6}", hexa)):
+            raise AssetError(f"{path} [names].{name!r}: expected '#rrggbb', got {hexa!r}")
+        if not re.fullmatch(r"[a-z]+(?: [a-z]+)?", name):
+            raise AssetError(f"{path} [names].{name!r}: expected one or two lower-case words")
+        if name in COLOR_NAMES or name in COLOR_MODIFIERS or name in FILLER_WORDS:
+            continue
+        out[name] = (int(hexa[1:3], 16), int(hexa[3:5], 16), int(hexa[5:7], 16))
+    return out
+
+
+def survey_words(text: str) -> list[str]:
+    """The survey's colour names in ``text`` that the lexicon does not have (two-word names
+    first, then the single words not inside one), in the order they stand."""
+    names = survey_colours()
+    words = _WORD.findall(str(text).lower().replace("-", " "))
+    out, skip = [], set()
+    for i in range(len(words)):
+        pair = " ".join(words[i : i + 2])
+        if i + 1 < len(words) and pair in names and pair not in COLOR_NAMES:
+            out.append(pair)
+            skip |= {i, i + 1}
+        elif i not in skip and words[i] in names:
+            out.append(words[i])
+    return out
+
+
+def color_parses(text: str, extra=frozenset()) -> list[tuple[str, str]]:
     """The ways to read a query's colour words, most likely first: (colour phrase, the rest)
     pairs, the first being :func:`split_color_words`'s. Two other readings follow where a word
     stands right before a colour name with more of the noun phrase after it:
@@ -57,17 +112,20 @@ def color_parses(text: str) -> list[tuple[str, str]]:
       it ("hot chocolate" in "the hot chocolate mug"): it stays with the thing.
 
     A caller tries them in order and keeps the first that finds something: the first
-    reading when it does, so that words the lexicon calls colours stay colours."""
-    words, where = _colour_positions(text)
+    reading when it does (a reading whose colour words a word of the thing splits comes
+    after those whose colour phrase is in one piece), so that words the lexicon calls
+    colours stay colours. ``extra``: more colour names (of :func:`survey_colours`) to read
+    as colours in this query."""
+    words, where = _colour_positions(text, frozenset(extra))
     first = _reading(words, where)
-    out = [first]
     if not where:
-        return out
+        return [first]
     content = [
         k
         for k, w in enumerate(words)
         if k not in where and w not in FILLER_WORDS and w not in COLOR_LINK_WORDS
     ]
+    options = [(tuple(where), False)]
     i = min(where)
     prev = i - 1
     after = [k for k in content if k > max(where)]
@@ -79,7 +137,7 @@ def color_parses(text: str) -> list[tuple[str, str]]:
         and after
         and first[0]
     ):
-        out.append(_reading(words, sorted({prev, *where})))
+        options.append((tuple(sorted({prev, *where})), False))
     for k in sorted(where):
         name = _ish(words[k])
         single = name in COLOR_NAMES and " " not in name and name not in BASIC_COLOURS
@@ -89,14 +147,23 @@ def color_parses(text: str) -> list[tuple[str, str]]:
             and words[k - 1] not in _JOINING
             and [j for j in content if j > k]
         ):
-            out.append(_reading(words, [j for j in where if j != k], keep_names=True))
+            options.append((tuple(j for j in where if j != k), True))
+
+    def split(pos) -> bool:  # colour words with a word of the thing between them
+        inside = (k for k in range(min(pos), max(pos)) if k not in pos)
+        return any(k in content and words[k] not in _JOINING for k in inside)
+
+    # a colour phrase in one piece before one split by a word of the thing ("blue" before
+    # "blue ... chocolate" in "the blue hot chocolate mug")
+    options.sort(key=lambda o: bool(o[0]) and split(o[0]))
+    out = [_reading(words, pos, keep_names=keep) for pos, keep in options]
     seen: set[tuple[str, str]] = set()
     return [r for r in out if not (r in seen or seen.add(r))]
 
 
-def _colour_positions(text: str) -> tuple[list[str], list[int]]:
+def _colour_positions(text: str, extra: frozenset[str]) -> tuple[list[str], list[int]]:
     """The query's words (hyphenated colour compounds one word, others split) and the
-    positions of its colour words."""
+    positions of its colour words (lexicon names and ``extra``)."""
     raw = _WORD.findall(str(text).lower().replace("-ish", "ish"))
     words: list[str] = []
     for w in raw:
@@ -109,11 +176,11 @@ def _colour_positions(text: str) -> tuple[list[str], list[int]]:
             words.append(w)  # "grass-green", "sky-blue", "jet-black": one colour word
         else:
             words += parts
-    names = set(COLOR_NAMES)
+    names = set(COLOR_NAMES) | extra
 
     def is_colour(word: str) -> bool:
         parts = word.split("-")
-        return _ish(word) in names or (len(parts) > 1 and _ish(parts[-1]) in names)
+        return _ish(word) in names or word in names or (len(parts) > 1 and _ish(parts[-1]) in names)
 
     where: list[int] = []
     i = 0
@@ -135,7 +202,7 @@ def _reading(words: list[str], where, keep_names: bool = False) -> tuple[str, st
     """(colour phrase, the rest) with the words at ``where`` as the colour. With
     ``keep_names`` a lone colour name left in the rest is not taken for the thing asked."""
     where = sorted(where)
-    colour = [_ish(words[k]) if words[k] not in COLOR_NAMES else words[k] for k in where]
+    colour = [_ish(words[k]) for k in where]
     rest = [w for k, w in enumerate(words) if k not in where]
     if not colour:
         return "", " ".join(words)

@@ -58,8 +58,14 @@ from pathlib import Path
 import numpy as np
 
 from tabletop.errors import AssetError, ConfigError
-from tabletop.mapping.colors import BASIC_COLOURS, COLOR_NAMES, delta_e, shaded_lab
-from tabletop.mapping.colour_words import FILLER_WORDS, color_parses, split_color_words
+from tabletop.mapping.colors import BASIC_COLOURS, COLOR_NAMES, delta_e, rgb_to_lab, shaded_lab
+from tabletop.mapping.colour_words import (
+    FILLER_WORDS,
+    color_parses,
+    split_color_words,
+    survey_colours,
+    survey_words,
+)
 from tabletop.mapping.heatmaps import Heatmap, Judge, point_heatmap_3d
 from tabletop.mapping.instances import InstanceConfig, InstanceSet, ObjectInstance, support_of
 from tabletop.mapping.voxel_map import VoxelMap
@@ -255,6 +261,7 @@ class ObjectModule:
         self._targets: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None = None
         self._lexicon: tuple[np.ndarray, np.ndarray] | None = None
         self._others: np.ndarray | None = None
+        self._senses: dict[str, tuple[bool, bool]] = {}
         self._shape_prior = None
         self._shape_cache: tuple[tuple[int, int] | None, dict] = (None, {})
 
@@ -382,14 +389,18 @@ class ObjectModule:
             per = np.array([float((T[owner == i] @ e).max()) for i in range(nv)])
             best = int(np.argmax(per))
             text_score, nearest = float(per[best]), self.vocabulary[best]
-            # The names within the margin, and those the query's head noun is part of (a
-            # shorter name: "the ball" may be the soccer ball, "the bear" the teddy bear).
+            # The names within the margin, and those the query's head noun is part of where
+            # the best name is too (a shorter name: "the ball" may be the soccer ball, "the
+            # bear" the teddy bear; but "the wedge block" is no jenga block, nor "the
+            # barrel-shaped toy" any toy: the words before the head decide).
             want = per >= per[best] - cfg.text_margin
-            want |= np.array([content[-1] in name.split() for name in self.vocabulary])
+            plain = _without_likeness(words)
+            head = content[-1]
+            if plain == words and head in self.vocabulary[best].split():
+                want |= np.array([head in name.split() for name in self.vocabulary])
             names = tuple(str(x) for x in np.array(self.vocabulary)[want])
             weight = np.exp((per - per[best]) / cfg.name_temperature)
             # "the tin-can-shaped toy" is a toy: a thing it is likened to is no other thing
-            plain = _without_likeness(words)
             if plain == words:
                 other, other_score = self._nearest_other(e)
             elif [w for w in plain.split() if w not in FILLER_WORDS]:
@@ -445,7 +456,9 @@ class ObjectModule:
 
     def colour_weights(self, colour: str) -> np.ndarray:
         """(len(COLOR_NAMES),) summing to 1: the lexicon names the colour phrase means (their
-        text embeddings' cosine with the phrase's, sharpened)."""
+        text embeddings' cosine with the phrase's, sharpened). A survey colour name the
+        lexicon lacks ("aubergine") means its basic colour term, that of the lexicon name
+        nearest its colour: the names people give a colour vary more than its family does."""
         if self._lexicon is None:
             names = list(COLOR_NAMES)
             gains = np.linspace(self.config.shading_gain_min, 1.0, 8)
@@ -454,6 +467,11 @@ class ObjectModule:
             self._basic = [names.index(c) for c in BASIC_COLOURS]
             self._family = [names.index(v[1]) for v in COLOR_NAMES.values()]
             self._family_id = np.array([BASIC_COLOURS.index(v[1]) for v in COLOR_NAMES.values()])
+            self._lab1 = rgb_to_lab(np.array([v[0] for v in COLOR_NAMES.values()], float))
+        survey = survey_words(colour)
+        if survey:  # a survey name means its basic colour term: that of the nearest name
+            de = delta_e(rgb_to_lab(np.array(survey_colours()[survey[0]], float)), self._lab1)
+            return self.colour_weights(COLOR_NAMES[list(COLOR_NAMES)[int(np.argmin(de))]][1])
         sim = self._lexicon[0] @ self.text.encode_text([colour])[0]
         head = re.split(r"[\s-]+", colour.strip())[-1]
         if colour not in COLOR_NAMES and head in BASIC_COLOURS:
@@ -552,12 +570,41 @@ class ObjectModule:
         if not self.uses_instances:
             return self._voxel_heatmap(query, decay, judge)
         first = None
-        for reading in color_parses(query):
+        for reading in self.readings(query):
             h = self._instance_heatmap(query, self.match(query, reading), decay, judge)
             if h.found:
                 return h
             first = first or h
         return first
+
+    def readings(self, query: str) -> list[tuple[str, str]]:
+        """The readings of ``query``'s colour words to try, in order
+        (:func:`~tabletop.mapping.colour_words.color_parses`). Where the query has no colour
+        word of the lexicon, a colour name of the survey
+        (:func:`~tabletop.mapping.colour_words.survey_words`: "aubergine", "cherry") is a
+        colour where the text encoder places it nearer a lexicon colour than every vocabulary
+        name, description and other thing ("cherry" is, "tomato" and "coffee" are not); where
+        it also names something of the vocabulary's (its cosine with one reaches
+        ``text_min``: "tea" for a mug), the readings without it follow."""
+        if split_color_words(query)[0]:  # the lexicon's colour words are the colour
+            return color_parses(query)
+        colourish = [w for w in survey_words(query) if self._word_sense(w)[0]]
+        readings = color_parses(query, frozenset(colourish))
+        if any(self._word_sense(w)[1] for w in colourish):
+            readings += [r for r in color_parses(query) if r not in readings]
+        return readings
+
+    def _word_sense(self, word: str) -> tuple[bool, bool]:
+        """(a colour?, a word for something of the vocabulary?) of a survey colour name."""
+        if word not in self._senses:
+            self.colour_weights("red")  # the lexicon's embeddings
+            T, _, _, _ = self._vocab_targets()
+            e = self.text.encode_text([word])[0]
+            colour = float((self._lexicon[0] @ e).max())
+            thing = float((T @ e).max()) if len(T) else -1.0
+            _, other = self._nearest_other(e)
+            self._senses[word] = (colour > max(thing, other), thing >= self.config.text_min)
+        return self._senses[word]
 
     def _instance_heatmap(self, query: str, m: InstanceMatch, decay: float, judge: Judge):
         """Heat around the instances ``m`` ranks best; not found, with the reason, when none
