@@ -5,12 +5,12 @@ import pytest
 from module_helpers import GRID, labelled_voxels
 
 from tabletop.errors import ConfigError
+from tabletop.mapping.place_words import parse_region
 from tabletop.mapping.table_regions import (
     EDGE_MARGIN_M,
     ROBOT_CLEARANCE_M,
     TableFit,
     fit_table,
-    parse_region,
     region_heatmap,
 )
 from tabletop.mapping.targets import max_position
@@ -31,6 +31,10 @@ from tabletop.mapping.targets import max_position
         ("the far right corner, opposite the robot", "right", "far"),
         ("the center of the table", "middle", "middle"),
         ("the middle", "middle", "middle"),
+        ("the midpoint of the tabletop", "middle", "middle"),
+        ("the very heart of the table", "middle", "middle"),
+        ("right in the middle of the table", "middle", "middle"),  # stress, not a side
+        ("the midpoint of the right side", "right", "middle"),
         ("the far right corner", "right", "far"),
         ("back left corner", "left", "near"),
         ("the middle of the left side", "left", "middle"),
@@ -78,7 +82,7 @@ def test_regions_divide_the_usable_table_and_heat_their_rectangle():
 
 
 def test_hand_sides_extremes_and_the_arm_are_geometry():
-    from tabletop.mapping.table_regions import parse_region
+    from tabletop.mapping.place_words import parse_region
 
     for text, want in [
         ("the left-hand side of the table", ("left", None)),
@@ -95,7 +99,7 @@ def test_hand_sides_extremes_and_the_arm_are_geometry():
 
 
 def test_area_subject_names_the_object_a_place_is_named_after():
-    from tabletop.mapping.table_regions import area_subject
+    from tabletop.mapping.place_words import area_subject
 
     assert area_subject("the area around the tray") == "tray"
     assert area_subject("the spot by the blue mug") == "blue mug"

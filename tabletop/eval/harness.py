@@ -135,6 +135,7 @@ QUERY_TIME_SOURCES = frozenset(
     (
         "mapping/object_module.py",
         "mapping/colour_words.py",
+        "mapping/place_words.py",
         "mapping/shape.py",
         "mapping/heatmaps.py",
         "mapping/targets.py",

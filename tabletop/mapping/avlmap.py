@@ -40,13 +40,12 @@ from tabletop.mapping.errors import MapFormatError
 from tabletop.mapping.heatmaps import Heatmap
 from tabletop.mapping.object_module import ObjectModule
 from tabletop.mapping.persistence import read_map_file, save_map
+from tabletop.mapping.place_words import area_subject, parse_region
 from tabletop.mapping.registration import table_corrections
 from tabletop.mapping.table_regions import (
     TableFit,
-    area_subject,
     fit_surfaces,
     fit_table,
-    parse_region,
     raised_surfaces,
     region_heatmap,
 )
@@ -477,9 +476,9 @@ class AVLMap:
 
     def area_heatmap(self, query: str, major: bool = False) -> Heatmap:
         """Heat over a named place on the table. A place named by where it is ("the left side
-        of the table", "the far right corner": :func:`~tabletop.mapping.table_regions.parse_region`)
+        of the table", "the far right corner": :func:`~tabletop.mapping.place_words.parse_region`)
         is a region of the table fitted from the map; one named after an object there ("the
-        area around the tray": :func:`~tabletop.mapping.table_regions.area_subject`) is heat
+        area around the tray": :func:`~tabletop.mapping.place_words.area_subject`) is heat
         around that object's instance when the object module finds it; otherwise ("where the
         toys are") it is where the frames whose global embedding matches it looked (the area
         module)."""

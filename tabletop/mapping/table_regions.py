@@ -4,22 +4,12 @@ right corner", "the middle", "near the robot".
 A region named by where it is on the table is geometry, not an image embedding: the table is
 fitted from the map (:func:`fit_table`: the dominant horizontal layer of occupied voxels, its
 height and its extent), and the phrase is parsed into a lateral and a depth constraint
-(:func:`parse_region`) in the robot frame: +x points away from the robot ("front", "far"),
-+y to its left. Phrases that name what is in an area ("the tray area", "where the toys are")
-are not geometric: :func:`parse_region` returns None for them and they go to the area module.
+(:func:`~tabletop.mapping.place_words.parse_region`) in the robot frame: +x points away from
+the robot ("front", "far"), +y to its left. Phrases that name what is in an area ("the tray
+area", "where the toys are") are not geometric: ``parse_region`` returns None for them and they
+go to the area module.
 
-Geometric phrasings (case and the articles "the"/"a" aside; "table" may be left out):
-
-- lateral: "left", "left-hand", "leftmost" / "right", "right-hand", "rightmost" (the outer
-  thirds of the table's width);
-- depth: "front", "far", "farthest", "furthest", "opposite", "far side", "far end", "away from
-  the robot", "opposite the robot" (the half away from the robot) / "back", "near", "nearest",
-  "closest", "near side", "close to the robot", "next to the robot", "by the robot", "the
-  robot's side" / "end" / "half" (the half nearest the robot; "arm" or "base" may stand for
-  "robot");
-- "center"/"centre"/"central"/"middle" alone: the middle third in both directions; with a
-  lateral or a depth word it is the middle of the other direction ("the middle of the left side");
-- corners: a lateral and a depth word together ("the far right corner", "front left").
+The phrasings that name a region are listed in :mod:`tabletop.mapping.place_words`.
 
 The table's usable part starts :data:`ROBOT_CLEARANCE_M` in front of the robot base (the base
 and shoulder stand nearer than that) and keeps :data:`EDGE_MARGIN_M` from the fitted edges.
@@ -27,7 +17,6 @@ and shoulder stand nearer than that) and keeps :data:`EDGE_MARGIN_M` from the fi
 
 from __future__ import annotations
 
-import re
 from dataclasses import dataclass
 
 import numpy as np
@@ -42,10 +31,8 @@ __all__ = [
     "ROBOT_CLEARANCE_M",
     "TableFit",
     "TableRegion",
-    "area_subject",
     "fit_surfaces",
     "fit_table",
-    "parse_region",
     "raised_surfaces",
     "region_heatmap",
 ]
@@ -54,27 +41,6 @@ __all__ = [
 ROBOT_CLEARANCE_M = 0.20
 #: Regions keep this far [m] inside the fitted table edges.
 EDGE_MARGIN_M = 0.05
-
-_LEFT = r"left\s+hand|leftmost|left"
-_RIGHT = r"right\s+hand|rightmost|right"
-# Longer phrases first: the alternation takes the first that matches.
-_ROBOT = r"(?:the\s+)?(?:robot|arm|base)"
-_FAR = (
-    rf"(?:far(?:thest|ther)?|furthest|further)(?:\s+(?:end|side|part))?\s+(?:away\s+)?from\s+"
-    rf"{_ROBOT}|away\s+from\s+{_ROBOT}|opposite\s+(?:to\s+|from\s+)?{_ROBOT}|"
-    r"far\s+(?:side|end)|front|far(?:thest|ther)?|furthest|further|opposite"
-)
-_NEAR = (
-    rf"(?:close(?:st)?|near(?:est)?|next)\s+(?:to\s+)?{_ROBOT}|by\s+{_ROBOT}|"
-    rf"{_ROBOT}\s+(?:side|end|half)|"
-    r"near\s+(?:side|end)|back|near(?:est|er)?|closest"
-)
-_MID = r"center|centre|central|middle"
-#: Words a geometric phrase may hold beside the place words (space-separated).
-_FILLER = (
-    "the a of on at in to table tabletop side part half corner edge area region zone end and "
-    "top surface portion section space bit s"
-)
 
 
 @dataclass(frozen=True)
@@ -123,59 +89,6 @@ class TableFit:
             "middle": (y0 + (y1 - y0) / 3, y1 - (y1 - y0) / 3),
         }[region.lateral]
         return xs, ys
-
-
-def parse_region(text: str) -> TableRegion | None:
-    """The geometric region ``text`` names, or None when it is not (only) a place on the table
-    (see the module docstring for the phrasings)."""
-    t = " " + re.sub(r"[^a-z ]", " ", str(text).lower().replace("'s", " ")) + " "
-    t = re.sub(r"\s+", " ", t)
-    found: dict[str, str] = {}
-    for key, value, pattern in (
-        ("depth", "far", _FAR),
-        ("depth", "near", _NEAR),
-        ("lateral", "left", _LEFT),
-        ("lateral", "right", _RIGHT),
-        ("mid", "middle", _MID),
-    ):
-        rx = re.compile(rf" (?:{pattern}) ")
-        while rx.search(t):
-            if key in found and found[key] != value:
-                return None  # "left ... right": not one region
-            found[key] = value
-            t = rx.sub(" ", t, count=1)
-    filler = set(_FILLER.split())
-    if not found or any(w not in filler for w in t.split()):
-        return None  # nothing geometric, or other words ("the tray area")
-    lateral, depth = found.get("lateral"), found.get("depth")
-    if "mid" in found:
-        if lateral is None and depth is None:
-            lateral = depth = "middle"
-        elif lateral is None:
-            lateral = "middle"
-        elif depth is None:
-            depth = "middle"
-    return TableRegion(lateral, depth, str(text))
-
-
-#: Words that wrap an object into a place: "the area around the tray", "the spot by the mug"
-#: (space-separated).
-_PLACE_WORDS = (
-    "the a an area around near by next to beside spot place region zone space part side of "
-    "close where is are stands sits lies"
-)
-
-
-def area_subject(text: str) -> str | None:
-    """What a place named by its contents is named after: "the area around the tray" ->
-    "tray", "the spot by the blue mug" -> "blue mug"; None when ``text`` holds only place
-    words or is a geometric region (:func:`parse_region`)."""
-    if parse_region(text) is not None:
-        return None
-    words = re.sub(r"[^a-z ]", " ", str(text).lower()).split()
-    place = set(_PLACE_WORDS.split())
-    rest = [w for w in words if w not in place]
-    return " ".join(rest) or None
 
 
 def fit_table(grid: VoxelGrid, indices: np.ndarray) -> TableFit | None:
