@@ -353,3 +353,32 @@ def test_a_thing_the_words_liken_the_object_to_is_no_other_thing(scene):
     assert scene.heatmap("the teapot shaped cup", 10.0, judge_at(0.2)).found
     teapot = scene.heatmap("the teapot", 10.0, judge_at(0.2))
     assert not teapot.found and "reads as" in teapot.reason
+
+
+def test_a_word_of_one_name_only_speaks_for_it_among_names_that_score_alike():
+    from module_helpers import coloured_voxels
+
+    from tabletop.eval.harness import catalog_descriptions
+    from tabletop.mapping.table_regions import fit_table
+
+    toys = {
+        "lego brick": ((0.10, -0.20, 0.01), (0.16, -0.14, 0.05), (200, 30, 30)),
+        "toy cube": ((0.40, 0.10, 0.01), (0.46, 0.16, 0.07), (200, 30, 30)),
+    }
+    vocab = ("lego brick", "toy cube", "toy prism", "toy cylinder", "mug")
+    desc = {k.replace("_", " "): v for k, v in catalog_descriptions().items()}
+    vm = coloured_voxels(toys)
+    mod = ObjectModule(
+        vm,
+        text_encoder(),
+        ObjectConfig(),
+        vocab,
+        {k: v for k, v in desc.items() if k in vocab},
+        lambda: fit_table(GRID, vm.indices),
+    )
+    q = "the lego block with bumps on top"
+    m = mod.match(q)
+    assert {"lego brick", "toy cube"} <= set(m.names)  # the words fit both alike
+    p = max_position(mod.heatmap(q, 10.0, judge_at(0.2)), vm.occupancy())
+    lo, hi, _ = toys["lego brick"]
+    assert np.all(p[:2] >= np.subtract(lo[:2], 0.01)) and np.all(p[:2] <= np.add(hi[:2], 0.01))

@@ -399,7 +399,14 @@ class ObjectModule:
             if plain == words and head in self.vocabulary[best].split():
                 want |= np.array([head in name.split() for name in self.vocabulary])
             names = tuple(str(x) for x in np.array(self.vocabulary)[want])
-            weight = np.exp((per - per[best]) / cfg.name_temperature)
+            # A word of the query that is a word of one name only ("lego", "cube") speaks for
+            # that name when the names the words may mean score alike ("the lego block with
+            # bumps on top" is nearly as close to "toy cube" as to "lego brick").
+            named = np.array(
+                [_names_a_word_of(content, name, self.vocabulary) for name in self.vocabulary]
+            )
+            rank = per + cfg.text_margin * named
+            weight = np.exp((rank - rank[want].max()) / cfg.name_temperature)
             # "the tin-can-shaped toy" is a toy: a thing it is likened to is no other thing
             if plain == words:
                 other, other_score = self._nearest_other(e)
@@ -699,6 +706,14 @@ _LIKENESS = re.compile(
     r"[a-z']+(?:\s+(?!with\b|and\b|near\b|on\b|by\b)[a-z']+)?"
     r"|(?:\b(?!a\b|an\b|the\b)[a-z']+\s+)?\b[a-z']+\s+shaped\b(?!\s+like)"
 )
+
+
+def _names_a_word_of(content: list[str], name: str, vocabulary) -> bool:
+    """Whether a word of ``content`` is a word of ``name`` and of no other vocabulary name."""
+    return any(
+        w in name.split() and not any(w in other.split() for other in vocabulary if other != name)
+        for w in content
+    )
 
 
 def _without_likeness(words: str) -> str:
