@@ -99,13 +99,21 @@ def test_fusion_is_the_product_and_argmax_finds_the_peak():
         fuse(a, b)
 
 
-def test_fused_heatmap_is_found_only_when_every_part_is_and_some_place_is_hot():
+def test_fused_heatmap_is_found_only_when_every_part_is_and_near_is_relative():
     a = np.zeros(GRID.shape, np.float32)
     b = np.zeros(GRID.shape, np.float32)
-    a[1, 1, 1] = 1.0
-    b[20, 20, 2] = 1.0  # disjoint from a: the product is zero everywhere
-    f = fuse(_h(a), _h(b))
-    assert not f.found and "no place in the map has heat from every part" in f.reason
+    a[1, 1, 1] = a[15, 15, 1] = 1.0  # two mugs
+    b[20, 20, 2] = 1.0  # a sound beyond the reach of both: the plain product is zero
+    broad = Heatmap(GRID, b, "s", "sound", 2.5, 0.9, True)
+    f = fuse(_h(a), broad)
+    assert f.found and f.confidence == pytest.approx(0.9)
+    occ = np.zeros(GRID.shape, bool)  # the mug nearer the sound, not a place between
+    np.testing.assert_allclose(max_position(f, occ), GRID.centers(np.array([[15, 15, 1]]))[0])
+    assert f.values[1, 1, 1] < f.values[15, 15, 1] < 0.01  # faint: heat beyond reach
+    # a place on the table contains what is in it: a mug outside it is not there
+    area = Heatmap(GRID, b, "the left side", "area", 2.5, 1.0, True)
+    g = fuse(_h(a), area)
+    assert not g.found and "no place in the map has heat from every part" in g.reason
     missing = Heatmap.not_found(GRID, "giraffe", "object", 10.0, "no voxel matches")
     g = fuse(_h(a), missing)
     assert not g.found and "giraffe" in g.reason and "no voxel matches" in g.reason
