@@ -358,7 +358,6 @@ def test_a_thing_the_words_liken_the_object_to_is_no_other_thing(scene):
 def test_a_word_of_one_name_only_speaks_for_it_among_names_that_score_alike():
     from module_helpers import coloured_voxels
 
-    from tabletop.eval.harness import catalog_descriptions
     from tabletop.mapping.table_regions import fit_table
 
     toys = {
@@ -366,15 +365,15 @@ def test_a_word_of_one_name_only_speaks_for_it_among_names_that_score_alike():
         "toy cube": ((0.40, 0.10, 0.01), (0.46, 0.16, 0.07), (200, 30, 30)),
     }
     vocab = ("lego brick", "toy cube", "toy prism", "toy cylinder", "mug")
-    desc = {k.replace("_", " "): v for k, v in catalog_descriptions().items()}
+    desc = {
+        "lego brick": ("a plastic building brick with studs", "a small lego piece"),
+        "toy cube": ("a toy block shaped like a cube", "a box-shaped building block"),
+        "toy prism": ("a toy block shaped like a triangular prism",),
+        "toy cylinder": ("a toy block shaped like a cylinder",),
+    }
     vm = coloured_voxels(toys)
     mod = ObjectModule(
-        vm,
-        text_encoder(),
-        ObjectConfig(),
-        vocab,
-        {k: v for k, v in desc.items() if k in vocab},
-        lambda: fit_table(GRID, vm.indices),
+        vm, text_encoder(), ObjectConfig(), vocab, desc, lambda: fit_table(GRID, vm.indices)
     )
     q = "the lego block with bumps on top"
     m = mod.match(q)
