@@ -91,6 +91,30 @@ def test_a_narrowed_object_is_a_landmark_by_its_whole_box():
     np.testing.assert_allclose(c, GRID.centers(np.argwhere(duck)).mean(axis=0), atol=1e-9)
 
 
+def test_a_sound_whose_reach_only_grazes_the_halo_leads_to_the_object_itself():
+    """The flute was heard 0.46 m from the duck, beyond the sound heatmap's 0.4 m reach but
+    within it from the edge of the duck's 10 cm halo: the product peaks on a sliver of the
+    halo. The target and the landmark are the duck, not that sliver."""
+    from tabletop.mapping.heatmaps import fuse, point_heatmap_3d, scored_points_heatmap_xy
+
+    grid = VoxelGrid(lower=(0.0, -0.4, 0.0), upper=(0.3, 0.4, 0.1), voxel_size=0.01)
+    duck = np.zeros(grid.shape, bool)
+    duck[10:16, 64:70, 0:5] = True  # centred at y = +0.27
+    obj = Heatmap(grid, point_heatmap_3d(grid, duck, 10.0), "duck", "object", 10.0, 0.9, True)
+    xy = np.array([[0.125, -0.19]])  # 0.46 m from the duck's centre along y
+    snd = Heatmap(grid, scored_points_heatmap_xy(grid, xy, np.ones(1), 2.5), "flute", "sound",
+                  2.5, 0.9, True)  # fmt: skip
+    fused = fuse(obj, snd)
+    peak = np.argwhere(hottest_region(fused))
+    assert not duck[tuple(peak.T)].any()  # the plain product peaks in the halo
+    centre = grid.centers(np.argwhere(duck)).mean(axis=0)
+    p = max_position(fused, duck)
+    np.testing.assert_allclose(p[:2], centre[:2], atol=1e-9)
+    c, lo, hi = region_box(fused, duck)
+    np.testing.assert_allclose(c, centre, atol=1e-9)
+    assert hi[1] - lo[1] == pytest.approx(0.06)
+
+
 def test_approach_point_clears_the_highest_surface_around():
     occ = np.zeros(GRID.shape, bool)
     occ[10, 20, :6] = True  # a 6 cm object at (0.105, 0.005)

@@ -7,7 +7,9 @@ these functions, so what the benchmark measures is what a user can call.
 - :func:`hottest_region`: the voxels at the maximum; ties (plateaus) resolve to the connected
   tied region of largest total heat.
 - :func:`max_position`: that region's centroid; when the region spans the grid's whole height
-  (a top-down heatmap: sound, area, image) the point is put on the surface beneath it.
+  (a top-down heatmap: sound, area, image) the point is put on the surface beneath it. A fused
+  heatmap whose peak lies in the fading halo of its object factor, not on the object (a sound
+  whose reach barely overlaps the halo), goes to the object nearest that peak.
 - :func:`region_box`: the region as a landmark (centre and extent) for spatial relations.
 - :func:`approach_point`: a point raised to ``gap`` above the highest surface within
   ``radius`` of it, so a top-down gripper approaches a goal on or in an object (a mug's cavity,
@@ -109,30 +111,57 @@ def _centroid(grid: VoxelGrid, occupancy: np.ndarray, idx: np.ndarray) -> np.nda
 def max_position(heatmap: Heatmap, occupancy: np.ndarray) -> np.ndarray:
     """(3,) [m]: the centroid of the hottest region (:func:`hottest_region`); a region spanning
     the grid's whole height (a top-down heatmap) is placed on the surface beneath it."""
-    idx = np.argwhere(hottest_region(heatmap))  # checks the heatmap first
-    return _centroid(heatmap.grid, occupancy, idx)
+    mask = hottest_region(heatmap)  # checks the heatmap first
+    _, core = _sharp_region(heatmap, mask)
+    return _centroid(heatmap.grid, occupancy, np.argwhere(mask if core is None else core))
 
 
 def _landmark_region(heatmap: Heatmap) -> np.ndarray:
     """Grid-shaped bool mask of the region a landmark occupies: the hottest region, or for a
-    fused heatmap whose first factor is a 3D region (an object narrowed by a sound or another
+    fused heatmap whose sharpest factor is a 3D region (an object narrowed by a sound or another
     object: "the mug near the sound of X"), the whole region of that factor the product's
-    peak lies on. The product alone peaks at the object's voxel nearest the other factor, and
-    a relation to that one voxel would start from the object's edge, not its centre."""
+    peak lies on (:func:`_sharp_region`). The product alone peaks at the object's voxel nearest
+    the other factor, and a relation to that one voxel would start from the object's edge, not
+    its centre."""
     mask = hottest_region(heatmap)
+    region, core = _sharp_region(heatmap, mask)
+    if region is not None:
+        return region
+    return mask if core is None else core
+
+
+def _sharp_region(heatmap: Heatmap, mask: np.ndarray):
+    """(region, core) of a fused heatmap's sharpest factor (the largest decay; the first of
+    equals) when it is a 3D region (an object, not a place seen from above), else (None,
+    None). With the product's peak on that factor's own region (at least half its peak):
+    ``region`` is the whole connected region of the factor at the peak's level, ``core`` None.
+    With the peak off it (in the factor's fading halo, drawn there by a broad factor whose
+    reach barely overlaps it: "the duck near the flute" heard 0.46 m away): ``region`` None,
+    ``core`` the factor's hottest connected region nearest the peak — the duck, not a sliver
+    of its halo."""
     if heatmap.modality != "fused" or not heatmap.parts:
-        return mask
-    first = heatmap.parts[0]
+        return None, None
+    decays = [h.decay if h.decay is not None else 0.0 for h in heatmap.parts]
+    sharp = heatmap.parts[int(np.argmax(decays))]
     idx = np.argwhere(mask)
     peak = tuple(idx[int(np.argmax(heatmap.values[mask]))])
-    level = float(first.values[peak])
-    if not level >= 0.5 * first.peak:  # the peak is not on the first factor's own region
-        return mask
-    labels, _ = ndimage.label(first.values >= level - _TIE, structure=np.ones((3, 3, 3)))
-    region = labels == labels[peak]
-    if _is_column(heatmap.grid, np.argwhere(region)):
-        return mask  # a place seen from above (a sound, an area) has no box to keep
-    return region
+    level = float(sharp.values[peak])
+    box = np.ones((3, 3, 3))
+    if level >= 0.5 * sharp.peak:
+        labels, _ = ndimage.label(sharp.values >= level - _TIE, structure=box)
+        region = labels == labels[peak]
+        if _is_column(heatmap.grid, np.argwhere(region)):
+            return None, None  # a place seen from above (a sound, an area) has no box to keep
+        return region, None
+    if not sharp.peak > 0:
+        return None, None
+    labels, _ = ndimage.label(sharp.values >= sharp.peak - _TIE, structure=box)
+    cores = np.argwhere(labels > 0)
+    nearest = cores[int(np.argmin(((cores - np.array(peak)) ** 2).sum(axis=1)))]
+    core = labels == labels[tuple(nearest)]
+    if _is_column(heatmap.grid, np.argwhere(core)):
+        return None, None
+    return None, core
 
 
 def region_box(
