@@ -110,8 +110,8 @@ def test_cli_json_second_run_reuses_the_cached_scan_and_map(run, capfd, tmp_path
     assert a == [(g["goal_id"], g["success"]) for g in task["goals"]]
 
 
-def test_a_cached_map_is_judged_by_the_committed_calibration(run):
-    from tabletop.eval.harness import scene_map
+def test_a_cached_map_is_judged_by_the_committed_calibration_and_todays_descriptions(run):
+    from tabletop.eval.harness import catalog_descriptions, scene_map
     from tabletop.eval.tasks import scene_ref
     from tabletop.mapping import AVLMap, load_calibration
     from tabletop.mapping.calibration import Calibration
@@ -122,11 +122,15 @@ def test_a_cached_map_is_judged_by_the_committed_calibration(run):
     committed = load_calibration("oracle")
     assert committed.thresholds  # so that a calibration without any differs from it
     m.calibration = Calibration("oracle", {}, {})  # as a map saved before a recalibration
+    m.set_descriptions({"mug": ("an old description",)})  # ... and before new descriptions
     m.save(path)
     spec = scene_ref(SCENE).load()
     _, again = scene_map(spec, SCAN, "oracle", map_settings={"frame_step": 4}, cache_dir=cache)
     assert again.calibration.thresholds == committed.thresholds
     assert again.calibration.models == committed.models
+    today = catalog_descriptions()["mug"]
+    assert again.objects.descriptions["mug"] == today == again.config.descriptions["mug"]
+    assert list(cache.glob("map-oracle-*.npz")) == [path]  # the same file, not a new map
 
 
 def test_query_time_modules_do_not_invalidate_cached_maps(tmp_path, monkeypatch):

@@ -381,3 +381,18 @@ def test_a_word_of_one_name_only_speaks_for_it_among_names_that_score_alike():
     p = max_position(mod.heatmap(q, 10.0, judge_at(0.2)), vm.occupancy())
     lo, hi, _ = toys["lego brick"]
     assert np.all(p[:2] >= np.subtract(lo[:2], 0.01)) and np.all(p[:2] <= np.add(hi[:2], 0.01))
+
+
+def test_descriptions_are_query_time_text_and_can_be_replaced(scene):
+    from module_helpers import coloured_voxels
+
+    from tabletop.mapping.table_regions import fit_table
+
+    vm = coloured_voxels(SCENE)
+    mod = ObjectModule(
+        vm, text_encoder(), ObjectConfig(), VOCAB, {}, lambda: fit_table(GRID, vm.indices)
+    )
+    before = mod.match("the thing you sip espresso from").text_score
+    mod.set_descriptions({"mug": ("a small cup you sip espresso from",)})
+    assert mod.match("the thing you sip espresso from").text_score > before + 0.1
+    assert mod.heatmap("the thing you sip espresso from", 10.0, judge_at(0.2)).found

@@ -167,6 +167,10 @@ QUERY_TIME_SOURCES = frozenset(
 )
 
 
+#: Data files read only at query time (a cached map is given today's: :func:`cached_map`).
+QUERY_TIME_DATA = frozenset({"descriptions.toml"})
+
+
 def _fingerprint(*packages: str) -> str:
     """Hash of the Python source (and the shipped weights, texts and sound bank manifest) a
     cached artefact depends on (not :data:`QUERY_TIME_SOURCES`)."""
@@ -181,7 +185,8 @@ def _fingerprint(*packages: str) -> str:
             h.update(f.read_bytes())
     data = []
     if "mapping" in packages:  # the weights and the texts a map reads
-        data += sorted((DATA_DIR / "weights").rglob("*")) + sorted(DATA_DIR.glob("*.toml"))
+        data += sorted((DATA_DIR / "weights").rglob("*"))
+        data += [f for f in sorted(DATA_DIR.glob("*.toml")) if f.name not in QUERY_TIME_DATA]
     if "sim" in packages:  # the clips a scan inserts
         data.append(DATA_DIR / "sounds" / "manifest.json")
     for f in data:
@@ -258,12 +263,15 @@ def cached_map(
     from tabletop.mapping import AVLMap, load_calibration
 
     config = map_config(**map_settings)
-    key = _key({"rec": rec_key, "map": config.to_dict(), "mapping": _fingerprint("mapping", "arm")})
+    settings = config.to_dict()
+    settings.pop("descriptions")  # query-time text: given afresh to a map from the cache
+    key = _key({"rec": rec_key, "map": settings, "mapping": _fingerprint("mapping", "arm")})
     path = cache / f"map-{encoders}-{key}.npz" if cache else None
     if path is not None and path.is_file():
         try:
             m = AVLMap.load(path, encoders=encoders)
             m.calibration = load_calibration(encoders)  # the committed one, as built today
+            m.set_descriptions(config.descriptions)  # today's
             return m, 0.0, True
         except TabletopError as e:
             log.warning("cached map %s is unusable (%s); building again", path, e)

@@ -429,6 +429,13 @@ class AVLMap:
             log.info("%s (format %s) lacks %s", path, h["version"], what)
         return m
 
+    def set_descriptions(self, descriptions) -> None:
+        """Replace the vocabulary's descriptions (``MapConfig.descriptions``: query-time text,
+        read by the object module; no voxel, instance or segment changes). ConfigError: a
+        description of a name outside the vocabulary, or not a non-empty string."""
+        self.config = replace(self.config, descriptions=descriptions)
+        self.objects.set_descriptions(self.config.descriptions)
+
     @property
     def stats(self) -> MapStats:
         fused = (self._frames_seen + self.config.frame_step - 1) // self.config.frame_step

@@ -265,6 +265,12 @@ class ObjectModule:
         self._shape_prior = None
         self._shape_cache: tuple[tuple[int, int] | None, dict] = (None, {})
 
+    def set_descriptions(self, descriptions: Mapping[str, tuple[str, ...]]) -> None:
+        """Replace the names' descriptions (query-time text: no voxel or instance changes)."""
+        self.descriptions = {k: tuple(v) for k, v in (descriptions or {}).items()}
+        self._targets = None
+        self._senses.clear()
+
     # ------------------------------------------------------------------ single voxels
     def _refresh(self) -> None:
         key = (self.voxels.n, self.voxels.version)
