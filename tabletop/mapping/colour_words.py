@@ -180,7 +180,7 @@ def _colour_positions(text: str, extra: frozenset[str]) -> tuple[list[str], list
 
     def is_colour(word: str) -> bool:
         parts = word.split("-")
-        return _ish(word) in names or word in names or (len(parts) > 1 and _ish(parts[-1]) in names)
+        return _ish(word) in names or (len(parts) > 1 and _ish(parts[-1]) in names)
 
     where: list[int] = []
     i = 0

@@ -34,6 +34,7 @@ __all__ = [
     "fuse",
     "point_heatmap_3d",
     "scored_points_heatmap_xy",
+    "sharpest_part",
 ]
 
 Judge = Callable[[str, float], tuple[float, bool]]
@@ -208,12 +209,17 @@ def _product(values) -> np.ndarray:
     return out
 
 
+def sharpest_part(parts) -> int:
+    """Index of the sharpest of a fused heatmap's ``parts``: the largest decay (the primary
+    part, an object's "where exactly"); the first of equals."""
+    return int(np.argmax([h.decay if h.decay is not None else 0.0 for h in parts]))
+
+
 def _nearest_product(parts: list[Heatmap]) -> np.ndarray:
-    """The product of ``parts`` where every part but the sharpest (the largest decay; the first
-    of equals) and the ``area`` parts lends :data:`NEAR_TAIL` heat beyond its reach, fading
-    with the distance from it at the part's decay rate."""
-    decays = [h.decay if h.decay is not None else 0.0 for h in parts]
-    sharp = int(np.argmax(decays))
+    """The product of ``parts`` where every part but the sharpest (:func:`sharpest_part`) and
+    the ``area`` parts lends :data:`NEAR_TAIL` heat beyond its reach, fading with the distance
+    from it at the part's decay rate."""
+    sharp = sharpest_part(parts)
     values = []
     for i, h in enumerate(parts):
         v = np.asarray(h.values, np.float32)

@@ -472,6 +472,24 @@ class ObjectModule:
         text embeddings' cosine with the phrase's, sharpened). A survey colour name the
         lexicon lacks ("aubergine") means its basic colour term, that of the lexicon name
         nearest its colour: the names people give a colour vary more than its family does."""
+        embeddings, lab = self._colour_lexicon()
+        survey = survey_words(colour)
+        if survey:  # a survey name means its basic colour term: that of the nearest name
+            rgb = np.array(survey_colours()[survey[0]], float)
+            de = delta_e(rgb_to_lab(rgb), lab[-1])  # the names at full light (gain 1)
+            return self.colour_weights(COLOR_NAMES[list(COLOR_NAMES)[int(np.argmin(de))]][1])
+        sim = embeddings @ self.text.encode_text([colour])[0]
+        head = re.split(r"[\s-]+", colour.strip())[-1]
+        if colour not in COLOR_NAMES and head in BASIC_COLOURS:
+            # "rose red", "teal green", "grass-green": a shade of the last word's colour,
+            # whatever the word before it is nearest to on its own ("rose" is a pink)
+            sim = np.where(self._family_id == BASIC_COLOURS.index(head), sim, -np.inf)
+        w = np.exp((sim - sim.max()) / 0.02)
+        return w / w.sum()
+
+    def _colour_lexicon(self) -> tuple[np.ndarray, np.ndarray]:
+        """(text embeddings (len(COLOR_NAMES), dim), CIELAB (gains, len(COLOR_NAMES), 3) lit at
+        gains from ``shading_gain_min`` up to 1) of the lexicon's names, computed once."""
         if self._lexicon is None:
             names = list(COLOR_NAMES)
             gains = np.linspace(self.config.shading_gain_min, 1.0, 8)
@@ -480,19 +498,7 @@ class ObjectModule:
             self._basic = [names.index(c) for c in BASIC_COLOURS]
             self._family = [names.index(v[1]) for v in COLOR_NAMES.values()]
             self._family_id = np.array([BASIC_COLOURS.index(v[1]) for v in COLOR_NAMES.values()])
-            self._lab1 = rgb_to_lab(np.array([v[0] for v in COLOR_NAMES.values()], float))
-        survey = survey_words(colour)
-        if survey:  # a survey name means its basic colour term: that of the nearest name
-            de = delta_e(rgb_to_lab(np.array(survey_colours()[survey[0]], float)), self._lab1)
-            return self.colour_weights(COLOR_NAMES[list(COLOR_NAMES)[int(np.argmin(de))]][1])
-        sim = self._lexicon[0] @ self.text.encode_text([colour])[0]
-        head = re.split(r"[\s-]+", colour.strip())[-1]
-        if colour not in COLOR_NAMES and head in BASIC_COLOURS:
-            # "rose red", "teal green", "grass-green": a shade of the last word's colour,
-            # whatever the word before it is nearest to on its own ("rose" is a pink)
-            sim = np.where(self._family_id == BASIC_COLOURS.index(head), sim, -np.inf)
-        w = np.exp((sim - sim.max()) / 0.02)
-        return w / w.sum()
+        return self._lexicon
 
     def learned_colour(
         self, weights: np.ndarray, instances: list[ObjectInstance], want: np.ndarray
@@ -599,21 +605,23 @@ class ObjectModule:
         name, description and other thing ("cherry" is, "tomato" and "coffee" are not); where
         it also names something of the vocabulary's (its cosine with one reaches
         ``text_min``: "tea" for a mug), the readings without it follow."""
-        if split_color_words(query)[0]:  # the lexicon's colour words are the colour
-            return color_parses(query)
+        lexicon = color_parses(query)
+        if lexicon[0][0]:  # the lexicon's colour words are the colour
+            return lexicon
         colourish = [w for w in survey_words(query) if self._word_sense(w)[0]]
+        if not colourish:
+            return lexicon
         readings = color_parses(query, frozenset(colourish))
         if any(self._word_sense(w)[1] for w in colourish):
-            readings += [r for r in color_parses(query) if r not in readings]
+            readings += [r for r in lexicon if r not in readings]
         return readings
 
     def _word_sense(self, word: str) -> tuple[bool, bool]:
         """(a colour?, a word for something of the vocabulary?) of a survey colour name."""
         if word not in self._senses:
-            self.colour_weights("red")  # the lexicon's embeddings
             T, _, _, _ = self._vocab_targets()
             e = self.text.encode_text([word])[0]
-            colour = float((self._lexicon[0] @ e).max())
+            colour = float((self._colour_lexicon()[0] @ e).max())
             thing = float((T @ e).max()) if len(T) else -1.0
             _, other = self._nearest_other(e)
             self._senses[word] = (colour > max(thing, other), thing >= self.config.text_min)

@@ -27,7 +27,7 @@ from scipy import ndimage
 
 from tabletop.errors import ConfigError, GoalNotFound
 from tabletop.grid import VoxelGrid
-from tabletop.mapping.heatmaps import Heatmap
+from tabletop.mapping.heatmaps import Heatmap, sharpest_part
 
 __all__ = [
     "APPROACH_RADIUS_M",
@@ -131,18 +131,16 @@ def _landmark_region(heatmap: Heatmap) -> np.ndarray:
 
 
 def _sharp_region(heatmap: Heatmap, mask: np.ndarray):
-    """(region, core) of a fused heatmap's sharpest factor (the largest decay; the first of
-    equals) when it is a 3D region (an object, not a place seen from above), else (None,
-    None). With the product's peak on that factor's own region (at least half its peak):
-    ``region`` is the whole connected region of the factor at the peak's level, ``core`` None.
-    With the peak off it (in the factor's fading halo, drawn there by a broad factor whose
-    reach barely overlaps it: "the duck near the flute" heard 0.46 m away): ``region`` None,
-    ``core`` the factor's hottest connected region nearest the peak — the duck, not a sliver
-    of its halo."""
+    """(region, core) of a fused heatmap's sharpest factor (``heatmaps.sharpest_part``) when
+    it is a 3D region (an object, not a place seen from above), else (None, None). With the
+    product's peak on that factor's own region (at least half its peak): ``region`` is the whole
+    connected region of the factor at the peak's level, ``core`` None. With the peak off it (in
+    the factor's fading halo, drawn there by a broad factor whose reach barely overlaps it:
+    "the duck near the flute" heard 0.46 m away): ``region`` None, ``core`` the factor's hottest
+    connected region nearest the peak — the duck, not a sliver of its halo."""
     if heatmap.modality != "fused" or not heatmap.parts:
         return None, None
-    decays = [h.decay if h.decay is not None else 0.0 for h in heatmap.parts]
-    sharp = heatmap.parts[int(np.argmax(decays))]
+    sharp = heatmap.parts[sharpest_part(heatmap.parts)]
     idx = np.argwhere(mask)
     peak = tuple(idx[int(np.argmax(heatmap.values[mask]))])
     level = float(sharp.values[peak])
