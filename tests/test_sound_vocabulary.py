@@ -13,6 +13,7 @@ from tabletop.mapping.sound_vocabulary import (
     SoundMatcher,
     SoundVocabulary,
     load_phrasings,
+    load_sound_words,
     phrases_for,
 )
 from tabletop.mapping.targets import max_position
@@ -221,3 +222,31 @@ def test_a_sound_sharing_a_phrasing_with_a_known_one_leads_to_it():
     # the prototypes are the vocabulary's own phrasings' (what the encoder was trained against)
     plain = SoundMatcher(vocab, text_encoder(), others={})
     np.testing.assert_allclose(m.targets()[2], plain.targets()[2])
+
+
+def test_query_time_words_lead_to_their_category_and_leave_the_posteriors_alone():
+    from tabletop.train.audio import HELDOUT_QUERIES
+
+    words = load_sound_words()
+    known = set(load_phrasings())  # the bank's categories and the sounds outside it
+    assert set(words) <= known, sorted(set(words) - known)
+    for cat, q in HELDOUT_QUERIES.items():  # the encoder's held-out queries stay held out
+        assert q not in words.get(cat, ()), cat
+    enc = text_encoder()
+    plain = SoundMatcher(VOCAB, enc, words={})
+    told = SoundMatcher(VOCAB, enc, words={"dog": ("arf arf",), "kazoo": ("a kazoo",)})
+    # without the word, "arf arf" reads as no sound, or as another animal
+    bare = plain.match("arf arf", np.zeros((0, 384)))
+    assert not bare.known or "dog" not in bare.categories
+    assert told.match("arf arf", np.zeros((0, 384))).categories == ("dog",)
+    segs = np.random.default_rng(0).normal(size=(4, 384)).astype(np.float32)
+    np.testing.assert_allclose(plain.posteriors(segs), told.posteriors(segs))
+    # the shipped file is what a matcher reads by default
+    assert set(words["dog"]) <= set(SoundMatcher(VOCAB, enc).aliases["dog"])
+
+
+def test_sound_words_file_errors_name_the_file(tmp_path):
+    p = tmp_path / "w.toml"
+    p.write_text('[phrasings]\ndog = ["a pooch"]\n')
+    with pytest.raises(AssetError, match=r"expected a \[words\] table"):
+        load_sound_words(p)

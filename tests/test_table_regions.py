@@ -91,10 +91,19 @@ def test_hand_sides_extremes_and_the_arm_are_geometry():
         ("the table's far side", (None, "far")),
         ("the furthest end from the robot", (None, "far")),
         ("at the back", (None, "near")),
+        ("the right wing of the table", ("right", None)),
+        ("the side where the robot stands", (None, "near")),
+        ("the part of the table where the arm sits", (None, "near")),
     ]:
         r = parse_region(text)
         assert r is not None and (r.lateral, r.depth) == want, text
-    for text in ("left of the mug", "the area around the tray", "the left arm of the bear"):
+    for text in (
+        "left of the mug",
+        "the area around the tray",
+        "the left arm of the bear",
+        "the tray wing",
+        "where the mug is",
+    ):
         assert parse_region(text) is None, text
 
 

@@ -168,7 +168,7 @@ QUERY_TIME_SOURCES = frozenset(
 
 
 #: Data files read only at query time (a cached map is given today's: :func:`cached_map`).
-QUERY_TIME_DATA = frozenset({"descriptions.toml"})
+QUERY_TIME_DATA = frozenset({"descriptions.toml", "sound_words.toml"})
 
 
 def _fingerprint(*packages: str) -> str:

@@ -12,8 +12,10 @@ Geometric phrasings (case and the articles "the"/"a" aside; "table" may be left 
 - depth: "front", "far", "farthest", "furthest", "opposite", "far side", "far end", "away from
   the robot", "opposite the robot" (the half away from the robot) / "back", "near", "nearest",
   "closest", "near side", "close to the robot", "next to the robot", "by the robot", "the
-  robot's side" / "end" / "half" (the half nearest the robot; "arm" or "base" may stand for
-  "robot");
+  robot's side" / "end" / "half", "where the robot stands" / "is" / "sits" (the half nearest
+  the robot; "arm" or "base" may stand for "robot");
+- "side", "part", "half", "end", "edge", "corner", "area", "wing", "flank", "quarter",
+  "strip" and the like name no direction: "the right wing" is the right side;
 - "center"/"centre"/"central"/"middle"/"midpoint"/"midway"/"halfway"/"heart" alone: the
   middle third in both directions; with a lateral or a depth word it is the middle of the
   other direction ("the middle of the left side"); "very", "dead", "exact" and "right in" may
@@ -40,7 +42,7 @@ _FAR = (
 )
 _NEAR = (
     rf"(?:close(?:st)?|near(?:est)?|next)\s+(?:to\s+)?{_ROBOT}|by\s+{_ROBOT}|"
-    rf"{_ROBOT}\s+(?:side|end|half)|"
+    rf"{_ROBOT}\s+(?:side|end|half)|(?:where|that)\s+{_ROBOT}\s+(?:stands|is|sits)|"
     r"near\s+(?:side|end)|back|near(?:est|er)?|closest"
 )
 _MID = r"center|centre|central|middle|mid\s*point|midway|halfway|heart"
@@ -48,7 +50,8 @@ _STRESSED_MID = re.compile(rf" right (?=(?:in|at) (?:the )?(?:(?:very|dead|exact
 #: Words a geometric phrase may hold beside the place words (space-separated).
 _FILLER = (
     "the a of on at in to table tabletop side part half corner edge area region zone end and "
-    "top surface portion section space bit s very dead exact exactly point spot"
+    "top surface portion section space bit s very dead exact exactly point spot wing flank "
+    "quarter strip stretch"
 )
 
 

@@ -8,7 +8,9 @@ and texts it was trained against, and the temperature it learned (:class:`SoundV
 A sound query is answered in two steps (:class:`SoundMatcher`):
 
 1. **Words -> categories.** The query's text embedding is compared with every phrasing of
-   every category (the best phrasing counts: a prompt ensemble). The categories within
+   every category, and with the query-time words of ``tabletop/data/sound_words.toml`` ("bawk
+   bawk" for a hen; they lead to a category but shape no prototype), the best phrasing
+   counting (a prompt ensemble). The categories within
    ``text_margin`` of the best are what the query asks for ("a bird" may be chirping birds, an
    owl or a crow). A query below ``text_min`` to every phrasing names no sound the encoder knows:
    it is not found, and the reason names the nearest known sound. A query nearer (by more
@@ -41,10 +43,12 @@ from tabletop.paths import DATA_DIR
 __all__ = [
     "PHRASINGS_PATH",
     "SOUND_FAMILIES",
+    "WORDS_PATH",
     "SoundMatcher",
     "SoundQuery",
     "SoundVocabulary",
     "load_phrasings",
+    "load_sound_words",
     "phrases_for",
 ]
 
@@ -88,22 +92,36 @@ SOUND_FAMILIES: tuple[frozenset[str], ...] = tuple(
 PHRASINGS_PATH = DATA_DIR / "sound_phrasings.toml"
 
 
-def load_phrasings(path: str | Path | None = None) -> dict[str, tuple[str, ...]]:
-    """category -> its phrasings, from ``path`` (default :data:`PHRASINGS_PATH`)."""
+#: Words people use for a sound that the encoder was not trained against ("bawk bawk", "a
+#: moggy"), read at query time only: they lead a query to their category, and change neither
+#: the prototypes nor a segment's posteriors.
+WORDS_PATH = DATA_DIR / "sound_words.toml"
+
+
+def load_phrasings(
+    path: str | Path | None = None, table: str = "phrasings"
+) -> dict[str, tuple[str, ...]]:
+    """category -> its phrasings, from the ``[table]`` of ``path`` (default
+    :data:`PHRASINGS_PATH`)."""
     p = Path(path) if path is not None else PHRASINGS_PATH
     try:
         d = tomllib.loads(p.read_text())
     except (OSError, tomllib.TOMLDecodeError) as e:
         raise AssetError(f"cannot read sound phrasings {p}: {e}") from None
-    table = d.get("phrasings")
-    if not isinstance(table, dict):
-        raise AssetError(f"{p}: expected a [phrasings] table of category = [texts]")
+    entries = d.get(table)
+    if not isinstance(entries, dict):
+        raise AssetError(f"{p}: expected a [{table}] table of category = [texts]")
     out = {}
-    for k, v in table.items():
+    for k, v in entries.items():
         if not isinstance(v, list) or not v or not all(isinstance(t, str) and t for t in v):
-            raise AssetError(f"{p}: [phrasings].{k} must be a non-empty list of texts")
+            raise AssetError(f"{p}: [{table}].{k} must be a non-empty list of texts")
         out[k] = tuple(v)
     return out
+
+
+def load_sound_words(path: str | Path | None = None) -> dict[str, tuple[str, ...]]:
+    """category -> the query-time words for it, from ``path`` (default :data:`WORDS_PATH`)."""
+    return load_phrasings(path if path is not None else WORDS_PATH, "words")
 
 
 _PHRASINGS: dict[str, tuple[str, ...]] | None = None
@@ -201,7 +219,8 @@ class SoundQuery:
 class SoundMatcher:
     """Scores sound queries against segment embeddings through a :class:`SoundVocabulary`
     (see the module docstring). ``text`` embeds the query and the vocabulary's texts in the
-    audio encoder's space."""
+    audio encoder's space. ``others``: sounds the vocabulary lacks (default: the phrasings
+    file's); ``words``: query-time words per category (default: :data:`WORDS_PATH`'s)."""
 
     def __init__(
         self,
@@ -211,6 +230,7 @@ class SoundMatcher:
         text_margin: float = 0.05,
         others: Mapping[str, tuple[str, ...]] | None = None,
         other_margin: float = 0.12,
+        words: Mapping[str, tuple[str, ...]] | None = None,
     ) -> None:
         self.vocabulary = vocabulary
         self.text = text
@@ -229,6 +249,16 @@ class SoundMatcher:
                 self.aliases[shared[0]] = (*self.aliases.get(shared[0], ()), *v)
             elif v:
                 self.others[str(c)] = tuple(v)
+        # Words for a known sound the encoder was not trained against lead to it too; words
+        # for a sound it lacks make a query read as that sound.
+        if words is None:
+            words = load_sound_words()
+        for c, v in words.items():
+            new = tuple(t for t in v if t.lower() not in own)
+            if c in vocabulary.categories:
+                self.aliases[c] = (*self.aliases.get(c, ()), *new)
+            elif c in self.others:
+                self.others[c] = (*self.others[c], *new)
         self.other_margin = float(other_margin)
         self._targets: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
         self._other_targets: tuple[np.ndarray, list[str]] | None = None

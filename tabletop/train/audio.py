@@ -444,7 +444,9 @@ def evaluate_audio(
     relevant_a2t = clip_cat[:, None] == np.arange(len(cats))[None, :]  # (N, C)
 
     if vocabulary is not None:
-        matcher = SoundMatcher(vocabulary, text_encoder)
+        # The encoder and the texts it was trained against, without the query-time words
+        # (tabletop/data/sound_words.toml): the figures judge what training made.
+        matcher = SoundMatcher(vocabulary, text_encoder, words={})
         logit = matcher.logits(audio_emb)  # (N, V) over the vocabulary's categories
         vcats = vocabulary.categories
         sim = np.stack(
