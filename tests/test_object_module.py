@@ -396,3 +396,37 @@ def test_descriptions_are_query_time_text_and_can_be_replaced(scene):
     mod.set_descriptions({"mug": ("a small cup you sip espresso from",)})
     assert mod.match("the thing you sip espresso from").text_score > before + 0.1
     assert mod.heatmap("the thing you sip espresso from", 10.0, judge_at(0.2)).found
+
+
+def test_a_word_only_one_candidate_is_described_by_ranks_it_first():
+    from module_helpers import coloured_voxels
+
+    from tabletop.eval.harness import catalog_descriptions
+    from tabletop.mapping.object_module import _word_forms
+    from tabletop.mapping.table_regions import fit_table
+
+    assert {"boxy", "box", "roundish", "round", "bumps", "bump"} <= _word_forms(
+        "a boxy, roundish thing with bumps"
+    )
+    assert not _word_forms("the small toy with a shape like")  # filler and tie words
+    toys = {
+        "toy cube": ((0.10, -0.20, 0.01), (0.16, -0.14, 0.07), (200, 30, 30)),
+        "toy cylinder": ((0.40, 0.10, 0.01), (0.46, 0.16, 0.07), (200, 30, 30)),
+        "toy prism": ((0.40, -0.20, 0.01), (0.46, -0.14, 0.05), (200, 30, 30)),
+    }
+    vocab = ("toy cube", "toy cylinder", "toy prism", "mug")
+    shipped = catalog_descriptions()  # the words people's names for the kinds are scored on
+    desc = {k: shipped[k.replace(" ", "_")] for k in vocab}
+    vm = coloured_voxels(toys)
+    mod = ObjectModule(
+        vm, text_encoder(), ObjectConfig(), vocab, desc, lambda: fit_table(GRID, vm.indices)
+    )
+    for q, want in [("the round block", "toy cylinder")]:
+        m = mod.match(q)
+        assert want in m.names and len(m.names) >= 2, (q, m.names)  # the words fit several
+        p = max_position(mod.heatmap(q, 10.0, judge_at(0.2)), vm.occupancy())
+        lo, hi, _ = toys[want]
+        inside = np.all(p[:2] >= np.subtract(lo[:2], 0.01)) and np.all(
+            p[:2] <= np.add(hi[:2], 0.01)
+        )
+        assert inside, (q, p)

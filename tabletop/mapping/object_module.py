@@ -262,6 +262,7 @@ class ObjectModule:
         self._lexicon: tuple[np.ndarray, np.ndarray] | None = None
         self._others: np.ndarray | None = None
         self._senses: dict[str, tuple[bool, bool]] = {}
+        self._name_words: list[set[str]] | None = None
         self._shape_prior = None
         self._shape_cache: tuple[tuple[int, int] | None, dict] = (None, {})
 
@@ -269,6 +270,7 @@ class ObjectModule:
         """Replace the names' descriptions (query-time text: no voxel or instance changes)."""
         self.descriptions = {k: tuple(v) for k, v in (descriptions or {}).items()}
         self._targets = None
+        self._name_words = None
         self._senses.clear()
 
     # ------------------------------------------------------------------ single voxels
@@ -411,6 +413,9 @@ class ObjectModule:
             named = np.array(
                 [_names_a_word_of(content, name, self.vocabulary) for name in self.vocabulary]
             )
+            # So does a word that only one of those names' descriptions holds ("the round
+            # block": of the cube, the cylinder and the prism, only the cylinder is round).
+            named |= self._described_by(content, want)
             rank = per + cfg.text_margin * named
             weight = np.exp((rank - rank[want].max()) / cfg.name_temperature)
             # "the tin-can-shaped toy" is a toy: a thing it is likened to is no other thing
@@ -455,6 +460,25 @@ class ObjectModule:
             other,
             other_score,
         )
+
+    def _described_by(self, content: list[str], want: np.ndarray) -> np.ndarray:
+        """(vocabulary,) bool: the names of ``want`` whose label or descriptions hold a word
+        of ``content`` (its plain form: "boxy" is "box") that no other name of ``want``'s do."""
+        if self._name_words is None:
+            self._name_words = [
+                {f for t in (name, *self.descriptions.get(name, ())) for f in _word_forms(t)}
+                for name in self.vocabulary
+            ]
+        out = np.zeros(len(self.vocabulary), bool)
+        wanted = np.nonzero(want)[0]
+        if len(wanted) < 2:
+            return out
+        for w in content:
+            forms = _word_forms(w)
+            have = [i for i in wanted if forms & self._name_words[i]]
+            if len(have) == 1:
+                out[have[0]] = True
+        return out
 
     def _nearest_other(self, embedding: np.ndarray) -> tuple[str, float]:
         """The config's ``others`` nearest the words' ``embedding``, and its cosine."""
@@ -719,6 +743,26 @@ _LIKENESS = re.compile(
     r"\b(?:shaped\s+like|in\s+the\s+shape\s+of|looks?\s+like|like)\s+(?:(?:a|an|the)\s+)?"
     r"[a-z']+(?:\s+(?!with\b|and\b|near\b|on\b|by\b)[a-z']+)?"
     r"|(?:\b(?!a\b|an\b|the\b)[a-z']+\s+)?\b[a-z']+\s+shaped\b(?!\s+like)"
+)
+
+
+def _word_forms(text: str) -> set[str]:
+    """The plain forms of ``text``'s words, filler and words of two letters aside: each word,
+    without a plural "s", and "boxy" as "box", "roundish" as "round"."""
+    out = set()
+    for w in re.findall(r"[a-z]+", str(text).lower()):
+        if len(w) < 3 or w in FILLER_WORDS or w in _FORM_STOP:
+            continue
+        out.add(w)
+        for suffix in ("ish", "es", "s", "y"):
+            if w.endswith(suffix) and len(w) - len(suffix) >= 3:
+                out.add(w[: -len(suffix)])
+    return out
+
+
+#: Words that tie a description together and tell no name from another.
+_FORM_STOP = frozenset(
+    "and with for from you like shaped shape one small little big piece thing object toy".split()
 )
 
 
