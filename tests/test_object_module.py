@@ -430,3 +430,32 @@ def test_a_word_only_one_candidate_is_described_by_ranks_it_first():
             p[:2] <= np.add(hi[:2], 0.01)
         )
         assert inside, (q, p)
+
+
+def test_words_all_of_one_names_descriptions_find_it_below_the_cosine_floor():
+    from module_helpers import coloured_voxels
+
+    from tabletop.eval.harness import catalog_descriptions
+    from tabletop.mapping.table_regions import fit_table
+
+    toys = {
+        "toy cube": ((0.10, -0.20, 0.01), (0.16, -0.14, 0.07), (200, 30, 30)),
+        "toy prism": ((0.40, -0.20, 0.01), (0.46, -0.14, 0.05), (30, 30, 200)),
+    }
+    vocab = ("toy cube", "toy cylinder", "toy prism", "mug", "duck")
+    shipped = catalog_descriptions()
+    desc = {k: shipped[k.replace(" ", "_")] for k in vocab}
+    vm = coloured_voxels(toys)
+    mod = ObjectModule(
+        vm, text_encoder(), ObjectConfig(), vocab, desc, lambda: fit_table(GRID, vm.indices)
+    )
+    m = mod.match("the pointy thing")
+    assert m.text_score < mod.config.text_min and m.described and m.names == ("toy prism",)
+    h = mod.heatmap("the pointy thing", 10.0, judge_at(0.2))
+    p = max_position(h, vm.occupancy())
+    lo, hi, _ = toys["toy prism"]
+    assert h.found and np.all(p[:2] >= np.subtract(lo[:2], 0.01)), p
+    assert np.all(p[:2] <= np.add(hi[:2], 0.01)), p
+    # a word no description holds keeps the floor: not found
+    hat = mod.heatmap("the pointy hat", 10.0, judge_at(0.2))
+    assert not hat.found and "like nothing" in hat.reason

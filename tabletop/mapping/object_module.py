@@ -211,6 +211,10 @@ class InstanceMatch:
     """The nearest of the config's ``others`` to the words ("" for none)."""
     other_score: float = -1.0
     """The words' cosine with ``other``."""
+    described: bool = False
+    """Every word of the query is a word of one name's label or descriptions and of no other
+    name's ("the pointy thing": the prism is described as pointy): that name is what it means
+    even where the words' cosine falls short of ``text_min``."""
 
     @property
     def scores(self) -> np.ndarray:
@@ -416,6 +420,12 @@ class ObjectModule:
             # So does a word that only one of those names' descriptions holds ("the round
             # block": of the cube, the cylinder and the prism, only the cylinder is round).
             named |= self._described_by(content, want)
+            described = (
+                bool(per[best] < cfg.text_min) and (d := self._described_fully(content)) >= 0
+            )
+            if described:  # the words are one name's own: it, not the cosine, decides
+                want = np.arange(nv) == d
+                names = (self.vocabulary[d],)
             rank = per + cfg.text_margin * named
             weight = np.exp((rank - rank[want].max()) / cfg.name_temperature)
             # "the tin-can-shaped toy" is a toy: a thing it is likened to is no other thing
@@ -426,6 +436,7 @@ class ObjectModule:
             else:
                 other, other_score = "", -1.0
         else:  # "something red": any object
+            described = False
             names, text_score, nearest = self.vocabulary, 1.0, ""
             other, other_score = "", -1.0
             want = np.ones(nv, bool)
@@ -459,23 +470,39 @@ class ObjectModule:
             close,
             other,
             other_score,
+            described,
         )
 
-    def _described_by(self, content: list[str], want: np.ndarray) -> np.ndarray:
-        """(vocabulary,) bool: the names of ``want`` whose label or descriptions hold a word
-        of ``content`` (its plain form: "boxy" is "box") that no other name of ``want``'s do."""
+    def _described_fully(self, content: list[str]) -> int:
+        """The index of the one vocabulary name whose label and descriptions hold every
+        telling word of ``content`` (:func:`_word_forms`), or -1 (none, or several)."""
+        telling = [f for f in (_word_forms(w) for w in content) if f]
+        if not telling:
+            return -1
+        words = self._name_word_forms()
+        have = [i for i, n in enumerate(words) if all(f & n for f in telling)]
+        return have[0] if len(have) == 1 else -1
+
+    def _name_word_forms(self) -> list[set[str]]:
+        """Per vocabulary name, the word forms of its label and descriptions."""
         if self._name_words is None:
             self._name_words = [
                 {f for t in (name, *self.descriptions.get(name, ())) for f in _word_forms(t)}
                 for name in self.vocabulary
             ]
+        return self._name_words
+
+    def _described_by(self, content: list[str], want: np.ndarray) -> np.ndarray:
+        """(vocabulary,) bool: the names of ``want`` whose label or descriptions hold a word
+        of ``content`` (its plain form: "boxy" is "box") that no other name of ``want``'s do."""
+        name_words = self._name_word_forms()
         out = np.zeros(len(self.vocabulary), bool)
         wanted = np.nonzero(want)[0]
         if len(wanted) < 2:
             return out
         for w in content:
             forms = _word_forms(w)
-            have = [i for i in wanted if forms & self._name_words[i]]
+            have = [i for i in wanted if forms & name_words[i]]
             if len(have) == 1:
                 out[have[0]] = True
         return out
@@ -655,7 +682,7 @@ class ObjectModule:
         """Heat around the instances ``m`` ranks best; not found, with the reason, when none
         is what the query asks."""
         grid = self.voxels.grid
-        if m.text_score < self.config.text_min:
+        if m.text_score < self.config.text_min and not m.described:
             return Heatmap.not_found(
                 grid,
                 query,
