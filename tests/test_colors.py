@@ -74,6 +74,12 @@ def test_colour_words_are_split_from_the_rest(text, colour, rest):
         ("the cube in red", [("red", "the cube")]),
         ("the ball with black patches", [("black", "the ball with patches")]),
         ("the orange", [("", "the orange")]),
+        # "one" after the colour is the thing too: the word before may join the colour
+        (
+            "the strawberry pink one",
+            [("pink", "the strawberry one"), ("strawberry pink", "the one")],
+        ),
+        ("the pink-looking one", [("pink", "the one")]),
     ],
 )
 def test_colour_readings_come_first_and_compounds_after(text, readings):

@@ -421,6 +421,8 @@ def test_a_word_only_one_candidate_is_described_by_ranks_it_first():
     mod = ObjectModule(
         vm, text_encoder(), ObjectConfig(), vocab, desc, lambda: fit_table(GRID, vm.indices)
     )
+    # what a thing is likened to may be one name's own: "a toy like a short tube or can"
+    assert mod.match("the can-shaped block").names == ("toy cylinder",)
     for q, want in [("the round block", "toy cylinder")]:
         m = mod.match(q)
         assert want in m.names and len(m.names) >= 2, (q, m.names)  # the words fit several

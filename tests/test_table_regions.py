@@ -94,6 +94,8 @@ def test_hand_sides_extremes_and_the_arm_are_geometry():
         ("the right wing of the table", ("right", None)),
         ("the side where the robot stands", (None, "near")),
         ("the part of the table where the arm sits", (None, "near")),
+        ("the robot's right", ("right", None)),
+        ("the arm's left-hand side", ("left", None)),
     ]:
         r = parse_region(text)
         assert r is not None and (r.lateral, r.depth) == want, text

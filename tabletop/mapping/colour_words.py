@@ -40,7 +40,7 @@ _WORD = re.compile(r"[a-z]+(?:-[a-z]+)*")
 #: Words that only tie a colour to the thing: "the cube in red", "a red-coloured cube", "the
 #: block painted blue". Dropped with the colour phrase when they stand next to it.
 COLOR_LINK_WORDS = frozenset(
-    """in coloured colored colour color painted tinted hued shaded toned""".split()
+    """in coloured colored colour color painted tinted hued shaded toned looking""".split()
 )
 
 
@@ -128,7 +128,11 @@ def color_parses(text: str, extra=frozenset()) -> list[tuple[str, str]]:
     options = [(tuple(where), False)]
     i = min(where)
     prev = i - 1
-    after = [k for k in content if k > max(where)]
+    # more of the noun phrase after the colour: a word of the thing, or "one" ("the
+    # strawberry pink one")
+    after = [k for k in content if k > max(where)] or [
+        k for k in range(max(where) + 1, len(words)) if words[k] in _THING
+    ]
     if (
         prev >= 0
         and prev in content

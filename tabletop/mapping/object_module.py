@@ -410,6 +410,13 @@ class ObjectModule:
             head = content[-1]
             if plain == words and head in self.vocabulary[best].split():
                 want |= np.array([head in name.split() for name in self.vocabulary])
+            # What the thing is likened to may be one name's own ("the can-shaped block": the
+            # cylinder is "a toy like a short tube or can"): then it is that name.
+            likened = [
+                w for w in words.split() if w not in plain.split() and w not in _LIKENESS_WORDS
+            ]
+            if likened and (d := self._described_fully(likened)) >= 0:
+                want = np.arange(nv) == d
             names = tuple(str(x) for x in np.array(self.vocabulary)[want])
             # A word of the query that is a word of one name only ("lego", "cube") speaks for
             # that name when the names the words may mean score alike ("the lego block with
@@ -434,6 +441,10 @@ class ObjectModule:
             elif [w for w in plain.split() if w not in FILLER_WORDS]:
                 other, other_score = self._nearest_other(self.text.encode_text([plain])[0])
             else:
+                other, other_score = "", -1.0
+            # words that are all one name's own read as another thing only by a word of it
+            # ("the bath buddy" is the duck's, though its cosine lies nearer "toilet")
+            if described and not _word_forms(other) & _word_forms(" ".join(content)):
                 other, other_score = "", -1.0
         else:  # "something red": any object
             described = False
@@ -766,6 +777,8 @@ PALETTE_MIN_SHARE = 0.25
 
 #: "X-shaped", "shaped like X", "in the shape of X", "like X": words that liken the thing to
 #: another (hyphens are spaces here; X is one or two words, or up to a joining word).
+#: The words of a likeness that name nothing.
+_LIKENESS_WORDS = frozenset("shaped shape like looks look in of the a an".split())
 _LIKENESS = re.compile(
     r"\b(?:shaped\s+like|in\s+the\s+shape\s+of|looks?\s+like|like)\s+(?:(?:a|an|the)\s+)?"
     r"[a-z']+(?:\s+(?!with\b|and\b|near\b|on\b|by\b)[a-z']+)?"
@@ -787,9 +800,11 @@ def _word_forms(text: str) -> set[str]:
     return out
 
 
-#: Words that tie a description together and tell no name from another.
+#: Words that tie a description together, or name a thing only loosely ("the bath buddy"),
+#: and tell no name from another.
 _FORM_STOP = frozenset(
-    "and with for from you like shaped shape one small little big piece thing object toy".split()
+    "and with for from you like shaped shape one small little big piece thing object toy plain "
+    "buddy pal friend fella chap guy".split()
 )
 
 

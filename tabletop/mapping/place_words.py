@@ -20,7 +20,8 @@ Geometric phrasings (case and the articles "the"/"a" aside; "table" may be left 
   middle third in both directions; with a lateral or a depth word it is the middle of the
   other direction ("the middle of the left side"); "very", "dead", "exact" and "right in" may
   stress it ("right in the middle" is no right side);
-- corners: a lateral and a depth word together ("the far right corner", "front left").
+- corners: a lateral and a depth word together ("the far right corner", "front left");
+- the robot's own sides are the table's: "the robot's right", "the arm's left-hand side".
 """
 
 from __future__ import annotations
@@ -47,6 +48,7 @@ _NEAR = (
 )
 _MID = r"center|centre|central|middle|mid\s*point|midway|halfway|heart"
 _STRESSED_MID = re.compile(rf" right (?=(?:in|at) (?:the )?(?:(?:very|dead|exact) )?(?:{_MID}) )")
+_ROBOTS_SIDE = re.compile(rf" {_ROBOT} (?=(?:{_LEFT}|{_RIGHT}) )")
 #: Words a geometric phrase may hold beside the place words (space-separated).
 _FILLER = (
     "the a of on at in to table tabletop side part half corner edge area region zone end and "
@@ -61,6 +63,7 @@ def parse_region(text: str) -> TableRegion | None:
     t = " " + re.sub(r"[^a-z ]", " ", str(text).lower().replace("'s", " ")) + " "
     t = re.sub(r"\s+", " ", t)
     t = _STRESSED_MID.sub(" ", t)  # "right in the middle": no right side
+    t = _ROBOTS_SIDE.sub(" ", t)  # "the robot's right" is the table's right
     found: dict[str, str] = {}
     for key, value, pattern in (
         ("depth", "far", _FAR),
