@@ -398,12 +398,32 @@ def test_descriptions_are_query_time_text_and_can_be_replaced(scene):
     assert mod.heatmap("the thing you sip espresso from", 10.0, judge_at(0.2)).found
 
 
-def test_a_word_only_one_candidate_is_described_by_ranks_it_first():
+def _shipped_kinds_module(toys: dict, vocab: tuple) -> tuple:
+    """(module, voxels): ``toys`` (name -> (lo, hi, rgb)) as voxels, the vocabulary described
+    by the shipped descriptions (the words people's names for the kinds are scored on)."""
     from module_helpers import coloured_voxels
 
     from tabletop.eval.harness import catalog_descriptions
-    from tabletop.mapping.object_module import _word_forms
     from tabletop.mapping.table_regions import fit_table
+
+    shipped = catalog_descriptions()
+    desc = {k: shipped[k.replace(" ", "_")] for k in vocab}
+    vm = coloured_voxels(toys)
+    mod = ObjectModule(
+        vm, text_encoder(), ObjectConfig(), vocab, desc, lambda: fit_table(GRID, vm.indices)
+    )
+    return mod, vm
+
+
+def _inside(p, box) -> bool:
+    lo, hi, _ = box
+    return bool(
+        np.all(p[:2] >= np.subtract(lo[:2], 0.01)) and np.all(p[:2] <= np.add(hi[:2], 0.01))
+    )
+
+
+def test_a_word_only_one_candidate_is_described_by_ranks_it_first():
+    from tabletop.mapping.object_module import _word_forms
 
     assert {"boxy", "box", "roundish", "round", "bumps", "bump"} <= _word_forms(
         "a boxy, roundish thing with bumps"
@@ -414,50 +434,27 @@ def test_a_word_only_one_candidate_is_described_by_ranks_it_first():
         "toy cylinder": ((0.40, 0.10, 0.01), (0.46, 0.16, 0.07), (200, 30, 30)),
         "toy prism": ((0.40, -0.20, 0.01), (0.46, -0.14, 0.05), (200, 30, 30)),
     }
-    vocab = ("toy cube", "toy cylinder", "toy prism", "mug")
-    shipped = catalog_descriptions()  # the words people's names for the kinds are scored on
-    desc = {k: shipped[k.replace(" ", "_")] for k in vocab}
-    vm = coloured_voxels(toys)
-    mod = ObjectModule(
-        vm, text_encoder(), ObjectConfig(), vocab, desc, lambda: fit_table(GRID, vm.indices)
-    )
+    mod, vm = _shipped_kinds_module(toys, ("toy cube", "toy cylinder", "toy prism", "mug"))
     # what a thing is likened to may be one name's own: "a toy like a short tube or can"
     assert mod.match("the can-shaped block").names == ("toy cylinder",)
     for q, want in [("the round block", "toy cylinder")]:
         m = mod.match(q)
         assert want in m.names and len(m.names) >= 2, (q, m.names)  # the words fit several
         p = max_position(mod.heatmap(q, 10.0, judge_at(0.2)), vm.occupancy())
-        lo, hi, _ = toys[want]
-        inside = np.all(p[:2] >= np.subtract(lo[:2], 0.01)) and np.all(
-            p[:2] <= np.add(hi[:2], 0.01)
-        )
-        assert inside, (q, p)
+        assert _inside(p, toys[want]), (q, p)
 
 
 def test_words_all_of_one_names_descriptions_find_it_below_the_cosine_floor():
-    from module_helpers import coloured_voxels
-
-    from tabletop.eval.harness import catalog_descriptions
-    from tabletop.mapping.table_regions import fit_table
-
     toys = {
         "toy cube": ((0.10, -0.20, 0.01), (0.16, -0.14, 0.07), (200, 30, 30)),
         "toy prism": ((0.40, -0.20, 0.01), (0.46, -0.14, 0.05), (30, 30, 200)),
     }
-    vocab = ("toy cube", "toy cylinder", "toy prism", "mug", "duck")
-    shipped = catalog_descriptions()
-    desc = {k: shipped[k.replace(" ", "_")] for k in vocab}
-    vm = coloured_voxels(toys)
-    mod = ObjectModule(
-        vm, text_encoder(), ObjectConfig(), vocab, desc, lambda: fit_table(GRID, vm.indices)
-    )
+    mod, vm = _shipped_kinds_module(toys, ("toy cube", "toy cylinder", "toy prism", "mug", "duck"))
     m = mod.match("the pointy thing")
     assert m.text_score < mod.config.text_min and m.described and m.names == ("toy prism",)
     h = mod.heatmap("the pointy thing", 10.0, judge_at(0.2))
     p = max_position(h, vm.occupancy())
-    lo, hi, _ = toys["toy prism"]
-    assert h.found and np.all(p[:2] >= np.subtract(lo[:2], 0.01)), p
-    assert np.all(p[:2] <= np.add(hi[:2], 0.01)), p
+    assert h.found and _inside(p, toys["toy prism"]), p
     # a word no description holds keeps the floor: not found
     hat = mod.heatmap("the pointy hat", 10.0, judge_at(0.2))
     assert not hat.found and "like nothing" in hat.reason

@@ -412,9 +412,8 @@ class ObjectModule:
                 want |= np.array([head in name.split() for name in self.vocabulary])
             # What the thing is likened to may be one name's own ("the can-shaped block": the
             # cylinder is "a toy like a short tube or can"): then it is that name.
-            likened = [
-                w for w in words.split() if w not in plain.split() and w not in _LIKENESS_WORDS
-            ]
+            kept = set(plain.split()) | _LIKENESS_WORDS
+            likened = [w for w in words.split() if w not in kept]
             if likened and (d := self._described_fully(likened)) >= 0:
                 want = np.arange(nv) == d
             names = tuple(str(x) for x in np.array(self.vocabulary)[want])
@@ -775,10 +774,10 @@ BACKGROUND_TIE = 1e-4
 PALETTE_MIN_SHARE = 0.25
 
 
-#: "X-shaped", "shaped like X", "in the shape of X", "like X": words that liken the thing to
-#: another (hyphens are spaces here; X is one or two words, or up to a joining word).
 #: The words of a likeness that name nothing.
 _LIKENESS_WORDS = frozenset("shaped shape like looks look in of the a an".split())
+#: "X-shaped", "shaped like X", "in the shape of X", "like X": words that liken the thing to
+#: another (hyphens are spaces here; X is one or two words, or up to a joining word).
 _LIKENESS = re.compile(
     r"\b(?:shaped\s+like|in\s+the\s+shape\s+of|looks?\s+like|like)\s+(?:(?:a|an|the)\s+)?"
     r"[a-z']+(?:\s+(?!with\b|and\b|near\b|on\b|by\b)[a-z']+)?"
