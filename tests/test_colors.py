@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from tabletop.mapping.colors import BASIC_COLOURS, COLOR_NAMES, rgb_to_lab
-from tabletop.mapping.colour_words import color_parses, split_color_words
+from tabletop.mapping.colour_words import color_parses, framed_colours, split_color_words
 
 
 def test_lab_of_reference_colours():
@@ -42,6 +42,13 @@ def test_lab_of_reference_colours():
         # ... and only there
         ("the red mug in the corner", "red", "the mug in the corner"),
         ("the red brick", "red", "the brick"),
+        # a noun for the colour itself goes with it, with the word that brings it in
+        ("the little duck with white colouring", "white", "the little duck"),
+        ("the building piece in a blue finish", "blue", "the building piece"),
+        ("the ball of a deep red hue", "deep red", "the ball"),
+        ("the mug with a red handle", "red", "the mug with a handle"),
+        # superlatives and "appears"
+        ("the squeaky thing that appears blackest", "black", "the squeaky thing that"),
     ],
 )
 def test_colour_words_are_split_from_the_rest(text, colour, rest):
@@ -85,6 +92,22 @@ def test_colour_words_are_split_from_the_rest(text, colour, rest):
 def test_colour_readings_come_first_and_compounds_after(text, readings):
     assert color_parses(text) == readings
     assert split_color_words(text) == readings[0]
+
+
+@pytest.mark.parametrize(
+    ("text", "framed"),
+    [
+        ("the tomato-coloured tubey thing", ["tomato"]),
+        ("the angled block, colour heliotrope", ["heliotrope"]),
+        ("the block that appears bluebell", ["bluebell"]),
+        ("the mug in a papaya finish", ["papaya"]),
+        ("the red-coloured cube", []),  # a lexicon colour needs no frame
+        ("the solid colour ball", ["ball"]),  # a reading to try, not the only one
+        ("the block painted like a zebra", []),
+    ],
+)
+def test_words_the_query_frames_as_a_colour(text, framed):
+    assert framed_colours(text) == framed
 
 
 def test_every_name_belongs_to_a_basic_colour_term():

@@ -342,6 +342,13 @@ def test_other_readings_of_colour_words_are_tried_when_the_first_finds_nothing(s
     h = scene.heatmap("the blue milk chocolate mug", 10.0, judge_at(0.2))
     assert h.found and _lands_on(scene, h, "blue mug"), h.reason
     assert not scene.heatmap("the purple milk chocolate mug", 10.0, judge_at(0.2)).found
+    # a word the query frames as a colour is one, though no colour list has it
+    for q, mug in [
+        ("the tomato-coloured coffee mug", "red mug"),
+        ("the mug, colour bluebell", "blue mug"),
+    ]:
+        h = scene.heatmap(q, 10.0, judge_at(0.2))
+        assert h.found and _lands_on(scene, h, mug), (q, h.reason)
 
 
 def test_a_thing_the_words_liken_the_object_to_is_no_other_thing(scene):
@@ -458,3 +465,23 @@ def test_words_all_of_one_names_descriptions_find_it_below_the_cosine_floor():
     # a word no description holds keeps the floor: not found
     hat = mod.heatmap("the pointy hat", 10.0, judge_at(0.2))
     assert not hat.found and "like nothing" in hat.reason
+
+
+def test_words_all_of_one_names_descriptions_outweigh_a_cosine_that_names_another():
+    from tabletop.mapping.object_module import _without_likeness, _word_forms
+
+    assert {"dot", "angle", "knob", "stuff"} <= _word_forms("dotted angled knobbly stuffie")
+    assert _without_likeness("the can shape") == "the"
+    assert _without_likeness("in the shape of a can") == ""
+    assert _without_likeness("the shape") == "the shape"
+    toys = {
+        "toy cylinder": ((0.10, -0.20, 0.01), (0.16, -0.14, 0.07), (200, 30, 30)),
+        "toy prism": ((0.40, -0.20, 0.01), (0.46, -0.14, 0.05), (30, 30, 200)),
+    }
+    mod, vm = _shipped_kinds_module(toys, ("toy cube", "toy cylinder", "toy prism", "mug", "duck"))
+    for q in ("the column block", "the can shape"):
+        m = mod.match(q)
+        # "column" is a word of the cylinder's descriptions only, whatever the cosine ranks first
+        assert m.names == ("toy cylinder",), (q, m.names, m.nearest)
+        p = max_position(mod.heatmap(q, 10.0, judge_at(0.2)), vm.occupancy())
+        assert _inside(p, toys["toy cylinder"]), (q, p)

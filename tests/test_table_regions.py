@@ -38,6 +38,14 @@ from tabletop.mapping.targets import max_position
         ("the far right corner", "right", "far"),
         ("back left corner", "left", "near"),
         ("the middle of the left side", "left", "middle"),
+        # "you" is the robot asked; "away", "patch" and the like name no direction
+        ("the half closest to you", None, "near"),
+        ("the side where you stand", None, "near"),
+        ("your left", "left", None),
+        ("the part of the table farthest away", None, "far"),
+        ("the patch on the right", "right", None),
+        ("the core of the table", "middle", "middle"),
+        ("the mid part", "middle", "middle"),
     ],
 )
 def test_geometric_phrasings(text, lateral, depth):

@@ -21,9 +21,11 @@ from tabletop.paths import DATA_DIR
 
 __all__ = [
     "COLOR_LINK_WORDS",
+    "COLOUR_NOUNS",
     "FILLER_WORDS",
     "SURVEY_PATH",
     "color_parses",
+    "framed_colours",
     "split_color_words",
     "survey_colours",
     "survey_words",
@@ -40,8 +42,22 @@ _WORD = re.compile(r"[a-z]+(?:-[a-z]+)*")
 #: Words that only tie a colour to the thing: "the cube in red", "a red-coloured cube", "the
 #: block painted blue". Dropped with the colour phrase when they stand next to it.
 COLOR_LINK_WORDS = frozenset(
-    """in coloured colored colour color painted tinted hued shaded toned looking""".split()
+    """in coloured colored colour color painted tinted hued shaded toned looking appears
+    appearing""".split()
 )
+#: Nouns that name a thing's colour itself: "with white colouring", "in a blue finish", "of a
+#: red hue". Right after the colour phrase they go with it, and so do the "with", "in" or "of"
+#: (and article) that bring the phrase in.
+COLOUR_NOUNS = frozenset(
+    """colouring coloring colouration coloration finish paint paintwork tint hue shade tone
+    colour color""".split()
+)
+#: Words a colour phrase leans on that say the word next to them is a colour, whatever it is
+#: ("tomato-coloured", "colour heliotrope", "that appears papaya"); see :func:`framed_colours`.
+_FRAME_AFTER = frozenset("coloured colored hued tinted toned".split()) | (
+    COLOUR_NOUNS - {"colour", "color"}
+)
+_FRAME_BEFORE = frozenset("colour color painted appears appearing".split())
 
 
 def split_color_words(text: str) -> tuple[str, str]:
@@ -165,6 +181,32 @@ def color_parses(text: str, extra=frozenset()) -> list[tuple[str, str]]:
     return [r for r in out if not (r in seen or seen.add(r))]
 
 
+def framed_colours(text: str) -> list[str]:
+    """The words of ``text`` that its words name as a colour though no lexicon has them: the
+    word before "coloured", "colour" or a colour noun ("tomato-coloured", "a papaya finish")
+    or after "colour", "painted" or "appears" ("colour heliotrope", "that appears bluebell").
+    A word of one or two letters, a filler or a joining word is none."""
+    words = _WORD.findall(str(text).lower().replace("-", " "))
+    out = []
+    for k, w in enumerate(words):
+        framed = (k + 1 < len(words) and words[k + 1] in _FRAME_AFTER) or (
+            k > 0 and words[k - 1] in _FRAME_BEFORE
+        )
+        if (
+            framed
+            and len(w) > 2
+            and w not in FILLER_WORDS
+            and w not in _JOINING
+            and w not in COLOR_LINK_WORDS
+            and w not in COLOUR_NOUNS
+            and w not in ("a", "an", "the", "like")
+            and _ish(w) not in COLOR_NAMES
+            and w not in out
+        ):
+            out.append(w)
+    return out
+
+
 def _colour_positions(text: str, extra: frozenset[str]) -> tuple[list[str], list[int]]:
     """The query's words (hyphenated colour compounds one word, others split) and the
     positions of its colour words (lexicon names and ``extra``)."""
@@ -214,19 +256,25 @@ def _reading(words: list[str], where, keep_names: bool = False) -> tuple[str, st
         if not [w for w in rest if w in _THING]:
             return "", " ".join(words)  # "the orange", "a lemon": the colour name is the noun
     near = {j for k in where for j in (k - 1, k + 1)}
-    rest = [
-        w
-        for k, w in enumerate(words)
-        if k not in where and not (w in COLOR_LINK_WORDS and k in near)
-    ]
-    return " ".join(colour), " ".join(rest)
+    drop = set(where) | {k for k in near if 0 <= k < len(words) and words[k] in COLOR_LINK_WORDS}
+    after = max(where) + 1
+    if after < len(words) and words[after] in COLOUR_NOUNS:  # "with white colouring"
+        drop.add(after)
+        k = min(where) - 1
+        while k >= 0 and words[k] in ("a", "an", "the"):
+            k -= 1
+        if k >= 0 and words[k] in ("with", "in", "of", "having"):
+            drop |= set(range(k, min(where)))
+    return " ".join(colour), " ".join(w for k, w in enumerate(words) if k not in drop)
 
 
 def _ish(word: str) -> str:
-    """ "reddish" -> "red", "bluish" -> "blue", "greyish" -> "grey"; other words unchanged."""
-    if word.endswith("ish") and len(word) > 5:
-        stem = word[:-3]
-        for cand in (stem, stem[:-1], stem + "e"):  # redd-ish, blu-ish, purpl-ish
-            if cand in COLOR_NAMES:
-                return cand
+    """ "reddish" -> "red", "bluish" -> "blue", "greyish" -> "grey", and the superlatives:
+    "blackest" -> "black", "bluest" -> "blue"; other words unchanged."""
+    for suffix in ("ish", "est"):
+        if word.endswith(suffix) and len(word) > 5:
+            stem = word[:-3]
+            for cand in (stem, stem[:-1], stem + "e"):  # redd-ish, blu-ish, purpl-ish
+                if cand in COLOR_NAMES:
+                    return cand
     return word

@@ -62,6 +62,7 @@ from tabletop.mapping.colors import BASIC_COLOURS, COLOR_NAMES, delta_e, rgb_to_
 from tabletop.mapping.colour_words import (
     FILLER_WORDS,
     color_parses,
+    framed_colours,
     split_color_words,
     survey_colours,
     survey_words,
@@ -426,10 +427,12 @@ class ObjectModule:
             # So does a word that only one of those names' descriptions holds ("the round
             # block": of the cube, the cylinder and the prism, only the cylinder is round).
             named |= self._described_by(content, want)
-            described = (
-                bool(per[best] < cfg.text_min) and (d := self._described_fully(content)) >= 0
-            )
-            if described:  # the words are one name's own: it, not the cosine, decides
+            # the words are one name's own: it, not the cosine, decides where the cosine finds
+            # no name or names others ("the column block" is the cylinder's, though its cosine
+            # lies nearer the prism's)
+            d = self._described_fully(content)
+            described = d >= 0 and bool(per[best] < cfg.text_min or not want[d])
+            if described:
                 want = np.arange(nv) == d
                 names = (self.vocabulary[d],)
             rank = per + cfg.text_margin * named
@@ -665,15 +668,19 @@ class ObjectModule:
         colour where the text encoder places it nearer a lexicon colour than every vocabulary
         name, description and other thing ("cherry" is, "tomato" and "coffee" are not); where
         it also names something of the vocabulary's (its cosine with one reaches
-        ``text_min``: "tea" for a mug), the readings without it follow."""
+        ``text_min``: "tea" for a mug), the readings without it follow. A word the query's
+        own words call a colour (:func:`~tabletop.mapping.colour_words.framed_colours`:
+        "tomato-coloured", "colour heliotrope") is one, whatever the text encoder says, and the
+        readings without it follow ("the solid colour ball")."""
         lexicon = color_parses(query)
         if lexicon[0][0]:  # the lexicon's colour words are the colour
             return lexicon
-        colourish = [w for w in survey_words(query) if self._word_sense(w)[0]]
-        if not colourish:
+        framed = framed_colours(query)  # "tomato-coloured", "colour heliotrope": colours
+        colourish = [w for w in survey_words(query) if self._word_sense(w)[0] and w not in framed]
+        if not colourish and not framed:
             return lexicon
-        readings = color_parses(query, frozenset(colourish))
-        if any(self._word_sense(w)[1] for w in colourish):
+        readings = color_parses(query, frozenset(colourish + framed))
+        if framed or any(self._word_sense(w)[1] for w in colourish):
             readings += [r for r in lexicon if r not in readings]
         return readings
 
@@ -776,33 +783,41 @@ PALETTE_MIN_SHARE = 0.25
 
 #: The words of a likeness that name nothing.
 _LIKENESS_WORDS = frozenset("shaped shape like looks look in of the a an".split())
-#: "X-shaped", "shaped like X", "in the shape of X", "like X": words that liken the thing to
-#: another (hyphens are spaces here; X is one or two words, or up to a joining word).
+#: "X-shaped", "shaped like X", "in the shape of X", "like X", "the X shape": words that liken
+#: the thing to another (hyphens are spaces here; X is one or two words, or up to a joining
+#: word).
 _LIKENESS = re.compile(
     r"\b(?:shaped\s+like|in\s+the\s+shape\s+of|looks?\s+like|like)\s+(?:(?:a|an|the)\s+)?"
     r"[a-z']+(?:\s+(?!with\b|and\b|near\b|on\b|by\b)[a-z']+)?"
     r"|(?:\b(?!a\b|an\b|the\b)[a-z']+\s+)?\b[a-z']+\s+shaped\b(?!\s+like)"
+    r"|(?:\b(?!a\b|an\b|the\b)[a-z']+\s+)?\b(?!a\b|an\b|the\b)[a-z']+\s+shape\b(?!\s+of)"
 )
 
 
 def _word_forms(text: str) -> set[str]:
     """The plain forms of ``text``'s words, filler and words of two letters aside: each word,
-    without a plural "s", and "boxy" as "box", "roundish" as "round"."""
+    without a plural "s", and "boxy" as "box", "roundish" as "round", "dotted" as "dot",
+    "angled" as "angle", "knobbly" as "knob", "stuffie" as "stuff"."""
     out = set()
     for w in re.findall(r"[a-z]+", str(text).lower()):
         if len(w) < 3 or w in FILLER_WORDS or w in _FORM_STOP:
             continue
         out.add(w)
-        for suffix in ("ish", "es", "s", "y"):
+        for suffix in ("ish", "es", "s", "y", "ie", "ed", "ly"):
             if w.endswith(suffix) and len(w) - len(suffix) >= 3:
-                out.add(w[: -len(suffix)])
+                stem = w[: -len(suffix)]
+                out.add(stem)
+                if suffix in ("ed", "ly") and stem[-1] == stem[-2]:
+                    out.add(stem[:-1])  # "dotted" is "dot", "knobbly" "knob"
+                elif suffix == "ed":
+                    out.add(stem + "e")  # "angled" is "angle"
     return out
 
 
 #: Words that tie a description together, or name a thing only loosely ("the bath buddy"),
 #: and tell no name from another.
 _FORM_STOP = frozenset(
-    "and with for from you like shaped shape one small little big piece thing object toy plain "
+    "and with for from you like shaped shape one small little big piece bit thing object toy plain "
     "buddy pal friend fella chap guy".split()
 )
 

@@ -13,15 +13,18 @@ Geometric phrasings (case and the articles "the"/"a" aside; "table" may be left 
   the robot", "opposite the robot" (the half away from the robot) / "back", "near", "nearest",
   "closest", "near side", "close to the robot", "next to the robot", "by the robot", "the
   robot's side" / "end" / "half", "where the robot stands" / "is" / "sits" (the half nearest
-  the robot; "arm" or "base" may stand for "robot");
+  the robot; "arm" or "base" may stand for "robot", and so may "you": the robot is the one
+  asked, so "the half closest to you" is its side);
 - "side", "part", "half", "end", "edge", "corner", "area", "wing", "flank", "quarter",
-  "strip" and the like name no direction: "the right wing" is the right side;
-- "center"/"centre"/"central"/"middle"/"midpoint"/"midway"/"halfway"/"heart" alone: the
-  middle third in both directions; with a lateral or a depth word it is the middle of the
-  other direction ("the middle of the left side"); "very", "dead", "exact" and "right in" may
-  stress it ("right in the middle" is no right side);
+  "strip", "patch", "sector" and the like name no direction ("the right wing" is the right
+  side), nor does "away" beside a depth word ("the part farthest away");
+- "center"/"centre"/"central"/"middle"/"mid"/"midpoint"/"midway"/"halfway"/"heart"/"core"
+  alone: the middle third in both directions; with a lateral or a depth word it is the middle
+  of the other direction ("the middle of the left side"); "very", "dead", "exact" and "right
+  in" may stress it ("right in the middle" is no right side);
 - corners: a lateral and a depth word together ("the far right corner", "front left");
-- the robot's own sides are the table's: "the robot's right", "the arm's left-hand side".
+- the robot's own sides are the table's: "the robot's right", "the arm's left-hand side",
+  "your left".
 """
 
 from __future__ import annotations
@@ -35,7 +38,7 @@ __all__ = ["area_subject", "parse_region"]
 _LEFT = r"left\s+hand|leftmost|left"
 _RIGHT = r"right\s+hand|rightmost|right"
 # Longer phrases first: the alternation takes the first that matches.
-_ROBOT = r"(?:the\s+)?(?:robot|arm|base)"
+_ROBOT = r"(?:(?:the\s+)?(?:robot|arm|base)|you|yourself)"
 _FAR = (
     rf"(?:far(?:thest|ther)?|furthest|further)(?:\s+(?:end|side|part))?\s+(?:away\s+)?from\s+"
     rf"{_ROBOT}|away\s+from\s+{_ROBOT}|opposite\s+(?:to\s+|from\s+)?{_ROBOT}|"
@@ -43,17 +46,17 @@ _FAR = (
 )
 _NEAR = (
     rf"(?:close(?:st)?|near(?:est)?|next)\s+(?:to\s+)?{_ROBOT}|by\s+{_ROBOT}|"
-    rf"{_ROBOT}\s+(?:side|end|half)|(?:where|that)\s+{_ROBOT}\s+(?:stands|is|sits)|"
+    rf"{_ROBOT}\s+(?:side|end|half)|(?:where|that)\s+{_ROBOT}\s+(?:stands?|is|are|sits?)|"
     r"near\s+(?:side|end)|back|near(?:est|er)?|closest"
 )
-_MID = r"center|centre|central|middle|mid\s*point|midway|halfway|heart"
+_MID = r"center|centre|central|middle|mid\s*point|midway|halfway|heart|core|mid"
 _STRESSED_MID = re.compile(rf" right (?=(?:in|at) (?:the )?(?:(?:very|dead|exact) )?(?:{_MID}) )")
-_ROBOTS_SIDE = re.compile(rf" {_ROBOT} (?=(?:{_LEFT}|{_RIGHT}) )")
+_ROBOTS_SIDE = re.compile(rf" (?:{_ROBOT}|your) (?=(?:{_LEFT}|{_RIGHT}) )")
 #: Words a geometric phrase may hold beside the place words (space-separated).
 _FILLER = (
     "the a of on at in to table tabletop side part half corner edge area region zone end and "
     "top surface portion section space bit s very dead exact exactly point spot wing flank "
-    "quarter strip stretch"
+    "quarter strip stretch patch segment sector slice chunk away"
 )
 
 
