@@ -4,7 +4,12 @@ import numpy as np
 import pytest
 
 from tabletop.mapping.colors import BASIC_COLOURS, COLOR_NAMES, rgb_to_lab
-from tabletop.mapping.colour_words import color_parses, framed_colours, split_color_words
+from tabletop.mapping.colour_words import (
+    color_parses,
+    framed_colours,
+    modifies,
+    split_color_words,
+)
 
 
 def test_lab_of_reference_colours():
@@ -108,6 +113,20 @@ def test_colour_readings_come_first_and_compounds_after(text, readings):
 )
 def test_words_the_query_frames_as_a_colour(text, framed):
     assert framed_colours(text) == framed
+
+
+@pytest.mark.parametrize(
+    ("text", "name", "modifies_it"),
+    [
+        ("the heliotrope doorstop-shaped block", "heliotrope", True),
+        ("the tomato one", "tomato", True),
+        ("a ripe tomato", "tomato", False),
+        ("the tomato on the tray", "tomato", False),
+        ("the sky blue mug", "sky blue", True),
+    ],
+)
+def test_a_colour_name_modifies_what_follows_it(text, name, modifies_it):
+    assert modifies(text, name) is modifies_it
 
 
 def test_every_name_belongs_to_a_basic_colour_term():

@@ -346,6 +346,8 @@ def test_other_readings_of_colour_words_are_tried_when_the_first_finds_nothing(s
     for q, mug in [
         ("the tomato-coloured coffee mug", "red mug"),
         ("the mug, colour bluebell", "blue mug"),
+        # ... and so is a colour name that modifies the thing, though the encoder calls it fruit
+        ("the blueberry coffee mug", "blue mug"),
     ]:
         h = scene.heatmap(q, 10.0, judge_at(0.2))
         assert h.found and _lands_on(scene, h, mug), (q, h.reason)

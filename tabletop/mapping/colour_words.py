@@ -26,6 +26,7 @@ __all__ = [
     "SURVEY_PATH",
     "color_parses",
     "framed_colours",
+    "modifies",
     "split_color_words",
     "survey_colours",
     "survey_words",
@@ -205,6 +206,20 @@ def framed_colours(text: str) -> list[str]:
         ):
             out.append(w)
     return out
+
+
+def modifies(text: str, name: str) -> bool:
+    """Whether colour name ``name`` (one or two words) stands in ``text`` before more of the
+    noun phrase, as a modifier does: another word follows it that joins nothing ("the
+    heliotrope block", "the tomato one"; not "a ripe tomato", "the tomato on the tray")."""
+    words = _WORD.findall(str(text).lower().replace("-", " "))
+    parts = name.split()
+    for k in range(len(words) - len(parts)):
+        if words[k : k + len(parts)] == parts:
+            after = words[k + len(parts)]
+            if after not in _JOINING and (after not in FILLER_WORDS or after in _THING):
+                return True
+    return False
 
 
 def _colour_positions(text: str, extra: frozenset[str]) -> tuple[list[str], list[int]]:

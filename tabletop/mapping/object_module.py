@@ -63,6 +63,7 @@ from tabletop.mapping.colour_words import (
     FILLER_WORDS,
     color_parses,
     framed_colours,
+    modifies,
     split_color_words,
     survey_colours,
     survey_words,
@@ -652,12 +653,14 @@ class ObjectModule:
             return Heatmap.not_found(grid, query, "object", decay, "the map is empty")
         if not self.uses_instances:
             return self._voxel_heatmap(query, decay, judge)
-        first = None
+        # where none finds anything, the reason given is the lexicon's reading's ("'bottle'
+        # reads as 'bottle'" for "wine bottle", not the reading of "wine" as a colour)
+        plain, first = color_parses(query)[0], None
         for reading in self.readings(query):
             h = self._instance_heatmap(query, self.match(query, reading), decay, judge)
             if h.found:
                 return h
-            first = first or h
+            first = h if first is None or reading == plain else first
         return first
 
     def readings(self, query: str) -> list[tuple[str, str]]:
@@ -668,7 +671,10 @@ class ObjectModule:
         colour where the text encoder places it nearer a lexicon colour than every vocabulary
         name, description and other thing ("cherry" is, "tomato" and "coffee" are not); where
         it also names something of the vocabulary's (its cosine with one reaches
-        ``text_min``: "tea" for a mug), the readings without it follow. A word the query's
+        ``text_min``: "tea" for a mug), the readings without it follow. So they do where the
+        encoder places it nearer a thing, but one of no vocabulary name, and it modifies the
+        rest of the noun phrase (:func:`~tabletop.mapping.colour_words.modifies`: "the
+        heliotrope block" is no flower block, "the tomato one" no tomato). A word the query's
         own words call a colour (:func:`~tabletop.mapping.colour_words.framed_colours`:
         "tomato-coloured", "colour heliotrope") is one, whatever the text encoder says, and the
         readings without it follow ("the solid colour ball")."""
@@ -676,11 +682,18 @@ class ObjectModule:
         if lexicon[0][0]:  # the lexicon's colour words are the colour
             return lexicon
         framed = framed_colours(query)  # "tomato-coloured", "colour heliotrope": colours
-        colourish = [w for w in survey_words(query) if self._word_sense(w)[0] and w not in framed]
+        colourish, unsure = [], False
+        for w in survey_words(query):
+            colour, thing = self._word_sense(w)
+            if w in framed:
+                continue
+            if colour or (not thing and modifies(query, w)):
+                colourish.append(w)  # "the heliotrope block": no flower block
+                unsure |= thing or not colour
         if not colourish and not framed:
             return lexicon
         readings = color_parses(query, frozenset(colourish + framed))
-        if framed or any(self._word_sense(w)[1] for w in colourish):
+        if framed or unsure:
             readings += [r for r in lexicon if r not in readings]
         return readings
 
