@@ -470,12 +470,13 @@ def test_words_all_of_one_names_descriptions_find_it_below_the_cosine_floor():
 
 
 def test_words_all_of_one_names_descriptions_outweigh_a_cosine_that_names_another():
-    from tabletop.mapping.object_module import _without_likeness, _word_forms
+    from tabletop.mapping.object_module import _DEIXIS, _without_likeness, _word_forms
 
     assert {"dot", "angle", "knob", "stuff"} <= _word_forms("dotted angled knobbly stuffie")
     assert _without_likeness("the can shape") == "the"
     assert _without_likeness("in the shape of a can") == ""
     assert _without_likeness("the shape") == "the shape"
+    assert _DEIXIS.sub("", "the cup over there please").split() == ["the", "cup"]
     toys = {
         "toy cylinder": ((0.10, -0.20, 0.01), (0.16, -0.14, 0.07), (200, 30, 30)),
         "toy prism": ((0.40, -0.20, 0.01), (0.46, -0.14, 0.05), (30, 30, 200)),

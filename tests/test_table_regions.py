@@ -46,6 +46,9 @@ from tabletop.mapping.targets import max_position
         ("the patch on the right", "right", None),
         ("the core of the table", "middle", "middle"),
         ("the mid part", "middle", "middle"),
+        ("over on the left", "left", None),
+        ("the right-most third", "right", None),
+        ("towards the rear", None, "near"),
     ],
 )
 def test_geometric_phrasings(text, lateral, depth):

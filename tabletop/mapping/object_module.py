@@ -393,6 +393,7 @@ class ObjectModule:
         as ``reading`` ((colour phrase, the rest): default :func:`split_color_words`'s)."""
         cfg = self.config
         colour, words = reading if reading is not None else split_color_words(query)
+        words = " ".join(_DEIXIS.sub(" ", words).split()) or words  # "the cup over there"
         inst = self.instances.items
         n = len(inst)
         T, owner, _, _ = self._vocab_targets()
@@ -841,6 +842,13 @@ def _names_a_word_of(content: list[str], name: str, vocabulary) -> bool:
         w in name.split() and not any(w in other.split() for other in vocabulary if other != name)
         for w in content
     )
+
+
+#: Words that point or ask politely, and describe nothing: "the cup over there", "the red one
+#: please", "the duck for me".
+_DEIXIS = re.compile(
+    r"\b(?:(?:over|right|just|up|down)\s+)?(?:there|here)\b|\bplease\b|\bfor\s+me\b"
+)
 
 
 def _without_likeness(words: str) -> str:

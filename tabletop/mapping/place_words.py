@@ -11,13 +11,14 @@ Geometric phrasings (case and the articles "the"/"a" aside; "table" may be left 
   thirds of the table's width);
 - depth: "front", "far", "farthest", "furthest", "opposite", "far side", "far end", "away from
   the robot", "opposite the robot" (the half away from the robot) / "back", "near", "nearest",
-  "closest", "near side", "close to the robot", "next to the robot", "by the robot", "the
+  "closest", "rear", "near side", "close to the robot", "next to the robot", "by the robot", "the
   robot's side" / "end" / "half", "where the robot stands" / "is" / "sits" (the half nearest
   the robot; "arm" or "base" may stand for "robot", and so may "you": the robot is the one
   asked, so "the half closest to you" is its side);
 - "side", "part", "half", "end", "edge", "corner", "area", "wing", "flank", "quarter",
   "strip", "patch", "sector" and the like name no direction ("the right wing" is the right
-  side), nor does "away" beside a depth word ("the part farthest away");
+  side), nor do "away", "over", "towards", "most", "extreme" or "third" beside a direction
+  ("the part farthest away", "over on the left", "the right-most third");
 - "center"/"centre"/"central"/"middle"/"mid"/"midpoint"/"midway"/"halfway"/"heart"/"core"
   alone: the middle third in both directions; with a lateral or a depth word it is the middle
   of the other direction ("the middle of the left side"); "very", "dead", "exact" and "right
@@ -47,7 +48,7 @@ _FAR = (
 _NEAR = (
     rf"(?:close(?:st)?|near(?:est)?|next)\s+(?:to\s+)?{_ROBOT}|by\s+{_ROBOT}|"
     rf"{_ROBOT}\s+(?:side|end|half)|(?:where|that)\s+{_ROBOT}\s+(?:stands?|is|are|sits?)|"
-    r"near\s+(?:side|end)|back|near(?:est|er)?|closest"
+    r"near\s+(?:side|end)|back|rear|near(?:est|er)?|closest"
 )
 _MID = r"center|centre|central|middle|mid\s*point|midway|halfway|heart|core|mid"
 _STRESSED_MID = re.compile(rf" right (?=(?:in|at) (?:the )?(?:(?:very|dead|exact) )?(?:{_MID}) )")
@@ -56,7 +57,8 @@ _ROBOTS_SIDE = re.compile(rf" (?:{_ROBOT}|your) (?=(?:{_LEFT}|{_RIGHT}) )")
 _FILLER = (
     "the a of on at in to table tabletop side part half corner edge area region zone end and "
     "top surface portion section space bit s very dead exact exactly point spot wing flank "
-    "quarter strip stretch patch segment sector slice chunk away"
+    "quarter strip stretch patch segment sector slice chunk away over toward towards most "
+    "extreme outer outermost third"
 )
 
 
