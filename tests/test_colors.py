@@ -7,6 +7,7 @@ from tabletop.mapping.colors import BASIC_COLOURS, COLOR_NAMES, rgb_to_lab
 from tabletop.mapping.colour_words import (
     color_parses,
     framed_colours,
+    heads,
     modifies,
     split_color_words,
 )
@@ -127,6 +128,20 @@ def test_words_the_query_frames_as_a_colour(text, framed):
 )
 def test_a_colour_name_modifies_what_follows_it(text, name, modifies_it):
     assert modifies(text, name) is modifies_it
+
+
+@pytest.mark.parametrize(
+    ("text", "name", "heads_it"),
+    [
+        ("the domino stone", "stone", True),
+        ("the domino stone near the mug", "stone", True),
+        ("the stone domino", "stone", False),
+        ("the mug in cherry", "cherry", False),
+        ("the cherry", "cherry", False),
+    ],
+)
+def test_a_colour_name_may_be_the_head_noun(text, name, heads_it):
+    assert heads(text, name) is heads_it
 
 
 def test_every_name_belongs_to_a_basic_colour_term():

@@ -26,6 +26,7 @@ __all__ = [
     "SURVEY_PATH",
     "color_parses",
     "framed_colours",
+    "heads",
     "modifies",
     "split_color_words",
     "survey_colours",
@@ -218,6 +219,21 @@ def modifies(text: str, name: str) -> bool:
         if words[k : k + len(parts)] == parts:
             after = words[k + len(parts)]
             if after not in _JOINING and (after not in FILLER_WORDS or after in _THING):
+                return True
+    return False
+
+
+def heads(text: str, name: str) -> bool:
+    """Whether colour name ``name`` (one or two words) ends the noun phrase after a word of the
+    thing, as its head noun does: "the domino stone", "the rubber duck's lemon" (not "the mug
+    in cherry", where a link word ties the colour to the thing)."""
+    words = _WORD.findall(str(text).lower().replace("-", " "))
+    parts = name.split()
+    for k in range(1, len(words) - len(parts) + 1):
+        if words[k : k + len(parts)] == parts:
+            before, end = words[k - 1], k + len(parts)
+            last = end == len(words) or words[end] in _JOINING
+            if last and before not in _JOINING | FILLER_WORDS | COLOR_LINK_WORDS:
                 return True
     return False
 

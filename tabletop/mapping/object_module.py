@@ -63,6 +63,7 @@ from tabletop.mapping.colour_words import (
     FILLER_WORDS,
     color_parses,
     framed_colours,
+    heads,
     modifies,
     split_color_words,
     survey_colours,
@@ -675,7 +676,9 @@ class ObjectModule:
         ``text_min``: "tea" for a mug), the readings without it follow. So they do where the
         encoder places it nearer a thing, but one of no vocabulary name, and it modifies the
         rest of the noun phrase (:func:`~tabletop.mapping.colour_words.modifies`: "the
-        heliotrope block" is no flower block, "the tomato one" no tomato). A word the query's
+        heliotrope block" is no flower block, "the tomato one" no tomato); and they follow a
+        colour name that ends the noun phrase as its head noun ("the domino stone",
+        :func:`~tabletop.mapping.colour_words.heads`). A word the query's
         own words call a colour (:func:`~tabletop.mapping.colour_words.framed_colours`:
         "tomato-coloured", "colour heliotrope") is one, whatever the text encoder says, and the
         readings without it follow ("the solid colour ball")."""
@@ -690,7 +693,7 @@ class ObjectModule:
                 continue
             if colour or (not thing and modifies(query, w)):
                 colourish.append(w)  # "the heliotrope block": no flower block
-                unsure |= thing or not colour
+                unsure |= thing or not colour or heads(query, w)  # "the domino stone"
         if not colourish and not framed:
             return lexicon
         readings = color_parses(query, frozenset(colourish + framed))
