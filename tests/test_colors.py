@@ -117,31 +117,24 @@ def test_words_the_query_frames_as_a_colour(text, framed):
 
 
 @pytest.mark.parametrize(
-    ("text", "name", "modifies_it"),
+    ("place", "text", "name", "there"),
     [
-        ("the heliotrope doorstop-shaped block", "heliotrope", True),
-        ("the tomato one", "tomato", True),
-        ("a ripe tomato", "tomato", False),
-        ("the tomato on the tray", "tomato", False),
-        ("the sky blue mug", "sky blue", True),
+        # before more of the noun phrase, as a modifier
+        (modifies, "the heliotrope doorstop-shaped block", "heliotrope", True),
+        (modifies, "the tomato one", "tomato", True),
+        (modifies, "a ripe tomato", "tomato", False),
+        (modifies, "the tomato on the tray", "tomato", False),
+        (modifies, "the sky blue mug", "sky blue", True),
+        # last in the noun phrase after a word of the thing, as its head noun
+        (heads, "the domino stone", "stone", True),
+        (heads, "the domino stone near the mug", "stone", True),
+        (heads, "the stone domino", "stone", False),
+        (heads, "the mug in cherry", "cherry", False),
+        (heads, "the cherry", "cherry", False),
     ],
 )
-def test_a_colour_name_modifies_what_follows_it(text, name, modifies_it):
-    assert modifies(text, name) is modifies_it
-
-
-@pytest.mark.parametrize(
-    ("text", "name", "heads_it"),
-    [
-        ("the domino stone", "stone", True),
-        ("the domino stone near the mug", "stone", True),
-        ("the stone domino", "stone", False),
-        ("the mug in cherry", "cherry", False),
-        ("the cherry", "cherry", False),
-    ],
-)
-def test_a_colour_name_may_be_the_head_noun(text, name, heads_it):
-    assert heads(text, name) is heads_it
+def test_where_a_colour_name_stands_in_the_noun_phrase(place, text, name, there):
+    assert place(text, name) is there
 
 
 def test_every_name_belongs_to_a_basic_colour_term():

@@ -41,6 +41,20 @@ _THING = frozenset(("one", "thing", "object", "something", "item"))
 FILLER_WORDS = _THING | {"the", "a", "an", "that", "is", "this", "its", "it"}
 _WORD = re.compile(r"[a-z]+(?:-[a-z]+)*")
 
+
+def _plain_words(text: str) -> list[str]:
+    """``text``'s lower-case words, hyphens as spaces."""
+    return _WORD.findall(str(text).lower().replace("-", " "))
+
+
+def _places(words: list[str], name: str):
+    """(start, end) of each place ``name``'s words (one or two) stand in ``words``."""
+    parts = name.split()
+    for k in range(len(words) - len(parts) + 1):
+        if words[k : k + len(parts)] == parts:
+            yield k, k + len(parts)
+
+
 #: Words that only tie a colour to the thing: "the cube in red", "a red-coloured cube", "the
 #: block painted blue". Dropped with the colour phrase when they stand next to it.
 COLOR_LINK_WORDS = frozenset(
@@ -78,6 +92,8 @@ _JOINING = frozenset(
     """with of on in at to and or near by from for like as than that which who has have
     having""".split()
 )
+#: Words before a colour name that are no word of the thing (see :func:`heads`).
+_NOT_THING = _JOINING | FILLER_WORDS | COLOR_LINK_WORDS
 
 
 @cache
@@ -107,7 +123,7 @@ def survey_words(text: str) -> list[str]:
     """The survey's colour names in ``text`` that the lexicon does not have (two-word names
     first, then the single words not inside one), in the order they stand."""
     names = survey_colours()
-    words = _WORD.findall(str(text).lower().replace("-", " "))
+    words = _plain_words(text)
     out, skip = [], set()
     for i in range(len(words)):
         pair = " ".join(words[i : i + 2])
@@ -188,7 +204,7 @@ def framed_colours(text: str) -> list[str]:
     word before "coloured", "colour" or a colour noun ("tomato-coloured", "a papaya finish")
     or after "colour", "painted" or "appears" ("colour heliotrope", "that appears bluebell").
     A word of one or two letters, a filler or a joining word is none."""
-    words = _WORD.findall(str(text).lower().replace("-", " "))
+    words = _plain_words(text)
     out = []
     for k, w in enumerate(words):
         framed = (k + 1 < len(words) and words[k + 1] in _FRAME_AFTER) or (
@@ -201,7 +217,6 @@ def framed_colours(text: str) -> list[str]:
             and w not in _JOINING
             and w not in COLOR_LINK_WORDS
             and w not in COLOUR_NOUNS
-            and w not in ("a", "an", "the", "like")
             and _ish(w) not in COLOR_NAMES
             and w not in out
         ):
@@ -213,13 +228,11 @@ def modifies(text: str, name: str) -> bool:
     """Whether colour name ``name`` (one or two words) stands in ``text`` before more of the
     noun phrase, as a modifier does: another word follows it that joins nothing ("the
     heliotrope block", "the tomato one"; not "a ripe tomato", "the tomato on the tray")."""
-    words = _WORD.findall(str(text).lower().replace("-", " "))
-    parts = name.split()
-    for k in range(len(words) - len(parts)):
-        if words[k : k + len(parts)] == parts:
-            after = words[k + len(parts)]
-            if after not in _JOINING and (after not in FILLER_WORDS or after in _THING):
-                return True
+    words = _plain_words(text)
+    for _, end in _places(words, name):
+        after = words[end] if end < len(words) else ""
+        if after and after not in _JOINING and (after not in FILLER_WORDS or after in _THING):
+            return True
     return False
 
 
@@ -227,14 +240,11 @@ def heads(text: str, name: str) -> bool:
     """Whether colour name ``name`` (one or two words) ends the noun phrase after a word of the
     thing, as its head noun does: "the domino stone", "the rubber duck's lemon" (not "the mug
     in cherry", where a link word ties the colour to the thing)."""
-    words = _WORD.findall(str(text).lower().replace("-", " "))
-    parts = name.split()
-    for k in range(1, len(words) - len(parts) + 1):
-        if words[k : k + len(parts)] == parts:
-            before, end = words[k - 1], k + len(parts)
-            last = end == len(words) or words[end] in _JOINING
-            if last and before not in _JOINING | FILLER_WORDS | COLOR_LINK_WORDS:
-                return True
+    words = _plain_words(text)
+    for start, end in _places(words, name):
+        last = end == len(words) or words[end] in _JOINING
+        if start > 0 and last and words[start - 1] not in _NOT_THING:
+            return True
     return False
 
 
