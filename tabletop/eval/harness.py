@@ -134,6 +134,7 @@ def build_map(recording, encoders: str, config=None, progress=None, **kwargs):
 QUERY_TIME_SOURCES = frozenset(
     (
         "mapping/object_module.py",
+        "mapping/kind_reader.py",
         "mapping/colour_words.py",
         "mapping/place_words.py",
         "mapping/shape.py",
@@ -168,7 +169,7 @@ QUERY_TIME_SOURCES = frozenset(
 
 
 #: Data files read only at query time (a cached map is given today's: :func:`cached_map`).
-QUERY_TIME_DATA = frozenset({"descriptions.toml", "sound_words.toml"})
+QUERY_TIME_DATA = frozenset({"descriptions.toml", "sound_words.toml", "kind_reader.json"})
 
 
 def _fingerprint(*packages: str) -> str:
@@ -185,7 +186,9 @@ def _fingerprint(*packages: str) -> str:
             h.update(f.read_bytes())
     data = []
     if "mapping" in packages:  # the weights and the texts a map reads
-        data += sorted((DATA_DIR / "weights").rglob("*"))
+        data += [
+            f for f in sorted((DATA_DIR / "weights").rglob("*")) if f.name not in QUERY_TIME_DATA
+        ]
         data += [f for f in sorted(DATA_DIR.glob("*.toml")) if f.name not in QUERY_TIME_DATA]
     if "sim" in packages:  # the clips a scan inserts
         data.append(DATA_DIR / "sounds" / "manifest.json")

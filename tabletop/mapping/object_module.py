@@ -17,7 +17,12 @@ steps, each with its own reason when it fails:
    description does ("the wine bottle" is a bottle, though "a drinking vessel" describes the
    mug too). Deciding by rank rather than by a high absolute cosine keeps a person's looser
    words ("the round thing you kick") while refusing things that are not there. Every name
-   within ``text_margin`` of the best is what the query may mean.
+   within ``text_margin`` of the best is what the query may mean. The kind reader
+   (:mod:`tabletop.mapping.kind_reader`, a classifier of the words' embedding trained on how
+   people named each kind) has the last word on the two refusals: where it reads the words as
+   one name at ``reader_min`` or more, a query the cosine refused finds that name ("the tin
+   can toy" is the toy cylinder); where it reads them as none of the kinds at
+   ``reader_other`` or more, a query the cosine found is refused.
 2. **Instances to the vocabulary.** Each instance's fused embedding is scored against every
    vocabulary name (the name alone and with each basic colour term, as the image encoder was
    trained) and the background concepts; a softmax at ``temperature`` gives how much the
@@ -71,6 +76,7 @@ from tabletop.mapping.colour_words import (
 )
 from tabletop.mapping.heatmaps import Heatmap, Judge, point_heatmap_3d
 from tabletop.mapping.instances import InstanceConfig, InstanceSet, ObjectInstance, support_of
+from tabletop.mapping.kind_reader import OTHER, KindReader
 from tabletop.mapping.voxel_map import VoxelMap
 from tabletop.paths import DATA_DIR
 
@@ -140,6 +146,15 @@ class ObjectConfig:
     shading_gain_min: float = 0.6
     """A measured colour may be a named colour lit down to this factor of linear light (a
     shaded face of a yellow mug is darker and less saturated than "yellow")."""
+    reader: bool = True
+    """Consult the kind reader (:mod:`tabletop.mapping.kind_reader`) where it fits the map's
+    text encoder and vocabulary."""
+    reader_min: float = 0.7
+    """The reader's probability of one vocabulary name at which words the cosine refused
+    find that name."""
+    reader_other: float = 0.7
+    """The reader's probability that the words name none of the kinds at which a query the
+    cosine found is refused."""
     shape: bool = True
     """Multiply each instance's kind probabilities by the shape prior's
     (:mod:`tabletop.mapping.shape`: what its voxels' geometry says it is)."""
@@ -168,7 +183,7 @@ class ObjectConfig:
             raise ConfigError(
                 f"segmentation must be an InstanceConfig, got {type(self.segmentation).__name__}"
             )
-        for name in ("text_min", "keep_ratio"):
+        for name in ("text_min", "keep_ratio", "reader_min", "reader_other"):
             if not 0 <= getattr(self, name) <= 1:
                 raise ConfigError(f"{name} must be in [0, 1], got {getattr(self, name)}")
         for name in (
@@ -218,6 +233,11 @@ class InstanceMatch:
     """Every word of the query is a word of one name's label or descriptions and of no other
     name's ("the pointy thing": the prism is described as pointy): that name is what it means
     even where the words' cosine falls short of ``text_min``."""
+    read: str = ""
+    """The kind reader's reading of the words: a vocabulary name,
+    :data:`~tabletop.mapping.kind_reader.OTHER`, or "" (no reader)."""
+    read_p: float = 0.0
+    """The reader's probability of ``read``."""
 
     @property
     def scores(self) -> np.ndarray:
@@ -271,6 +291,7 @@ class ObjectModule:
         self._senses: dict[str, tuple[bool, bool]] = {}
         self._name_words: list[set[str]] | None = None
         self._shape_prior = None
+        self._reader: KindReader | bool | None = None
         self._shape_cache: tuple[tuple[int, int] | None, dict] = (None, {})
 
     def set_descriptions(self, descriptions: Mapping[str, tuple[str, ...]]) -> None:
@@ -451,8 +472,16 @@ class ObjectModule:
             # ("the bath buddy" is the duck's, though its cosine lies nearer "toilet")
             if described and not _word_forms(other) & _word_forms(" ".join(content)):
                 other, other_score = "", -1.0
+            read, read_p = self._read(e)
+            # the reader names what the cosine refused ("the tin can toy": nearer "tin can")
+            refused = (text_score < cfg.text_min and not described) or bool(
+                other and other_score > text_score + cfg.other_margin
+            )
+            if refused and read in self.vocabulary and read_p >= cfg.reader_min:
+                want = np.array([v == read for v in self.vocabulary])
+                names, weight = (read,), np.ones(nv)
         else:  # "something red": any object
-            described = False
+            described, read, read_p = False, "", 0.0
             names, text_score, nearest = self.vocabulary, 1.0, ""
             other, other_score = "", -1.0
             want = np.ones(nv, bool)
@@ -487,7 +516,47 @@ class ObjectModule:
             other,
             other_score,
             described,
+            read,
+            read_p,
         )
+
+    def kind_reader(self) -> KindReader | None:
+        """The kind reader, where the config asks for it and it reads this map's text encoder's
+        space and every vocabulary name (None otherwise)."""
+        if self._reader is None:
+            reader = KindReader.load() if self.config.reader and self.vocabulary else None
+            fits = reader is not None and reader.covers(self.vocabulary)
+            self._reader = (
+                reader if fits and getattr(self.text, "space", None) == reader.space else False
+            )
+        return self._reader or None
+
+    def _read(self, embedding: np.ndarray) -> tuple[str, float]:
+        """The kind reader's reading of the words' ``embedding`` ("" and 0 without a reader)."""
+        reader = self.kind_reader()
+        return reader.read(embedding) if reader is not None else ("", 0.0)
+
+    def refusal(self, m: InstanceMatch) -> str:
+        """Why the words of ``m`` name nothing of the map's vocabulary ("" where they do)."""
+        cfg = self.config
+        if m.read in m.names and m.read_p >= cfg.reader_min:
+            return ""
+        if m.text_score < cfg.text_min and not m.described:
+            return (
+                f"{m.words!r} is like nothing in this map's vocabulary (nearest: "
+                f"{m.nearest!r}, cosine {m.text_score:.2f} < {cfg.text_min})"
+            )
+        if m.other and m.other_score > m.text_score + cfg.other_margin:
+            return (
+                f"{m.words!r} reads as {m.other!r} (cosine {m.other_score:.2f}), which this "
+                f"map's vocabulary does not have (nearest: {m.nearest!r}, {m.text_score:.2f})"
+            )
+        if m.read == OTHER and m.read_p >= cfg.reader_other:
+            return (
+                f"{m.words!r} names none of this map's kinds (kind reader: {m.read_p:.2f} >= "
+                f"{cfg.reader_other}; nearest name {m.nearest!r}, cosine {m.text_score:.2f})"
+            )
+        return ""
 
     def _described_fully(self, content: list[str]) -> int:
         """The index of the one vocabulary name whose label and descriptions hold every
@@ -716,26 +785,8 @@ class ObjectModule:
         """Heat around the instances ``m`` ranks best; not found, with the reason, when none
         is what the query asks."""
         grid = self.voxels.grid
-        if m.text_score < self.config.text_min and not m.described:
-            return Heatmap.not_found(
-                grid,
-                query,
-                "object",
-                decay,
-                f"{m.words!r} is like nothing in this map's vocabulary (nearest: "
-                f"{m.nearest!r}, cosine {m.text_score:.2f} < {self.config.text_min})",
-                0.0,
-            )
-        if m.other and m.other_score > m.text_score + self.config.other_margin:
-            return Heatmap.not_found(
-                grid,
-                query,
-                "object",
-                decay,
-                f"{m.words!r} reads as {m.other!r} (cosine {m.other_score:.2f}), which this "
-                f"map's vocabulary does not have (nearest: {m.nearest!r}, {m.text_score:.2f})",
-                0.0,
-            )
+        if why := self.refusal(m):
+            return Heatmap.not_found(grid, query, "object", decay, why, 0.0)
         inst = self.instances.items
         if not inst:
             return Heatmap.not_found(
