@@ -77,12 +77,13 @@ POOLS = (
     "heldout-4",
     "heldout-5",
     "heldout-6",
+    "heldout-7",
 )
 #: Held-out pools nobody on the team has read: evaluated once, for a report. A held-out pool
 #: whose suites were read after its report ("heldout", "heldout-2", "heldout-3", "heldout-4",
-#: "heldout-5") is tuned on from then on, like a tune pool, and every newer held-out pool must
-#: differ from it.
-HELDOUT_POOLS = ("heldout-6",)
+#: "heldout-5", "heldout-6") is tuned on from then on, like a tune pool, and every newer
+#: held-out pool must differ from it.
+HELDOUT_POOLS = ("heldout-7",)
 TUNE_POOLS = tuple(p for p in POOLS if p not in HELDOUT_POOLS)
 BANK_DIR = DATA_DIR / "paraphrases"
 SUITE_DIRS = {p: f"paraphrase-{p}" for p in POOLS}
@@ -100,6 +101,7 @@ POOL_SEEDS = {
     "heldout-4": (830, 831, 832, 833),
     "heldout-5": (840, 841, 842, 843),
     "heldout-6": (850, 851, 852, 853),
+    "heldout-7": (860, 861, 862, 863),
 }
 
 #: Absent goals per scene: objects outside the catalog, catalog kinds the scene lacks, a colour
