@@ -21,6 +21,7 @@ TRAIN_OUT = {
     "vision": Path("out/weights/vision_dense_effnet.pt"),
     "vision (--backbone small)": Path("out/weights/vision_dense.pt"),
     "shape": Path("out/weights/shape_prior.json"),
+    "kind-reader": Path("out/weights/kind_reader.json"),
 }
 """Where ``tabletop train WHAT`` writes its weights unless given ``--out``."""
 _SHIPPED = {
@@ -28,6 +29,7 @@ _SHIPPED = {
     "vision": "tabletop/data/weights/vision_dense.pt",
     "vision (effnet-lite0)": "tabletop/data/weights/vision_dense_effnet.pt",
     "shape": "tabletop/data/weights/shape_prior.json",
+    "kind-reader": "tabletop/data/weights/kind_reader.json",
 }
 
 
@@ -83,6 +85,14 @@ def _is_shape_prior(path: Path) -> bool:
         return False
 
 
+def _is_kind_reader(path: Path) -> bool:
+    """Whether ``path`` is a kind reader ``tabletop train kind-reader`` wrote."""
+    try:
+        return json.loads(path.read_text()).get("format") == "tabletop-kind-reader"
+    except (OSError, ValueError, TypeError, AttributeError):
+        return False
+
+
 def _check_weights_output(
     out: Path,
     example: str = "out/weights/audio.pt",
@@ -105,21 +115,37 @@ def _check_weights_output(
     check_parents_are_directories("--out", out)
 
 
+def _only_out(args: argparse.Namespace) -> None:
+    """Refuse the flags a training that takes ``--out`` only was given."""
+    given = [
+        flag
+        for flag, value, default in (
+            ("--steps", args.steps, None),
+            ("--threads", args.threads, None),
+            ("--device", args.device, "cpu"),
+            ("--max-minutes", args.max_minutes, None),
+            ("--backbone", args.backbone, "effnet-lite0"),
+        )
+        if value != default
+    ]
+    if given:
+        raise ConfigError(f"{', '.join(given)}: not for {args.what} (it takes --out only)")
+
+
 def cmd_train(args: argparse.Namespace) -> int:
+    if args.what == "kind-reader":
+        _only_out(args)
+        out = Path(args.out) if args.out is not None else TRAIN_OUT["kind-reader"]
+        _check_weights_output(out, str(TRAIN_OUT["kind-reader"]), "a kind reader", _is_kind_reader)
+        from tabletop.train.kind_reader import train_kind_reader
+
+        path = train_kind_reader(out)
+        meta = json.loads(path.read_text())["meta"]
+        print(f"kind reader written: {path} ({meta['texts']} texts, pools {meta['pools']})")
+        print(f"leave one pool out, at {meta['threshold']}: {meta['leave_one_pool_out_mean']}")
+        return 0
     if args.what == "shape":
-        given = [
-            flag
-            for flag, value, default in (
-                ("--steps", args.steps, None),
-                ("--threads", args.threads, None),
-                ("--device", args.device, "cpu"),
-                ("--max-minutes", args.max_minutes, None),
-                ("--backbone", args.backbone, "effnet-lite0"),
-            )
-            if value != default
-        ]
-        if given:
-            raise ConfigError(f"{', '.join(given)}: not for shape (it takes --out only)")
+        _only_out(args)
         out = Path(args.out) if args.out is not None else TRAIN_OUT["shape"]
         _check_weights_output(out, str(TRAIN_OUT["shape"]), "a shape prior", _is_shape_prior)
         from tabletop.eval.harness import DEFAULT_CACHE_DIR
@@ -183,9 +209,11 @@ def cmd_train(args: argparse.Namespace) -> int:
 def add_commands(sub) -> None:
     """Register ``train`` and ``check-encoders`` on the ``tabletop`` sub-command parser."""
     p = sub.add_parser(
-        "train", help="train an embedded default encoder or the object shape prior (seeded)"
+        "train",
+        help="train an embedded default encoder, the object shape prior or the kind reader "
+        "(seeded)",
     )
-    p.add_argument("what", choices=["audio", "vision", "shape"])
+    p.add_argument("what", choices=["audio", "vision", "shape", "kind-reader"])
     p.add_argument(
         "--out",
         default=None,

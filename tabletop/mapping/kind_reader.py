@@ -6,9 +6,9 @@ none of the kinds is (the pools' absent objects, the object module's ``others``)
 (``tabletop train kind-reader``, :mod:`tabletop.train.kind_reader`). Where the cosine with the
 nearest label or description is too low to call a name found ("the tin can toy" lies nearer
 "tin can" than "toy cylinder"), the reader, which has learned which directions of the embedding
-tell the kinds apart, may still name the kind; where it reads the words as none of the kinds,
-the object module does not look for them (:class:`~tabletop.mapping.object_module.ObjectConfig`
-``reader_min``, ``reader_other``).
+tell the kinds apart, may still name the kind
+(:class:`~tabletop.mapping.object_module.ObjectConfig` ``reader_min``). It learns "none of the
+kinds" too, so that a thing outside the catalog is not read as the kind nearest it.
 
 The reader belongs to one text encoder's space and one vocabulary: the object module uses it
 only where the map's text encoder embeds into :attr:`KindReader.space` and every vocabulary
@@ -111,7 +111,7 @@ class KindReader:
 
 
 def fit_kind_reader(
-    embeddings: np.ndarray, labels, space: str, l2: float = 1e-5, max_iter: int = 500
+    embeddings: np.ndarray, labels, space: str, l2: float = 1e-6, max_iter: int = 500
 ) -> KindReader:
     """The :class:`KindReader` of unit ``embeddings`` ((n, D)) labelled ``labels`` (class names,
     :data:`OTHER` among them): the class-balanced cross-entropy plus ``l2`` times the squared

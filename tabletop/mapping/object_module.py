@@ -17,12 +17,11 @@ steps, each with its own reason when it fails:
    description does ("the wine bottle" is a bottle, though "a drinking vessel" describes the
    mug too). Deciding by rank rather than by a high absolute cosine keeps a person's looser
    words ("the round thing you kick") while refusing things that are not there. Every name
-   within ``text_margin`` of the best is what the query may mean. The kind reader
-   (:mod:`tabletop.mapping.kind_reader`, a classifier of the words' embedding trained on how
-   people named each kind) has the last word on the two refusals: where it reads the words as
-   one name at ``reader_min`` or more, a query the cosine refused finds that name ("the tin
-   can toy" is the toy cylinder); where it reads them as none of the kinds at
-   ``reader_other`` or more, a query the cosine found is refused.
+   within ``text_margin`` of the best is what the query may mean. Where the cosine refuses
+   the words, the kind reader (:mod:`tabletop.mapping.kind_reader`, a classifier of the
+   words' embedding trained on how people named each kind) may still name one: at
+   ``reader_min`` or more, the query means that name ("the tin can toy" is the toy
+   cylinder, though it lies nearer "tin can").
 2. **Instances to the vocabulary.** Each instance's fused embedding is scored against every
    vocabulary name (the name alone and with each basic colour term, as the image encoder was
    trained) and the background concepts; a softmax at ``temperature`` gives how much the
@@ -76,7 +75,7 @@ from tabletop.mapping.colour_words import (
 )
 from tabletop.mapping.heatmaps import Heatmap, Judge, point_heatmap_3d
 from tabletop.mapping.instances import InstanceConfig, InstanceSet, ObjectInstance, support_of
-from tabletop.mapping.kind_reader import OTHER, KindReader
+from tabletop.mapping.kind_reader import KindReader
 from tabletop.mapping.voxel_map import VoxelMap
 from tabletop.paths import DATA_DIR
 
@@ -152,9 +151,6 @@ class ObjectConfig:
     reader_min: float = 0.7
     """The reader's probability of one vocabulary name at which words the cosine refused
     find that name."""
-    reader_other: float = 0.7
-    """The reader's probability that the words name none of the kinds at which a query the
-    cosine found is refused."""
     shape: bool = True
     """Multiply each instance's kind probabilities by the shape prior's
     (:mod:`tabletop.mapping.shape`: what its voxels' geometry says it is)."""
@@ -183,7 +179,7 @@ class ObjectConfig:
             raise ConfigError(
                 f"segmentation must be an InstanceConfig, got {type(self.segmentation).__name__}"
             )
-        for name in ("text_min", "keep_ratio", "reader_min", "reader_other"):
+        for name in ("text_min", "keep_ratio", "reader_min"):
             if not 0 <= getattr(self, name) <= 1:
                 raise ConfigError(f"{name} must be in [0, 1], got {getattr(self, name)}")
         for name in (
@@ -550,11 +546,6 @@ class ObjectModule:
             return (
                 f"{m.words!r} reads as {m.other!r} (cosine {m.other_score:.2f}), which this "
                 f"map's vocabulary does not have (nearest: {m.nearest!r}, {m.text_score:.2f})"
-            )
-        if m.read == OTHER and m.read_p >= cfg.reader_other:
-            return (
-                f"{m.words!r} names none of this map's kinds (kind reader: {m.read_p:.2f} >= "
-                f"{cfg.reader_other}; nearest name {m.nearest!r}, cosine {m.text_score:.2f})"
             )
         return ""
 

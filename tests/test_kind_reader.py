@@ -1,0 +1,152 @@
+"""The kind reader: its fit, its file, the committed reader, and how the object module uses it."""
+
+import json
+
+import numpy as np
+import pytest
+from module_helpers import GRID, judge_at, text_encoder
+
+from tabletop.errors import AssetError
+from tabletop.mapping.kind_reader import OTHER, KindReader, fit_kind_reader
+
+
+def _blobs(rng, n=30):
+    centres = {"mug": [1, 0, 0, 0], "duck": [0, 1, 0, 0], OTHER: [0, 0, 1, 0]}
+    x, y = [], []
+    for label, c in centres.items():
+        pts = np.asarray(c, float) + 0.2 * rng.standard_normal((n, 4))
+        x.append(pts / np.linalg.norm(pts, axis=1, keepdims=True))
+        y += [label] * n
+    return np.vstack(x), y
+
+
+def test_a_fit_reads_its_classes_is_deterministic_and_round_trips(tmp_path):
+    x, y = _blobs(np.random.default_rng(0))
+    a = fit_kind_reader(x, y, "space-a")
+    b = fit_kind_reader(x, y, "space-a")
+    assert np.array_equal(a.weights, b.weights) and a.classes == ("duck", "mug", OTHER)
+    assert a.read(np.array([0.0, 1.0, 0.0, 0.0]))[0] == "duck"
+    assert a.read(np.array([0.0, 0.0, 1.0, 0.0]))[0] == OTHER
+    p = a.probabilities(x)
+    assert p.shape == (len(x), 3) and np.allclose(p.sum(axis=1), 1.0)
+    path = tmp_path / "reader.json"
+    a.save(path)
+    c = KindReader.load(path)
+    assert c.classes == a.classes and c.space == "space-a"
+    assert np.allclose(c.probabilities(x), p, atol=1e-4)
+    assert a.covers(("mug",)) and not a.covers(("mug", "tray")) and not a.covers(())
+    with pytest.raises(ValueError, match="dimension 3"):
+        a.probabilities(np.zeros((1, 3)))
+    with pytest.raises(ValueError, match=OTHER):
+        fit_kind_reader(x[:60], y[:60], "space-a")
+
+
+def test_a_broken_reader_file_says_how_to_make_one(tmp_path):
+    bad = tmp_path / "r.json"
+    for text in ("not json", '{"format": "something else", "version": 1}', "[1, 2]"):
+        bad.write_text(text)
+        with pytest.raises(AssetError, match="tabletop train kind-reader"):
+            KindReader.load(bad)
+    with pytest.raises(AssetError, match="tabletop train kind-reader"):
+        KindReader.load(tmp_path / "missing.json")
+
+
+def test_the_committed_reader_reads_the_labels_and_refuses_other_things():
+    from tabletop.eval.paraphrase import HELDOUT_POOLS, TUNE_POOLS
+    from tabletop.mapping.encoders.minilm import MINILM_SPACE
+    from tabletop.sim.catalog import OBJECT_KINDS
+
+    reader = KindReader.load()
+    labels = [k.label for k in OBJECT_KINDS.values()]
+    assert reader.space == MINILM_SPACE and reader.covers(labels)
+    # trained on tune pools only: no held-out pool's phrasing taught it anything
+    assert set(reader.meta["pools"]) <= set(TUNE_POOLS)
+    assert not set(reader.meta["pools"]) & set(HELDOUT_POOLS)
+    enc = text_encoder()
+    for label in labels:
+        assert reader.read(enc.encode_text([f"the {label}"])[0])[0] == label
+    for thing in ("the laptop", "the giraffe", "the banana", "the car keys"):
+        assert reader.read(enc.encode_text([thing])[0])[0] == OTHER, thing
+    # its leave-one-pool-out figures are in its file, and no better than possible
+    mean = reader.meta["leave_one_pool_out_mean"]
+    assert 0.5 < mean["read_as_kind"] <= 1.0 and mean["absent_read_as_kind"] < 0.2
+
+
+@pytest.fixture(scope="module")
+def scenes():
+    from module_helpers import coloured_voxels
+    from test_object_module import DESCRIPTIONS, SCENE, VOCAB
+
+    from tabletop.mapping.object_module import ObjectConfig, ObjectModule
+    from tabletop.mapping.table_regions import fit_table
+
+    vm = coloured_voxels(SCENE)
+
+    def module(**kw):
+        return ObjectModule(
+            vm,
+            text_encoder(),
+            ObjectConfig(**kw),
+            VOCAB,
+            DESCRIPTIONS,
+            lambda: fit_table(GRID, vm.indices),
+        )
+
+    return module(), module(reader=False)
+
+
+def test_the_reader_finds_what_the_cosine_refused(scenes):
+    ours, plain = scenes
+    # no description of the duck here: its cosine is too low, the reader knows the word
+    assert not plain.heatmap("the bath buddy", 10.0, judge_at(0.2)).found
+    m = ours.match("the bath buddy")
+    assert m.read == "duck" and m.read_p >= ours.config.reader_min and m.names == ("duck",)
+    assert ours.heatmap("the bath buddy", 10.0, judge_at(0.2)).found
+    # what the reader reads as none of the kinds stays refused, with the cosine's reason
+    laptop = ours.heatmap("the laptop", 10.0, judge_at(0.2))
+    assert ours.match("the laptop").read == OTHER
+    assert not laptop.found and "like nothing" in laptop.reason and laptop.peak == 0.0
+
+
+def test_a_reader_of_another_space_or_vocabulary_is_not_used():
+    from module_helpers import coloured_voxels
+    from test_object_module import SCENE
+
+    from tabletop.mapping.object_module import ObjectConfig, ObjectModule
+
+    vm = coloured_voxels(SCENE)
+    other_vocab = ObjectModule(vm, text_encoder(), ObjectConfig(), ("mug", "sofa"))
+    assert other_vocab.kind_reader() is None and other_vocab.match("the mug").read == ""
+
+    class Renamed:
+        space = "another-space"
+
+        def encode_text(self, texts):
+            return text_encoder().encode_text(texts)
+
+    assert ObjectModule(vm, Renamed(), ObjectConfig(), ("mug",)).kind_reader() is None
+
+
+def test_training_reproduces_the_committed_reader(tmp_path):
+    from tabletop.train.kind_reader import train_kind_reader
+
+    shipped = KindReader.load()
+    out = train_kind_reader(tmp_path / "reader.json", cross_validate=False)
+    ours = KindReader.load(out)
+    assert ours.classes == shipped.classes and ours.meta["pools"] == shipped.meta["pools"]
+    assert ours.meta["texts"] == shipped.meta["texts"]
+    enc = text_encoder()
+    x = enc.encode_text(["the coffee cup", "the plush bear", "the laptop", "the round block"])
+    assert np.abs(ours.probabilities(x) - shipped.probabilities(x)).max() < 0.02
+
+
+def test_train_kind_reader_takes_its_own_flags_and_replaces_only_a_reader(tmp_path, capsys):
+    from tabletop.cli import main
+
+    for flags in (["--steps", "5"], ["--backbone", "small"]):
+        assert main(["train", "kind-reader", *flags]) != 0
+        assert "not for kind-reader" in capsys.readouterr().err
+    notes = tmp_path / "notes.json"
+    notes.write_text(json.dumps({"a": 1}))
+    assert main(["train", "kind-reader", "--out", str(notes)]) != 0
+    assert "not a kind reader" in capsys.readouterr().err and notes.read_text() == '{"a": 1}'
