@@ -55,6 +55,12 @@ def test_lab_of_reference_colours():
         ("the mug with a red handle", "red", "the mug with a handle"),
         # superlatives and "appears"
         ("the squeaky thing that appears blackest", "black", "the squeaky thing that"),
+        # adjectives in "-y" of a colour name are that colour; other "-y" words are not
+        ("the minty stacking brick", "mint", "the stacking brick"),
+        ("the cup, kind of chocolatey", "chocolate", "the cup kind of"),
+        ("the creamy teddy", "cream", "the teddy"),
+        ("the spotty domino", "", "the spotty domino"),
+        ("the fluffy navy bear", "navy", "the fluffy bear"),
     ],
 )
 def test_colour_words_are_split_from_the_rest(text, colour, rest):
@@ -159,13 +165,16 @@ def test_shaded_lab_darkens_a_colour_and_keeps_it_at_full_light():
 
 def test_the_survey_names_load_without_the_lexicons_and_a_bad_file_is_named(tmp_path):
     from tabletop.errors import AssetError
-    from tabletop.mapping.colour_words import survey_colours, survey_words
+    from tabletop.mapping.colour_words import survey_colours, survey_name, survey_words
 
     names = survey_colours()
     assert len(names) > 500 and not set(names) & set(COLOR_NAMES)
     assert names["aubergine"] == (0x3D, 0x07, 0x34)
     assert survey_words("the peacock blue and aubergine mug") == ["peacock blue", "aubergine"]
     assert survey_words("the red mug") == []
+    # an adjective in "-y" of a survey name stands for it
+    assert survey_words("the grassy ball") == ["grassy"] and survey_name("grassy") == "grass"
+    assert survey_name("aubergine") == "aubergine" and survey_name("sandwich") == ""
     bad = tmp_path / "bad.toml"
     bad.write_text('format = "tabletop-colour-names"\nversion = 1\n[names]\nmoss = "green"\n')
     with pytest.raises(AssetError, match="moss"):

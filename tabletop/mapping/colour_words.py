@@ -30,6 +30,7 @@ __all__ = [
     "modifies",
     "split_color_words",
     "survey_colours",
+    "survey_name",
     "survey_words",
 ]
 
@@ -130,9 +131,16 @@ def survey_words(text: str) -> list[str]:
         if i + 1 < len(words) and pair in names and pair not in COLOR_NAMES:
             out.append(pair)
             skip |= {i, i + 1}
-        elif i not in skip and words[i] in names:
-            out.append(words[i])
+        elif i not in skip and (words[i] in names or _ish(words[i]) in names):
+            out.append(words[i])  # "grassy": the survey's "grass"
     return out
+
+
+def survey_name(word: str) -> str:
+    """The survey's colour name ``word`` (one or two words) stands for: itself, or the name
+    its "-y" adjective is made of ("grassy": "grass"); "" for none."""
+    names = survey_colours()
+    return word if word in names else (_ish(word) if _ish(word) in names else "")
 
 
 def color_parses(text: str, extra=frozenset()) -> list[tuple[str, str]]:
@@ -263,7 +271,7 @@ def _colour_positions(text: str, extra: frozenset[str]) -> tuple[list[str], list
             words.append(w)  # "grass-green", "sky-blue", "jet-black": one colour word
         else:
             words += parts
-    names = set(COLOR_NAMES) | extra
+    names = set(COLOR_NAMES) | extra | {_ish(w) for w in extra}
 
     def is_colour(word: str) -> bool:
         parts = word.split("-")
@@ -310,12 +318,19 @@ def _reading(words: list[str], where, keep_names: bool = False) -> tuple[str, st
 
 
 def _ish(word: str) -> str:
-    """ "reddish" -> "red", "bluish" -> "blue", "greyish" -> "grey", and the superlatives:
-    "blackest" -> "black", "bluest" -> "blue"; other words unchanged."""
+    """ "reddish" -> "red", "bluish" -> "blue", "greyish" -> "grey", the superlatives
+    ("blackest" -> "black", "bluest" -> "blue") and the adjectives in "-y" of a colour name
+    ("minty" -> "mint", "creamy" -> "cream", "chocolatey" -> "chocolate", "grassy" -> "grass" of
+    the survey); other words unchanged."""
     for suffix in ("ish", "est"):
         if word.endswith(suffix) and len(word) > 5:
             stem = word[:-3]
             for cand in (stem, stem[:-1], stem + "e"):  # redd-ish, blu-ish, purpl-ish
                 if cand in COLOR_NAMES:
                     return cand
+    if word.endswith("y") and len(word) > 4 and word not in COLOR_NAMES:
+        stem = word[:-1]  # mint-y, chocolate-y, smok(e)-y, clay-ey
+        for cand in (stem, stem + "e", stem[:-1] if stem.endswith("e") else ""):
+            if cand in COLOR_NAMES or cand in survey_colours():
+                return cand
     return word

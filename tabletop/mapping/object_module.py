@@ -71,6 +71,7 @@ from tabletop.mapping.colour_words import (
     modifies,
     split_color_words,
     survey_colours,
+    survey_name,
     survey_words,
 )
 from tabletop.mapping.heatmaps import Heatmap, Judge, point_heatmap_3d
@@ -602,7 +603,7 @@ class ObjectModule:
         embeddings, lab = self._colour_lexicon()
         survey = survey_words(colour)
         if survey:  # a survey name means its basic colour term: that of the nearest name
-            rgb = np.array(survey_colours()[survey[0]], float)
+            rgb = np.array(survey_colours()[survey_name(survey[0])], float)
             de = delta_e(rgb_to_lab(rgb), lab[-1])  # the names at full light (gain 1)
             return self.colour_weights(COLOR_NAMES[list(COLOR_NAMES)[int(np.argmin(de))]][1])
         sim = embeddings @ self.text.encode_text([colour])[0]
