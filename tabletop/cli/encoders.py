@@ -38,6 +38,7 @@ def cmd_check_encoders(args: argparse.Namespace) -> int:
     from tabletop.eval.instance_eval import evaluate_instances
     from tabletop.eval.sound_segments import segmentation_figures
     from tabletop.mapping.encoders.lseg import EFFNET_WEIGHTS_PATH
+    from tabletop.mapping.kind_reader import KindReader
     from tabletop.train.audio import evaluate_audio
     from tabletop.train.vision import evaluate_vision
 
@@ -54,6 +55,11 @@ def cmd_check_encoders(args: argparse.Namespace) -> int:
             out[f"audio_own_segment_{snr}db"] = seg["own_segment"]
             out[f"audio_segments_per_sound_{snr}db"] = seg["segments_per_sound"]
     out.update({k: v for k, v in a.items() if k.startswith("audio_")})
+    # the kind reader's own held-out figures: each tune pool read by a reader fitted without it
+    lopo = KindReader.load().meta.get("leave_one_pool_out_mean") or {}
+    for key in ("read_as_kind", "read_as_another", "absent_read_as_kind"):
+        if lopo.get(key) is not None:
+            out[f"text_kind_reader_{key}_lopo"] = lopo[key]
     out["encoders"] = "embedded default (learned; held-out data)"
     if args.json:
         print(json.dumps(out, indent=1))
