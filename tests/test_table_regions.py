@@ -49,6 +49,19 @@ from tabletop.mapping.targets import max_position
         ("over on the left", "left", None),
         ("the right-most third", "right", None),
         ("towards the rear", None, "near"),
+        # one-word "lefthand", the sailor's sides, stressed and "-most" middles, margins
+        ("the lefthand area", "left", None),
+        ("the starboard side", "right", None),
+        ("port", "left", None),
+        ("the slap-bang centre", "middle", "middle"),
+        ("smack dab in the middle", "middle", "middle"),
+        ("the centremost part", "middle", "middle"),
+        ("the back margin", None, "near"),
+        ("the stretch along the back", None, "near"),
+        ("the frontmost part", None, "far"),
+        ("the area up front", None, "far"),
+        ("the rearmost bit of the table", None, "near"),
+        ("the centre of it all", "middle", "middle"),
     ],
 )
 def test_geometric_phrasings(text, lateral, depth):

@@ -7,22 +7,25 @@ are computed in :mod:`tabletop.mapping.table_regions`.
 
 Geometric phrasings (case and the articles "the"/"a" aside; "table" may be left out):
 
-- lateral: "left", "left-hand", "leftmost" / "right", "right-hand", "rightmost" (the outer
-  thirds of the table's width);
-- depth: "front", "far", "farthest", "furthest", "opposite", "far side", "far end", "away from
-  the robot", "opposite the robot" (the half away from the robot) / "back", "near", "nearest",
-  "closest", "rear", "near side", "close to the robot", "next to the robot", "by the robot", "the
-  robot's side" / "end" / "half", "where the robot stands" / "is" / "sits" (the half nearest
-  the robot; "arm" or "base" may stand for "robot", and so may "you": the robot is the one
-  asked, so "the half closest to you" is its side);
-- "side", "part", "half", "end", "edge", "corner", "area", "wing", "flank", "quarter",
-  "strip", "patch", "sector" and the like name no direction ("the right wing" is the right
-  side), nor do "away", "over", "towards", "most", "extreme" or "third" beside a direction
-  ("the part farthest away", "over on the left", "the right-most third");
-- "center"/"centre"/"central"/"middle"/"mid"/"midpoint"/"midway"/"halfway"/"heart"/"core"
-  alone: the middle third in both directions; with a lateral or a depth word it is the middle
-  of the other direction ("the middle of the left side"); "very", "dead", "exact" and "right
-  in" may stress it ("right in the middle" is no right side);
+- lateral: "left", "left-hand", "lefthand", "leftmost", "port" / "right", "right-hand",
+  "righthand", "rightmost", "starboard" (the outer thirds of the table's width);
+- depth: "front", "frontmost", "forward", "far", "farthest", "furthest", "opposite", "far side",
+  "far end", "away from the robot", "opposite the robot" (the half away from the robot) /
+  "back", "rearmost", "near", "nearest", "closest", "rear", "near side", "close to the
+  robot", "next to the robot", "by the robot", "the robot's side" / "end" / "half", "where
+  the robot stands" / "is" / "sits" (the half nearest the robot; "arm" or "base" may stand
+  for "robot", and so may "you": the robot is the one asked, so "the half closest to you" is
+  its side);
+- "side", "part", "half", "end", "edge", "margin", "border", "corner", "area", "wing",
+  "flank", "quarter", "strip", "patch", "sector" and the like name no direction ("the right
+  wing" is the right side), nor do "away", "over", "along", "towards", "most", "extreme" or
+  "third" beside a direction ("the part farthest away", "over on the left", "the stretch
+  along the back", "the right-most third");
+- "center"/"centre"/"central"/"middle"/"mid"/"midpoint"/"midway"/"halfway"/"heart"/"core"/
+  "centremost"/"innermost" alone: the middle third in both directions; with a lateral or a
+  depth word it is the middle of the other direction ("the middle of the left side"); "very",
+  "dead", "exact", "smack", "slap", "bang", "dab", "plumb", "squarely" and "right in" may
+  stress it ("right in the middle" is no right side, "slap-bang in the centre" no sound);
 - corners: a lateral and a depth word together ("the far right corner", "front left");
 - the robot's own sides are the table's: "the robot's right", "the arm's left-hand side",
   "your left".
@@ -36,21 +39,25 @@ from tabletop.mapping.table_regions import TableRegion
 
 __all__ = ["area_subject", "parse_region"]
 
-_LEFT = r"left\s+hand|leftmost|left"
-_RIGHT = r"right\s+hand|rightmost|right"
+_LEFT = r"left\s*hand|leftmost|left|port"
+_RIGHT = r"right\s*hand|rightmost|right|starboard"
 # Longer phrases first: the alternation takes the first that matches.
 _ROBOT = r"(?:(?:the\s+)?(?:robot|arm|base)|you|yourself)"
 _FAR = (
     rf"(?:far(?:thest|ther)?|furthest|further)(?:\s+(?:end|side|part))?\s+(?:away\s+)?from\s+"
     rf"{_ROBOT}|away\s+from\s+{_ROBOT}|opposite\s+(?:to\s+|from\s+)?{_ROBOT}|"
-    r"far\s+(?:side|end)|front|far(?:thest|ther)?|furthest|further|opposite"
+    r"far\s+(?:side|end)|front\s*most|front|forward|far(?:thest|ther)?|furthest|further|"
+    r"opposite"
 )
 _NEAR = (
     rf"(?:close(?:st)?|near(?:est)?|next)\s+(?:to\s+)?{_ROBOT}|by\s+{_ROBOT}|"
     rf"{_ROBOT}\s+(?:side|end|half)|(?:where|that)\s+{_ROBOT}\s+(?:stands?|is|are|sits?)|"
-    r"near\s+(?:side|end)|back|rear|near(?:est|er)?|closest"
+    r"near\s+(?:side|end)|(?:back|rear|hind)\s*most|back|rear|near(?:est|er)?|closest"
 )
-_MID = r"center|centre|central|middle|mid\s*point|midway|halfway|heart|core|mid"
+_MID = (
+    r"cent(?:er|re)\s*most|middle\s*most|mid\s*most|innermost|center|centre|central|middle|"
+    r"mid\s*point|midway|halfway|heart|core|mid"
+)
 _STRESSED_MID = re.compile(rf" right (?=(?:in|at) (?:the )?(?:(?:very|dead|exact) )?(?:{_MID}) )")
 _ROBOTS_SIDE = re.compile(rf" (?:{_ROBOT}|your) (?=(?:{_LEFT}|{_RIGHT}) )")
 #: Words a geometric phrase may hold beside the place words (space-separated).
@@ -58,7 +65,8 @@ _FILLER = (
     "the a of on at in to table tabletop side part half corner edge area region zone end and "
     "top surface portion section space bit s very dead exact exactly point spot wing flank "
     "quarter strip stretch patch segment sector slice chunk away over toward towards most "
-    "extreme outer outermost third"
+    "extreme outer outermost third margin border fringe along smack slap bang dab plumb "
+    "squarely just row lip up it all"
 )
 
 
