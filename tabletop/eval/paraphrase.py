@@ -78,12 +78,13 @@ POOLS = (
     "heldout-5",
     "heldout-6",
     "heldout-7",
+    "heldout-8",
 )
 #: Held-out pools nobody on the team has read: evaluated once, for a report. A held-out pool
 #: whose suites were read after its report ("heldout", "heldout-2", "heldout-3", "heldout-4",
-#: "heldout-5", "heldout-6") is tuned on from then on, like a tune pool, and every newer
-#: held-out pool must differ from it.
-HELDOUT_POOLS = ("heldout-7",)
+#: "heldout-5", "heldout-6", "heldout-7") is tuned on from then on, like a tune pool, and every
+#: newer held-out pool must differ from it.
+HELDOUT_POOLS = ("heldout-8",)
 TUNE_POOLS = tuple(p for p in POOLS if p not in HELDOUT_POOLS)
 BANK_DIR = DATA_DIR / "paraphrases"
 SUITE_DIRS = {p: f"paraphrase-{p}" for p in POOLS}
@@ -102,6 +103,7 @@ POOL_SEEDS = {
     "heldout-5": (840, 841, 842, 843),
     "heldout-6": (850, 851, 852, 853),
     "heldout-7": (860, 861, 862, 863),
+    "heldout-8": (870, 871, 872, 873),
 }
 
 #: Absent goals per scene: objects outside the catalog, catalog kinds the scene lacks, a colour
