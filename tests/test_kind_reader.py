@@ -128,10 +128,15 @@ def test_a_reader_of_another_space_or_vocabulary_is_not_used():
 
 
 def test_training_reproduces_the_committed_reader(tmp_path):
+    from tabletop.eval.kind_texts import reader_texts
+    from tabletop.eval.paraphrase import HELDOUT_POOLS, TUNE_POOLS
     from tabletop.train.kind_reader import train_kind_reader
 
+    with pytest.raises(ValueError, match="held-out"):
+        reader_texts((*TUNE_POOLS, *HELDOUT_POOLS))
     shipped = KindReader.load()
-    out = train_kind_reader(tmp_path / "reader.json", cross_validate=False)
+    rows = reader_texts(TUNE_POOLS)
+    out = train_kind_reader(tmp_path / "reader.json", rows, cross_validate=False)
     ours = KindReader.load(out)
     assert ours.classes == shipped.classes and ours.meta["pools"] == shipped.meta["pools"]
     assert ours.meta["texts"] == shipped.meta["texts"]
