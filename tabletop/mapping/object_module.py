@@ -471,8 +471,8 @@ class ObjectModule:
                 other, other_score = "", -1.0
             read, read_p = self._read(e)
             # the reader names what the cosine refused ("the tin can toy": nearer "tin can")
-            refused = (text_score < cfg.text_min and not described) or bool(
-                other and other_score > text_score + cfg.other_margin
+            refused = bool(
+                self._cosine_refusal(words, text_score, nearest, described, other, other_score)
             )
             if refused and read in self.vocabulary and read_p >= cfg.reader_min:
                 want = np.array([v == read for v in self.vocabulary])
@@ -535,18 +535,34 @@ class ObjectModule:
 
     def refusal(self, m: InstanceMatch) -> str:
         """Why the words of ``m`` name nothing of the map's vocabulary ("" where they do)."""
+        if m.read in m.names and m.read_p >= self.config.reader_min:
+            return ""  # the reader named what the cosine refused
+        return self._cosine_refusal(
+            m.words, m.text_score, m.nearest, m.described, m.other, m.other_score
+        )
+
+    def _cosine_refusal(
+        self,
+        words: str,
+        text_score: float,
+        nearest: str,
+        described: bool,
+        other: str,
+        other_score: float,
+    ) -> str:
+        """Why the cosine alone refuses ``words`` ("" where it does not): nearer no name
+        than ``text_min`` (unless the words are one name's own), or nearer a thing of the
+        config's ``others`` than the nearest name by more than ``other_margin``."""
         cfg = self.config
-        if m.read in m.names and m.read_p >= cfg.reader_min:
-            return ""
-        if m.text_score < cfg.text_min and not m.described:
+        if text_score < cfg.text_min and not described:
             return (
-                f"{m.words!r} is like nothing in this map's vocabulary (nearest: "
-                f"{m.nearest!r}, cosine {m.text_score:.2f} < {cfg.text_min})"
+                f"{words!r} is like nothing in this map's vocabulary (nearest: "
+                f"{nearest!r}, cosine {text_score:.2f} < {cfg.text_min})"
             )
-        if m.other and m.other_score > m.text_score + cfg.other_margin:
+        if other and other_score > text_score + cfg.other_margin:
             return (
-                f"{m.words!r} reads as {m.other!r} (cosine {m.other_score:.2f}), which this "
-                f"map's vocabulary does not have (nearest: {m.nearest!r}, {m.text_score:.2f})"
+                f"{words!r} reads as {other!r} (cosine {other_score:.2f}), which this "
+                f"map's vocabulary does not have (nearest: {nearest!r}, {text_score:.2f})"
             )
         return ""
 
