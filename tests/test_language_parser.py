@@ -130,6 +130,69 @@ def test_near_phrasings(connector):
     assert step.action == GoTo(Goal(Part("obj", "mug"), (Part("sound", "dog barking"),)))
 
 
+@pytest.mark.parametrize(
+    "connector",
+    [
+        "right by",
+        "just next to",
+        "close by",
+        "hard by",
+        "nearby",
+        "alongside",
+        "adjacent to",
+        "not far from",
+        "in the vicinity of",
+        "neighbouring",
+        "sitting near",
+        "that sits beside",
+        "which is lying next to",
+        "over by",
+        "in the same spot as",
+    ],
+)
+def test_near_phrasings_people_use(connector):
+    step = only(f"go to the mug {connector} the sound of a dog barking")
+    assert step.action == GoTo(Goal(Part("obj", "mug"), (Part("sound", "dog barking"),)))
+
+
+@pytest.mark.parametrize(
+    "sound",
+    [
+        "the noise like a dog barking",
+        "the sound that sounded like a dog barking",
+        "a racket of a dog barking",
+        "that dog barking noise",
+        "the dog barking you heard",
+        "the dog you heard barking",
+        "the dog barking sound we heard earlier",
+        "the sound you heard of a dog barking",
+        "where the dog barking came from",
+        "the spot the dog barking was coming from",
+        "where you could hear a dog barking",
+        "where a dog barking could be heard",
+    ],
+)
+def test_a_sound_told_as_people_tell_it(sound):
+    step = only(f"go to the mug near {sound}")
+    assert step.action == GoTo(Goal(Part("obj", "mug"), (Part("sound", "dog barking"),)))
+
+
+def test_where_after_an_object_joins_the_place_where_something_happened():
+    assert only("go to the mug where the phone rang").action == GoTo(
+        Goal(Part("obj", "mug"), (Part("sound", "phone rang"),))
+    )
+    assert only("go to the spot where the phone rang").action == GoTo(
+        Goal(Part("sound", "phone rang"))
+    )
+    # "where X is" is still the object X
+    assert only("go to the duck where the mug is").action == GoTo(
+        Goal(Part("obj", "duck"), (Part("obj", "mug"),))
+    )
+    # a negation is no near word: refused, never read as "near"
+    with pytest.raises(ParseError):
+        parse_instruction("go to the mug not near the sound of a dog barking")
+
+
 def test_where_you_heard_makes_the_constraint_a_sound():
     step = only("reach the mug where you heard the alarm clock")
     assert step.action.goal.near == (Part("sound", "alarm clock"),)

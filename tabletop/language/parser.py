@@ -6,7 +6,9 @@ left/right/front/behind of an object; compass moves; sequences with "then"; repe
 "twice" or "3 times"; back and forth between two goals). Requests are read as people word
 them: a polite wrapper ("could you ...", "I want you to ...", "..., please"), the arm named or
 not ("move your hand to"), a place named by its relation ("the spot between A and B", "the
-duck's left", "hover over X") and a sound by what was heard ("where the dog barked"). Manner
+duck's left", "hover over X"), a goal narrowed by many near words ("right by", "not far from",
+"in the vicinity of", "sitting next to") and a sound by what was heard ("where the dog barked",
+"the barking you heard", "where the ringing came from", "the noise like a cat"). Manner
 words the robot cannot honour ("slowly") are refused, not dropped.
 
 The plan (:mod:`tabletop.language.plan`) becomes robot code in
@@ -235,16 +237,44 @@ _AREA_NAMES = {
     "middle": "center of the table",
 }
 _AREA_SUFFIX = re.compile(r"^(?:the\s+)?(.+?)\s+(?:area|region|zone)$")
-_SOUND_OF = re.compile(r"^(?:the\s+)?(?:sound|noise)s?\s+(?:of|made\s+by)\s+(.+)$")
-_SOUND_SUFFIX = re.compile(r"^(?:the\s+)?(.+?)\s+(?:sound|noise)$")
-_HEARD = re.compile(
-    r"^(?:(?:the\s+)?(?:place|spot|point|location)\s+)?where\s+(?:you|i|we)\s+heard\s+(.+)$"
+#: What a sound is called: "the noise of X", "the racket made by X", "a sound like X".
+_SOUND_NOUN = r"(?:sound|noise|racket|din|commotion|ruckus|clatter|clamou?r)s?"
+_SOUND_OF = re.compile(
+    rf"^(?:the\s+|a\s+|that\s+)?{_SOUND_NOUN}\s+(?:(?:that|which)\s+)?"
+    r"(?:of|made\s+by|from|coming\s+from|like|resembling|similar\s+to|"
+    r"(?:sounded|sounds|was|is)\s+like)\s+(.+)$"
 )
-_WAS_HEARD = re.compile(r"\bwhere\s+(.+?)\s+(?:was|were)\s+heard\b")
+_SOUND_SUFFIX = re.compile(rf"^(?:the\s+|a\s+|that\s+)?(.+?)\s+{_SOUND_NOUN}$")
+_HEAR = r"(?:heard|could\s+hear|can\s+hear|caught|picked\s+up)"
+_HEARD = re.compile(
+    r"^(?:(?:the\s+)?(?:place|spot|point|location)\s+)?where\s+(?:you|i|we)\s+"
+    rf"(?:just\s+)?{_HEAR}\s+(.+)$"
+)
+_WAS_HEARD = re.compile(r"\bwhere\s+(.+?)\s+(?:was|were|could\s+be|can\s+be)\s+heard\b")
+#: "the barking you heard", "the dog we heard barking", "the sound I heard of a bell": a sound
+#: told as what was heard (the words before, and an "-ing" word after, say what).
+_HEARD_AFTER = re.compile(
+    rf"^(.+?)\s+(?:(?:that|which)\s+)?(?:you|i|we)\s+(?:just\s+)?{_HEAR}"
+    r"(?:\s+(?:earlier|before|just\s+now|a\s+(?:moment|minute|while)\s+ago))?"
+    r"(?:\s+(\w+ing)|\s+(?:of|from)\s+(.+))?$"
+)
+#: "where the barking came from", "the spot the ringing was coming from": the sound's place.
+_CAME_FROM = re.compile(
+    r"^(?:(?:the\s+)?(?:place|spot|point|location|direction)\s+)?(?:where\s+|that\s+)?(.+?)\s+"
+    r"(?:came|comes|was\s+coming|were\s+coming|is\s+coming|originated)\s+from$"
+)
+#: What joins a goal to what narrows it: "the mug near / right by / not far from / where you
+#: heard / sitting next to X". "where" alone ("the mug where the dog barked") joins a place.
 _CONNECT = re.compile(
     r"\s+(?:(?:that|which)(?:\s+(?:is|was)|'s)\s+)?"
-    r"(near(?:\s+to)?|next\s+to|close\s+to|closest\s+to|nearest(?:\s+to)?|beside|by|around|in|"
-    r"on|where\s+(?:you|i|we)\s+heard)\s+"
+    r"(?:(?:(?:that|which)\s+)?(?:sitting|sits|lying|lies|standing|stands|resting|rests|placed|"
+    r"located|positioned|kept)\s+)?"
+    r"(?:(?:right|just|directly|really|somewhere|over)\s+)?"
+    r"(close\s+by|hard\s+by|near\s*by|alongside(?:\s+of)?|adjacent\s+to|not\s+far\s+from|"
+    r"(?:with)?in\s+(?:the\s+)?(?:vicinity|neighbou?rhood)\s+of|neighbou?ring|"
+    r"(?:by|at)\s+the\s+side\s+of|in\s+the\s+same\s+(?:area|region|spot|place)\s+as|"
+    r"near(?:\s+to)?|next\s+to|close\s+to|closest\s+to|nearest(?:\s+to)?|beside|by|around|"
+    rf"in|on|where\s+(?:you|i|we)\s+(?:just\s+)?{_HEAR}|where(?!\s+(?:you|i|we)\s))\s+"
 )
 _IMAGE_WORDS = frozenset(
     """the a an image picture photo photograph view snapshot goal place spot location shown seen
@@ -556,15 +586,18 @@ class _Parser:
         # pieces = [primary, connector, constraint, connector, constraint, ...]
         if (
             len(pieces) > 2
-            and "heard" in pieces[1]
+            and pieces[1].startswith("where")
             and _ARTICLES.sub("", pieces[0].strip()) in _PLACE_WORDS
-        ):  # "the place where you heard S ..." is the sound itself
-            pieces = [f"where you heard {pieces[2]}", *pieces[3:]]
+        ):  # "the place where you heard S ...", "the spot where S ..." is the place itself
+            pieces = [f"{pieces[1]} {pieces[2]}", *pieces[3:]]
         primary = self.part(pieces[0], None)
         near: list[Part] = []
         for i in range(1, len(pieces), 2):
             connector, constraint = pieces[i], pieces[i + 1]
-            forced = "sound" if "heard" in connector else None
+            if connector == "where":  # "the mug where the dog barked": where says what
+                near.append(self.part(f"where {constraint}", None))
+                continue
+            forced = "sound" if connector.startswith("where") else None
             for sub in re.split(r"\s+and\s+", constraint):
                 near.append(self.part(sub, forced))
         return Goal(primary, tuple(near))
@@ -581,6 +614,13 @@ class _Parser:
         m = _HEARD.match(text)
         if m:
             return Part("sound", self.description(m.group(1), "sound"))
+        m = _HEARD_AFTER.match(text)
+        if m and not m.group(1).startswith("where "):  # "the barking you heard"
+            said = m.group(3) or m.group(1) + (f" {m.group(2)}" if m.group(2) else "")
+            return self.part(said, "sound")
+        m = _CAME_FROM.match(text)
+        if m:  # "where the ringing came from"
+            return self.part(m.group(1), "sound")
         m = _WHERE.match(text)
         if m and m.group(2):  # "where the mug is"
             return Part("obj", self.description(m.group(1), "object"))
