@@ -177,6 +177,73 @@ def test_a_sound_told_as_people_tell_it(sound):
     assert step.action == GoTo(Goal(Part("obj", "mug"), (Part("sound", "dog barking"),)))
 
 
+@pytest.mark.parametrize(
+    "text",
+    [
+        "pop over to the red mug",
+        "swing over to the red mug",
+        "reach out to the red mug",
+        "go on over to the red mug",
+        "take me to the red mug",
+        "position yourself at the red mug",
+        "put your hand on the red mug",
+        "tap the red mug",
+        "aim for the red mug",
+        "make for the red mug",
+        "track down the red mug",
+        "go find the red mug",
+        "get as close as you can to the red mug",
+        "let's go to the red mug",
+        "I need you over by the red mug",
+        "go stand next to the red mug",
+        "proceed to the red mug",
+    ],
+)
+def test_more_ways_to_say_go_to(text):
+    assert only(text).action == GoTo(Goal(Part("obj", "red mug")))
+
+
+@pytest.mark.parametrize(
+    "text, action",
+    [
+        ("stop just to the left of the mug", Side("left", "mug")),
+        ("go round the back of the mug", Side("behind", "mug")),
+        ("move in back of the mug", Side("behind", "mug")),
+        # the robot's convention: the front of X is its side away from the robot
+        ("go to the far side of the mug", Side("front", "mug")),
+        ("go on the other side of the mug", Side("front", "mug")),
+        ("go to the near side of the mug", Side("behind", "mug")),
+        ("move ahead of the mug", Side("front", "mug")),
+        ("go on top of the mug", Above("mug")),
+        (
+            "go to the gap between the mug and the duck",
+            Between(Goal(Part("obj", "mug")), Goal(Part("obj", "duck"))),
+        ),
+        (
+            "go midway between the mug and the duck",
+            Between(Goal(Part("obj", "mug")), Goal(Part("obj", "duck"))),
+        ),
+        (
+            "go halfway from the mug to the duck",
+            Between(Goal(Part("obj", "mug")), Goal(Part("obj", "duck"))),
+        ),
+        (
+            "go to the point equidistant from the mug and the duck",
+            Between(Goal(Part("obj", "mug")), Goal(Part("obj", "duck"))),
+        ),
+    ],
+)
+def test_more_ways_to_name_a_relation(text, action):
+    assert only(text).action == action
+
+
+@pytest.mark.parametrize("text", ["go get the red mug", "fetch the red mug"])
+def test_fetching_is_grasping_and_refused(text):
+    # the arm moves to places; "get" and "fetch" ask it to bring the thing, which it cannot
+    with pytest.raises(ParseError):
+        parse_instruction(text)
+
+
 def test_where_after_an_object_joins_the_place_where_something_happened():
     assert only("go to the mug where the phone rang").action == GoTo(
         Goal(Part("obj", "mug"), (Part("sound", "phone rang"),))

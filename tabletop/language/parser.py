@@ -121,21 +121,25 @@ _RESERVED = frozenset(
     heard hear north south east west quickly slowly carefully gently fast not no don't dont
     never without avoid except if while until unless below under beneath over above to from
     with into onto towards toward after before again repeat meters metres meter metre cm mm
-    grab pick place put push open close turn rotate face look it its them there here me you
-    everything all every""".split()
+    grab pick place put push get fetch bring take go move open close turn rotate face look it its
+    them there here me you everything all every""".split()
 )
 _ARTICLES = re.compile(r"^(?:(?:the|a|an|some|any|that|this)\s+)+")
 
 _VERB = re.compile(
-    r"^(?:please\s+)?(?:now\s+)?(?:"
+    r"^(?:please\s+)?(?:now\s+)?(?:let's\s+|(?:it's\s+)?time\s+to\s+)?(?:"
     r"(?:go|move|head|navigate|travel|get|come|drive|bring|take|send|guide|steer|position|"
-    r"put|place|lead|direct)"
+    r"put|place|set|rest|park|lead|direct|pop|swing|hop|scoot|slide|glide|zip|shift|proceed|"
+    r"advance|nip|dash|hurry|wander|make)"
     r"(?:\s+(?:(?:the|your)\s+)?(?:arm|gripper|hand|robot|end[\s-]effector|tcp)|\s+yourself"
-    r"|\s+your\s+way)?"
-    r"(?:\s+back\s+to|\s+over\s+to|\s+up\s+to|\s+straight\s+to|\s+(?:closer|close|near)"
-    r"(?:\s+to)?|\s+next\s+to|\s+beside|\s+to|\s+towards?|\s+into|\s+onto)?"
-    r"|(?:make|find)\s+your\s+way\s+to|return\s+to|reach(?:\s+for)?|approach|visit|find|"
-    r"locate|touch|point\s+(?:at|to)"
+    r"|\s+your\s+way|\s+it|\s+me|\s+us)?"
+    r"(?:\s+(?:on\s+)?(?:back|over|up|out|down|across|a?round|along|straight|right|directly)"
+    r"\s+(?:to|towards?)|\s+as\s+close\s+as\s+(?:you\s+can|possible)\s+to|"
+    r"\s+(?:closer|close|near)(?:\s+to)?|\s+next\s+to|\s+beside|\s+to|\s+towards?|"
+    r"\s+into|\s+onto|\s+for|\s+at|\s+upon)?"
+    r"|(?:make|find)\s+your\s+way\s+to|return\s+to|reach(?:\s+(?:out|over|across|down)"
+    r"\s+to|\s+for)?|approach|visit|find|locate|touch|tap|poke|target|"
+    r"(?:seek|search)\s+out|track\s+down|show\s+me|(?:point|aim)\s+(?:at|to|for)"
     r")(?:\s+|$)"
 )
 #: What a request may be wrapped in: "could you ...", "I want you to ...", "..., please".
@@ -156,14 +160,27 @@ _POLITE_TAIL = re.compile(r"(?:\s*,?\s+(?:please|for\s+me|now|right\s+away|if\s+
 _GO_AND = re.compile(r"^(?:go|come)\s+(?:ahead\s+)?and\s+")
 #: "the spot between A and B", "a point behind the mug": a place named by a relation.
 _PLACE_OF = re.compile(
-    r"^(?:(?:the|a|an)\s+)?(?:spot|place|point|space|area|position|location)\s+"
-    r"(?:(?:just|right|directly|somewhere)\s+)?"
-    r"(?=(?:in\s+)?between\b|halfway\b|left\b|right\b|(?:in\s+)?front\b|behind\b|"
-    r"(?:to|on)\s+the\s+(?:left|right)\b|above\b|over\b)"
+    r"^(?:(?:the|a|an)\s+)?(?:spot|place|point|space|area|position|location|gap)\s+"
+    r"(?:(?:just|right|directly|somewhere|exactly)\s+)?"
+    r"(?=(?:in\s+)?between\b|halfway\b|midway\b|equidistant\b|left\b|right\b|"
+    r"(?:in\s+)?front\b|behind\b|(?:to|on)\s+the\s+(?:left|right)\b|above\b|over\b|"
+    r"in\s+the\s+middle\b|(?:at\s+)?the\s+(?:middle|midpoint|centre|center)\s+(?:of|between)\b)"
 )
 #: "the duck's left (side)": a side of an object, said the other way round.
 _POSSESSIVE_SIDE = re.compile(r"^(?:the\s+)?(.+?)'s\s+(left|right|front|back|rear)(?:\s+side)?$")
-_HOVER = re.compile(r"^(?:hover|stop|stay|hold)\s+(?=(?:(?:right|just)\s+)?(?:over|above)\s)")
+#: "hover over X", "go stand next to X", "stop just left of X": staying somewhere is moving there.
+_HOVER = re.compile(
+    r"^(?:go\s+(?:and\s+)?)?(?:hover|stop|stay|hold|wait|stand|sit|park|settle|hang)"
+    r"(?:\s+still)?\s+(?=(?:(?:right|just|directly|somewhere)\s+)?(?:over|above|next\s+to|"
+    r"near|beside|by|at|close\s+to|between|in\s+between|(?:to|on)\s+the\s+(?:left|right)|"
+    r"left|right|in\s+front|behind|a?round|the\s+\w+\s+(?:side|of)\b))"
+)
+#: "go find the duck", "go and locate the mug": the second verb is the step's.
+_GO_FIND = re.compile(r"^(?:go|come)\s+(?=(?:find|locate|touch|visit|reach|approach|tap)\b)")
+#: "over by the mug", "right at the duck": a place said as where to be, after a verb.
+_BE_AT = re.compile(
+    r"^(?:(?:over|up|down|out|round|around|right|just)\s+)?(?:by|at|on|upon)\s+(?!top\b)(?=\S)"
+)
 #: "where the dog barked", "the spot where the alarm went off": a sound, told by what was heard
 #: ("where the mug is" is the mug).
 _WHERE = re.compile(
@@ -186,8 +203,14 @@ _COMPASS = [
     re.compile(rf"^(?:to(?:wards)?\s+(?:the\s+)?)?{_DIR}(?:wards?)?\s+(?:by\s+|for\s+)?{_DIST}$"),
 ]
 _BETWEEN = re.compile(
-    r"^(?:to\s+)?(?:the\s+)?(?:(?:in\s+)?between|halfway\s+between|"
-    r"(?:exact\s+)?(?:middle|midpoint|centre|center|halfway\s+point)\s+(?:of|between))\s+(.+)$"
+    r"^(?:to\s+)?(?:(?:in|at)\s+)?(?:the\s+)?(?:(?:in\s+)?between|(?:half|mid)way\s+between|"
+    r"equidistant\s+(?:from|between)|"
+    r"(?:exact\s+)?(?:middle|midpoint|centre|center|(?:half|mid)way\s+point)\s+(?:of|between))"
+    r"\s+(.+)$"
+)
+#: "halfway from A to B": between A and B.
+_FROM_TO = re.compile(
+    r"^(?:to\s+)?(?:(?:half|mid)way|the\s+(?:half|mid)way\s+point)\s+from\s+(.+)$"
 )
 _SIDES = [
     (
@@ -198,12 +221,20 @@ _SIDES = [
         "right",
         re.compile(r"^(?:(?:to|on)\s+)?(?:the\s+)?right(?:[\s-]+hand)?(?:\s+side)?\s+of\s+(.+)$"),
     ),
-    ("front", re.compile(r"^(?:(?:to|on)\s+)?(?:the\s+)?(?:in\s+)?front(?:\s+side)?\s+of\s+(.+)$")),
+    # the robot's convention: "in front of" X is X's side away from the robot, so its far
+    # side and its other side are the front, its near side the back
+    (
+        "front",
+        re.compile(
+            r"^(?:(?:a?round\s+)?(?:to|on)\s+|a?round\s+)?(?:the\s+)?(?:(?:in\s+)?front(?:\s+side)?|"
+            r"(?:far|other|opposite)\s+side|ahead)\s+of\s+(.+)$"
+        ),
+    ),
     (
         "behind",
         re.compile(
-            r"^(?:(?:to\s+)?behind|(?:(?:to|on)\s+)?(?:the\s+)?(?:back|rear)(?:\s+side)?\s+of)"
-            r"\s+(.+)$"
+            r"^(?:(?:to\s+)?behind|(?:(?:a?round\s+)?(?:to|on)\s+|a?round\s+)?(?:the\s+)?"
+            r"(?:(?:back|rear)(?:\s+side)?|near\s+side|in\s+back)\s+of)\s+(.+)$"
         ),
     ),
 ]
@@ -427,6 +458,7 @@ class _Parser:
         body = _GO_AND.sub("", body)
         body = _AND_GO_THERE.sub("", body)
         body = _HOVER.sub("move ", body)
+        body = _GO_FIND.sub("", body)
         times = 1
         m = _REPEAT.search(body)
         if m:
@@ -530,7 +562,11 @@ class _Parser:
                 return Compass(_DIRECTIONS[direction], round(d, 6))
         if re.match(rf"^(?:to(?:wards)?\s+(?:the\s+)?)?{_DIR}(?:wards?)?$", rest):
             self.fail(rest, "a compass move needs a distance, e.g. 'move 10 cm north'")
-        rest = _HEDGE.sub("", _PLACE_OF.sub("", rest))
+        rest = _HEDGE.sub("", _PLACE_OF.sub("", _BE_AT.sub("", rest)))
+        m = _FROM_TO.match(rest)
+        if m:
+            a, b = self.two_goals(m.group(1), "halfway from", sep=r"\s+to\s+")
+            return Between(a, b)
         m = _POSSESSIVE_SIDE.match(rest)
         if m:
             side = {"back": "behind", "rear": "behind"}.get(m.group(2), m.group(2))
