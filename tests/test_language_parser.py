@@ -237,6 +237,52 @@ def test_more_ways_to_name_a_relation(text, action):
     assert only(text).action == action
 
 
+@pytest.mark.parametrize(
+    "text, action",
+    [
+        ("go just left of the mug", Side("left", "mug")),
+        ("go around behind the mug", Side("behind", "mug")),
+        ("go just past the mug", Side("front", "mug")),
+        ("head to the side of the mug facing you", Side("behind", "mug")),
+        ("head to the side of the mug facing away from you", Side("front", "mug")),
+        ("go next to the mug, on its left", Side("left", "mug")),
+        ("move to the mug's left-hand side", Side("left", "mug")),
+        ("behind the mug, please", Side("behind", "mug")),
+        ("tuck in behind the mug", Side("behind", "mug")),
+        ("point just in front of the mug", Side("front", "mug")),
+        (
+            "aim for the gap separating the mug from the duck",
+            Between(Goal(Part("obj", "mug")), Goal(Part("obj", "duck"))),
+        ),
+        (
+            "stop halfway between the mug and the duck",
+            Between(Goal(Part("obj", "mug")), Goal(Part("obj", "duck"))),
+        ),
+        ("go to wherever the dog barking came from", GoTo(Goal(Part("sound", "dog barking")))),
+        ("go to the spot you heard the dog barking", GoTo(Goal(Part("sound", "dog barking")))),
+        ("go to the area the barking seemed to come from", GoTo(Goal(Part("sound", "barking")))),
+        ("go to the corner where the barking could be heard", GoTo(Goal(Part("sound", "barking")))),
+        ("go to the location of the dog barking", GoTo(Goal(Part("sound", "dog barking")))),
+        ("go to where the dog barking was playing", GoTo(Goal(Part("sound", "dog barking")))),
+        ("go to where the mug was", GoTo(Goal(Part("obj", "mug")))),
+        ("go to the place the dog barking was loudest", GoTo(Goal(Part("sound", "dog barking")))),
+        (
+            "go to the mug a stone's throw from the barking",
+            GoTo(Goal(Part("obj", "mug"), (Part("sound", "barking"),))),
+        ),
+        (
+            "go to the mug sat right up against the barking",
+            GoTo(Goal(Part("obj", "mug"), (Part("sound", "barking"),))),
+        ),
+        ("try going to the mug", GoTo(Goal(Part("obj", "mug")))),
+        ("next, go to the mug", GoTo(Goal(Part("obj", "mug")))),
+        ("put your finger on the mug", GoTo(Goal(Part("obj", "mug")))),
+    ],
+)
+def test_still_more_wording_people_use(text, action):
+    assert only(text).action == action
+
+
 @pytest.mark.parametrize("text", ["go get the red mug", "fetch the red mug"])
 def test_fetching_is_grasping_and_refused(text):
     # the arm moves to places; "get" and "fetch" ask it to bring the thing, which it cannot

@@ -130,14 +130,16 @@ _VERB = re.compile(
     r"^(?:please\s+)?(?:now\s+)?(?:let's\s+|(?:it's\s+)?time\s+to\s+)?(?:"
     r"(?:go|move|head|navigate|travel|get|come|drive|bring|take|send|guide|steer|position|"
     r"put|place|set|rest|park|lead|direct|pop|swing|hop|scoot|slide|glide|zip|shift|proceed|"
-    r"advance|nip|dash|hurry|wander|make)"
-    r"(?:\s+(?:(?:the|your)\s+)?(?:arm|gripper|hand|robot|end[\s-]effector|tcp)|\s+yourself"
+    r"advance|nip|dash|hurry|wander|make|trundle|nudge|edge|inch|creep|sneak|tuck|slip|duck|"
+    r"hide|squeeze|slot|wedge|nestle|stick|pull\s+up|drop\s+back|cent(?:re|er)|point|aim)"
+    r"(?:\s+(?:(?:the|your)\s+)?(?:arm|gripper|hand|fingers?|claw|tip|pointer|robot|"
+    r"end[\s-]effector|tcp)|\s+yourself"
     r"|\s+your\s+way|\s+it|\s+me|\s+us)?"
     r"(?:\s+(?:on\s+)?(?:back|over|up|out|down|across|a?round|along|straight|right|directly)"
     r"\s+(?:to|towards?)|\s+as\s+close\s+as\s+(?:you\s+can|possible)\s+to|"
     r"\s+(?:closer|close|near)(?:\s+to)?|\s+next\s+to|\s+beside|\s+to|\s+towards?|"
-    r"\s+into|\s+onto|\s+for|\s+at|\s+upon)?"
-    r"|(?:make|find)\s+your\s+way\s+to|return\s+to|reach(?:\s+(?:out|over|across|down)"
+    r"\s+into|\s+onto|\s+for|\s+at|\s+upon|\s+in\s+on|\s+a\s+beeline\s+for)?"
+    r"|(?:make|find)\s+your\s+way\s+to|return\s+to|home\s+in\s+on|reach(?:\s+(?:out|over|across|down)"
     r"\s+to|\s+for)?|approach|visit|find|locate|touch|tap|poke|target|"
     r"(?:seek|search)\s+out|track\s+down|show\s+me|(?:point|aim)\s+(?:at|to|for)"
     r")(?:\s+|$)"
@@ -160,38 +162,79 @@ _POLITE_TAIL = re.compile(r"(?:\s*,?\s+(?:please|for\s+me|now|right\s+away|if\s+
 _GO_AND = re.compile(r"^(?:go|come)\s+(?:ahead\s+)?and\s+")
 #: "the spot between A and B", "a point behind the mug": a place named by a relation.
 _PLACE_OF = re.compile(
-    r"^(?:(?:the|a|an)\s+)?(?:spot|place|point|space|area|position|location|gap)\s+"
+    r"^(?:(?:the|a|an)\s+)?(?:empty\s+|free\s+|open\s+)?(?:spot|place|point|space|area|"
+    r"position|location|gap|bit|middle\s+ground)\s+"
     r"(?:(?:just|right|directly|somewhere|exactly)\s+)?"
     r"(?=(?:in\s+)?between\b|halfway\b|midway\b|equidistant\b|left\b|right\b|"
     r"(?:in\s+)?front\b|behind\b|(?:to|on)\s+the\s+(?:left|right)\b|above\b|over\b|"
-    r"in\s+the\s+middle\b|(?:at\s+)?the\s+(?:middle|midpoint|centre|center)\s+(?:of|between)\b)"
+    r"in\s+the\s+middle\b|(?:at\s+)?the\s+(?:middle|midpoint|centre|center)\s+(?:of|between)\b|"
+    r"(?:that\s+)?separat(?:es|ing)\b|past\b|beyond\b)"
 )
 #: "the duck's left (side)": a side of an object, said the other way round.
-_POSSESSIVE_SIDE = re.compile(r"^(?:the\s+)?(.+?)'s\s+(left|right|front|back|rear)(?:\s+side)?$")
+_POSSESSIVE_SIDE = re.compile(
+    r"^(?:the\s+)?(.+?)'s\s+(left|right|front|back|rear)(?:[\s-]*hand)?(?:\s+side)?$"
+)
+#: "next to the mug, on its left": a side of an object, named after it.
+_ON_ITS_SIDE = re.compile(
+    r"^(?:(?:next\s+to|beside|by)\s+)?(.+?),?\s+on\s+its\s+(left|right)(?:[\s-]*hand)?"
+    r"(?:\s+side)?$"
+)
+#: "the side of the mug facing you": its side toward the robot (behind it, by the robot's
+#: convention) or away from it (in front of it).
+_FACING = re.compile(
+    r"^(?:the\s+)?side\s+of\s+(.+?)\s+(?:(facing\s+away\s+from|(?:farthest|furthest)\s+from|"
+    r"away\s+from)|facing|nearest(?:\s+to)?|closest\s+to|towards?)\s+(?:you|me|the\s+robot)$"
+)
 #: "hover over X", "go stand next to X", "stop just left of X": staying somewhere is moving there.
 _HOVER = re.compile(
     r"^(?:go\s+(?:and\s+)?)?(?:hover|stop|stay|hold|wait|stand|sit|park|settle|hang)"
     r"(?:\s+still)?\s+(?=(?:(?:right|just|directly|somewhere)\s+)?(?:over|above|next\s+to|"
-    r"near|beside|by|at|close\s+to|between|in\s+between|(?:to|on)\s+the\s+(?:left|right)|"
+    r"near|beside|by|at|close\s+to|between|in\s+between|(?:half|mid)way|past|beyond|"
+    r"(?:to|on)\s+the\s+(?:left|right)|"
     r"left|right|in\s+front|behind|a?round|the\s+\w+\s+(?:side|of)\b))"
 )
 #: "go find the duck", "go and locate the mug": the second verb is the step's.
 _GO_FIND = re.compile(r"^(?:go|come)\s+(?=(?:find|locate|touch|visit|reach|approach|tap)\b)")
 #: "over by the mug", "right at the duck": a place said as where to be, after a verb.
 _BE_AT = re.compile(
-    r"^(?:(?:over|up|down|out|round|around|right|just)\s+)?(?:by|at|on|upon)\s+(?!top\b)(?=\S)"
+    r"^(?:(?:over|up|down|out|round|around|right|just)\s+)?(?:by|at|on|upon|in|into)\s+"
+    r"(?!top\b|front\b|back\s+of\b)(?=\S)"
 )
 #: "where the dog barked", "the spot where the alarm went off": a sound, told by what was heard
 #: ("where the mug is" is the mug).
 _WHERE = re.compile(
     r"^(?:(?:the\s+)?(?:place|spot|point|location)\s+)?where\s+(?!(?:you|i|we)\s)(.+?)"
-    r"(\s+(?:is|are|sits|stands|lies|was\s+put|was\s+left))?$"
+    r"(\s+(?:is|are|was|were|sits|stands|lies|was\s+put|was\s+left))?$"
+)
+#: What may follow a sound after "where": "where X was playing", "where X started".
+_WHERE_SOUND_TAIL = re.compile(
+    r"\s+(?:(?:was|were|is)(?:\s+(?:playing|loudest|going\s+on|happening|on))?|happened|started|"
+    r"occurred|played|sounded|rang\s+out)$"
+)
+#: "the spot you heard X", "the corner where X": a place, named before where or what was heard.
+_PLACE_NOUN = (
+    r"(?:the\s+|that\s+|whatever\s+)?(?:(?:part|bit|side|area|corner)\s+of\s+the\s+table|"
+    r"place|spot|point|location|area|bit|part|corner|patch)"
+)
+_PLACE_HEARD = re.compile(rf"^{_PLACE_NOUN}\s+(?:that\s+)?((?:you|i|we)\s+.+)$")
+#: "the place the barking was loudest": where, with "where" left out.
+_PLACE_X = re.compile(
+    rf"^{_PLACE_NOUN}\s+(?!(?:where|you|i|we|that|which|behind|in|on|near|next|left|right|"
+    r"between|above|over|of|to|by|beside|with|for)\b)(.+)$"
+)
+#: A step may be only its place: "behind the mug, please", "between the mug and the duck".
+_RELATION_START = re.compile(
+    r"^(?:(?:just|slightly|right|directly)\s+)*(?:(?:to|on)\s+the\s+(?:left|right)|"
+    r"(?:left|right)(?:[\s-]*hand)?\s+of|(?:in\s+)?front\s+of|behind|(?:in\s+)?between|"
+    r"(?:half|mid)way|above|over|next\s+to|beside)\b"
 )
 _STEP_SPLIT = re.compile(
     r"\s*(?:[,;.]\s*)?(?:\band\s+)?\b(?:then|after\s+that|afterwards|finally|lastly)\b\s*,?\s*"
     r"|\s*;\s*|\.\s+"
 )
-_FIRST = re.compile(r"^(?:first(?:ly)?|start\s+by|to\s+begin)\s*,?\s*")
+_FIRST = re.compile(r"^(?:first(?:ly)?|start\s+by|to\s+begin|next)\s*,?\s*")
+#: "try going to X": the verb said as a gerund.
+_TRY_ING = re.compile(r"^try\s+(go|mov|head|gett|reach)ing\b")
 _REPEAT = re.compile(rf"[\s,]*\b(?:(once|twice|thrice)|({_NUM})\s+times)\s*$")
 _LEAD_REPEAT = re.compile(rf"^(?:(once|twice|thrice)|({_NUM})\s+times)\b\s*,?\s*")
 _BACK_FORTH = re.compile(
@@ -208,6 +251,8 @@ _BETWEEN = re.compile(
     r"(?:exact\s+)?(?:middle|midpoint|centre|center|(?:half|mid)way\s+point)\s+(?:of|between))"
     r"\s+(.+)$"
 )
+#: "(the gap) separating A and B", "that separates A from B": between A and B.
+_SEPARATING = re.compile(r"^(?:that\s+)?separat(?:es|ing)\s+(.+)$")
 #: "halfway from A to B": between A and B.
 _FROM_TO = re.compile(
     r"^(?:to\s+)?(?:(?:half|mid)way|the\s+(?:half|mid)way\s+point)\s+from\s+(.+)$"
@@ -215,11 +260,11 @@ _FROM_TO = re.compile(
 _SIDES = [
     (
         "left",
-        re.compile(r"^(?:(?:to|on)\s+)?(?:the\s+)?left(?:[\s-]+hand)?(?:\s+side)?\s+of\s+(.+)$"),
+        re.compile(r"^(?:(?:to|on)\s+)?(?:the\s+)?left(?:[\s-]*hand)?(?:\s+side)?\s+of\s+(.+)$"),
     ),
     (
         "right",
-        re.compile(r"^(?:(?:to|on)\s+)?(?:the\s+)?right(?:[\s-]+hand)?(?:\s+side)?\s+of\s+(.+)$"),
+        re.compile(r"^(?:(?:to|on)\s+)?(?:the\s+)?right(?:[\s-]*hand)?(?:\s+side)?\s+of\s+(.+)$"),
     ),
     # the robot's convention: "in front of" X is X's side away from the robot, so its far
     # side and its other side are the front, its near side the back
@@ -227,7 +272,8 @@ _SIDES = [
         "front",
         re.compile(
             r"^(?:(?:a?round\s+)?(?:to|on)\s+|a?round\s+)?(?:the\s+)?(?:(?:in\s+)?front(?:\s+side)?|"
-            r"(?:far|other|opposite)\s+side|ahead)\s+of\s+(.+)$"
+            r"(?:far|other|opposite)\s+side|ahead)\s+of\s+(.+?)(?:,?\s+away\s+from\s+"
+            r"(?:you|me|the\s+robot))?$|^(?:past|beyond)\s+(.+)$"
         ),
     ),
     (
@@ -291,17 +337,25 @@ _HEARD_AFTER = re.compile(
 )
 #: "where the barking came from", "the spot the ringing was coming from": the sound's place.
 _CAME_FROM = re.compile(
-    r"^(?:(?:the\s+)?(?:place|spot|point|location|direction)\s+)?(?:where\s+|that\s+)?(.+?)\s+"
-    r"(?:came|comes|was\s+coming|were\s+coming|is\s+coming|originated)\s+from$"
+    rf"^(?:{_PLACE_NOUN}\s+|(?:the\s+)?direction\s+)?(?:where\s+|that\s+)?(.+?)\s+"
+    r"(?:came|comes|was\s+coming|were\s+coming|is\s+coming|originated|seemed\s+to\s+come|"
+    r"seems\s+to\s+come)\s+(?:out\s+of|from)$"
 )
+#: "the location of X", "the whereabouts of X": X itself.
+_LOCATION_OF = re.compile(r"^(?:the\s+)?(?:location|position|whereabouts|direction)\s+of\s+(.+)$")
 #: What joins a goal to what narrows it: "the mug near / right by / not far from / where you
 #: heard / sitting next to X". "where" alone ("the mug where the dog barked") joins a place.
 _CONNECT = re.compile(
     r"\s+(?:(?:that|which)(?:\s+(?:is|was)|'s)\s+)?"
-    r"(?:(?:(?:that|which)\s+)?(?:sitting|sits|lying|lies|standing|stands|resting|rests|placed|"
-    r"located|positioned|kept)\s+)?"
-    r"(?:(?:right|just|directly|really|somewhere|over)\s+)?"
-    r"(close\s+by|hard\s+by|near\s*by|alongside(?:\s+of)?|adjacent\s+to|not\s+far\s+from|"
+    r"(?:(?:(?:that|which)\s+)?(?:sitting|sits|sat|lying|lies|standing|stands|resting|rests|"
+    r"placed|located|positioned|kept|parked|perched|set|left)\s+)?"
+    r"(?:(?:right|just|directly|really|somewhere|over|up|down|round|around|kinda|kind\s+of|"
+    r"sort\s+of|pretty|fairly|quite|close)\s+)*"
+    r"(close\s+by|hard\s+by|near\s*by|alongside(?:\s+of)?|adjacent\s+to|"
+    r"not\s+(?:too\s+|that\s+|very\s+)?far\s+(?:away\s+)?from|(?:up\s+)?against|"
+    r"a\s+(?:short\s+way|little\s+way|stone's\s+throw|few\s+(?:inches|centimet(?:er|re)s|cm))"
+    r"\s+(?:away\s+)?from|within\s+(?:reach|arm's\s+reach)\s+of|closer\s+to|"
+    r"next\s+door\s+to|in\s+the\s+area\s+of|"
     r"(?:with)?in\s+(?:the\s+)?(?:vicinity|neighbou?rhood)\s+of|neighbou?ring|"
     r"(?:by|at)\s+the\s+side\s+of|in\s+the\s+same\s+(?:area|region|spot|place)\s+as|"
     r"near(?:\s+to)?|next\s+to|close\s+to|closest\s+to|nearest(?:\s+to)?|beside|by|around|"
@@ -321,9 +375,11 @@ _PATH = re.compile(
 
 #: "a bit to the left of", "somewhere between", "slightly behind": a hedge before a relation.
 _HEDGE = re.compile(
-    r"^(?:a\s+(?:little\s+)?bit|a\s+little|slightly|somewhat|somewhere|just|right|directly)"
-    r"\s+(?:more\s+)?(?=(?:to|on)\s+the\s+(?:left|right)\b|(?:in\s+)?front\b|behind\b|"
-    r"(?:in\s+)?between\b|halfway\b|above\b|over\b)"
+    r"^(?:(?:a\s+(?:little\s+)?bit|a\s+little|slightly|somewhat|somewhere|just|right|directly|"
+    r"out|back|a?round|in|up|down)\s+(?:more\s+)?)+"
+    r"(?=(?:to|on)\s+the\s+(?:left|right)\b|(?:in\s+)?front\b|behind\b|"
+    r"(?:in\s+)?between\b|(?:half|mid)way\b|above\b|over\b|(?:left|right)(?:[\s-]*hand)?\s+of\b|"
+    r"past\b|beyond\b)"
 )
 #: "find the duck and go there": the second half only says to go where the first points.
 _AND_GO_THERE = re.compile(
@@ -441,6 +497,8 @@ class _Parser:
         text = self._hide_paths(self.instruction.strip())
         text = re.sub(r"\s+", " ", text.lower()).strip()
         text = re.sub(r"[.!?]+$", "", text).strip()
+        text = re.sub(r"\bwherever(?:\s+it\s+(?:was|is)(?:\s+that)?)?\b", "where", text)
+        text = re.sub(r"\bwhere\s+there\s+(?:was|were|is)\b", "where", text)
         text = _WAS_HEARD.sub(r"where you heard \1", text)
         text = _IMAGE_PLACE.sub(r"the image \1", text)
         if self.robot == "arm":  # one table: "on the left" is its left side
@@ -459,6 +517,7 @@ class _Parser:
         body = _AND_GO_THERE.sub("", body)
         body = _HOVER.sub("move ", body)
         body = _GO_FIND.sub("", body)
+        body = _TRY_ING.sub(lambda m: {"mov": "move", "gett": "get"}.get(m[1], m[1]), body)
         times = 1
         m = _REPEAT.search(body)
         if m:
@@ -476,6 +535,8 @@ class _Parser:
             times = self.times(m, clause)
             body = body[m.end() :].strip(" ,")
         m = _VERB.match(body)
+        if not m and _RELATION_START.match(body):  # "behind the mug, please"
+            m = re.match(r"^", body)
         if not m and not first:
             # later steps may leave the verb out: "..., then (to) the duck"
             m = re.match(r"^(?:to(?:wards)?\s+|on\s+to\s+)?", body)
@@ -567,6 +628,16 @@ class _Parser:
         if m:
             a, b = self.two_goals(m.group(1), "halfway from", sep=r"\s+to\s+")
             return Between(a, b)
+        m = _FACING.match(rest)
+        if m:
+            side = "front" if m.group(2) else "behind"
+            return Side(side, self.landmark(m.group(1), side))
+        m = _ON_ITS_SIDE.match(rest)
+        if m:
+            return Side(m.group(2), self.landmark(m.group(1), m.group(2)))
+        m = _SEPARATING.match(rest)
+        if m:
+            return Between(*self.two_goals(m.group(1), "separating", sep=r"\s+(?:and|from)\s+"))
         m = _POSSESSIVE_SIDE.match(rest)
         if m:
             side = {"back": "behind", "rear": "behind"}.get(m.group(2), m.group(2))
@@ -583,7 +654,8 @@ class _Parser:
         for side, rx in _SIDES:
             m = rx.match(rest)
             if m:
-                return Side(side, self.landmark(m.group(1), side))
+                said = next(g for g in m.groups() if g is not None)
+                return Side(side, self.landmark(said, side))
         m = _ABOVE.match(rest)
         if m:
             return Above(self.landmark(m.group(1), "above"))
@@ -623,7 +695,7 @@ class _Parser:
         if (
             len(pieces) > 2
             and pieces[1].startswith("where")
-            and _ARTICLES.sub("", pieces[0].strip()) in _PLACE_WORDS
+            and re.fullmatch(_PLACE_NOUN, pieces[0].strip())
         ):  # "the place where you heard S ...", "the spot where S ..." is the place itself
             pieces = [f"{pieces[1]} {pieces[2]}", *pieces[3:]]
         primary = self.part(pieces[0], None)
@@ -647,9 +719,15 @@ class _Parser:
         if forced == "sound":
             m = _SOUND_OF.match(text) or _SOUND_SUFFIX.match(text)
             return Part("sound", self.description(m.group(1) if m else text, "sound"))
+        m = _PLACE_HEARD.match(text) or (_CAME_FROM.match(text) is None and _PLACE_X.match(text))
+        if m:  # "the spot you heard X" is "where you heard X"
+            text = f"where {m.group(1)}"
         m = _HEARD.match(text)
         if m:
             return Part("sound", self.description(m.group(1), "sound"))
+        m = _LOCATION_OF.match(text)
+        if m:
+            return self.part(m.group(1), forced)
         m = _HEARD_AFTER.match(text)
         if m and not m.group(1).startswith("where "):  # "the barking you heard"
             said = m.group(3) or m.group(1) + (f" {m.group(2)}" if m.group(2) else "")
@@ -658,10 +736,14 @@ class _Parser:
         if m:  # "where the ringing came from"
             return self.part(m.group(1), "sound")
         m = _WHERE.match(text)
-        if m and m.group(2):  # "where the mug is"
-            return Part("obj", self.description(m.group(1), "object"))
         if m:
-            return Part("sound", self.description(m.group(1), "sound"))
+            what = m.group(1)
+            words = _ARTICLES.sub("", what).split()
+            heard = words[-1] in _sound_verbs() or " ".join(words) in _sound_names()
+            named = bool(_SOUND_OF.match(what) or _SOUND_SUFFIX.match(what))
+            if m.group(2) and not heard and not named:  # "where the mug is (was)"
+                return Part("obj", self.description(what, "object"))
+            return self.part(_WHERE_SOUND_TAIL.sub("", what), "sound")
         m = _SOUND_OF.match(text) or _SOUND_SUFFIX.match(text) or _SOUND_SOURCE.match(text)
         if m:
             said = m.group(1)  # "whatever is making the ticking (noise)": the ticking
