@@ -108,6 +108,29 @@ def test_the_reader_finds_what_the_cosine_refused(scenes):
     assert not laptop.found and "like nothing" in laptop.reason and laptop.peak == 0.0
 
 
+def test_the_reader_ranks_first_the_name_it_reads_among_several(scenes):
+    ours, _ = scenes
+    from tabletop.mapping.object_module import ObjectConfig
+
+    # "the footy ball" may be the soccer ball or the ball by its cosine, which ranks the ball
+    # first; the reader reads the soccer ball, and "the bouncy ball" the ball: that name's
+    # instances come first
+    for words, meant, other in (
+        ("the footy ball", "soccer ball", "ball"),
+        ("the kickable ball", "soccer ball", "ball"),
+        ("the bouncy ball", "ball", "soccer ball"),
+    ):
+        m = ours.match(words)
+        assert set(m.names) == {"soccer ball", "ball"}, words
+        assert m.read == meant and m.read_p >= ours.config.reader_prefer
+        assert m.name_weights[meant] == 1.0 and m.name_weights[other] < 0.2, m.name_weights
+    # both stay what the words may mean, and without the preference the cosine alone ranks
+    off = type(ours)(ours.voxels, ours.text, ObjectConfig(reader_prefer=1.0), ours.vocabulary)
+    for words in ("the footy ball", "the kickable ball"):
+        w = off.match(words).name_weights
+        assert w["ball"] == 1.0 and w["soccer ball"] < 1.0, (words, w)
+
+
 def test_a_reader_of_another_space_or_vocabulary_is_not_used():
     from module_helpers import coloured_voxels
     from test_object_module import SCENE

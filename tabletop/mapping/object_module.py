@@ -152,6 +152,12 @@ class ObjectConfig:
     reader_min: float = 0.7
     """The reader's probability of one vocabulary name at which words the cosine refused
     find that name."""
+    reader_prefer: float = 0.8
+    """Where the words may mean several vocabulary names and the reader reads one of them at
+    this probability or more, that name's instances come first, ahead of the best of the others
+    by ``text_margin`` ("the spool-shaped block" may be the cube, the cylinder or the prism;
+    the reader reads the cylinder). The others stay what the words may mean (found where the
+    scene has none of the reader's). Above 1: never."""
     shape: bool = True
     """Multiply each instance's kind probabilities by the shape prior's
     (:mod:`tabletop.mapping.shape`: what its voxels' geometry says it is)."""
@@ -190,6 +196,7 @@ class ObjectConfig:
             "colour_abs_scale",
             "closeness_scale",
             "name_temperature",
+            "reader_prefer",
         ):
             if not getattr(self, name) > 0:
                 raise ConfigError(f"{name} must be > 0, got {getattr(self, name)}")
@@ -235,6 +242,9 @@ class InstanceMatch:
     :data:`~tabletop.mapping.kind_reader.OTHER`, or "" (no reader)."""
     read_p: float = 0.0
     """The reader's probability of ``read``."""
+    name_weights: dict[str, float] = field(default_factory=dict)
+    """How much each of ``names`` counts when the instances are ranked (1 for the names the
+    words match best, see ``ObjectConfig.name_temperature`` and ``reader_prefer``)."""
 
     @property
     def scores(self) -> np.ndarray:
@@ -457,6 +467,11 @@ class ObjectModule:
                 want = np.arange(nv) == d
                 names = (self.vocabulary[d],)
             rank = per + cfg.text_margin * named
+            read, read_p = self._read(e)
+            if len(names) > 1 and read in names and read_p >= cfg.reader_prefer:
+                # the reader's name first, by the margin ("the footy ball": the soccer ball)
+                r = self.vocabulary.index(read)
+                rank[r] = rank[want].max() + cfg.text_margin
             weight = np.exp((rank - rank[want].max()) / cfg.name_temperature)
             # "the tin-can-shaped toy" is a toy: a thing it is likened to is no other thing
             if plain == words:
@@ -469,7 +484,6 @@ class ObjectModule:
             # ("the bath buddy" is the duck's, though its cosine lies nearer "toilet")
             if described and not _word_forms(other) & _word_forms(" ".join(content)):
                 other, other_score = "", -1.0
-            read, read_p = self._read(e)
             # the reader names what the cosine refused ("the tin can toy": nearer "tin can")
             refused = bool(
                 self._cosine_refusal(words, text_score, nearest, described, other, other_score)
@@ -515,6 +529,7 @@ class ObjectModule:
             described,
             read,
             read_p,
+            {v: float(w) for v, w, k in zip(self.vocabulary, weight, want, strict=True) if k},
         )
 
     def kind_reader(self) -> KindReader | None:
