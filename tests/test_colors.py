@@ -59,6 +59,8 @@ def test_lab_of_reference_colours():
         ("the minty stacking brick", "mint", "the stacking brick"),
         ("the cup, kind of chocolatey", "chocolate", "the cup kind of"),
         ("the creamy teddy", "cream", "the teddy"),
+        ("the rosy cube", "rose", "the cube"),
+        ("the tiny cube", "", "the tiny cube"),
         ("the spotty domino", "", "the spotty domino"),
         ("the fluffy navy bear", "navy", "the fluffy bear"),
     ],
@@ -174,6 +176,8 @@ def test_the_survey_names_load_without_the_lexicons_and_a_bad_file_is_named(tmp_
     assert survey_words("the red mug") == []
     # an adjective in "-y" of a survey name stands for it
     assert survey_words("the grassy ball") == ["grassy"] and survey_name("grassy") == "grass"
+    assert survey_name("muddy") == "mud" and survey_name("icy") == "ice"  # mud(d)-y, ic(e)-y
+    assert survey_words("the fuzzy furry ball") == []
     assert survey_name("aubergine") == "aubergine" and survey_name("sandwich") == ""
     bad = tmp_path / "bad.toml"
     bad.write_text('format = "tabletop-colour-names"\nversion = 1\n[names]\nmoss = "green"\n')

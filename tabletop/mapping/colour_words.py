@@ -320,17 +320,19 @@ def _reading(words: list[str], where, keep_names: bool = False) -> tuple[str, st
 def _ish(word: str) -> str:
     """ "reddish" -> "red", "bluish" -> "blue", "greyish" -> "grey", the superlatives
     ("blackest" -> "black", "bluest" -> "blue") and the adjectives in "-y" of a colour name
-    ("minty" -> "mint", "creamy" -> "cream", "chocolatey" -> "chocolate", "grassy" -> "grass" of
-    the survey); other words unchanged."""
+    ("minty" -> "mint", "creamy" -> "cream", "chocolatey" -> "chocolate", "rosy" -> "rose",
+    "grassy" -> "grass", "icy" -> "ice", "muddy" -> "mud" of the survey); other words
+    unchanged."""
     for suffix in ("ish", "est"):
         if word.endswith(suffix) and len(word) > 5:
             stem = word[:-3]
             for cand in (stem, stem[:-1], stem + "e"):  # redd-ish, blu-ish, purpl-ish
                 if cand in COLOR_NAMES:
                     return cand
-    if word.endswith("y") and len(word) > 4 and word not in COLOR_NAMES:
-        stem = word[:-1]  # mint-y, chocolate-y, smok(e)-y, clay-ey
-        for cand in (stem, stem + "e", stem[:-1] if stem.endswith("e") else ""):
+    if word.endswith("y") and len(word) > 2 and word not in COLOR_NAMES:
+        stem = word[:-1]  # mint-y, chocolate-y, smok(e)-y, ic(e)-y, clay-ey, mud(d)-y
+        doubled = stem[:-1] if len(stem) > 2 and stem[-1] == stem[-2] else ""
+        for cand in (stem, stem + "e", stem[:-1] if stem.endswith("e") else "", doubled):
             if cand in COLOR_NAMES or cand in survey_colours():
                 return cand
     return word
