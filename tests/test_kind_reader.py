@@ -131,6 +131,45 @@ def test_the_reader_ranks_first_the_name_it_reads_among_several(scenes):
         assert w["ball"] == 1.0 and w["soccer ball"] < 1.0, (words, w)
 
 
+def test_where_the_cosines_names_fit_nothing_the_readers_name_is_tried(scenes):
+    from test_object_module import DESCRIPTIONS, VOCAB
+
+    from tabletop.mapping.object_module import ObjectConfig
+    from tabletop.mapping.table_regions import fit_table
+
+    ours, _ = scenes
+
+    def reading(name, p, **config):
+        # a reader that reads every text as ``name`` with probability ``p``
+        classes = (*VOCAB, OTHER)
+        z = np.full(len(classes), np.log((1 - p) / (len(classes) - 1)))
+        z[classes.index(name)] = np.log(p)
+        reader = KindReader(classes, ours.text.space, np.zeros((ours.text.dim, len(classes))), z)
+        vm = ours.voxels
+        module = type(ours)(
+            vm,
+            ours.text,
+            ObjectConfig(**config),
+            VOCAB,
+            DESCRIPTIONS,
+            lambda: fit_table(GRID, vm.indices),
+        )
+        module._reader = reader
+        return module
+
+    # no teddy bear on this table; a reader sure the words mean the duck finds the yellow duck
+    sure = reading("duck", 0.95)
+    m = sure.match("the yellow teddy bear")
+    assert m.names == ("teddy bear",) and m.read == "duck"
+    h = sure.heatmap("the yellow teddy bear", 10.0, judge_at(0.2))
+    assert h.found and h.peak > 0.5
+    # not below the threshold, nor where it is switched off
+    for module in (reading("duck", 0.85), reading("duck", 0.95, reader_fallback=1.1)):
+        assert not module.heatmap("the yellow teddy bear", 10.0, judge_at(0.2)).found
+    # the reader's name must fit too: no green duck is no green teddy bear either
+    assert not sure.heatmap("the green teddy bear", 10.0, judge_at(0.2)).found
+
+
 def test_a_reader_of_another_space_or_vocabulary_is_not_used():
     from module_helpers import coloured_voxels
     from test_object_module import SCENE

@@ -152,6 +152,11 @@ class ObjectConfig:
     reader_min: float = 0.7
     """The reader's probability of one vocabulary name at which words the cosine refused
     find that name."""
+    reader_fallback: float = 0.9
+    """Where no instance fits the names the words' cosine gives, and the reader reads another
+    vocabulary name at this probability or more, instances of the reader's name are tried
+    ("the rolling block in kind of a green": no green prism, the cosine's name; the reader
+    reads a cylinder). Above 1: never."""
     reader_prefer: float = 0.8
     """Where the words may mean several vocabulary names and the reader reads one of them at
     this probability or more, that name's instances come first, ahead of the best of the others
@@ -197,6 +202,7 @@ class ObjectConfig:
             "closeness_scale",
             "name_temperature",
             "reader_prefer",
+            "reader_fallback",
         ):
             if not getattr(self, name) > 0:
                 raise ConfigError(f"{name} must be > 0, got {getattr(self, name)}")
@@ -417,9 +423,13 @@ class ObjectModule:
                 done[i] = shape_features(centers[i.rows], vs, base.z)
         return np.stack([done[i] for i in instances])
 
-    def match(self, query: str, reading: tuple[str, str] | None = None) -> InstanceMatch:
+    def match(
+        self, query: str, reading: tuple[str, str] | None = None, only: str | None = None
+    ) -> InstanceMatch:
         """Score ``query`` against every instance (see the module docstring), its words read
-        as ``reading`` ((colour phrase, the rest): default :func:`split_color_words`'s)."""
+        as ``reading`` ((colour phrase, the rest): default :func:`split_color_words`'s);
+        ``only``: the vocabulary name the words mean, whatever their cosine says (the kind
+        reader's fallback, see :meth:`heatmap`)."""
         cfg = self.config
         colour, words = reading if reading is not None else split_color_words(query)
         words = " ".join(_DEIXIS.sub(" ", words).split()) or words  # "the cup over there"
@@ -491,6 +501,10 @@ class ObjectModule:
             if refused and read in self.vocabulary and read_p >= cfg.reader_min:
                 want = np.array([v == read for v in self.vocabulary])
                 names, weight = (read,), np.ones(nv)
+            if only is not None:
+                want = np.array([v == only for v in self.vocabulary])
+                names, weight = (only,), np.ones(nv)
+                described, other, other_score = True, "", -1.0  # nothing refuses it
         else:  # "something red": any object
             described, read, read_p = False, "", 0.0
             names, text_score, nearest = self.vocabulary, 1.0, ""
@@ -750,11 +764,23 @@ class ObjectModule:
         # where none finds anything, the reason given is the lexicon's reading's ("'bottle'
         # reads as 'bottle'" for "wine bottle", not the reading of "wine" as a colour)
         plain, first = color_parses(query)[0], None
-        for reading in self.readings(query):
+        readings = self.readings(query)
+        for reading in readings:
             h = self._instance_heatmap(query, self.match(query, reading), decay, judge)
             if h.found:
                 return h
             first = h if first is None or reading == plain else first
+        # nothing the cosine's names fits: the kind reader's name, where it reads another
+        # ("the rolling block in kind of a green": no green prism; the reader reads a cylinder)
+        for reading in readings:
+            m = self.match(query, reading)
+            fallback = m.read in self.vocabulary and m.read not in m.names
+            if fallback and m.read_p >= self.config.reader_fallback and not self.refusal(m):
+                h = self._instance_heatmap(
+                    query, self.match(query, reading, only=m.read), decay, judge
+                )
+                if h.found:
+                    return h
         return first
 
     def readings(self, query: str) -> list[tuple[str, str]]:
