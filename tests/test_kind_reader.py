@@ -102,6 +102,9 @@ def test_the_reader_finds_what_the_cosine_refused(scenes):
     m = ours.match("the bath buddy")
     assert m.read == "duck" and m.read_p >= ours.config.reader_min and m.names == ("duck",)
     assert ours.heatmap("the bath buddy", 10.0, judge_at(0.2)).found
+    # a landmark the parser hands over without its article is read the same way
+    bare = ours.match("bath buddy")
+    assert (bare.read, bare.read_p, bare.names) == (m.read, m.read_p, m.names)
     # what the reader reads as none of the kinds stays refused, with the cosine's reason
     laptop = ours.heatmap("the laptop", 10.0, judge_at(0.2))
     assert ours.match("the laptop").read == OTHER

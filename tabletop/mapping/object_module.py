@@ -477,7 +477,10 @@ class ObjectModule:
                 want = np.arange(nv) == d
                 names = (self.vocabulary[d],)
             rank = per + cfg.text_margin * named
-            read, read_p = self._read(e)
+            # the reader learnt names as "the ...": a landmark the parser hands over bare
+            # ("puck block") is read the same way
+            said = "the " + re.sub(r"^(?:the|a|an)\s+", "", words)
+            read, read_p = self._read(e if said == words else self.text.encode_text([said])[0])
             if len(names) > 1 and read in names and read_p >= cfg.reader_prefer:
                 # the reader's name first, by the margin ("the footy ball": the soccer ball)
                 r = self.vocabulary.index(read)
