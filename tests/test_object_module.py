@@ -451,6 +451,15 @@ def test_a_word_only_one_candidate_is_described_by_ranks_it_first():
         assert want in m.names and len(m.names) >= 2, (q, m.names)  # the words fit several
         p = max_position(mod.heatmap(q, 10.0, judge_at(0.2)), vm.occupancy())
         assert _inside(p, toys[want]), (q, p)
+    # a head noun several names share ("toy") widens to them all, unless a word before it is
+    # one name's alone ("prism"): with no prism on the table, nothing is found
+    assert set(mod.match("the plastic toy").names) >= {"toy cube", "toy cylinder"}
+    assert mod.match("the triangular prism toy").names == ("toy prism",)
+    no_prism, _ = _shipped_kinds_module(
+        {k: v for k, v in toys.items() if k != "toy prism"},
+        ("toy cube", "toy cylinder", "toy prism", "mug"),
+    )
+    assert not no_prism.heatmap("the triangular prism toy", 10.0, judge_at(0.2)).found
 
 
 def test_words_all_of_one_names_descriptions_find_it_below_the_cosine_floor():

@@ -450,7 +450,10 @@ class ObjectModule:
             want = per >= per[best] - cfg.text_margin
             plain = _without_likeness(words)
             head = content[-1]
-            if plain == words and head in self.vocabulary[best].split():
+            # (unless a word before the head is the best name's alone: "the triangular prism
+            # toy" is the prism, not any toy)
+            pinned = _names_a_word_of(content[:-1], self.vocabulary[best], self.vocabulary)
+            if plain == words and head in self.vocabulary[best].split() and not pinned:
                 want |= np.array([head in name.split() for name in self.vocabulary])
             # What the thing is likened to may be one name's own ("the can-shaped block": the
             # cylinder is "a toy like a short tube or can"): then it is that name.
