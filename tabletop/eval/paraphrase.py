@@ -89,7 +89,7 @@ POOLS = (
 #: joins the tune pools once the 66 heldout-9 entries that equal its phrasings are replaced
 #: (heldout-9 was checked only against the tune pools of its day), and the kind reader is
 #: retrained with it.
-HELDOUT_POOLS = ("heldout-8", "heldout-9")
+HELDOUT_POOLS = ("heldout-9",)
 TUNE_POOLS = tuple(p for p in POOLS if p not in HELDOUT_POOLS)
 BANK_DIR = DATA_DIR / "paraphrases"
 SUITE_DIRS = {p: f"paraphrase-{p}" for p in POOLS}
