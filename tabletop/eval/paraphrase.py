@@ -81,14 +81,10 @@ POOLS = (
     "heldout-8",
     "heldout-9",
 )
-#: Held-out pools nobody on the team has read ("heldout-8", "heldout-9"): evaluated once, for a
-#: report. A held-out pool whose suites were read after its report ("heldout", "heldout-2",
-#: "heldout-3", "heldout-4", "heldout-5", "heldout-6", "heldout-7") is tuned on from then on,
-#: like a tune pool, and every newer held-out pool must differ from it. "heldout-8" was run
-#: once (on a498eeb; its aggregates and failure classes were read, none of its phrasings): it
-#: joins the tune pools once the 66 heldout-9 entries that equal its phrasings are replaced
-#: (heldout-9 was checked only against the tune pools of its day), and the kind reader is
-#: retrained with it.
+#: Held-out pools nobody on the team has read ("heldout-9"): evaluated once, for a report. A
+#: held-out pool whose suites were read after its report ("heldout", "heldout-2", "heldout-3",
+#: "heldout-4", "heldout-5", "heldout-6", "heldout-7", "heldout-8") is tuned on from then on,
+#: like a tune pool, and every newer held-out pool must differ from it.
 HELDOUT_POOLS = ("heldout-9",)
 TUNE_POOLS = tuple(p for p in POOLS if p not in HELDOUT_POOLS)
 BANK_DIR = DATA_DIR / "paraphrases"
