@@ -301,7 +301,6 @@ _IMAGE_PLACE = re.compile(
     r"(?:in|at|from|of)\s+(?:the\s+)?(?:(?:image|picture|photo|photograph|snapshot)\s+)?"
     r"(@img\d+@)"
 )
-_PLACE_WORDS = frozenset({"place", "spot", "point", "location"})
 _AREA_NAMES = {
     "left": "left side of the table",
     "right": "right side of the table",

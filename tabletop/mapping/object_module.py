@@ -770,16 +770,17 @@ class ObjectModule:
         # where none finds anything, the reason given is the lexicon's reading's ("'bottle'
         # reads as 'bottle'" for "wine bottle", not the reading of "wine" as a colour)
         plain, first = color_parses(query)[0], None
-        readings = self.readings(query)
-        for reading in readings:
-            h = self._instance_heatmap(query, self.match(query, reading), decay, judge)
+        matches = []  # kept for the fallback below
+        for reading in self.readings(query):
+            m = self.match(query, reading)
+            h = self._instance_heatmap(query, m, decay, judge)
             if h.found:
                 return h
             first = h if first is None or reading == plain else first
+            matches.append((reading, m))
         # nothing the cosine's names fits: the kind reader's name, where it reads another
         # ("the rolling block in kind of a green": no green prism; the reader reads a cylinder)
-        for reading in readings:
-            m = self.match(query, reading)
+        for reading, m in matches:
             fallback = m.read in self.vocabulary and m.read not in m.names
             if fallback and m.read_p >= self.config.reader_fallback and not self.refusal(m):
                 h = self._instance_heatmap(
