@@ -88,6 +88,64 @@ def test_plan_goes_around_the_wall_and_every_piece_keeps_the_margin(model, check
     np.testing.assert_array_equal(again.path, res.path)
 
 
+def _slot(model, q, margin):
+    """Two walls either side of the hand at ``q``, as close as the clearance ``margin`` (plus
+    a hair) allows: the hand sits in a slot on the margin, where a reach that pushed into it
+    would have stalled."""
+    T = model.fk(q)
+    opening = T[:3, 1] / np.linalg.norm(T[:2, 1])  # the fingers' axis, horizontal
+    k = int(np.argmax(np.abs(opening[:2])))
+
+    def walls(w):
+        out = [table_box()]
+        for s in (1.0, -1.0):
+            c = np.array([T[0, 3], T[1, 3], 0.06]) + s * (w + 0.01) * opening
+            half = [0.1, 0.1, 0.06]
+            half[k] = 0.01
+            out.append(Box(c.tolist(), half, name=f"slot{s:+.0f}"))
+        return out
+
+    lo, hi = 0.0, 0.3
+    for _ in range(40):
+        w = (lo + hi) / 2
+        if CollisionChecker(model, walls(w)).clearance(q).distance >= margin + 2e-5:
+            hi = w
+        else:
+            lo = w
+    return CollisionChecker(model, walls(hi))
+
+
+def test_an_end_on_the_margin_is_moved_off_it_first(model, ends):
+    """From a configuration on the margin no tree step certifies (the swept bound of every step
+    is below the margin), so the planner first moves the end off the margin along a short
+    segment that keeps half its clearance, then plans from there."""
+    qa, qb = ends
+    m = PlannerConfig().margin
+    q0 = solve_ik(
+        model,
+        make_transform(top_down_rotation(float(np.arctan2(-0.2, 0.5))), [0.5, -0.2, 0.06]),
+        HOME_Q,
+    ).q
+    slot = _slot(model, q0, m)
+    c0 = slot.clearance(q0).distance
+    assert m <= c0 < m + 1e-3
+    stuck = JointPlanner(model, slot, PlannerConfig(escape_band=0.0, max_time_s=2.0))
+    assert stuck.plan(q0, qb).reason == PlanReason.NO_PATH
+    res = JointPlanner(model, slot).plan(q0, qb)
+    assert res.ok, res.reason
+    np.testing.assert_array_equal(res.path[0], q0)
+    np.testing.assert_array_equal(res.path[-1], qb)
+    assert slot.clearance(res.path[1]).distance >= m + PlannerConfig().escape_band
+    assert res.min_clearance_m >= 0.5 * c0
+    assert _dense_clearance(slot, res.path[:2]) >= 0.5 * c0
+    assert _dense_clearance(slot, res.path[1:]) >= m
+    assert check_trajectory(time_parametrize(res.path)).ok
+    # A goal on the margin likewise: the same query reversed.
+    back = JointPlanner(model, slot).plan(qb, q0)
+    assert back.ok and np.array_equal(back.path[-1], q0)
+    assert _dense_clearance(slot, back.path[-2:]) >= 0.5 * c0
+
+
 def test_failures_are_typed(model, checker, ends):
     planner = JointPlanner(model, checker)
     qa, qb = ends
@@ -101,6 +159,8 @@ def test_failures_are_typed(model, checker, ends):
     tight = JointPlanner(model, checker, PlannerConfig(max_iterations=1, step=0.05))
     res = tight.plan(qa, qb)
     assert res.reason == PlanReason.NO_PATH and res.iterations == 1
+    with pytest.raises(ConfigError, match="PlannerConfig.escape_band must be >= 0"):
+        PlannerConfig(escape_band=-0.01)
     with pytest.raises(ConfigError, match="PlannerConfig.step must be positive"):
         PlannerConfig(step=0.0)
     with pytest.raises(ConfigError, match="PlannerConfig.max_iterations must be >= 1"):

@@ -62,6 +62,12 @@ class PlannerConfig:
     """Depth of the edge check's bisection; a piece still uncertified then is refused."""
     seed: int = 0
     """Seed of the samples and shortcuts (a query is reproducible)."""
+    escape_band: float = 0.01
+    """An end whose clearance is less than ``margin + escape_band`` [m] and whose tree has not
+    grown in ``escape_after`` iterations is moved to a configuration nearby that clears it
+    (see :meth:`JointPlanner.plan`); 0 turns this off."""
+    escape_after: int = 30
+    """Iterations before an end whose tree has not grown is moved off the margin."""
 
     def __post_init__(self) -> None:
         if self.margin < 0:
@@ -70,9 +76,11 @@ class PlannerConfig:
             raise ConfigError(f"PlannerConfig.step must be positive [rad], got {self.step}")
         if not self.max_time_s > 0:
             raise ConfigError(f"PlannerConfig.max_time_s must be positive, got {self.max_time_s}")
-        for name in ("max_iterations", "max_bisections"):
+        for name in ("max_iterations", "max_bisections", "escape_after"):
             if getattr(self, name) < 1:
                 raise ConfigError(f"PlannerConfig.{name} must be >= 1, got {getattr(self, name)}")
+        if self.escape_band < 0:
+            raise ConfigError(f"PlannerConfig.escape_band must be >= 0 [m], got {self.escape_band}")
         if self.shortcut_iterations < 0:
             raise ConfigError(
                 f"PlannerConfig.shortcut_iterations must be >= 0, got {self.shortcut_iterations}"
@@ -165,8 +173,8 @@ class JointPlanner:
         cb = self._clearance(qb) if cb is None else cb
         return self._segment(qa, qb, ca, cb, self.config.max_bisections)
 
-    def _segment(self, qa, qb, ca: float, cb: float, depth: int) -> float:
-        m = self.config.margin
+    def _segment(self, qa, qb, ca: float, cb: float, depth: int, m: float | None = None) -> float:
+        m = self.config.margin if m is None else m
         if min(ca, cb) < m:
             return min(ca, cb)
         D = self.checker.max_displacement(qa, qb)
@@ -177,10 +185,10 @@ class JointPlanner:
             return bound
         qm = (qa + qb) / 2
         cm = self._clearance(qm)
-        left = self._segment(qa, qm, ca, cm, depth - 1)
+        left = self._segment(qa, qm, ca, cm, depth - 1, m)
         if left < m:
             return left
-        return min(left, self._segment(qm, qb, cm, cb, depth - 1))
+        return min(left, self._segment(qm, qb, cm, cb, depth - 1, m))
 
     # ------------------------------------------------------------------ search
     def _inside(self, q: np.ndarray) -> bool:
@@ -237,10 +245,31 @@ class JointPlanner:
             path = np.array([qs, qg])
             return done(PlanReason.PLANNED, path, 2, 0, self._path_clearance(path))
         rng = np.random.default_rng(cfg.seed)
-        a, b = _Tree(qs, cs), _Tree(qg, cg)
+        ts, tg = _Tree(qs, cs), _Tree(qg, cg)
+        a, b = ts, tg
+        # An end on the margin (where the reach controller stalls) may grow no tree at all:
+        # every step's swept bound from it can fall below the margin. Such an end is moved
+        # off the margin (a short segment keeping half its clearance) once the first
+        # ``escape_after`` iterations have added nothing to its tree.
+        head, tail, escape_clear = [], [], np.inf
         it = 0
         while it < cfg.max_iterations and time.perf_counter() - t0 < cfg.max_time_s:
             it += 1
+            if it == cfg.escape_after + 1:
+                if len(ts.q) == 1 and cs < cfg.margin + cfg.escape_band:
+                    esc = self._escape(qs, cs, rng)
+                    if esc is not None:
+                        head, escape_clear = [qs], min(escape_clear, esc[2])
+                        new = _Tree(esc[0], esc[1])
+                        a, b = (new, b) if a is ts else (a, new)
+                        ts = new
+                if len(tg.q) == 1 and cg < cfg.margin + cfg.escape_band:
+                    esc = self._escape(qg, cg, rng)
+                    if esc is not None:
+                        tail, escape_clear = [qg], min(escape_clear, esc[2])
+                        new = _Tree(esc[0], esc[1])
+                        a, b = (new, b) if a is tg else (a, new)
+                        tg = new
             q_rand = rng.uniform(self.limits.q_lower, self.limits.q_upper)
             i_new, _ = self._extend(a, q_rand, greedy=False)
             if i_new >= 0:
@@ -249,14 +278,55 @@ class JointPlanner:
                     branch_a = a.branch(i_new)[::-1]
                     branch_b = b.branch(j_new)[1:]  # skip the node equal to a's
                     path = branch_a + branch_b
-                    if a.q[0] is not qs:  # the trees were swapped: the path runs goal -> start
+                    if a is not ts:  # the trees were swapped: the path runs goal -> start
                         path = path[::-1]
                     path = np.array(path)
-                    raw = len(path)
+                    raw = len(path) + len(head) + len(tail)
                     path = self._shortcut(path, rng)
-                    return done(PlanReason.PLANNED, path, raw, it, self._path_clearance(path))
+                    clear = min(self._path_clearance(path), escape_clear)
+                    path = np.array([*head, *path, *tail])
+                    return done(PlanReason.PLANNED, path, raw, it, clear)
             a, b = b, a
         return done(PlanReason.NO_PATH, it=it)
+
+    def _escape(
+        self, q: np.ndarray, c: float, rng: np.random.Generator
+    ) -> tuple[np.ndarray, float, float] | None:
+        """A configuration near ``q`` (clearance ``c``, on or just above the margin) that
+        clears ``margin + escape_band``, reached by a straight segment certified to keep half
+        of ``c``: (configuration, its clearance, the segment's certified bound), or None.
+
+        Tried along the clearance's numerical gradient first, then the joint axes and random
+        directions, each at growing step lengths."""
+        cfg = self.config
+        want, keep = cfg.margin + cfg.escape_band, 0.5 * c
+        h = 1e-3
+        grad = np.zeros(7)
+        for j in range(7):
+            dq = np.zeros(7)
+            dq[j] = h
+            if self._inside(q + dq):
+                grad[j] = (self._clearance(q + dq) - c) / h
+            elif self._inside(q - dq):
+                grad[j] = (c - self._clearance(q - dq)) / h
+        dirs = []
+        if np.linalg.norm(grad) > 0:
+            dirs.append(grad / np.linalg.norm(grad))
+        dirs += [s * e for e in np.eye(7) for s in (1.0, -1.0)]
+        rand = rng.normal(size=(16, 7))
+        dirs += list(rand / np.linalg.norm(rand, axis=1, keepdims=True))
+        for step in (0.05, 0.1, 0.2, 0.3):
+            for d in dirs:
+                qn = q + step * d
+                if not self._inside(qn):
+                    continue
+                cn = self._clearance(qn)
+                if cn < want:
+                    continue
+                bound = self._segment(q, qn, c, cn, cfg.max_bisections, keep)
+                if bound >= keep:
+                    return qn, cn, bound
+        return None
 
     # ------------------------------------------------------------------ smoothing
     def _path_clearance(self, path: np.ndarray) -> float:
