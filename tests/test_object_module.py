@@ -255,6 +255,17 @@ def test_colour_names_people_use_mean_their_basic_colour(scene):
     # a compound is a shade of its last word, whatever the first is nearest on its own
     assert family("rose") == "pink" and family("rose red") == "red"
     assert family("teal") == "blue" and family("teal green") == "green"
+    # so is a survey name of a basic term after a word that names no colour, though the
+    # lexicon name nearest the survey's colour lies in another family
+    for phrase, want in (
+        ("pale red", "red"),  # nearest "brown"
+        ("pure blue", "blue"),  # nearest a purple
+        ("pale yellow", "yellow"),  # nearest a green
+        ("deep orange", "orange"),  # nearest a brown
+    ):
+        assert family(phrase) == want, phrase
+    # two colour words: the survey's colour decides ("rust red" is a brown)
+    assert family("rust red") == "brown"
     blue_mug, green_mug = _instance((20, 60, 170)), _instance((30, 140, 40))
     fit = scene.colour_match(scene.colour_weights("cerulean"), [blue_mug, green_mug])
     assert fit[0] > 0.5 > 0.2 > fit[1]
@@ -351,6 +362,12 @@ def test_other_readings_of_colour_words_are_tried_when_the_first_finds_nothing(s
     ]:
         h = scene.heatmap(q, 10.0, judge_at(0.2))
         assert h.found and _lands_on(scene, h, mug), (q, h.reason)
+    # a framed word that names a survey colour is that colour only: no leaf-green mug stands
+    # here, so nothing is found (not any mug); a framed word that names no colour may be none
+    assert scene.readings("the leaf-coloured mug") == [("leaf", "the mug")]
+    h = scene.heatmap("the leaf-coloured mug", 10.0, judge_at(0.2))
+    assert not h.found and "leaf" in h.reason, h.reason
+    assert ("", "the solid colour mug") in scene.readings("the solid colour mug")
 
 
 def test_a_thing_the_words_liken_the_object_to_is_no_other_thing(scene):

@@ -25,6 +25,7 @@ __all__ = [
     "FILLER_WORDS",
     "SURVEY_PATH",
     "color_parses",
+    "colour_word",
     "framed_colours",
     "heads",
     "modifies",
@@ -134,6 +135,12 @@ def survey_words(text: str) -> list[str]:
         elif i not in skip and (words[i] in names or _ish(words[i]) in names):
             out.append(words[i])  # "grassy": the survey's "grass"
     return out
+
+
+def colour_word(word: str) -> bool:
+    """Whether ``word`` (one word) names a colour of the lexicon or the survey, itself or as
+    its "-ish" / "-y" adjective ("reddish", "grassy"); modifiers ("pale", "deep") do not."""
+    return _ish(word) in COLOR_NAMES or bool(survey_name(word))
 
 
 def survey_name(word: str) -> str:

@@ -66,6 +66,7 @@ from tabletop.mapping.colors import BASIC_COLOURS, COLOR_NAMES, delta_e, rgb_to_
 from tabletop.mapping.colour_words import (
     FILLER_WORDS,
     color_parses,
+    colour_word,
     framed_colours,
     heads,
     modifies,
@@ -650,9 +651,14 @@ class ObjectModule:
         """(len(COLOR_NAMES),) summing to 1: the lexicon names the colour phrase means (their
         text embeddings' cosine with the phrase's, sharpened). A survey colour name the
         lexicon lacks ("aubergine") means its basic colour term, that of the lexicon name
-        nearest its colour: the names people give a colour vary more than its family does."""
+        nearest its colour: the names people give a colour vary more than its family does;
+        but one made of a basic colour term after a word that names no colour ("pale red",
+        "pure blue") is a shade of that term, the words nearest it within the term's family."""
         embeddings, lab = self._colour_lexicon()
-        survey = survey_words(colour)
+        # a survey name made of a basic colour term and a word that is no colour ("pale red",
+        # "pure blue", "deep orange") is a shade of that term, as people read it: the nearest
+        # lexicon name may lie in another family (brown for "pale red", purple for "pure blue")
+        survey = [s for s in survey_words(colour) if not _shade_of_basic(s)]
         if survey:  # a survey name means its basic colour term: that of the nearest name
             rgb = np.array(survey_colours()[survey_name(survey[0])], float)
             de = delta_e(rgb_to_lab(rgb), lab[-1])  # the names at full light (gain 1)
@@ -805,8 +811,10 @@ class ObjectModule:
         colour name that ends the noun phrase as its head noun ("the domino stone",
         :func:`~tabletop.mapping.colour_words.heads`). A word the query's
         own words call a colour (:func:`~tabletop.mapping.colour_words.framed_colours`:
-        "tomato-coloured", "colour heliotrope") is one, whatever the text encoder says, and the
-        readings without it follow ("the solid colour ball")."""
+        "tomato-coloured", "colour heliotrope") is one, whatever the text encoder says; the
+        readings without it follow only where such a word names no colour of the lexicon or
+        the survey ("the solid colour ball"; not "the leaf-coloured block", which where no
+        green block stands is not found)."""
         lexicon = color_parses(query)
         if lexicon[0][0]:  # the lexicon's colour words are the colour
             return lexicon
@@ -822,7 +830,9 @@ class ObjectModule:
         if not colourish and not framed:
             return lexicon
         readings = color_parses(query, frozenset(colourish + framed))
-        if framed or unsure:
+        # a framed word that names a colour of the survey ("leaf-coloured") is that colour
+        # and nothing else; one that names none ("the solid colour ball") may be no colour
+        if unsure or [w for w in framed if not colour_word(w)]:
             readings += [r for r in lexicon if r not in readings]
         return readings
 
@@ -968,6 +978,18 @@ def _without_likeness(words: str) -> str:
         " ".join(_LIKENESS.sub(" ", words).split())
         if "shape" in words or "like" in words
         else words
+    )
+
+
+def _shade_of_basic(name: str) -> bool:
+    """Whether a survey colour name is a basic colour term after a word that names no colour
+    ("pale red", "pure blue"; not "blue purple", "rust red")."""
+    words = name.split()
+    return (
+        len(words) == 2
+        and words[1] in BASIC_COLOURS
+        and words[0] not in BASIC_COLOURS
+        and not colour_word(words[0])
     )
 
 
