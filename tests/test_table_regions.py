@@ -62,6 +62,9 @@ from tabletop.mapping.targets import max_position
         ("the area up front", None, "far"),
         ("the rearmost bit of the table", None, "near"),
         ("the centre of it all", "middle", "middle"),
+        # pointing words name no place of their own
+        ("the right side over there", "right", None),
+        ("the front bit here please", None, "far"),
     ],
 )
 def test_geometric_phrasings(text, lateral, depth):
@@ -70,7 +73,15 @@ def test_geometric_phrasings(text, lateral, depth):
 
 
 @pytest.mark.parametrize(
-    "text", ["the tray area", "where the toys are", "left of the mug", "the moon", "left and right"]
+    "text",
+    [
+        "the tray area",
+        "where the toys are",
+        "left of the mug",
+        "the moon",
+        "left and right",
+        "over there by the mug",
+    ],
 )
 def test_other_phrasings_are_not_geometry(text):
     assert parse_region(text) is None
@@ -139,5 +150,6 @@ def test_area_subject_names_the_object_a_place_is_named_after():
     assert area_subject("the area around the tray") == "tray"
     assert area_subject("the spot by the blue mug") == "blue mug"
     assert area_subject("where the toys are") == "toys"
+    assert area_subject("over there by the mug") == "mug"
     assert area_subject("the left side of the table") is None
     assert area_subject("the area") is None

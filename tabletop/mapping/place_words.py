@@ -20,7 +20,8 @@ Geometric phrasings (case and the articles "the"/"a" aside; "table" may be left 
   "flank", "quarter", "strip", "patch", "sector" and the like name no direction ("the right
   wing" is the right side), nor do "away", "over", "along", "towards", "most", "extreme" or
   "third" beside a direction ("the part farthest away", "over on the left", "the stretch
-  along the back", "the right-most third");
+  along the back", "the right-most third"), nor "there", "here" or "please" ("the right side
+  over there");
 - "center"/"centre"/"central"/"middle"/"mid"/"midpoint"/"midway"/"halfway"/"heart"/"core"/
   "centremost"/"innermost" alone: the middle third in both directions; with a lateral or a
   depth word it is the middle of the other direction ("the middle of the left side"); "very",
@@ -66,7 +67,7 @@ _FILLER = (
     "top surface portion section space bit s very dead exact exactly point spot wing flank "
     "quarter strip stretch patch segment sector slice chunk away over toward towards most "
     "extreme outer outermost third margin border fringe along smack slap bang dab plumb "
-    "squarely just row lip up it all"
+    "squarely just row lip up it all there here please"
 )
 
 
@@ -109,7 +110,7 @@ def parse_region(text: str) -> TableRegion | None:
 #: (space-separated).
 _PLACE_WORDS = (
     "the a an area around near by next to beside spot place region zone space part side of "
-    "close where is are stands sits lies"
+    "close where is are stands sits lies over there here please"
 )
 
 
