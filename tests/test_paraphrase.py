@@ -281,6 +281,8 @@ def test_generated_goals_are_asked_the_way_people_ask(pool, seed):
             assert len(steps) == 1, g["id"]
         if g["type"] == "absent":
             assert g["truth"] == {"absent": True} and len(g["query"]) == 1
+        # a phrase with its own determiner gets no "the" ("a kiwi fruit", "my car keys")
+        assert not re.search(r"\bthe (?:a|an|the|my|your|some) ", g["text"].lower()), g["id"]
 
 
 # ---------------------------------------------------------------------------- shipped suites

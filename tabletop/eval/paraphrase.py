@@ -409,7 +409,11 @@ class ParaphraseWording(Wording):
         return name.replace("{c}", c)
 
     def _article(self, phrase: str) -> str:
-        return f"the {phrase}" if self.rng.random() < self.P_ARTICLE else phrase
+        # the draw is made either way, so that a phrase with its own determiner ("a kiwi
+        # fruit", "my car keys") leaves every later draw as it was
+        add = self.rng.random() < self.P_ARTICLE
+        own = phrase.split(" ", 1)[0].lower() in _DETERMINERS
+        return f"the {phrase}" if add and not own else phrase
 
     def object_phrase(self, kind: str, colour: str | None, need_colour: bool) -> str:
         """A name of ``kind`` (without article), coloured ``colour`` when ``need_colour`` and
@@ -488,8 +492,12 @@ class ParaphraseWording(Wording):
         raise ConfigError(f"unknown instruction form {form!r}")
 
 
+#: Words that open a phrase with its own determiner: no "the" goes before them.
+_DETERMINERS = frozenset("the a an my your our his her their this that these those some".split())
+
+
 def _the(phrase: str) -> str:
-    return phrase if phrase.split(" ", 1)[0] in ("the", "a", "an") else f"the {phrase}"
+    return phrase if phrase.split(" ", 1)[0].lower() in _DETERMINERS else f"the {phrase}"
 
 
 def _shape(action) -> tuple:
