@@ -7,7 +7,14 @@ import pytest
 from module_helpers import GRID, judge_at, text_encoder
 
 from tabletop.errors import AssetError
-from tabletop.mapping.kind_reader import OTHER, KindReader, fit_kind_reader
+from tabletop.mapping.kind_reader import (
+    OTHER,
+    REFUSAL_FEATURES,
+    KindReader,
+    RefusalHead,
+    fit_kind_reader,
+    fit_refusal_head,
+)
 
 
 def _blobs(rng, n=30):
@@ -192,7 +199,80 @@ def test_a_reader_of_another_space_or_vocabulary_is_not_used():
     assert ObjectModule(vm, Renamed(), ObjectConfig(), ("mug",)).kind_reader() is None
 
 
+def test_a_refusal_head_learns_which_words_name_nothing_and_round_trips(tmp_path):
+    rng = np.random.default_rng(0)
+    n = 400
+    none = rng.random(n) < 0.3
+    # words of no kind: a lower cosine, the reader reading no kind
+    text = np.where(none, rng.normal(0.45, 0.08, n), rng.normal(0.65, 0.08, n))
+    read_other = np.where(none, rng.uniform(0.6, 1.0, n), rng.uniform(0.0, 0.3, n))
+    x = np.column_stack(
+        [text, rng.normal(0.4, 0.05, n), np.zeros(n), read_other, 1 - read_other, np.ones(n)]
+    )
+    head = fit_refusal_head(x, none)
+    f = [dict(zip(REFUSAL_FEATURES, row, strict=True)) for row in x]
+    refused = np.array([head.refuses(v) for v in f])
+    assert (refused == none).mean() > 0.95
+    assert head.accept_at == pytest.approx(min(1.0, text[none].max() + 0.05))
+    again = fit_refusal_head(x, none)  # deterministic
+    np.testing.assert_array_equal(again.weights, head.weights)
+    # a cosine at accept_at is never refused, whatever the reader says
+    sure = {**f[int(np.argmax(none))], "text_score": head.accept_at}
+    assert head.logit(sure) > 0 and not head.refuses(sure)
+    back = RefusalHead.from_dict(json.loads(json.dumps(head.to_dict())))
+    np.testing.assert_allclose(back.weights, head.weights, atol=1e-6)
+    with pytest.raises(AssetError, match="must weigh"):
+        RefusalHead.from_dict({"features": ["text_score"], "weights": [1.0]})
+    with pytest.raises(AssetError, match="finite weights"):
+        RefusalHead([1.0, np.nan, 0, 0, 0, 0])
+    with pytest.raises(ValueError, match="words of a kind and words of none"):
+        fit_refusal_head(x[~none], none[~none])
+    # a reader file with a broken head says so
+    reader = KindReader.load()
+    d = reader.to_dict()
+    d["refusal"]["weights"] = [1.0]
+    bad = tmp_path / "reader.json"
+    bad.write_text(json.dumps(d))
+    with pytest.raises(AssetError, match="cannot read the kind reader"):
+        KindReader.load(bad)
+
+
+def test_the_committed_refusal_head_refuses_fewer_names_and_lets_fewer_absent_things_through():
+    """Its leave-one-pool-out figures (the head fitted without a pool, on that pool's words
+    read by a reader fitted without it) against the fixed rules on the same readings."""
+    reader = KindReader.load()
+    assert reader.refusal is not None and 0.5 < reader.refusal.accept_at <= 1.0
+    fig = reader.meta["refusal_leave_one_pool_out"]
+    assert fig["texts"] > 1000
+    assert fig["head"]["names_refused"] < fig["rules"]["names_refused"]
+    assert fig["head"]["absent_accepted"] < fig["rules"]["absent_accepted"]
+
+
+def test_the_head_refuses_a_thing_of_no_kind_the_cosine_lets_through():
+    from test_object_module import _shipped_kinds_module
+
+    toys = {
+        "toy cube": ((0.10, -0.20, 0.01), (0.16, -0.14, 0.07), (200, 30, 30)),
+        "toy cylinder": ((0.40, 0.10, 0.01), (0.46, 0.16, 0.07), (30, 30, 200)),
+    }
+    mod, _ = _shipped_kinds_module(toys, ("toy cube", "toy cylinder", "toy prism", "mug"))
+    q = "the toy ambulance"  # "toy" carries the cosine past text_min; the reader reads no kind
+    m = mod.match(q)
+    assert m.text_score >= mod.config.text_min and m.read == OTHER
+    h = mod.heatmap(q, 10.0, judge_at(0.2))
+    assert not h.found and "names nothing" in h.reason, h.reason
+    rules = KindReader.load()
+    rules.refusal = None  # the fixed rules alone let it through
+    mod.set_kind_reader(rules)
+    assert mod.heatmap(q, 10.0, judge_at(0.2)).found
+    # names people use still find their kind with the head
+    mod.set_kind_reader(KindReader.load())
+    for name in ("the block shaped like a dice", "the short tube toy", "the little barrel"):
+        assert mod.heatmap(name, 10.0, judge_at(0.2)).found, name
+
+
 def test_training_reproduces_the_committed_reader(tmp_path):
+    from tabletop.eval.harness import map_config
     from tabletop.eval.kind_texts import reader_texts
     from tabletop.eval.paraphrase import HELDOUT_POOLS, TUNE_POOLS
     from tabletop.train.kind_reader import train_kind_reader
@@ -201,8 +281,18 @@ def test_training_reproduces_the_committed_reader(tmp_path):
         reader_texts((*TUNE_POOLS, *HELDOUT_POOLS))
     shipped = KindReader.load()
     rows = reader_texts(TUNE_POOLS)
-    out = train_kind_reader(tmp_path / "reader.json", rows, cross_validate=False)
+    config = map_config()
+    out = train_kind_reader(
+        tmp_path / "reader.json",
+        rows,
+        cross_validate=False,
+        vocabulary=config.objects,
+        descriptions=config.descriptions,
+    )
     ours = KindReader.load(out)
+    # the refusal head too (fitted on readings by readers fitted without each pool)
+    np.testing.assert_allclose(ours.refusal.weights, shipped.refusal.weights, atol=1e-3)
+    assert ours.refusal.accept_at == pytest.approx(shipped.refusal.accept_at, abs=1e-3)
     assert ours.classes == shipped.classes and ours.meta["pools"] == shipped.meta["pools"]
     assert ours.meta["texts"] == shipped.meta["texts"]
     enc = text_encoder()

@@ -143,14 +143,24 @@ def cmd_train(args: argparse.Namespace) -> int:
         _only_out(args)
         out = Path(args.out) if args.out is not None else TRAIN_OUT["kind-reader"]
         _check_weights_output(out, str(TRAIN_OUT["kind-reader"]), "a kind reader", _is_kind_reader)
+        from tabletop.eval.harness import map_config
         from tabletop.eval.kind_texts import reader_texts
         from tabletop.eval.paraphrase import TUNE_POOLS
         from tabletop.train.kind_reader import train_kind_reader
 
-        path = train_kind_reader(out, reader_texts(TUNE_POOLS))
+        config = map_config()  # the vocabulary and descriptions a map reads words against
+        path = train_kind_reader(
+            out,
+            reader_texts(TUNE_POOLS),
+            vocabulary=config.objects,
+            descriptions=config.descriptions,
+        )
         meta = json.loads(path.read_text())["meta"]
         print(f"kind reader written: {path} ({meta['texts']} texts, pools {meta['pools']})")
         print(f"leave one pool out, at {meta['threshold']}: {meta['leave_one_pool_out_mean']}")
+        refusal = meta.get("refusal_leave_one_pool_out")
+        if refusal:
+            print(f"refusal, leave one pool out: rules {refusal['rules']}, head {refusal['head']}")
         return 0
     if args.what == "shape":
         _only_out(args)

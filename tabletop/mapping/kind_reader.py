@@ -10,6 +10,12 @@ tell the kinds apart, may still name the kind
 (:class:`~tabletop.mapping.object_module.ObjectConfig` ``reader_min``). It learns "none of the
 kinds" too, so that a thing outside the catalog is not read as the kind nearest it.
 
+Whether words name anything of the vocabulary at all is decided by the reader's refusal head
+(:class:`RefusalHead`) where the file holds one: a logistic regression on the evidence the
+object module's fixed rules look at (the cosine with the nearest name, the nearest thing of no
+kind, whether the words are one name's own, the reader's reading), fitted on readings of
+authors the reader had not seen (each tune pool read by a reader fitted without it).
+
 The reader belongs to one text encoder's space and one vocabulary: the object module uses it
 only where the map's text encoder embeds into :attr:`KindReader.space` and every vocabulary
 name is one of :attr:`KindReader.classes`.
@@ -25,19 +31,128 @@ import numpy as np
 from tabletop.errors import AssetError
 from tabletop.paths import DATA_DIR
 
-__all__ = ["KIND_READER_PATH", "OTHER", "KindReader", "fit_kind_reader"]
+__all__ = [
+    "KIND_READER_PATH",
+    "OTHER",
+    "REFUSAL_FEATURES",
+    "KindReader",
+    "RefusalHead",
+    "fit_kind_reader",
+    "fit_refusal_head",
+]
 
 #: The committed reader (``tabletop train kind-reader``).
 KIND_READER_PATH = DATA_DIR / "weights" / "kind_reader.json"
 #: The class of words that name none of the kinds.
 OTHER = "<other>"
+#: What the refusal head weighs, in this order (see :class:`RefusalHead`): the words' best
+#: cosine with a vocabulary name or description, their best cosine with a thing of no kind
+#: (the object module's ``others``), whether they are one name's own words (1 or 0), the
+#: reader's probability where it reads no kind (else 0), its probability where it reads a
+#: kind (else 0), and a constant 1.
+REFUSAL_FEATURES = ("text_score", "other_score", "described", "read_other", "read_kind", "bias")
+
+
+class RefusalHead:
+    """Whether a query's words name nothing of the vocabulary: a logistic regression on
+    :data:`REFUSAL_FEATURES`, fitted on how words of authors the reader had not seen read
+    (each tune pool's names and absent things, by a reader fitted without that pool;
+    ``tabletop train kind-reader``). It replaces the object module's fixed rules (a cosine
+    floor, a nearer other thing, the reader's rescue) with one weighing of the same evidence.
+    """
+
+    def __init__(self, weights, accept_at: float = 1.0) -> None:
+        self.accept_at = float(accept_at)
+        """Words whose cosine with a vocabulary name or description reaches this are never
+        refused: nearer than any word of no kind came in training (by a margin). A name or a
+        description a user adds is then found though the reader never saw it."""
+        if not np.isfinite(self.accept_at):
+            raise AssetError(f"a refusal head's accept_at must be finite, got {accept_at!r}")
+        self.weights = np.asarray(weights, np.float64)
+        if self.weights.shape != (len(REFUSAL_FEATURES),) or not np.all(np.isfinite(self.weights)):
+            raise AssetError(
+                f"a refusal head holds {len(REFUSAL_FEATURES)} finite weights "
+                f"({', '.join(REFUSAL_FEATURES)}), got {self.weights.tolist()}"
+            )
+
+    def logit(self, features) -> float:
+        """The log-odds that words with ``features`` (a mapping of :data:`REFUSAL_FEATURES`
+        less "bias") name nothing of the vocabulary; refuse above 0."""
+        x = np.array([1.0 if k == "bias" else float(features[k]) for k in REFUSAL_FEATURES])
+        return float(x @ self.weights)
+
+    def refuses(self, features) -> bool:
+        """Whether words with ``features`` name nothing of the vocabulary."""
+        return features["text_score"] < self.accept_at and self.logit(features) > 0
+
+    def to_dict(self) -> dict:
+        return {
+            "features": list(REFUSAL_FEATURES),
+            "weights": self.weights.round(6).tolist(),
+            "accept_at": round(self.accept_at, 4),
+        }
+
+    @classmethod
+    def from_dict(cls, d) -> RefusalHead:
+        if not isinstance(d, dict) or tuple(d.get("features", ())) != REFUSAL_FEATURES:
+            raise AssetError(f"a refusal head must weigh {list(REFUSAL_FEATURES)}, got {d!r}")
+        return cls(d["weights"], d.get("accept_at", 1.0))
+
+
+def fit_refusal_head(
+    features: np.ndarray,
+    refuse: np.ndarray,
+    refuse_weight: float = 2.0,
+    l2: float = 1e-3,
+    accept_margin: float = 0.05,
+) -> RefusalHead:
+    """The :class:`RefusalHead` of ``features`` ((n, len(REFUSAL_FEATURES)), the last column
+    1) labelled ``refuse`` ((n,) bool: words of no kind): class-weighted cross-entropy (a word
+    of no kind weighs ``refuse_weight`` as much as a name: a thing found that is not there
+    sends the robot somewhere wrong), plus ``l2`` times the squared weights but the constant's,
+    minimised by L-BFGS from zero (deterministic). Its ``accept_at`` is the highest cosine a
+    word of no kind reached, plus ``accept_margin``."""
+    from scipy.optimize import minimize
+
+    x = np.asarray(features, np.float64)
+    y = np.asarray(refuse, bool)
+    if x.ndim != 2 or x.shape[1] != len(REFUSAL_FEATURES) or len(x) != len(y):
+        raise ValueError(f"features must be (n, {len(REFUSAL_FEATURES)}) with n labels")
+    if y.all() or not y.any():
+        raise ValueError("a refusal head needs words of a kind and words of none")
+    sw = np.where(y, refuse_weight, 1.0)
+    sw = sw / sw.sum()
+    free = np.array([k != "bias" for k in REFUSAL_FEATURES], float)
+
+    def loss(w):
+        z = x @ w
+        # log(1 + e^z) and its derivative, stable for large |z|
+        soft = np.logaddexp(0.0, z)
+        p = np.exp(z - soft)
+        value = (sw * (soft - y * z)).sum() + l2 * ((w * free) ** 2).sum()
+        grad = x.T @ (sw * (p - y)) + 2 * l2 * w * free
+        return value, grad
+
+    res = minimize(loss, np.zeros(x.shape[1]), jac=True, method="L-BFGS-B")
+    nearest_none = float(x[y, REFUSAL_FEATURES.index("text_score")].max())
+    return RefusalHead(res.x, min(1.0, nearest_none + accept_margin))
 
 
 class KindReader:
     """Softmax regression from a unit text embedding to :attr:`classes` (vocabulary names and
     :data:`OTHER`)."""
 
-    def __init__(self, classes, space: str, weights: np.ndarray, bias: np.ndarray, meta=None):
+    def __init__(
+        self,
+        classes,
+        space: str,
+        weights: np.ndarray,
+        bias: np.ndarray,
+        meta=None,
+        refusal: RefusalHead | None = None,
+    ):
+        self.refusal = refusal
+        """Its refusal head (None: the object module's fixed rules decide)."""
         self.classes = tuple(str(c) for c in classes)
         self.space = str(space)
         self.weights = np.asarray(weights, np.float64)
@@ -85,6 +200,7 @@ class KindReader:
             "weights": self.weights.round(6).tolist(),
             "bias": self.bias.round(6).tolist(),
             "meta": self.meta,
+            **({"refusal": self.refusal.to_dict()} if self.refusal is not None else {}),
         }
 
     def save(self, path: str | Path) -> None:
@@ -100,8 +216,16 @@ class KindReader:
             d = json.loads(path.read_text())
             if d.get("format") != "tabletop-kind-reader" or d.get("version") != 1:
                 raise ValueError("not a 'tabletop-kind-reader' version 1 file")
-            reader = cls(d["classes"], d["space"], d["weights"], d["bias"], d.get("meta"))
-        except (OSError, ValueError, KeyError, TypeError, AttributeError) as e:
+            head = d.get("refusal")
+            reader = cls(
+                d["classes"],
+                d["space"],
+                d["weights"],
+                d["bias"],
+                d.get("meta"),
+                RefusalHead.from_dict(head) if head is not None else None,
+            )
+        except (OSError, ValueError, KeyError, TypeError, AttributeError, AssetError) as e:
             raise AssetError(
                 f"cannot read the kind reader {path} ({e}); `tabletop train kind-reader` writes it"
             ) from e

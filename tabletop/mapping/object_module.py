@@ -77,7 +77,7 @@ from tabletop.mapping.colour_words import (
 )
 from tabletop.mapping.heatmaps import Heatmap, Judge, point_heatmap_3d
 from tabletop.mapping.instances import InstanceConfig, InstanceSet, ObjectInstance, support_of
-from tabletop.mapping.kind_reader import KindReader
+from tabletop.mapping.kind_reader import OTHER, KindReader
 from tabletop.mapping.voxel_map import VoxelMap
 from tabletop.paths import DATA_DIR
 
@@ -252,6 +252,9 @@ class InstanceMatch:
     name_weights: dict[str, float] = field(default_factory=dict)
     """How much each of ``names`` counts when the instances are ranked (1 for the names the
     words match best, see ``ObjectConfig.name_temperature`` and ``reader_prefer``)."""
+    forced: bool = False
+    """The names were given (``match(..., only=)``), or the words name no thing ("something
+    red": any object), so none were read from them: nothing refuses them."""
 
     @property
     def scores(self) -> np.ndarray:
@@ -551,6 +554,7 @@ class ObjectModule:
             read,
             read_p,
             {v: float(w) for v, w, k in zip(self.vocabulary, weight, want, strict=True) if k},
+            only is not None or not content,
         )
 
     def kind_reader(self) -> KindReader | None:
@@ -564,18 +568,59 @@ class ObjectModule:
             )
         return self._reader or None
 
+    def set_kind_reader(self, reader: KindReader | None) -> None:
+        """Use ``reader`` (None: no reader) instead of the committed one (its training
+        measures readers fitted without a pool this way)."""
+        self._reader = reader if reader is not None else False
+
     def _read(self, embedding: np.ndarray) -> tuple[str, float]:
         """The kind reader's reading of the words' ``embedding`` ("" and 0 without a reader)."""
         reader = self.kind_reader()
         return reader.read(embedding) if reader is not None else ("", 0.0)
 
     def refusal(self, m: InstanceMatch) -> str:
-        """Why the words of ``m`` name nothing of the map's vocabulary ("" where they do)."""
-        if m.read in m.names and m.read_p >= self.config.reader_min:
-            return ""  # the reader named what the cosine refused
-        return self._cosine_refusal(
+        """Why the words of ``m`` name nothing of the map's vocabulary ("" where they do).
+
+        Where the kind reader has a refusal head
+        (:class:`~tabletop.mapping.kind_reader.RefusalHead`), it decides from the same
+        evidence the fixed rules look at (the cosine, the nearest other thing, whether the
+        words are one name's own, the reader's reading); otherwise the rules do: the cosine
+        refuses (:meth:`_cosine_refusal`) unless the reader reads one of the names at
+        ``reader_min`` or more."""
+        if m.forced:
+            return ""
+        cosine = self._cosine_refusal(
             m.words, m.text_score, m.nearest, m.described, m.other, m.other_score
         )
+        reader = self.kind_reader()
+        head = reader.refusal if reader is not None else None
+        if head is None:
+            if m.read in m.names and m.read_p >= self.config.reader_min:
+                return ""  # the reader named what the cosine refused
+            return cosine
+        features = self.refusal_features(m)
+        if not head.refuses(features):
+            return ""
+        z = head.logit(features)
+        if cosine:
+            return cosine
+        what = "no kind" if m.read == OTHER else f"{m.read!r} ({m.read_p:.2f})"
+        return (
+            f"{m.words!r} names nothing of this map's vocabulary (nearest: {m.nearest!r}, "
+            f"cosine {m.text_score:.2f}; the kind reader reads {what}; refusal log-odds "
+            f"{z:.2f} > 0)"
+        )
+
+    def refusal_features(self, m: InstanceMatch) -> dict[str, float]:
+        """The evidence the refusal head weighs
+        (:data:`~tabletop.mapping.kind_reader.REFUSAL_FEATURES`) for the words of ``m``."""
+        return {
+            "text_score": float(m.text_score),
+            "other_score": float(m.other_score),
+            "described": float(m.described),
+            "read_other": float(m.read_p) if m.read == OTHER else 0.0,
+            "read_kind": float(m.read_p) if m.read in self.vocabulary else 0.0,
+        }
 
     def _cosine_refusal(
         self,
