@@ -56,10 +56,16 @@ def cmd_check_encoders(args: argparse.Namespace) -> int:
             out[f"audio_segments_per_sound_{snr}db"] = seg["segments_per_sound"]
     out.update({k: v for k, v in a.items() if k.startswith("audio_")})
     # the kind reader's own held-out figures: each tune pool read by a reader fitted without it
-    lopo = KindReader.load().meta.get("leave_one_pool_out_mean") or {}
+    reader = KindReader.load()
+    lopo = reader.meta.get("leave_one_pool_out_mean") or {}
     for key in ("read_as_kind", "read_as_another", "absent_read_as_kind"):
         if lopo.get(key) is not None:
             out[f"text_kind_reader_{key}_lopo"] = lopo[key]
+    # and its refusal head's: names refused, absent things let through
+    head = (reader.meta.get("refusal_leave_one_pool_out") or {}).get("head") or {}
+    for key in ("names_refused", "absent_accepted"):
+        if head.get(key) is not None:
+            out[f"text_refusal_{key}_lopo"] = head[key]
     out["encoders"] = "embedded default (learned; held-out data)"
     if args.json:
         print(json.dumps(out, indent=1))
