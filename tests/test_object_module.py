@@ -266,6 +266,9 @@ def test_colour_names_people_use_mean_their_basic_colour(scene):
         assert family(phrase) == want, phrase
     # two colour words: the survey's colour decides ("rust red" is a brown)
     assert family("rust red") == "brown"
+    # a pale tint is of its hue's family, though its lightness lies far from every name
+    for phrase, want in (("butter", "yellow"), ("straw", "yellow"), ("wine", "red")):
+        assert family(phrase) == want, phrase
     blue_mug, green_mug = _instance((20, 60, 170)), _instance((30, 140, 40))
     fit = scene.colour_match(scene.colour_weights("cerulean"), [blue_mug, green_mug])
     assert fit[0] > 0.5 > 0.2 > fit[1]

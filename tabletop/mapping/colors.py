@@ -26,6 +26,7 @@ __all__ = [
     "COLOR_MODIFIERS",
     "COLOR_NAMES",
     "delta_e",
+    "delta_e94",
     "rgb_to_lab",
     "shaded_lab",
 ]
@@ -212,6 +213,22 @@ def delta_e(a, b) -> np.ndarray:
     it across one object, and a colour's name depends more on its hue and chroma."""
     d = np.asarray(a, dtype=np.float64) - np.asarray(b, dtype=np.float64)
     return np.sqrt((0.5 * d[..., 0]) ** 2 + d[..., 1] ** 2 + d[..., 2] ** 2)
+
+
+def delta_e94(a, b) -> np.ndarray:
+    """CIE94 distance from colours ``a`` (..., 3) to reference colours ``b`` (..., 3), both
+    CIELAB, lightness at half weight: differences of chroma and hue count less where ``a`` is
+    more saturated. Which name's family a pale tint belongs to: butter (a pale yellow) is
+    nearer olive than any yellow by :func:`delta_e`, nearer a yellow by this."""
+    a = np.asarray(a, dtype=np.float64)
+    b = np.asarray(b, dtype=np.float64)
+    d_l = a[..., 0] - b[..., 0]
+    c_a = np.hypot(a[..., 1], a[..., 2])
+    d_c = c_a - np.hypot(b[..., 1], b[..., 2])
+    d_h2 = np.maximum((a[..., 1] - b[..., 1]) ** 2 + (a[..., 2] - b[..., 2]) ** 2 - d_c**2, 0.0)
+    return np.sqrt(
+        (0.5 * d_l) ** 2 + (d_c / (1 + 0.045 * c_a)) ** 2 + d_h2 / (1 + 0.015 * c_a) ** 2
+    )
 
 
 def shaded_lab(rgb, gains) -> np.ndarray:

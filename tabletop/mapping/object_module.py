@@ -62,7 +62,14 @@ from pathlib import Path
 import numpy as np
 
 from tabletop.errors import AssetError, ConfigError
-from tabletop.mapping.colors import BASIC_COLOURS, COLOR_NAMES, delta_e, rgb_to_lab, shaded_lab
+from tabletop.mapping.colors import (
+    BASIC_COLOURS,
+    COLOR_NAMES,
+    delta_e,
+    delta_e94,
+    rgb_to_lab,
+    shaded_lab,
+)
 from tabletop.mapping.colour_words import (
     FILLER_WORDS,
     color_parses,
@@ -696,7 +703,9 @@ class ObjectModule:
         """(len(COLOR_NAMES),) summing to 1: the lexicon names the colour phrase means (their
         text embeddings' cosine with the phrase's, sharpened). A survey colour name the
         lexicon lacks ("aubergine") means its basic colour term, that of the lexicon name
-        nearest its colour: the names people give a colour vary more than its family does;
+        nearest its colour (CIE94, lightness at half weight: "butter" is a yellow, not the
+        olive :func:`~tabletop.mapping.colors.delta_e` puts nearest): the names people give
+        a colour vary more than its family does;
         but one made of a basic colour term after a word that names no colour ("pale red",
         "pure blue") is a shade of that term, the words nearest it within the term's family."""
         embeddings, lab = self._colour_lexicon()
@@ -706,7 +715,7 @@ class ObjectModule:
         survey = [s for s in survey_words(colour) if not _shade_of_basic(s)]
         if survey:  # a survey name means its basic colour term: that of the nearest name
             rgb = np.array(survey_colours()[survey_name(survey[0])], float)
-            de = delta_e(rgb_to_lab(rgb), lab[-1])  # the names at full light (gain 1)
+            de = delta_e94(rgb_to_lab(rgb), lab[-1])  # the names at full light (gain 1)
             return self.colour_weights(COLOR_NAMES[list(COLOR_NAMES)[int(np.argmin(de))]][1])
         sim = embeddings @ self.text.encode_text([colour])[0]
         head = re.split(r"[\s-]+", colour.strip())[-1]
