@@ -214,6 +214,11 @@ def test_a_refusal_head_learns_which_words_name_nothing_and_round_trips(tmp_path
     refused = np.array([head.refuses(v) for v in f])
     assert (refused == none).mean() > 0.95
     assert head.accept_at == pytest.approx(min(1.0, text[none].max() + 0.05))
+    assert head.refuse_below == pytest.approx(np.quantile(text[~none], 0.001))
+    # a cosine below refuse_below is refused, unless the reader is sure of a kind
+    far = {**f[int(np.argmin(none))], "text_score": head.refuse_below - 0.01, "read_kind": 0.5}
+    assert head.logit(far) < 0 and head.refuses(far)
+    assert not head.refuses({**far, "read_kind": 0.9})
     again = fit_refusal_head(x, none)  # deterministic
     np.testing.assert_array_equal(again.weights, head.weights)
     # a cosine at accept_at is never refused, whatever the reader says
@@ -242,6 +247,7 @@ def test_the_committed_refusal_head_refuses_fewer_names_and_lets_fewer_absent_th
     read by a reader fitted without it) against the fixed rules on the same readings."""
     reader = KindReader.load()
     assert reader.refusal is not None and 0.5 < reader.refusal.accept_at <= 1.0
+    assert 0.0 < reader.refusal.refuse_below < 0.4
     fig = reader.meta["refusal_leave_one_pool_out"]
     assert fig["texts"] > 1000
     assert fig["head"]["names_refused"] < fig["rules"]["names_refused"]

@@ -65,6 +65,7 @@ from tabletop.mapping.targets import max_position
         # pointing words name no place of their own
         ("the right side over there", "right", None),
         ("the front bit here please", None, "far"),
+        ("the part off to the right", "right", None),
     ],
 )
 def test_geometric_phrasings(text, lateral, depth):

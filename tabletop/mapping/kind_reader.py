@@ -61,13 +61,20 @@ class RefusalHead:
     floor, a nearer other thing, the reader's rescue) with one weighing of the same evidence.
     """
 
-    def __init__(self, weights, accept_at: float = 1.0) -> None:
+    def __init__(self, weights, accept_at: float = 1.0, refuse_below: float = 0.0) -> None:
         self.accept_at = float(accept_at)
         """Words whose cosine with a vocabulary name or description reaches this are never
         refused: nearer than any word of no kind came in training (by a margin). A name or a
         description a user adds is then found though the reader never saw it."""
-        if not np.isfinite(self.accept_at):
-            raise AssetError(f"a refusal head's accept_at must be finite, got {accept_at!r}")
+        self.refuse_below = float(refuse_below)
+        """Words whose cosine stays below this are refused unless the reader is sure of a
+        kind: farther from every name than all but 0.1 % of the names people used in
+        training ("off to the right" is no object, whatever the reader half makes of it)."""
+        if not (np.isfinite(self.accept_at) and np.isfinite(self.refuse_below)):
+            raise AssetError(
+                f"a refusal head's accept_at and refuse_below must be finite, got "
+                f"{accept_at!r}, {refuse_below!r}"
+            )
         self.weights = np.asarray(weights, np.float64)
         if self.weights.shape != (len(REFUSAL_FEATURES),) or not np.all(np.isfinite(self.weights)):
             raise AssetError(
@@ -81,22 +88,29 @@ class RefusalHead:
         x = np.array([1.0 if k == "bias" else float(features[k]) for k in REFUSAL_FEATURES])
         return float(x @ self.weights)
 
-    def refuses(self, features) -> bool:
-        """Whether words with ``features`` name nothing of the vocabulary."""
-        return features["text_score"] < self.accept_at and self.logit(features) > 0
+    def refuses(self, features, reader_min: float = 0.7) -> bool:
+        """Whether words with ``features`` name nothing of the vocabulary: below
+        ``refuse_below`` unless the reader reads a kind at ``reader_min`` or more (a word the
+        reader knows though the vocabulary describes it in none of its words), else by the
+        head's log-odds, never at ``accept_at`` or above."""
+        t = features["text_score"]
+        if t < self.refuse_below and features["read_kind"] < reader_min:
+            return True
+        return t < self.accept_at and self.logit(features) > 0
 
     def to_dict(self) -> dict:
         return {
             "features": list(REFUSAL_FEATURES),
             "weights": self.weights.round(6).tolist(),
             "accept_at": round(self.accept_at, 4),
+            "refuse_below": round(self.refuse_below, 4),
         }
 
     @classmethod
     def from_dict(cls, d) -> RefusalHead:
         if not isinstance(d, dict) or tuple(d.get("features", ())) != REFUSAL_FEATURES:
             raise AssetError(f"a refusal head must weigh {list(REFUSAL_FEATURES)}, got {d!r}")
-        return cls(d["weights"], d.get("accept_at", 1.0))
+        return cls(d["weights"], d.get("accept_at", 1.0), d.get("refuse_below", 0.0))
 
 
 def fit_refusal_head(
@@ -111,7 +125,8 @@ def fit_refusal_head(
     of no kind weighs ``refuse_weight`` as much as a name: a thing found that is not there
     sends the robot somewhere wrong), plus ``l2`` times the squared weights but the constant's,
     minimised by L-BFGS from zero (deterministic). Its ``accept_at`` is the highest cosine a
-    word of no kind reached, plus ``accept_margin``."""
+    word of no kind reached, plus ``accept_margin``; its ``refuse_below`` the cosine that only
+    0.1 % of the names (words of a kind) fell below."""
     from scipy.optimize import minimize
 
     x = np.asarray(features, np.float64)
@@ -134,8 +149,10 @@ def fit_refusal_head(
         return value, grad
 
     res = minimize(loss, np.zeros(x.shape[1]), jac=True, method="L-BFGS-B")
-    nearest_none = float(x[y, REFUSAL_FEATURES.index("text_score")].max())
-    return RefusalHead(res.x, min(1.0, nearest_none + accept_margin))
+    cosine = x[:, REFUSAL_FEATURES.index("text_score")]
+    nearest_none = float(cosine[y].max())
+    farthest_name = float(np.quantile(cosine[~y], 0.001))
+    return RefusalHead(res.x, min(1.0, nearest_none + accept_margin), farthest_name)
 
 
 class KindReader:

@@ -606,7 +606,7 @@ class ObjectModule:
                 return ""  # the reader named what the cosine refused
             return cosine
         features = self.refusal_features(m)
-        if not head.refuses(features):
+        if not head.refuses(features, self.config.reader_min):
             return ""
         z = head.logit(features)
         if cosine:
