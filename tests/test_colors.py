@@ -63,6 +63,10 @@ def test_lab_of_reference_colours():
         ("the tiny cube", "", "the tiny cube"),
         ("the spotty domino", "", "the spotty domino"),
         ("the fluffy navy bear", "navy", "the fluffy bear"),
+        # a thing likened in size or shape to a fruit is not of its colour
+        ("the ball about the size of an orange", "", "the ball about the size of an orange"),
+        ("a block shaped like a lemon", "", "a block shaped like a lemon"),
+        ("the red ball about the size of an orange", "red", "the ball about the size of an orange"),
     ],
 )
 def test_colour_words_are_split_from_the_rest(text, colour, rest):

@@ -66,6 +66,7 @@ from tabletop.mapping.targets import max_position
         ("the right side over there", "right", None),
         ("the front bit here please", None, "far"),
         ("the part off to the right", "right", None),
+        ("the middle of the whole table", "middle", "middle"),
     ],
 )
 def test_geometric_phrasings(text, lateral, depth):

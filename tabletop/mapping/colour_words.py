@@ -287,6 +287,9 @@ def _colour_positions(text: str, extra: frozenset[str]) -> tuple[list[str], list
     where: list[int] = []
     i = 0
     while i < len(words):
+        if _sized_after(words, i):  # "the ball about the size of an orange": no colour
+            i += 1
+            continue
         if i + 1 < len(words) and " ".join(words[i : i + 2]) in names:
             where += [i, i + 1]
             i += 2
@@ -298,6 +301,21 @@ def _colour_positions(text: str, extra: frozenset[str]) -> tuple[list[str], list
             where.append(i)
         i += 1
     return words, where
+
+
+#: Word pairs that liken a thing's size or shape, not its colour, to what follows.
+_SIZE_LIKENESS = frozenset(
+    ("size of", "shape of", "shaped like", "sized like", "big as", "small as", "large as")
+)
+
+
+def _sized_after(words: list[str], k: int) -> bool:
+    """Whether the word at ``k`` follows a likeness of size or shape ("the size of an
+    orange", "shaped like a lemon"), articles between."""
+    j = k - 1
+    while j >= 0 and words[j] in ("a", "an", "the"):
+        j -= 1
+    return j >= 1 and f"{words[j - 1]} {words[j]}" in _SIZE_LIKENESS
 
 
 def _reading(words: list[str], where, keep_names: bool = False) -> tuple[str, str]:

@@ -21,7 +21,8 @@ Geometric phrasings (case and the articles "the"/"a" aside; "table" may be left 
   wing" is the right side), nor do "away", "over", "along", "towards", "most", "extreme" or
   "third" beside a direction ("the part farthest away", "over on the left", "the stretch
   along the back", "the right-most third"), nor "there", "here" or "please" ("the right side
-  over there"), nor "off" ("the part off to the right");
+  over there"), nor "off" ("the part off to the right"), nor "whole" or "entire" ("the middle
+  of the whole table");
 - "center"/"centre"/"central"/"middle"/"mid"/"midpoint"/"midway"/"halfway"/"heart"/"core"/
   "centremost"/"innermost" alone: the middle third in both directions; with a lateral or a
   depth word it is the middle of the other direction ("the middle of the left side"); "very",
@@ -67,7 +68,7 @@ _FILLER = (
     "top surface portion section space bit s very dead exact exactly point spot wing flank "
     "quarter strip stretch patch segment sector slice chunk away over toward towards most "
     "extreme outer outermost third margin border fringe along smack slap bang dab plumb "
-    "squarely just row lip up it all there here please off"
+    "squarely just row lip up it all there here please off whole entire"
 )
 
 
