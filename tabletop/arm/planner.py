@@ -256,20 +256,17 @@ class JointPlanner:
         while it < cfg.max_iterations and time.perf_counter() - t0 < cfg.max_time_s:
             it += 1
             if it == cfg.escape_after + 1:
-                if len(ts.q) == 1 and cs < cfg.margin + cfg.escape_band:
-                    esc = self._escape(qs, cs, rng)
-                    if esc is not None:
-                        head, escape_clear = [qs], min(escape_clear, esc[2])
-                        new = _Tree(esc[0], esc[1])
-                        a, b = (new, b) if a is ts else (a, new)
-                        ts = new
-                if len(tg.q) == 1 and cg < cfg.margin + cfg.escape_band:
-                    esc = self._escape(qg, cg, rng)
-                    if esc is not None:
-                        tail, escape_clear = [qg], min(escape_clear, esc[2])
-                        new = _Tree(esc[0], esc[1])
-                        a, b = (new, b) if a is tg else (a, new)
-                        tg = new
+                for tree in (ts, tg):
+                    moved = self._moved_off(tree, rng)
+                    if moved is None:
+                        continue
+                    new, bound = moved
+                    escape_clear = min(escape_clear, bound)
+                    a, b = (new, b) if a is tree else (a, new)
+                    if tree is ts:
+                        head, ts = [tree.q[0]], new
+                    else:
+                        tail, tg = [tree.q[0]], new
             q_rand = rng.uniform(self.limits.q_lower, self.limits.q_upper)
             i_new, _ = self._extend(a, q_rand, greedy=False)
             if i_new >= 0:
@@ -288,6 +285,16 @@ class JointPlanner:
                     return done(PlanReason.PLANNED, path, raw, it, clear)
             a, b = b, a
         return done(PlanReason.NO_PATH, it=it)
+
+    def _moved_off(self, tree: _Tree, rng: np.random.Generator) -> tuple[_Tree, float] | None:
+        """A new tree rooted where ``tree``'s root is moved off the margin (:meth:`_escape`),
+        and the escape segment's certified bound; None where the tree has grown, its root
+        clears ``margin + escape_band``, or no escape was found."""
+        q, c = tree.q[0], tree.c[0]
+        if len(tree.q) > 1 or c >= self.config.margin + self.config.escape_band:
+            return None
+        esc = self._escape(q, c, rng)
+        return None if esc is None else (_Tree(esc[0], esc[1]), esc[2])
 
     def _escape(
         self, q: np.ndarray, c: float, rng: np.random.Generator
