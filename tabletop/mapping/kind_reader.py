@@ -82,11 +82,16 @@ class RefusalHead:
                 f"({', '.join(REFUSAL_FEATURES)}), got {self.weights.tolist()}"
             )
 
+    @staticmethod
+    def vector(features) -> np.ndarray:
+        """(len(REFUSAL_FEATURES),) of ``features`` (a mapping of :data:`REFUSAL_FEATURES`
+        less "bias"), in order, the constant 1 last: a row of :func:`fit_refusal_head`'s."""
+        return np.array([1.0 if k == "bias" else float(features[k]) for k in REFUSAL_FEATURES])
+
     def logit(self, features) -> float:
         """The log-odds that words with ``features`` (a mapping of :data:`REFUSAL_FEATURES`
         less "bias") name nothing of the vocabulary; refuse above 0."""
-        x = np.array([1.0 if k == "bias" else float(features[k]) for k in REFUSAL_FEATURES])
-        return float(x @ self.weights)
+        return float(self.vector(features) @ self.weights)
 
     def refuses(self, features, reader_min: float = 0.7) -> bool:
         """Whether words with ``features`` name nothing of the vocabulary: below

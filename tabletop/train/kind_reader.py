@@ -29,6 +29,7 @@ from tabletop.mapping.kind_reader import (
     OTHER,
     REFUSAL_FEATURES,
     KindReader,
+    RefusalHead,
     fit_kind_reader,
     fit_refusal_head,
 )
@@ -76,7 +77,7 @@ def _refusal_rates(refused: np.ndarray, none: np.ndarray) -> dict:
     }
 
 
-def _refusal_head(records: list[tuple[str, list[float], bool, bool]]) -> tuple[object, dict]:
+def _refusal_head(records: list[tuple[str, np.ndarray, bool, bool]]) -> tuple[object, dict]:
     """The head fitted on every pool's records ((pool, features, of no kind, the rules'
     refusal)), and pool by pool the head fitted without a pool against the rules on it."""
     pools = tuple(dict.fromkeys(p for p, _, _, _ in records))
@@ -138,15 +139,8 @@ def train_kind_reader(
             module.set_kind_reader(r)
             for i in test:
                 m = module.match(rows[i][1])
-                f = module.refusal_features(m)
-                records.append(
-                    (
-                        pool,
-                        [1.0 if k == "bias" else f[k] for k in REFUSAL_FEATURES],
-                        labels[i] == OTHER,
-                        bool(module.refusal(m)),
-                    )
-                )
+                f = RefusalHead.vector(module.refusal_features(m))
+                records.append((pool, f, labels[i] == OTHER, bool(module.refusal(m))))
     keys = ("read_as_kind", "read_as_another", "refused", "absent_read_as_kind")
     mean = {
         k: round(float(np.mean([f[k] for f in per_pool.values()])), 4) if per_pool else None
