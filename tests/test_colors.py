@@ -97,7 +97,26 @@ def test_colour_words_are_split_from_the_rest(text, colour, rest):
         ("the dark red mug", [("dark red", "the mug")]),
         ("the mug that is red", [("red", "the mug that is")]),
         ("the cube in red", [("red", "the cube")]),
-        ("the ball with black patches", [("black", "the ball with patches")]),
+        # a part's colour after "with": the whole's colour first, then no colour
+        (
+            "the ball with black patches",
+            [("black", "the ball with patches"), ("", "the ball with black patches")],
+        ),
+        (
+            "the white mug with a red handle",
+            [("white", "the mug with a red handle"), ("white red", "the mug with a handle")],
+        ),
+        (
+            "the ball with red and white stripes",
+            [
+                ("red white", "the ball with and stripes"),
+                ("", "the ball with red and white stripes"),
+            ],
+        ),
+        # ... but what covers the whole thing has the thing's colour
+        ("the bear with brown fur", [("brown", "the bear with fur")]),
+        ("the block with white colouring", [("white", "the block")]),
+        ("the ball with red in it", [("red", "the ball with it")]),
         ("the orange", [("", "the orange")]),
         # "one" after the colour is the thing too: the word before may join the colour
         (

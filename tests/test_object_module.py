@@ -373,6 +373,19 @@ def test_other_readings_of_colour_words_are_tried_when_the_first_finds_nothing(s
     assert ("", "the solid colour mug") in scene.readings("the solid colour mug")
 
 
+def test_a_part_s_colour_does_not_refuse_the_thing(scene):
+    # the duck is yellow; its beak's colour is no reason to refuse it, while a duck asked
+    # for by its own colour stays not found where none has it
+    for q in ("the duck with an orange beak", "the mug with a white handle"):
+        assert scene.readings(q)[-1] == ("", q)
+    h = scene.heatmap("the duck with an orange beak", 10.0, judge_at(0.2))
+    assert h.found and _lands_on(scene, h, "yellow duck"), h.reason
+    assert not scene.heatmap("the purple duck", 10.0, judge_at(0.2)).found
+    # the whole's colour is still read first: the white mug with a red handle is no blue mug
+    h = scene.heatmap("the blue mug with a red handle", 10.0, judge_at(0.2))
+    assert h.found and _lands_on(scene, h, "blue mug"), h.reason
+
+
 def test_a_thing_the_words_liken_the_object_to_is_no_other_thing(scene):
     from tabletop.mapping.object_module import _without_likeness
 

@@ -160,6 +160,11 @@ def color_parses(text: str, extra=frozenset()) -> list[tuple[str, str]]:
     - a colour name that is not a basic term is part of a compound noun with the word before
       it ("hot chocolate" in "the hot chocolate mug"): it stays with the thing.
 
+    A colour of a part after "with" (:func:`_part_colours`: "the mug with a red handle") is
+    not the thing's: where the query also names the thing's own colour, the reading with that
+    colour alone comes first; where it names only a part's, the reading without any colour
+    comes last.
+
     A caller tries them in order and keeps the first that finds something: the first
     reading when it does (a reading whose colour words a word of the thing splits comes
     after those whose colour phrase is in one piece), so that words the lexicon calls
@@ -209,9 +214,62 @@ def color_parses(text: str, extra=frozenset()) -> list[tuple[str, str]]:
     # a colour phrase in one piece before one split by a word of the thing ("blue" before
     # "blue ... chocolate" in "the blue hot chocolate mug")
     options.sort(key=lambda o: bool(o[0]) and split(o[0]))
+    # a part's colour ("with a red handle") is not the thing's: where the query names the
+    # thing's own colour too ("the blue mug with a red handle"), that is read first; where it
+    # names only a part's, reading it as the thing's comes first (a lego brick's studs are
+    # its colour) and no colour at all last ("the domino with white spots" where no white
+    # domino stands: the dots are white, the domino need not be)
+    part = _part_colours(words, where)
+    whole = tuple(k for k in where if k not in part)
+    if part and whole:
+        options.insert(0, (whole, False))
+    elif part:
+        options.append(((), False))
     out = [_reading(words, pos, keep_names=keep) for pos, keep in options]
     seen: set[tuple[str, str]] = set()
     return [r for r in out if not (r in seen or seen.add(r))]
+
+
+#: Nouns after "with <colour>" that name what covers the whole thing, whose colour is the
+#: thing's ("the bear with brown fur", "the ball with a shiny red surface").
+SURFACE_NOUNS = frozenset(
+    """fur feathers feather coat skin body surface surfaces outside exterior shell plastic
+    rubber wood fabric cloth material all over everywhere""".split()
+)
+#: Words that may stand between "with" and a part's colour ("with two big white spots").
+_PART_LEAD = frozenset(
+    """a an the some its two three four five six many lots of little small big large tiny
+    bright dark light pale deep""".split()
+)
+
+
+def _part_colours(words: list[str], where) -> set[int]:
+    """Positions among ``where`` of colour words that name a part's colour: after "with",
+    "having" or "has" (articles, counts and sizes between), before a noun that is no colour
+    noun and no :data:`SURFACE_NOUNS` ("with white spots", "with a black nose", "with red and
+    white stripes"; not "with white colouring" nor "with brown fur")."""
+    where = set(where)
+    out: set[int] = set()
+    for k, w in enumerate(words):
+        if w not in ("with", "having", "has"):
+            continue
+        j = k + 1
+        while j < len(words) and words[j] in _PART_LEAD and j not in where:
+            j += 1
+        run = []
+        while j < len(words) and (j in where or (words[j] in ("and", "or") and run)):
+            if j in where:
+                run.append(j)
+            j += 1
+        if not run or j >= len(words):
+            continue
+        noun = words[j]
+        if noun in COLOUR_NOUNS or noun in SURFACE_NOUNS or noun in _JOINING:
+            continue
+        if noun in FILLER_WORDS and noun not in _THING:
+            continue
+        out |= set(run)
+    return out
 
 
 def framed_colours(text: str) -> list[str]:
