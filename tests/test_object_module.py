@@ -373,6 +373,21 @@ def test_other_readings_of_colour_words_are_tried_when_the_first_finds_nothing(s
     assert ("", "the solid colour mug") in scene.readings("the solid colour mug")
 
 
+def test_a_colour_word_no_list_has_is_read_where_the_encoder_places_it_near_a_colour(scene):
+    from tabletop.mapping.colour_words import colour_word
+
+    # "bluebird" and "coal" are in neither the lexicon nor the survey
+    assert not colour_word("bluebird") and not colour_word("coal")
+    assert scene.readings("the bluebird mug")[0] == ("bluebird", "the mug")
+    h = scene.heatmap("the bluebird mug", 10.0, judge_at(0.2))
+    assert h.found and _lands_on(scene, h, "blue mug"), h.reason
+    # no black mug stands here: the reading without the word follows, and finds a mug
+    assert scene.readings("the coal mug") == [("coal", "the mug"), ("", "the coal mug")]
+    # words the encoder places no nearer a colour than a thing, or not near one, are none
+    for q in ("the big mug", "the shiny mug", "the little duck"):
+        assert scene.readings(q) == [("", q)], q
+
+
 def test_a_part_s_colour_does_not_refuse_the_thing(scene):
     # the duck is yellow; its beak's colour is no reason to refuse it, while a duck asked
     # for by its own colour stays not found where none has it

@@ -33,6 +33,7 @@ __all__ = [
     "survey_colours",
     "survey_name",
     "survey_words",
+    "unlisted_modifiers",
 ]
 
 #: More colour names, beside the lexicon's: the xkcd colour survey's (CC0).
@@ -134,6 +135,29 @@ def survey_words(text: str) -> list[str]:
             skip |= {i, i + 1}
         elif i not in skip and (words[i] in names or _ish(words[i]) in names):
             out.append(words[i])  # "grassy": the survey's "grass"
+    return out
+
+
+def unlisted_modifiers(text: str) -> list[str]:
+    """Words of ``text`` that may be colours no list has: each modifies more of the noun
+    phrase (:func:`modifies`: "the smoke bear", not "the bear in the smoke"), has three
+    letters or more, and is no colour of the lexicon or the survey, no colour modifier and no
+    filler, joining or link word. Whether one *is* a colour is for the text encoder to say."""
+    out = []
+    for w in _plain_words(text):
+        if (
+            len(w) > 2
+            and w.isalpha()
+            and w not in out
+            and not colour_word(w)
+            and w not in COLOR_MODIFIERS
+            and w not in FILLER_WORDS
+            and w not in _JOINING
+            and w not in COLOR_LINK_WORDS
+            and w not in COLOUR_NOUNS
+            and modifies(text, w)
+        ):
+            out.append(w)
     return out
 
 

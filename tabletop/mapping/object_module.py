@@ -81,6 +81,7 @@ from tabletop.mapping.colour_words import (
     survey_colours,
     survey_name,
     survey_words,
+    unlisted_modifiers,
 )
 from tabletop.mapping.heatmaps import Heatmap, Judge, point_heatmap_3d
 from tabletop.mapping.instances import InstanceConfig, InstanceSet, ObjectInstance, support_of
@@ -100,6 +101,12 @@ __all__ = [
 #: Concepts every object query competes against: what a tabletop map holds besides objects.
 BACKGROUND = ("table", "floor", "robot arm", "other")
 OTHER_OBJECTS_PATH = DATA_DIR / "other_objects.toml"
+#: A word no colour list has is a colour where its best cosine with a lexicon colour name is
+#: at least this (MiniLM: "smoke" 0.62, "coal" 0.71, "ash" 0.80; "shiny" 0.47, "big" 0.40)...
+UNLISTED_COLOUR_MIN = 0.55
+#: ... and beats its best cosine with every vocabulary name, description and other thing by
+#: this much ("night" 0.62 against the night light's 0.59 is no colour).
+UNLISTED_COLOUR_MARGIN = 0.10
 
 
 def load_other_objects(path: str | Path = OTHER_OBJECTS_PATH) -> tuple[str, ...]:
@@ -312,7 +319,7 @@ class ObjectModule:
         self._targets: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None = None
         self._lexicon: tuple[np.ndarray, np.ndarray] | None = None
         self._others: np.ndarray | None = None
-        self._senses: dict[str, tuple[bool, bool]] = {}
+        self._senses: dict[str, tuple[float, float, float]] = {}
         self._name_words: list[set[str]] | None = None
         self._shape_prior = None
         self._reader: KindReader | bool | None = None
@@ -881,6 +888,10 @@ class ObjectModule:
             if colour or (not thing and modifies(query, w)):
                 colourish.append(w)  # "the heliotrope block": no flower block
                 unsure |= thing or not colour or heads(query, w)  # "the domino stone"
+        for w in unlisted_modifiers(query):  # "the smoke bear": a colour no list has
+            if w not in framed and self._unlisted_colour(w):
+                colourish.append(w)
+                unsure = True
         if not colourish and not framed:
             return lexicon
         readings = color_parses(query, frozenset(colourish + framed))
@@ -892,13 +903,28 @@ class ObjectModule:
 
     def _word_sense(self, word: str) -> tuple[bool, bool]:
         """(a colour?, a word for something of the vocabulary?) of a survey colour name."""
+        colour, thing, other = self._cosines(word)
+        return colour > max(thing, other), thing >= self.config.text_min
+
+    def _unlisted_colour(self, word: str) -> bool:
+        """Whether a word no colour list has is a colour, as the text encoder places it: near
+        a lexicon colour name (:data:`UNLISTED_COLOUR_MIN`) and clearly nearer it than every
+        vocabulary name, description and other thing (:data:`UNLISTED_COLOUR_MARGIN`): "smoke",
+        "coal", "ash" are; "shiny", "big", "little", "sleepy" are not."""
+        colour, thing, other = self._cosines(word)
+        margin = colour - max(thing, other)
+        return colour >= UNLISTED_COLOUR_MIN and margin >= UNLISTED_COLOUR_MARGIN
+
+    def _cosines(self, word: str) -> tuple[float, float, float]:
+        """A word's best cosine with the lexicon's colour names, with the vocabulary's names
+        and descriptions, and with the other things (computed once per word)."""
         if word not in self._senses:
             T, _, _, _ = self._vocab_targets()
             e = self.text.encode_text([word])[0]
             colour = float((self._colour_lexicon()[0] @ e).max())
             thing = float((T @ e).max()) if len(T) else -1.0
             _, other = self._nearest_other(e)
-            self._senses[word] = (colour > max(thing, other), thing >= self.config.text_min)
+            self._senses[word] = (colour, thing, other)
         return self._senses[word]
 
     def _instance_heatmap(self, query: str, m: InstanceMatch, decay: float, judge: Judge):
