@@ -175,6 +175,29 @@ def test_phrases_and_config():
         AudioTrainConfig(ema_decay=1.0)
     with pytest.raises(ConfigError, match="label_mix_fraction"):
         AudioTrainConfig(label_mix_fraction=1.5)
+    with pytest.raises(ConfigError, match="reverb_fraction"):
+        AudioTrainConfig(reverb_fraction=-0.1)
+    with pytest.raises(ConfigError, match="reverb_rt60_s"):
+        AudioTrainConfig(reverb_rt60_s=(0.0, 0.5))
+
+
+def test_a_room_tail_smears_power_forward_and_a_narrow_channel_loses_the_top_bands():
+    from tabletop.train.audio import _random_bandlimit, _random_reverb
+
+    logmel = torch.full((2, 64, 100), -10.0)
+    logmel[:, :, 20] = 0.0  # a click in every band at frame 20
+    logmel -= logmel.mean()
+    wet = _random_reverb(logmel, np.random.default_rng(0), 1.0, (0.3, 0.3))
+    assert torch.allclose(wet.mean(dim=(1, 2)), torch.zeros(2), atol=1e-4)
+    tail = wet[:, :, 25] - wet[:, :, 90]  # after the click, decaying
+    assert bool((tail > 1.0).all())
+    assert bool((wet[:, :, 21] - wet[:, :, 19] > 1.0).all())  # it does not spread backwards
+    assert torch.equal(_random_reverb(logmel, np.random.default_rng(0), 0.0, (0.3, 0.3)), logmel)
+
+    flat = torch.zeros(3, 64, 50)
+    narrow = _random_bandlimit(flat, np.random.default_rng(1), 1.0)
+    top, middle = narrow[:, -1].mean(dim=1), narrow[:, 24].mean(dim=1)
+    assert bool((middle - top > 4.0).all())  # at least 8 bands above the cut-off: -40 dB
 
 
 def test_a_labelled_mix_splits_the_target_by_power_and_the_average_follows_the_weights():

@@ -184,6 +184,16 @@ class AudioTrainConfig:
     """Peak size [dB] of a random smooth spectral tilt/bump (different microphones)."""
     spec_mask: bool = True
     """SpecAugment: one time mask and one frequency mask per segment."""
+    reverb_fraction: float = 0.0
+    """Share of segments given a room's tail: each mel band's power smeared forward in time by
+    an exponential decay (RT60 drawn in ``reverb_rt60_s``), mixed with the dry sound at a
+    wet share of 0.2-0.8 (other rooms and microphones than the bank's sources had)."""
+    reverb_rt60_s: tuple[float, float] = (0.1, 0.8)
+    """Range [s] of the reverberation time of :attr:`reverb_fraction`."""
+    bandlimit_fraction: float = 0.0
+    """Share of segments heard through a band-limited channel: the mel bands above a random
+    cut-off (the top half of the bands) and, for half of them, below a low cut-off (the lowest
+    eighth) fall off by up to 40 dB (small speakers, low sample rates, phone lines)."""
     mixup_fraction: float = 0.3
     """Share of segments that get a second clip of another category at -10..-20 dB."""
     label_mix_fraction: float = 0.3
@@ -234,14 +244,23 @@ class AudioTrainConfig:
                 f"need 0 < min_segment_s <= max_segment_s, got {self.min_segment_s}, "
                 f"{self.max_segment_s}"
             )
-        for name in ("snr_db", "gain_db", "speed", "label_mix_snr_db"):
+        for name in ("snr_db", "gain_db", "speed", "label_mix_snr_db", "reverb_rt60_s"):
             lo, hi = getattr(self, name)
             if not lo <= hi:
                 raise ConfigError(f"{name} must be a (low, high) range, got {(lo, hi)}")
             object.__setattr__(self, name, (float(lo), float(hi)))
+        if not self.reverb_rt60_s[0] > 0:
+            raise ConfigError(f"reverb_rt60_s must be > 0, got {self.reverb_rt60_s}")
         if not self.speed[0] > 0:
             raise ConfigError(f"speed factors must be > 0, got {self.speed}")
-        for name in ("clean_fraction", "mixup_fraction", "label_mix_fraction", "text_smoothing"):
+        for name in (
+            "clean_fraction",
+            "mixup_fraction",
+            "label_mix_fraction",
+            "text_smoothing",
+            "reverb_fraction",
+            "bandlimit_fraction",
+        ):
             if not 0 <= getattr(self, name) <= 1:
                 raise ConfigError(f"{name} must be in [0, 1], got {getattr(self, name)}")
         if not 0 <= self.ema_decay < 1:
@@ -545,6 +564,62 @@ def _random_eq(logmel, rng: np.random.Generator, eq_db: float):
     return logmel + torch.from_numpy(curve.astype(np.float32)).to(logmel.device)[:, :, None]
 
 
+def _random_reverb(logmel, rng: np.random.Generator, share: float, rt60_s: tuple[float, float]):
+    """A room's tail for a ``share`` of the examples: each band's power (``exp(logmel)``)
+    convolved along time with an exponential decay of a random RT60 (10 ms frames), mixed with
+    the dry power at a random wet share in [0.2, 0.8]; log and mean-subtracted again, as the
+    front end does."""
+    import torch
+
+    b, _, t = logmel.shape
+    out = logmel.clone()
+    for i in range(b):
+        if rng.random() >= share:
+            continue
+        rt60 = float(rng.uniform(*rt60_s))
+        n = max(2, min(t, int(rt60 / 0.01)))
+        k = np.exp(-6.9 * np.arange(n) * 0.01 / rt60)  # power falls 60 dB in rt60
+        k /= k.sum()
+        kernel = torch.from_numpy(k[::-1].copy().astype(np.float32)).to(logmel.device)
+        p = out[i].exp()  # (m, t)
+        wet = torch.nn.functional.conv1d(
+            torch.nn.functional.pad(p[:, None, :], (n - 1, 0)), kernel[None, None, :]
+        )[:, 0, :]
+        w = float(rng.uniform(0.2, 0.8))
+        q = torch.log((1 - w) * p + w * wet + 1e-12)
+        out[i] = q - q.mean()
+    return out
+
+
+def _random_bandlimit(logmel, rng: np.random.Generator, share: float):
+    """A band-limited channel for a ``share`` of the examples: the mel bands above a random
+    cut-off in the top half fall off linearly over 8 bands to -40 dB (and stay there); half of
+    those examples also lose the bands below a random cut-off in the lowest eighth the same
+    way. Mean-subtracted again."""
+    b, m, _ = logmel.shape
+    out = logmel.clone()
+    floor = 40.0 / 10.0 * math.log(10.0)  # 40 dB of power, natural log
+    bands = np.arange(m)
+    for i in range(b):
+        if rng.random() >= share:
+            continue
+        hi = int(rng.integers(m // 2, m))
+        drop = np.clip((bands - hi) / 8.0, 0.0, 1.0) * floor
+        if rng.random() < 0.5:
+            lo = int(rng.integers(1, max(2, m // 8)))
+            drop += np.clip((lo - bands) / 8.0, 0.0, 1.0) * floor
+        q = out[i] - _torch_tensor(drop, out)[:, None]
+        out[i] = q - q.mean()
+    return out
+
+
+def _torch_tensor(a: np.ndarray, like):
+    """``a`` as a float32 tensor on ``like``'s device."""
+    import torch
+
+    return torch.from_numpy(np.asarray(a, np.float32)).to(like.device)
+
+
 def _spec_mask(logmel, rng: np.random.Generator):
     """One time mask (<= 15 % of frames) and one mel mask (<= 8 bands) per example."""
     b, m, t = logmel.shape
@@ -728,6 +803,10 @@ def train_audio(config: AudioTrainConfig | None = None) -> Path:
                 logmel = net.frontend(x)
                 if cfg.eq_db > 0:
                     logmel = _random_eq(logmel, rng, cfg.eq_db)
+                if cfg.reverb_fraction:
+                    logmel = _random_reverb(logmel, rng, cfg.reverb_fraction, cfg.reverb_rt60_s)
+                if cfg.bandlimit_fraction:
+                    logmel = _random_bandlimit(logmel, rng, cfg.bandlimit_fraction)
                 if cfg.spec_mask:
                     logmel = _spec_mask(logmel, rng)
             emb = net.cnn(logmel)  # (B, D)
