@@ -79,6 +79,30 @@ def test_words_reach_their_category_and_unknown_sounds_none():
     assert not far.known and far.text_score < m.text_min
 
 
+def test_a_source_named_after_of_says_what_made_the_sound():
+    vocab = SoundVocabulary(
+        {
+            c: tuple(phrases_for(c, f"the sound of {w}"))
+            for c, w in [
+                ("rain", "rain"),
+                ("footsteps", "footsteps"),
+                ("clapping", "clapping"),
+                ("thunderstorm", "a thunderstorm"),
+            ]
+        },
+        logit_scale=20.0,
+    )
+    m = SoundMatcher(vocab, text_encoder())  # with the query-time words of the shipped file
+    none = np.zeros((0, 384))
+    # "pitter-patter" alone is rain, and a clap is clapping: the source after "of" decides
+    assert m.category_scores("pitter-patter").argmax() == vocab.categories.index("rain")
+    assert m.match("the pitter-patter of feet", none).categories == ("footsteps",)
+    assert m.match("a clap of thunder", none).categories == ("thunderstorm",)
+    assert m.match("the pitter-patter of rain", none).categories == ("rain",)
+    # nothing but a pronoun after "of" names no source
+    assert m.match("the pitter-patter of it", none).categories == ("rain",)
+
+
 def test_posteriors_and_log_odds_agree():
     text = text_encoder()
     m = SoundMatcher(VOCAB, text)

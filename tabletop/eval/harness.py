@@ -130,10 +130,13 @@ def build_map(recording, encoders: str, config=None, progress=None, **kwargs):
 #: arm on it: nothing a saved map or a scan holds comes from them, so editing them keeps cached
 #: maps (the calibration, also read at query time, is applied afresh to every map taken from
 #: the cache). Of the arm, a map reads only the
-#: self-filter (``arm/self_filter.py`` on ``arm/model.py``).
+#: self-filter (``arm/self_filter.py`` on ``arm/model.py``). A map holds a sound vocabulary's
+#: texts, but they come from the audio weights (fingerprinted); ``sound_vocabulary.py`` only
+#: reads queries against them.
 QUERY_TIME_SOURCES = frozenset(
     (
         "mapping/object_module.py",
+        "mapping/sound_vocabulary.py",
         "mapping/kind_reader.py",
         "mapping/colour_words.py",
         "mapping/place_words.py",

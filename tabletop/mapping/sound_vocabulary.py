@@ -216,6 +216,23 @@ class SoundQuery:
         return bool(self.categories)
 
 
+#: Words after "of" that name no source ("the sound of it", "a bit of").
+_NO_SOURCE = frozenset("it that this them something anything some sort kind bit".split())
+
+
+def _source_after_of(query: str) -> str:
+    """What a sound query names after its last "of" ("the pitter-patter of feet" -> "feet",
+    "the sound of a flock of geese" -> "geese"); "" where it has no "of" or nothing but
+    articles and :data:`_NO_SOURCE` words follow it."""
+    words = str(query).lower().split()
+    if "of" not in words:
+        return ""
+    k = len(words) - 1 - words[::-1].index("of")
+    tail = words[k + 1 :]
+    content = [w for w in tail if w not in ("a", "an", "the", "some") and w not in _NO_SOURCE]
+    return " ".join(tail) if content else ""
+
+
 class SoundMatcher:
     """Scores sound queries against segment embeddings through a :class:`SoundVocabulary`
     (see the module docstring). ``text`` embeds the query and the vocabulary's texts in the
@@ -332,9 +349,15 @@ class SoundMatcher:
         return owner[j], float(s[j])
 
     def match(self, query: str, embeddings: np.ndarray) -> SoundQuery:
-        """``query`` against segments with these embeddings (N, dim)."""
+        """``query`` against segments with these embeddings (N, dim). A query that names its
+        source after "of" ("the pitter-patter of feet", "a clap of thunder") scores each
+        category by the better of the whole query and the source alone: the source says what
+        made the sound, the word before it only how it sounded."""
         e = np.asarray(self.text.encode_text([query])[0], np.float32)
         per = self.category_scores(query, e)
+        source = _source_after_of(query)
+        if source:
+            per = np.maximum(per, self.category_scores(source))
         best = int(np.argmax(per))
         cats = self.vocabulary.categories
         n = len(embeddings)
