@@ -12,6 +12,7 @@ from tabletop.mapping.sound_vocabulary import (
     SOUND_FAMILIES,
     SoundMatcher,
     SoundVocabulary,
+    load_other_sounds,
     load_phrasings,
     load_sound_words,
     phrases_for,
@@ -267,6 +268,25 @@ def test_query_time_words_lead_to_their_category_and_leave_the_posteriors_alone(
     np.testing.assert_allclose(plain.posteriors(segs), told.posteriors(segs))
     # the shipped file is what a matcher reads by default
     assert set(words["dog"]) <= set(SoundMatcher(VOCAB, enc).aliases["dog"])
+
+
+def test_sounds_of_people_the_bank_lacks_are_refused_not_taken_for_a_bank_sound():
+    from tabletop.train.audio import ABSENT_QUERIES
+
+    others = load_other_sounds()
+    bank = set(SoundBank.default().categories)
+    assert others and not set(others) & bank and not set(others) & set(load_phrasings())
+    # the encoder's absent-sound measure asks sounds no word file may name
+    texts = {t.lower() for v in others.values() for t in v}
+    assert not {q.lower() for q in ABSENT_QUERIES} & texts
+    vocab = SoundVocabulary({"chirping_birds": VOCAB.texts["chirping_birds"]}, logit_scale=20.0)
+    m = SoundMatcher(vocab, text_encoder())
+    hum = m.match("somebody humming a song", np.zeros((1, 384)))
+    assert not hum.known and hum.other == "humming"
+    assert m.match("birds singing", np.zeros((1, 384))).categories == ("chirping_birds",)
+    # without the file's others the same words are taken for birdsong
+    bare = SoundMatcher(vocab, text_encoder(), others={})
+    assert bare.match("somebody humming a song", np.zeros((1, 384))).known
 
 
 def test_sound_words_file_errors_name_the_file(tmp_path):

@@ -47,6 +47,7 @@ __all__ = [
     "SoundMatcher",
     "SoundQuery",
     "SoundVocabulary",
+    "load_other_sounds",
     "load_phrasings",
     "load_sound_words",
     "phrases_for",
@@ -122,6 +123,18 @@ def load_phrasings(
 def load_sound_words(path: str | Path | None = None) -> dict[str, tuple[str, ...]]:
     """category -> the query-time words for it, from ``path`` (default :data:`WORDS_PATH`)."""
     return load_phrasings(path if path is not None else WORDS_PATH, "words")
+
+
+def load_other_sounds(path: str | Path | None = None) -> dict[str, tuple[str, ...]]:
+    """Sounds neither the bank nor the phrasings file has -> words for them, from the
+    ``[others]`` table of ``path`` (default :data:`WORDS_PATH`; none where it has no such
+    table): a query nearest one reads as that sound, which no segment can be."""
+    p = Path(path) if path is not None else WORDS_PATH
+    try:
+        has = "others" in tomllib.loads(p.read_text())
+    except (OSError, tomllib.TOMLDecodeError) as e:
+        raise AssetError(f"cannot read sound words {p}: {e}") from None
+    return load_phrasings(p, "others") if has else {}
 
 
 _PHRASINGS: dict[str, tuple[str, ...]] | None = None
@@ -253,8 +266,11 @@ class SoundMatcher:
         self.text = text
         self.text_min = float(text_min)
         self.text_margin = float(text_margin)
-        if others is None:  # the phrasings file's sounds this vocabulary lacks
+        if others is None:  # the phrasings file's sounds this vocabulary lacks, and more
             others = {c: v for c, v in load_phrasings().items() if c not in vocabulary.categories}
+            others.update(
+                {c: v for c, v in load_other_sounds().items() if c not in vocabulary.categories}
+            )
         # A sound that shares a phrasing with a known category is a kind of it (water drops and
         # water both "water dripping"): its phrasings lead to that category, not to a refusal.
         own = {t.lower(): c for c in vocabulary.categories for t in vocabulary.texts[c]}
