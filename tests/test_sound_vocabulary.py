@@ -294,3 +294,7 @@ def test_sound_words_file_errors_name_the_file(tmp_path):
     p.write_text('[phrasings]\ndog = ["a pooch"]\n')
     with pytest.raises(AssetError, match=r"expected a \[words\] table"):
         load_sound_words(p)
+    assert load_other_sounds(p) == {}  # the [others] table may be left out
+    p.write_text('[words]\ndog = ["a pooch"]\n[others]\nhumming = "someone humming"\n')
+    with pytest.raises(AssetError, match=r"\[others\].humming must be a non-empty list"):
+        load_other_sounds(p)

@@ -23,7 +23,7 @@ import json
 import logging
 
 from tabletop.sim.sound_bank import SoundBank
-from tabletop.train import audio as audio_training
+from tabletop.train.audio import AudioTrainConfig, train_audio
 
 
 def validation_bank(base: SoundBank, min_train: int = 3) -> SoundBank:
@@ -46,11 +46,9 @@ def main() -> None:
     ap.add_argument("--threads", type=int, default=1)
     args = ap.parse_args()
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(message)s")
-    bank = validation_bank(SoundBank.default())
-    audio_training._load_bank = lambda manifest: bank  # the recipe sees the validation bank
     overrides = json.loads(args.set)
-    cfg = audio_training.AudioTrainConfig(out=args.out, n_threads=args.threads, **overrides)
-    audio_training.train_audio(cfg)
+    cfg = AudioTrainConfig(out=args.out, n_threads=args.threads, **overrides)
+    train_audio(cfg, bank=validation_bank(SoundBank.default()))
 
 
 if __name__ == "__main__":

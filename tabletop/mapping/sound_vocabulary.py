@@ -100,16 +100,18 @@ WORDS_PATH = DATA_DIR / "sound_words.toml"
 
 
 def load_phrasings(
-    path: str | Path | None = None, table: str = "phrasings"
+    path: str | Path | None = None, table: str = "phrasings", required: bool = True
 ) -> dict[str, tuple[str, ...]]:
     """category -> its phrasings, from the ``[table]`` of ``path`` (default
-    :data:`PHRASINGS_PATH`)."""
+    :data:`PHRASINGS_PATH`); with ``required=False`` a file without the table gives none."""
     p = Path(path) if path is not None else PHRASINGS_PATH
     try:
         d = tomllib.loads(p.read_text())
     except (OSError, tomllib.TOMLDecodeError) as e:
         raise AssetError(f"cannot read sound phrasings {p}: {e}") from None
     entries = d.get(table)
+    if entries is None and not required:
+        return {}
     if not isinstance(entries, dict):
         raise AssetError(f"{p}: expected a [{table}] table of category = [texts]")
     out = {}
@@ -129,12 +131,7 @@ def load_other_sounds(path: str | Path | None = None) -> dict[str, tuple[str, ..
     """Sounds neither the bank nor the phrasings file has -> words for them, from the
     ``[others]`` table of ``path`` (default :data:`WORDS_PATH`; none where it has no such
     table): a query nearest one reads as that sound, which no segment can be."""
-    p = Path(path) if path is not None else WORDS_PATH
-    try:
-        has = "others" in tomllib.loads(p.read_text())
-    except (OSError, tomllib.TOMLDecodeError) as e:
-        raise AssetError(f"cannot read sound words {p}: {e}") from None
-    return load_phrasings(p, "others") if has else {}
+    return load_phrasings(path if path is not None else WORDS_PATH, "others", required=False)
 
 
 _PHRASINGS: dict[str, tuple[str, ...]] | None = None

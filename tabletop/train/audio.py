@@ -596,6 +596,8 @@ def _random_bandlimit(logmel, rng: np.random.Generator, share: float):
     cut-off in the top half fall off linearly over 8 bands to -40 dB (and stay there); half of
     those examples also lose the bands below a random cut-off in the lowest eighth the same
     way. Mean-subtracted again."""
+    import torch
+
     b, m, _ = logmel.shape
     out = logmel.clone()
     floor = 40.0 / 10.0 * math.log(10.0)  # 40 dB of power, natural log
@@ -608,16 +610,9 @@ def _random_bandlimit(logmel, rng: np.random.Generator, share: float):
         if rng.random() < 0.5:
             lo = int(rng.integers(1, max(2, m // 8)))
             drop += np.clip((lo - bands) / 8.0, 0.0, 1.0) * floor
-        q = out[i] - _torch_tensor(drop, out)[:, None]
+        q = out[i] - torch.from_numpy(drop.astype(np.float32)).to(out.device)[:, None]
         out[i] = q - q.mean()
     return out
-
-
-def _torch_tensor(a: np.ndarray, like):
-    """``a`` as a float32 tensor on ``like``'s device."""
-    import torch
-
-    return torch.from_numpy(np.asarray(a, np.float32)).to(like.device)
 
 
 def _spec_mask(logmel, rng: np.random.Generator):
@@ -671,8 +666,10 @@ def _ema_update(ema: dict, net, decay: float) -> None:
                 ema[k].copy_(v)
 
 
-def train_audio(config: AudioTrainConfig | None = None) -> Path:
+def train_audio(config: AudioTrainConfig | None = None, bank=None) -> Path:
     """Train the audio encoder as ``config`` says and write its checkpoint; returns its path.
+    ``bank``: a :class:`~tabletop.sim.sound_bank.SoundBank` to train and evaluate on instead
+    of ``config.bank_manifest``'s (a validation split, ``tools/audio_validation.py``).
 
     Deterministic for a given config, bank and machine (seeded numpy and torch, one thread by
     default). The checkpoint's ``meta`` holds the config, the training time and the held-out
@@ -696,7 +693,7 @@ def train_audio(config: AudioTrainConfig | None = None) -> Path:
     try:
         torch.manual_seed(cfg.seed)
         rng = np.random.default_rng(cfg.seed)
-        bank = _load_bank(cfg.bank_manifest)
+        bank = _load_bank(cfg.bank_manifest) if bank is None else bank
         if bank.sample_rate != AUDIO_SAMPLE_RATE:
             raise ConfigError(
                 f"the audio encoder trains at {AUDIO_SAMPLE_RATE} Hz; bank {bank.name!r} is at "
