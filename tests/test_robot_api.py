@@ -7,6 +7,7 @@ from robot_helpers import box_distance, scan_and_map
 
 from tabletop.errors import ConfigError, TabletopError
 from tabletop.mapping import Heatmap
+from tabletop.mapping.targets import surface_z
 from tabletop.robot import (
     GoalNotFound,
     ImageGoalUnavailable,
@@ -74,6 +75,36 @@ def test_spatial_targets_are_on_the_right_side(rec_map, gt):
     # configurable offset
     far = PointRobot(rec_map[1], spatial=SpatialConfig(side_offset=0.2))
     np.testing.assert_allclose((far.left_of("red mug") - c)[:2], [0, 0.2], atol=1e-9)
+
+
+def test_between_lies_on_the_surface_midway_not_between_the_heights(rec_map, gt):
+    """A place heard where an object stands is high; the midpoint between it and an object's
+    centre is put on what is midway (the table here), not left floating between the two."""
+    avlmap = rec_map[1]
+    robot = PointRobot(avlmap)
+    tall = max(gt.values(), key=lambda o: o["aabb_max"][2])
+    # a one-column place on the tall object's top, as a sound heard there gives
+    vals = np.zeros(avlmap.grid.shape, np.float32)
+    idx, inside = avlmap.grid.world_to_index(np.array([tall["center"]]))
+    assert inside[0]
+    vals[idx[0, 0], idx[0, 1], :] = 1.0
+    place = robot.get_major_map(obj="red mug").with_values(vals)
+    place_pos = robot.get_pos(place)
+    assert place_pos[2] > 0.04  # the place is up on the object, well above the table
+    occ = avlmap.voxels.occupancy()
+    checked = 0
+    for o in gt.values():
+        if o["name"] == tall["name"]:
+            continue
+        q = o["name"].replace("_", " ")
+        b = robot.between(place, q)
+        naive = (place_pos + robot.get_pos(q)) / 2
+        assert np.linalg.norm(b[:2] - naive[:2]) < 1e-9
+        assert b[2] == pytest.approx(surface_z(avlmap.grid, occ, b[:2]))  # what stands there
+        if b[2] <= 0.03:  # the table or the tray midway: low, below the mean of the heights
+            assert b[2] < naive[2] - 0.01, (o["name"], b, naive)
+            checked += 1
+    assert checked >= 2
 
 
 def test_compass_moves_are_relative_to_the_current_position(rec_map):

@@ -25,7 +25,7 @@ import numpy as np
 
 from tabletop.errors import ConfigError, GoalNotFound, TabletopError
 from tabletop.mapping.heatmaps import Heatmap, fuse
-from tabletop.mapping.targets import max_position, region_box
+from tabletop.mapping.targets import max_position, region_box, surface_z
 
 __all__ = [
     "GoalNotFound",
@@ -247,7 +247,15 @@ class RobotAPI(abc.ABC):
         return self.side_target(name, (-1.0, 0.0, 0.0))
 
     def between(self, a, b) -> np.ndarray:
-        return (self.get_pos(a) + self.get_pos(b)) / 2
+        """(3,) [m]: midway between landmarks ``a`` and ``b`` (object names or heatmaps)
+        horizontally, on the surface there (the table, or the top of what stands midway).
+
+        Not the mean of the two centres in 3D: a place where a sound was heard lies on top of
+        what stood there, so the mean of it and an object's centre floats above the table, and
+        an arm approaching that point from above would stop a gripper's gap over it."""
+        p = (self.get_pos(a) + self.get_pos(b)) / 2
+        p[2] = surface_z(self.map.grid, self.map.voxels.occupancy(), p[:2])
+        return p
 
     def offset(self, dx: float, dy: float) -> np.ndarray:
         for v in (dx, dy):
