@@ -244,6 +244,10 @@ def test_a_sound_sharing_a_phrasing_with_a_known_one_leads_to_it():
     tap = m.match("a dripping tap", np.zeros((1, 384)))
     assert tap.categories == ("water",) and tap.other == ""
     assert m.match("thunder rumbling", np.zeros((1, 384))).other == "thunderstorm"
+    # Pouring (outside the bank) is heard as water, whose clips hold a tap running and a vessel
+    # filling (the shipped words say so); a bottle glugging stays a sound the bank lacks.
+    assert m.match("water being poured out", np.zeros((1, 384))).categories == ("water",)
+    assert m.match("a bottle glugging", np.zeros((1, 384))).other == "pouring_water"
     # the prototypes are the vocabulary's own phrasings' (what the encoder was trained against)
     plain = SoundMatcher(vocab, text_encoder(), others={})
     np.testing.assert_allclose(m.targets()[2], plain.targets()[2])
