@@ -67,6 +67,13 @@ from tabletop.mapping.targets import max_position
         ("the front bit here please", None, "far"),
         ("the part off to the right", "right", None),
         ("the middle of the whole table", "middle", "middle"),
+        # the arm's base is the robot; just ahead of the robot is by it, ahead of it is the front
+        ("the part of the table farthest from the arm's base", None, "far"),
+        ("the end by the robot's base", None, "near"),
+        ("the strip right in front of the robot", None, "near"),
+        ("the bit just in front of you", None, "near"),
+        ("the half in front of the robot", None, "far"),
+        ("the left side out in front of the robot", "left", "far"),
     ],
 )
 def test_geometric_phrasings(text, lateral, depth):

@@ -44,7 +44,7 @@ __all__ = ["area_subject", "parse_region"]
 _LEFT = r"left\s*hand|leftmost|left|port"
 _RIGHT = r"right\s*hand|rightmost|right|starboard"
 # Longer phrases first: the alternation takes the first that matches.
-_ROBOT = r"(?:(?:the\s+)?(?:robot|arm|base)|you|yourself)"
+_ROBOT = r"(?:(?:the\s+)?(?:(?:robot|arm)(?:\s+base)?|base)|you|yourself)"
 _FAR = (
     rf"(?:far(?:thest|ther)?|furthest|further)(?:\s+(?:end|side|part))?\s+(?:away\s+)?from\s+"
     rf"{_ROBOT}|away\s+from\s+{_ROBOT}|opposite\s+(?:to\s+|from\s+)?{_ROBOT}|"
@@ -60,6 +60,10 @@ _MID = (
     r"cent(?:er|re)\s*most|middle\s*most|mid\s*most|innermost|center|centre|central|middle|"
     r"mid\s*point|midway|halfway|heart|core|mid"
 )
+# "right in front of the robot" is the strip just ahead of it, by the robot; "in front of the
+# robot" alone is the robot's forward direction, the front (far) half.
+_JUST_AHEAD = re.compile(rf" (?:right|just|directly|immediately) in front of {_ROBOT} ")
+_AHEAD = re.compile(rf" (?:out )?in front of {_ROBOT} ")
 _STRESSED_MID = re.compile(rf" right (?=(?:in|at) (?:the )?(?:(?:very|dead|exact) )?(?:{_MID}) )")
 _ROBOTS_SIDE = re.compile(rf" (?:{_ROBOT}|your) (?=(?:{_LEFT}|{_RIGHT}) )")
 #: Words a geometric phrase may hold beside the place words (space-separated).
@@ -77,6 +81,8 @@ def parse_region(text: str) -> TableRegion | None:
     (see the module docstring for the phrasings)."""
     t = " " + re.sub(r"[^a-z ]", " ", str(text).lower().replace("'s", " ")) + " "
     t = re.sub(r"\s+", " ", t)
+    t = _JUST_AHEAD.sub(" near the robot ", t)
+    t = _AHEAD.sub(" front ", t)
     t = _STRESSED_MID.sub(" ", t)  # "right in the middle": no right side
     t = _ROBOTS_SIDE.sub(" ", t)  # "the robot's right" is the table's right
     found: dict[str, str] = {}
