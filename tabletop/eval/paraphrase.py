@@ -83,11 +83,12 @@ POOLS = (
     "heldout-10",
     "heldout-11",
 )
-#: Held-out pools nobody on the team has read ("heldout-11"): evaluated once, for a report. A
-#: held-out pool whose suites were read after its report ("heldout", "heldout-2" ...
-#: "heldout-10") is tuned on from then on, like a tune pool, and every newer held-out pool must
-#: differ from it.
-HELDOUT_POOLS = ("heldout-11",)
+#: Held-out pools nobody on the team has read: evaluated once, for a report (none now: the next
+#: one is to be written). A held-out pool whose suites were read after its report ("heldout",
+#: "heldout-2" ... "heldout-11") is tuned on from then on, like a tune pool, and every newer
+#: held-out pool must differ from it and from every training text (tests/test_paraphrase.py
+#: names the entries that do not, by index only).
+HELDOUT_POOLS: tuple[str, ...] = ()
 TUNE_POOLS = tuple(p for p in POOLS if p not in HELDOUT_POOLS)
 BANK_DIR = DATA_DIR / "paraphrases"
 SUITE_DIRS = {p: f"paraphrase-{p}" for p in POOLS}
