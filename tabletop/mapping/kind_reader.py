@@ -129,9 +129,11 @@ def fit_refusal_head(
     1) labelled ``refuse`` ((n,) bool: words of no kind): class-weighted cross-entropy (a word
     of no kind weighs ``refuse_weight`` as much as a name: a thing found that is not there
     sends the robot somewhere wrong), plus ``l2`` times the squared weights but the constant's,
-    minimised by L-BFGS from zero (deterministic). Its ``accept_at`` is the highest cosine a
-    word of no kind reached, plus ``accept_margin``; its ``refuse_below`` the cosine that only
-    0.1 % of the names (words of a kind) fell below."""
+    minimised by L-BFGS from zero (deterministic). Its ``accept_at`` is the cosine that only 1 %
+    of the words of no kind reached, plus ``accept_margin`` (not the highest: one absent thing
+    a description names nearly word for word, "a six-sided die" against "six-sided, like a
+    die", would otherwise let the head refuse every name or description a user adds below it);
+    its ``refuse_below`` the cosine that only 0.1 % of the names (words of a kind) fell below."""
     from scipy.optimize import minimize
 
     x = np.asarray(features, np.float64)
@@ -155,7 +157,7 @@ def fit_refusal_head(
 
     res = minimize(loss, np.zeros(x.shape[1]), jac=True, method="L-BFGS-B")
     cosine = x[:, REFUSAL_FEATURES.index("text_score")]
-    nearest_none = float(cosine[y].max())
+    nearest_none = float(np.quantile(cosine[y], 0.99))
     farthest_name = float(np.quantile(cosine[~y], 0.001))
     return RefusalHead(res.x, min(1.0, nearest_none + accept_margin), farthest_name)
 
