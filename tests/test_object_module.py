@@ -330,6 +330,28 @@ def test_of_two_objects_a_colour_fits_the_nearer_one_is_meant():
         assert both.values[tuple(idx[0])] == pytest.approx(1.0)
 
 
+def test_a_colour_name_far_from_every_object_still_means_the_one_of_its_colour():
+    # "electric blue" is a pale cyan in the lexicon: the blue mug lies farther from it than the
+    # green one does, but only the blue one fits the phrase, and nearness ranks among those.
+    from module_helpers import coloured_voxels
+
+    from tabletop.mapping.table_regions import fit_table
+
+    mugs = {
+        "mug": ((0.10, 0.10, 0.01), (0.17, 0.17, 0.10), (28, 71, 200)),
+        "cup": ((0.35, -0.2, 0.01), (0.42, -0.13, 0.10), (33, 147, 45)),
+    }
+    vm = coloured_voxels(mugs)
+    m = ObjectModule(
+        vm, text_encoder(), ObjectConfig(), VOCAB, {}, lambda: fit_table(GRID, vm.indices)
+    )
+    h = m.heatmap("the electric blue mug", 10.0, judge_at(0.2))
+    lo, hi, _ = mugs["mug"]
+    p = max_position(h, m.voxels.occupancy())
+    assert h.found and np.all(p[:2] >= np.subtract(lo[:2], 0.01)), p
+    assert np.all(p[:2] <= np.add(hi[:2], 0.01)), p
+
+
 def test_a_survey_colour_name_the_lexicon_lacks_reads_as_its_colour(scene):
     """ "sapphire" and "cherry" are no lexicon names: the survey's colour for them picks the
     mug, and a thing of no such colour stays not found; "tea" names a drink a mug holds as

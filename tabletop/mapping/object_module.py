@@ -249,7 +249,8 @@ class InstanceMatch:
     of it)."""
     closeness: np.ndarray | None = None
     """(n_instances,) in [0, 1]: how near each instance's colour is to the asked colour
-    itself, against the nearest instance (1 without a colour phrase)."""
+    itself, against the nearest of the instances that fit the query (``kind`` times
+    ``colour_match`` at least half the best; 1 without a colour phrase)."""
     other: str = ""
     """The nearest of the config's ``others`` to the words ("" for none)."""
     other_score: float = -1.0
@@ -548,8 +549,13 @@ class ObjectModule:
             of_part = _colour_of_a_part(query, colour)
             cm = np.maximum(self.colour_match(w, inst, of_part), self.learned_colour(w, inst, want))
             if n:
+                # nearness ranks among the instances that fit the phrase: a name far from
+                # every object ("electric blue", a pale cyan, for a mid blue mug) must not
+                # hand the lead to a nearer one of another colour
                 d = self.colour_distance(w, inst)
-                close = np.exp(-(d - d.min()) / cfg.closeness_scale)
+                fits = kind * cm
+                among = fits >= 0.5 * fits.max() if fits.max() > 0 else np.ones(n, bool)
+                close = np.exp(-np.maximum(d - d[among].min(), 0.0) / cfg.closeness_scale)
         else:
             cm = np.ones(n)
         return InstanceMatch(
