@@ -369,6 +369,9 @@ def test_a_survey_colour_name_the_lexicon_lacks_reads_as_its_colour(scene):
     tea = scene.readings("the tea mug")
     assert tea[0] == ("tea", "the mug") and ("", "the tea mug") in tea
     assert scene.heatmap("the tea mug", 10.0, judge_at(0.2)).found
+    # but where "tea" modifies nothing, it is the drink first, and every mug stays hot
+    put = scene.readings("the mug you'd put tea in")
+    assert put[0] == ("", "the mug you d put tea in") and put[1][0] == "tea"
 
 
 def test_other_readings_of_colour_words_are_tried_when_the_first_finds_nothing(scene):

@@ -876,7 +876,9 @@ class ObjectModule:
         rest of the noun phrase (:func:`~tabletop.mapping.colour_words.modifies`: "the
         heliotrope block" is no flower block, "the tomato one" no tomato); and they follow a
         colour name that ends the noun phrase as its head noun ("the domino stone",
-        :func:`~tabletop.mapping.colour_words.heads`). A word the query's
+        :func:`~tabletop.mapping.colour_words.heads`); they come first where such a word
+        names something of the vocabulary's and stands where no modifier does ("the mug
+        you'd put tea in": tea, not its green). A word the query's
         own words call a colour (:func:`~tabletop.mapping.colour_words.framed_colours`:
         "tomato-coloured", "colour heliotrope") is one, whatever the text encoder says; the
         readings without it follow only where such a word names no colour of the lexicon or
@@ -886,7 +888,7 @@ class ObjectModule:
         if lexicon[0][0]:  # the lexicon's colour words are the colour
             return lexicon
         framed = framed_colours(query)  # "tomato-coloured", "colour heliotrope": colours
-        colourish, unsure = [], False
+        colourish, unsure, plain_first = [], False, False
         for w in survey_words(query):
             colour, thing = self._word_sense(w)
             if w in framed:
@@ -894,6 +896,9 @@ class ObjectModule:
             if colour or (not thing and modifies(query, w)):
                 colourish.append(w)  # "the heliotrope block": no flower block
                 unsure |= thing or not colour or heads(query, w)  # "the domino stone"
+                # a word for something a vocabulary thing holds or is, standing where no
+                # modifier stands, is that something: "the mug you'd put tea in"
+                plain_first |= thing and not modifies(query, w)
         for w in unlisted_modifiers(query):  # "the smoke bear": a colour no list has
             if w not in framed and self._unlisted_colour(w):
                 colourish.append(w)
@@ -903,6 +908,8 @@ class ObjectModule:
         readings = color_parses(query, frozenset(colourish + framed))
         # a framed word that names a colour of the survey ("leaf-coloured") is that colour
         # and nothing else; one that names none ("the solid colour ball") may be no colour
+        if plain_first and not framed:
+            return lexicon + [r for r in readings if r not in lexicon]
         if unsure or [w for w in framed if not colour_word(w)]:
             readings += [r for r in lexicon if r not in readings]
         return readings
