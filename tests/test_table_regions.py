@@ -74,6 +74,19 @@ from tabletop.mapping.targets import max_position
         ("the bit just in front of you", None, "near"),
         ("the half in front of the robot", None, "far"),
         ("the left side out in front of the robot", "left", "far"),
+        # the robot's viewpoint names nothing more; its own end, where it is mounted, the
+        # sides of it, and past the middle
+        ("the left-hand end as the robot sees it", "left", None),
+        ("the far corner on the right as seen from the arm", "right", "far"),
+        ("from your point of view, the left side", "left", None),
+        ("the robot's own end of the table", None, "near"),
+        ("the strip just by where the arm is mounted", None, "near"),
+        ("the part where the robot is bolted", None, "near"),
+        ("the section to the right of the robot", "right", None),
+        ("the area to the left-hand side of the arm", "left", None),
+        ("the stretch beyond the middle away from the base", None, "far"),
+        ("the bit past the centre", None, "far"),
+        ("the part this side of the middle", None, "near"),
     ],
 )
 def test_geometric_phrasings(text, lateral, depth):
@@ -90,6 +103,8 @@ def test_geometric_phrasings(text, lateral, depth):
         "the moon",
         "left and right",
         "over there by the mug",
+        "the right side of the mug",
+        "past the mug",
     ],
 )
 def test_other_phrasings_are_not_geometry(text):

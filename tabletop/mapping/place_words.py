@@ -31,7 +31,12 @@ Geometric phrasings (case and the articles "the"/"a" aside; "table" may be left 
   stress it ("right in the middle" is no right side, "slap-bang in the centre" no sound);
 - corners: a lateral and a depth word together ("the far right corner", "front left");
 - the robot's own sides are the table's: "the robot's right", "the arm's left-hand side",
-  "your left".
+  "your left", "to the right of the robot"; and words that name the robot's viewpoint name
+  nothing more ("the left-hand end as the robot sees it", "seen from the arm", "from your
+  point of view");
+- "beyond" or "past the middle" is the far half, "short of" or "this side of the middle" the
+  near half; "the robot's own end", "where the arm is mounted" (fixed, bolted, placed, ...) are
+  the robot's.
 """
 
 from __future__ import annotations
@@ -46,6 +51,8 @@ _LEFT = r"left\s*hand|leftmost|left|port"
 _RIGHT = r"right\s*hand|rightmost|right|starboard"
 # Longer phrases first: the alternation takes the first that matches.
 _ROBOT = r"(?:(?:the\s+)?(?:(?:robot|arm)(?:\s+base)?|base)|you|yourself)"
+#: How the robot is set where it stands: "where the arm is mounted".
+_SET = r"(?:mounted|fixed|attached|bolted|clamped|placed|located|positioned|installed|based)"
 _FAR = (
     rf"(?:far(?:thest|ther)?|furthest|further)(?:\s+(?:end|side|part))?\s+(?:away\s+)?from\s+"
     rf"{_ROBOT}|away\s+from\s+{_ROBOT}|opposite\s+(?:to\s+|from\s+)?{_ROBOT}|"
@@ -54,7 +61,8 @@ _FAR = (
 )
 _NEAR = (
     rf"(?:close(?:st)?|near(?:est)?|next)\s+(?:to\s+)?{_ROBOT}|by\s+{_ROBOT}|"
-    rf"{_ROBOT}\s+(?:side|end|half)|(?:where|that)\s+{_ROBOT}\s+(?:stands?|is|are|sits?)|"
+    rf"{_ROBOT}\s+(?:own\s+)?(?:side|end|half)|"
+    rf"(?:by\s+)?(?:where|that)\s+{_ROBOT}\s+(?:stands?|is|are|sits?)(?:\s+{_SET})?|"
     r"near\s+(?:side|end)|(?:back|rear|hind)\s*most|back|rear|near(?:est|er)?|closest"
 )
 _MID = (
@@ -67,6 +75,18 @@ _JUST_AHEAD = re.compile(rf" (?:right|just|directly|immediately) in front of {_R
 _AHEAD = re.compile(rf" (?:out )?in front of {_ROBOT} ")
 _STRESSED_MID = re.compile(rf" right (?=(?:in|at) (?:the )?(?:(?:very|dead|exact) )?(?:{_MID}) )")
 _ROBOTS_SIDE = re.compile(rf" (?:{_ROBOT}|your) (?=(?:{_LEFT}|{_RIGHT}) )")
+# "to the right of the robot" is the robot's right, the table's right
+_OF_ROBOT = re.compile(rf" ({_LEFT}|{_RIGHT}) (?:hand )?(?:side )?of {_ROBOT} ")
+# the robot's viewpoint is the one the sides are named from anyway: "as the robot sees it",
+# "seen from the arm", "from your point of view"
+_VIEWPOINT = re.compile(
+    rf" (?:(?:as|how) (?:{_ROBOT}) (?:sees?|views?|looks? at|faces?)(?: it| them| things)?|"
+    rf"(?:as )?(?:seen|viewed) (?:by|from) (?:{_ROBOT})|"
+    rf"from (?:{_ROBOT}|your) (?:point of view|perspective|viewpoint|view)) "
+)
+# past the middle, away from the robot, is the far half; short of it the near half
+_BEYOND_MID = re.compile(rf" (?:beyond|past) (?:the )?(?:{_MID}) ")
+_SHORT_OF_MID = re.compile(rf" (?:short of|this side of|before) (?:the )?(?:{_MID}) ")
 #: Words a geometric phrase may hold beside the place words (space-separated).
 _FILLER = (
     "the a of on at in to table tabletop side part half corner edge area region zone end and "
@@ -85,7 +105,11 @@ def parse_region(text: str) -> TableRegion | None:
     t = _JUST_AHEAD.sub(" near the robot ", t)
     t = _AHEAD.sub(" front ", t)
     t = _STRESSED_MID.sub(" ", t)  # "right in the middle": no right side
+    t = _VIEWPOINT.sub(" ", t)
     t = _ROBOTS_SIDE.sub(" ", t)  # "the robot's right" is the table's right
+    t = _OF_ROBOT.sub(r" \1 ", t)
+    t = _BEYOND_MID.sub(" far ", t)
+    t = _SHORT_OF_MID.sub(" near ", t)
     found: dict[str, str] = {}
     for key, value, pattern in (
         ("depth", "far", _FAR),
