@@ -408,9 +408,9 @@ def add_commands(sub) -> None:
         "'paraphrase-heldout', 'paraphrase-heldout-2', 'paraphrase-heldout-3', "
         "'paraphrase-heldout-4', 'paraphrase-heldout-5', 'paraphrase-heldout-6', "
         "'paraphrase-heldout-7', 'paraphrase-heldout-8', 'paraphrase-heldout-9', "
-        "'paraphrase-heldout-10', 'paraphrase-heldout-11' (goals asked as people ask, to tune "
-        "on; the last eleven were held out until their report), 'paraphrase-heldout-12' (held "
-        "out: evaluate at the end), 'clutter' (dense tables: goals "
+        "'paraphrase-heldout-10', 'paraphrase-heldout-11', 'paraphrase-heldout-12' (goals "
+        "asked as people ask, to tune on; the last twelve were held out until their report), "
+        "'paraphrase-heldout-13' (held out: evaluate at the end), 'clutter' (dense tables: goals "
         "on, beside and between objects), "
         "'mobile' (a wheeled base in rooms, 1 m success radius)",
     )

@@ -56,8 +56,8 @@ DEFAULT_SUITES = [
 #: Generator seeds of the clutter suites' dense tables (and their scans), used by no other
 #: experiment: not the shipped suites (11-15, scan seeds 0-5), eval-map (10-12), the
 #: calibration (700-705), the paraphrase suites (750-752, 760-762, 800-803 ... 890-893 by tens,
-#: 910-913, 920-923), the shape prior (400-411, 430-433), the instance evaluation (900-902),
-#: vision training layouts (0-219 at seed 0, and from 9,000,000 held out).
+#: 910-913, 920-923, 930-933), the shape prior (400-411, 430-433), the instance evaluation
+#: (900-902), vision training layouts (0-219 at seed 0, and from 9,000,000 held out).
 CLUTTER_SEEDS = (950, 951, 952, 953)
 #: (file stem, scene section, scan section) of the clutter suites: 12 objects, 3 kinds twice,
 #: packed by the generator's ``clutter`` profile (tall kinds beside low ones).
