@@ -64,21 +64,31 @@ SCENE = {
 }
 
 
-@pytest.fixture(scope="module")
-def scene():
+def _module_of(boxes, descriptions=None) -> ObjectModule:
+    """An object module of a map of coloured boxes (``label -> (lo, hi, rgb)``)."""
     from module_helpers import coloured_voxels
 
     from tabletop.mapping.table_regions import fit_table
 
-    vm = coloured_voxels(SCENE)
+    vm = coloured_voxels(boxes)
     return ObjectModule(
-        vm, text_encoder(), ObjectConfig(), VOCAB, DESCRIPTIONS, lambda: fit_table(GRID, vm.indices)
+        vm,
+        text_encoder(),
+        ObjectConfig(),
+        VOCAB,
+        descriptions or {},
+        lambda: fit_table(GRID, vm.indices),
     )
 
 
-def _lands_on(module, h, name):
+@pytest.fixture(scope="module")
+def scene():
+    return _module_of(SCENE, DESCRIPTIONS)
+
+
+def _lands_on(module, h, name, boxes=SCENE):
     p = max_position(h, module.voxels.occupancy())
-    lo, hi, _ = SCENE[name]
+    lo, hi, _ = boxes[name]
     return bool(
         np.all(p[:2] >= np.subtract(lo[:2], 0.01)) and np.all(p[:2] <= np.add(hi[:2], 0.01))
     )
@@ -169,25 +179,16 @@ def test_the_best_matching_name_ranks_first_among_those_the_words_may_mean():
     """ "the small rubber ball" may mean the soccer ball too (its head noun is part of the
     name), but the ball matches its words better: the ball is where the robot goes, and both
     stay hot only when the words fit both alike."""
-    from module_helpers import coloured_voxels
-
-    from tabletop.mapping.table_regions import fit_table
-
     balls = {
         "soccer ball": ((0.10, -0.20, 0.01), (0.16, -0.14, 0.07), (230, 230, 230)),
         "ball": ((0.40, 0.10, 0.01), (0.46, 0.16, 0.07), (30, 60, 180)),
     }
-    vm = coloured_voxels(balls)
-    mod = ObjectModule(
-        vm, text_encoder(), ObjectConfig(), VOCAB, {}, lambda: fit_table(GRID, vm.indices)
-    )
+    mod = _module_of(balls)
     m = mod.match("the small rubber ball")
     assert set(m.names) == {"ball", "soccer ball"} and m.nearest == "ball"
     assert m.scores.min() > 0.9  # both are what the words may mean: the evidence is alike
     h = mod.heatmap("the small rubber ball", 10.0, judge_at(0.2))
-    p = max_position(h, vm.occupancy())
-    lo, hi, _ = balls["ball"]
-    assert np.all(p[:2] >= np.subtract(lo[:2], 0.01)) and np.all(p[:2] <= np.add(hi[:2], 0.01))
+    assert _lands_on(mod, h, "ball", balls)
     lo, hi, _ = balls["soccer ball"]
     idx, _ = GRID.world_to_index(np.array([np.add(lo, hi) / 2]))
     assert h.values[tuple(idx[0])] < 1.0  # the soccer ball is not hot
@@ -300,25 +301,15 @@ def test_the_colour_of_a_part_need_not_cover_much_of_the_thing(scene):
 def test_of_two_objects_a_colour_fits_the_nearer_one_is_meant():
     # A grey teddy bear and a white one in shadow: "grey" fits both (light grey is a grey),
     # but the grey one is what a person means, and "white" means the other.
-    from module_helpers import coloured_voxels
-
-    from tabletop.mapping.table_regions import fit_table
-
     bears = {
         "grey teddy bear": ((0.10, 0.10, 0.01), (0.17, 0.17, 0.12), (120, 120, 120)),
         "white teddy bear": ((0.35, -0.2, 0.01), (0.42, -0.13, 0.12), (200, 200, 200)),
     }
-    vm = coloured_voxels(bears)
-    m = ObjectModule(
-        vm, text_encoder(), ObjectConfig(), VOCAB, {}, lambda: fit_table(GRID, vm.indices)
-    )
+    m = _module_of(bears)
     for q, name in (("the grey teddy bear", "grey teddy bear"), ("the white teddy bear",
                                                                   "white teddy bear")):  # fmt: skip
         h = m.heatmap(q, 10.0, judge_at(0.2))
-        lo, hi, _ = bears[name]
-        p = max_position(h, m.voxels.occupancy())
-        assert h.found and np.all(p[:2] >= np.subtract(lo[:2], 0.01)), (q, p)
-        assert np.all(p[:2] <= np.add(hi[:2], 0.01)), (q, p)
+        assert h.found and _lands_on(m, h, name, bears), q
         other = next(n for n in bears if n != name)
         olo, ohi, _ = bears[other]
         idx, _ = GRID.world_to_index(np.array([np.add(olo, ohi) / 2]))
@@ -333,23 +324,13 @@ def test_of_two_objects_a_colour_fits_the_nearer_one_is_meant():
 def test_a_colour_name_far_from_every_object_still_means_the_one_of_its_colour():
     # "electric blue" is a pale cyan in the lexicon: the blue mug lies farther from it than the
     # green one does, but only the blue one fits the phrase, and nearness ranks among those.
-    from module_helpers import coloured_voxels
-
-    from tabletop.mapping.table_regions import fit_table
-
     mugs = {
         "mug": ((0.10, 0.10, 0.01), (0.17, 0.17, 0.10), (28, 71, 200)),
         "cup": ((0.35, -0.2, 0.01), (0.42, -0.13, 0.10), (33, 147, 45)),
     }
-    vm = coloured_voxels(mugs)
-    m = ObjectModule(
-        vm, text_encoder(), ObjectConfig(), VOCAB, {}, lambda: fit_table(GRID, vm.indices)
-    )
+    m = _module_of(mugs)
     h = m.heatmap("the electric blue mug", 10.0, judge_at(0.2))
-    lo, hi, _ = mugs["mug"]
-    p = max_position(h, m.voxels.occupancy())
-    assert h.found and np.all(p[:2] >= np.subtract(lo[:2], 0.01)), p
-    assert np.all(p[:2] <= np.add(hi[:2], 0.01)), p
+    assert h.found and _lands_on(m, h, "mug", mugs)
 
 
 def test_a_survey_colour_name_the_lexicon_lacks_reads_as_its_colour(scene):
