@@ -553,8 +553,8 @@ class ObjectModule:
                 # every object ("electric blue", a pale cyan, for a mid blue mug) must not
                 # hand the lead to a nearer one of another colour
                 d = self.colour_distance(w, inst)
-                fits = kind * cm
-                among = fits >= 0.5 * fits.max() if fits.max() > 0 else np.ones(n, bool)
+                fits = kind * cm  # >= 0: with no fit at all, every instance counts
+                among = fits >= 0.5 * fits.max()
                 close = np.exp(-np.maximum(d - d[among].min(), 0.0) / cfg.closeness_scale)
         else:
             cm = np.ones(n)
@@ -893,12 +893,13 @@ class ObjectModule:
             colour, thing = self._word_sense(w)
             if w in framed:
                 continue
-            if colour or (not thing and modifies(query, w)):
+            modifier = modifies(query, w)
+            if colour or (not thing and modifier):
                 colourish.append(w)  # "the heliotrope block": no flower block
                 unsure |= thing or not colour or heads(query, w)  # "the domino stone"
                 # a word for something a vocabulary thing holds or is, standing where no
                 # modifier stands, is that something: "the mug you'd put tea in"
-                plain_first |= thing and not modifies(query, w)
+                plain_first |= thing and not modifier
         for w in unlisted_modifiers(query):  # "the smoke bear": a colour no list has
             if w not in framed and self._unlisted_colour(w):
                 colourish.append(w)
