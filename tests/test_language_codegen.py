@@ -11,8 +11,8 @@ from tabletop.language import (
     parse_instruction,
     plan_to_code,
 )
-from tabletop.language.plan import Between, Goal, GoTo, Part, Side, Step
 from tabletop.language.suite import load_suite
+from tabletop.reader.plan import Between, Goal, GoTo, Part, Side, Step
 from tabletop.robot.primitives import PRIMITIVES
 
 

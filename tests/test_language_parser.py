@@ -4,7 +4,8 @@ written from a plan: tests/test_language_codegen.py)."""
 import pytest
 
 from tabletop.language import ParseError, parse_instruction
-from tabletop.language.plan import (
+from tabletop.language.suite import load_suite
+from tabletop.reader.plan import (
     Above,
     BackAndForth,
     Between,
@@ -14,7 +15,6 @@ from tabletop.language.plan import (
     Part,
     Side,
 )
-from tabletop.language.suite import load_suite
 
 
 def only(instruction):

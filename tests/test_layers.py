@@ -18,11 +18,23 @@ ALLOWED = {
     "base": {"core"},
     "sim": {"core", "arm", "base"},
     "mapping": {"core"},
-    "robot": {"core", "arm", "base", "sim", "mapping"},
-    "language": {"core", "arm", "base", "sim", "mapping", "robot"},
-    "eval": {"core", "arm", "base", "sim", "mapping", "robot", "language"},
-    "train": {"core", "arm", "base", "sim", "mapping", "robot", "language"},
-    "cli": {"core", "arm", "base", "sim", "mapping", "robot", "language", "eval", "train"},
+    "reader": {"core", "mapping"},
+    "robot": {"core", "arm", "base", "sim", "mapping", "reader"},
+    "language": {"core", "arm", "base", "sim", "mapping", "reader", "robot"},
+    "eval": {"core", "arm", "base", "sim", "mapping", "reader", "robot", "language"},
+    "train": {"core", "arm", "base", "sim", "mapping", "reader", "robot", "language"},
+    "cli": {
+        "core",
+        "arm",
+        "base",
+        "sim",
+        "mapping",
+        "reader",
+        "robot",
+        "language",
+        "eval",
+        "train",
+    },
 }
 
 

@@ -87,9 +87,9 @@ def _suite_on_reference(args: argparse.Namespace) -> int:
 
 
 def _report_suite(args, suite, robot, image_dir) -> int:
-    from tabletop.language.errors import ParseError
     from tabletop.language.run import generate_code
     from tabletop.language.suite import evaluate_suite
+    from tabletop.reader.errors import ParseError
 
     config = _llm_config(args)
     report = evaluate_suite(

@@ -471,7 +471,7 @@ class ParaphraseWording(Wording):
                 return text
         raise ConfigError(
             f"{self.bank.source}: no parseable {form!r} instruction after 200 tries; add "
-            "phrasings the offline parser reads (tabletop.language.parser)"
+            "phrasings the offline parser reads (tabletop.reader.rules)"
         )
 
     def _instruction(self, form: str, args) -> tuple[str, tuple]:
@@ -512,7 +512,7 @@ def _the(phrase: str) -> str:
 
 def _shape(action) -> tuple:
     """What a parsed step asks, comparable with :meth:`ParaphraseWording._instruction`'s."""
-    from tabletop.language.plan import Between, GoTo, Side
+    from tabletop.reader.plan import Between, GoTo, Side
 
     def goal(g):
         return ((g.primary.kind, g.primary.text), *((p.kind, p.text) for p in g.near))

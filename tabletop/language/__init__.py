@@ -20,18 +20,6 @@ from tabletop.language.errors import (
     SandboxError,
     SandboxLimit,
 )
-from tabletop.language.parser import parse_instruction
-from tabletop.language.plan import (
-    Above,
-    BackAndForth,
-    Between,
-    Compass,
-    Goal,
-    GoTo,
-    Part,
-    Side,
-    Step,
-)
 from tabletop.language.run import (
     BACKENDS,
     InstructionRun,
@@ -50,6 +38,18 @@ from tabletop.language.sandbox import (
     check_code,
     run_code,
 )
+from tabletop.reader.plan import (
+    Above,
+    BackAndForth,
+    Between,
+    Compass,
+    Goal,
+    GoTo,
+    Part,
+    Side,
+    Step,
+)
+from tabletop.reader.rules import parse_instruction
 
 __all__ = [
     "BACKENDS",

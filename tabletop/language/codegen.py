@@ -1,4 +1,4 @@
-"""Code generation: a plan (:mod:`tabletop.language.plan`) becomes Python against the robot API.
+"""Code generation: a plan (:mod:`tabletop.reader.plan`) becomes Python against the robot API.
 
 The code is what a prompted LLM writes in the paper's style (``obj_map = robot.get_major_map(...)``,
 ``robot.get_max_pos_3d(...)``, ``robot.move_to(...)``), one commented block per step, and it
@@ -25,8 +25,7 @@ from __future__ import annotations
 
 import re
 
-from tabletop.language.parser import parse_instruction
-from tabletop.language.plan import (
+from tabletop.reader.plan import (
     Above,
     BackAndForth,
     Between,
@@ -40,6 +39,7 @@ from tabletop.language.plan import (
     Step,
     Turn,
 )
+from tabletop.reader.rules import parse_instruction
 from tabletop.robot.primitives import Primitive, motion_to, primitive
 
 __all__ = ["instruction_to_code", "plan_to_code"]

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from tabletop.errors import TabletopError
+from tabletop.reader.errors import LanguageError, ParseError
 
 __all__ = [
     "CodeRejected",
@@ -12,23 +12,6 @@ __all__ = [
     "SandboxError",
     "SandboxLimit",
 ]
-
-
-class LanguageError(TabletopError):
-    """Base class of the language stage's errors."""
-
-
-class ParseError(LanguageError, ValueError):
-    """The offline parser did not understand (part of) an instruction; nothing was generated.
-
-    ``fragment`` is the part it did not understand, ``instruction`` the whole sentence.
-    """
-
-    def __init__(self, instruction: str, fragment: str, why: str) -> None:
-        super().__init__(f"did not understand {fragment!r} in {instruction!r}: {why}")
-        self.instruction = instruction
-        self.fragment = fragment
-        self.why = why
 
 
 class SandboxError(LanguageError):

@@ -11,7 +11,7 @@ duck's left", "hover over X"), a goal narrowed by many near words ("right by", "
 "the barking you heard", "where the ringing came from", "the noise like a cat"). Manner
 words the robot cannot honour ("slowly") are refused, not dropped.
 
-The plan (:mod:`tabletop.language.plan`) becomes robot code in
+The plan (:mod:`tabletop.reader.plan`) becomes robot code in
 :mod:`tabletop.language.codegen`, the code a prompted LLM writes against
 :class:`tabletop.robot.RobotAPI`, and goes through the same sandbox. Anything outside the grammar
 raises :class:`ParseError` naming the part it did not understand; the parser never guesses.
@@ -30,8 +30,8 @@ import functools
 import re
 
 from tabletop.errors import ConfigError
-from tabletop.language.errors import ParseError
-from tabletop.language.plan import (
+from tabletop.reader.errors import ParseError
+from tabletop.reader.plan import (
     Above,
     BackAndForth,
     Between,
@@ -407,9 +407,8 @@ def _sound_verbs() -> frozenset[str]:
     of the sound bank's captions and phrasings, so a landmark that ends in one is a sound even
     without "the sound of"."""
     from tabletop.mapping.sound_vocabulary import load_phrasings
-    from tabletop.sim.sound_bank import CAPTIONS
 
-    texts = [*CAPTIONS.values(), *(t for ts in load_phrasings().values() for t in ts)]
+    texts = [*_captions().values(), *(t for ts in load_phrasings().values() for t in ts)]
     words = {w.strip(",.") for t in texts for w in t.lower().split()}
     return frozenset(w for w in words if len(w) > 5 and w.endswith("ing"))
 
@@ -418,9 +417,17 @@ def _sound_verbs() -> frozenset[str]:
 def _sound_names() -> frozenset[str]:
     """The sound bank's categories of several words, as words ("crying baby", "church
     bells"): no object is called so. One-word categories ("duck", "dice") may be objects."""
-    from tabletop.sim.sound_bank import CAPTIONS
+    return frozenset(c.replace("_", " ") for c in _captions() if "_" in c)
 
-    return frozenset(c.replace("_", " ") for c in CAPTIONS if "_" in c)
+
+@functools.cache
+def _captions() -> dict[str, str]:
+    """The sound bank's caption table (category -> caption), read from its data file."""
+    import tomllib
+
+    from tabletop.paths import DATA_DIR
+
+    return tomllib.loads((DATA_DIR / "sounds" / "captions.toml").read_text(encoding="utf-8"))
 
 
 # ---------------------------------------------------------------------- parsing

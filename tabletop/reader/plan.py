@@ -1,4 +1,4 @@
-"""The plan of an instruction: the values the parser (:mod:`tabletop.language.parser`) makes and
+"""The plan of an instruction: the values the parser (:mod:`tabletop.reader.rules`) makes and
 code generation (:mod:`tabletop.language.codegen`) reads.
 
 An instruction is a tuple of :class:`Step`; each step does one action (:data:`Action`) ``times``
