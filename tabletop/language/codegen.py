@@ -39,7 +39,7 @@ from tabletop.reader.plan import (
     Step,
     Turn,
 )
-from tabletop.reader.rules import parse_instruction
+from tabletop.reader.reading import DEFAULT_READER, understand
 from tabletop.robot.primitives import Primitive, motion_to, primitive
 
 __all__ = ["instruction_to_code", "plan_to_code"]
@@ -188,7 +188,8 @@ def plan_to_code(steps: tuple[Step, ...]) -> str:
     return "\n".join(out) + "\n"
 
 
-def instruction_to_code(instruction: str, robot: str = "arm") -> str:
-    """Parse ``instruction`` for ``robot`` ("arm" or "mobile") and write its robot code
-    (:class:`ParseError` if not understood)."""
-    return plan_to_code(parse_instruction(instruction, robot))
+def instruction_to_code(instruction: str, robot: str = "arm", reader: str = DEFAULT_READER) -> str:
+    """Read ``instruction`` for ``robot`` ("arm" or "mobile") with the reader called
+    ``reader`` (:data:`tabletop.reader.READERS`) and write its robot code (:class:`ParseError`
+    if not understood)."""
+    return plan_to_code(understand(instruction, robot, reader).steps)

@@ -50,6 +50,7 @@ __all__ = [
     "MAX_DISTANCE_M",
     "MAX_DRIVE_M",
     "MAX_REPEAT",
+    "QUALIFIERS",
     "parse_instruction",
 ]
 
@@ -113,6 +114,12 @@ _DIRECTIONS = {
 }
 _DIR = "(" + "|".join(sorted(_DIRECTIONS, key=len, reverse=True)) + ")"
 
+#: Words that negate, condition or qualify how a motion is done: a reader never drops one as
+#: a wrapper around a request (the robot cannot honour them, so the request is refused).
+QUALIFIERS = frozenset(
+    """not no never don't dont without avoid except unless until if while quickly slowly
+    carefully gently fast""".split()
+)
 # Words that carry structure: inside an object description they mean the sentence had a
 # construction the grammar does not know, so the parser stops instead of guessing.
 _RESERVED = frozenset(

@@ -26,6 +26,7 @@ import numpy as np
 from tabletop.errors import ConfigError, GoalNotFound, TabletopError
 from tabletop.mapping.heatmaps import Heatmap, fuse
 from tabletop.mapping.targets import max_position, region_box, surface_z
+from tabletop.reader.reading import DEFAULT_READER, get_reader
 
 __all__ = [
     "GoalNotFound",
@@ -88,6 +89,10 @@ class RobotAPI(abc.ABC):
     """Which robot's primitives and prompt it takes ("arm": the shared API with the table's
     conventions; "mobile": a base in a room, :class:`~tabletop.robot.wheeled.MobileRobot`)."""
 
+    reader = DEFAULT_READER
+    """The reader (:data:`tabletop.reader.READERS`) that reads each ``obj=``/``sound=``/
+    ``area=`` reference before the map scores it; set it on an instance to compare readers."""
+
     def __init__(self, avlmap, spatial: SpatialConfig | None = None) -> None:
         self.map = avlmap
         self.spatial = spatial or SpatialConfig()
@@ -133,7 +138,8 @@ class RobotAPI(abc.ABC):
     def _part(self, kind: str, value, major: bool) -> Heatmap:
         if kind == "img":
             return self._image_heatmap(value, major)
-        return self.map.query(kind, value, major)
+        # the words of a reference are read by the one reader every caller asks
+        return self.map.query(kind, get_reader(self.reader).reference(kind, value), major)
 
     def _heatmap(self, parts: dict, majors: dict) -> Heatmap:
         given = {k: v for k, v in parts.items() if v is not None}

