@@ -145,6 +145,10 @@ def _only_out(args: argparse.Namespace) -> None:
 
 
 def cmd_train(args: argparse.Namespace) -> int:
+    if args.what == "reader":
+        from tabletop.cli.language import cmd_train_reader
+
+        return cmd_train_reader(args)
     if args.what == "kind-reader":
         _only_out(args)
         out = Path(args.out) if args.out is not None else TRAIN_OUT["kind-reader"]
@@ -237,7 +241,7 @@ def add_commands(sub) -> None:
         help="train an embedded default encoder, the object shape prior or the kind reader "
         "(seeded)",
     )
-    p.add_argument("what", choices=["audio", "vision", "shape", "kind-reader"])
+    p.add_argument("what", choices=["audio", "vision", "shape", "kind-reader", "reader"])
     p.add_argument(
         "--out",
         default=None,

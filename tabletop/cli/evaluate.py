@@ -14,6 +14,7 @@ from pathlib import Path
 from tabletop.cli.output import check_parents_are_directories, stdout_to_stderr
 from tabletop.cli.progress import ProgressBars
 from tabletop.errors import ConfigError
+from tabletop.reader.reading import DEFAULT_READER, READERS
 
 __all__ = [
     "add_commands",
@@ -73,6 +74,7 @@ def cmd_eval(args: argparse.Namespace) -> int:
             map_overrides=overrides,
             scan_overrides=scan_overrides,
             noise=noise,
+            reader=args.reader,
         )
     wall = time.perf_counter() - t0
     if args.json:
@@ -422,6 +424,11 @@ def add_commands(sub) -> None:
         "both rows (default: oracle)",
     )
     p.add_argument("--out", default="out/eval", help="report directory (default: out/eval)")
+    p.add_argument(
+        "--reader",
+        default=DEFAULT_READER,
+        help=f"the reader of every goal's words: {', '.join(READERS)} (default: {DEFAULT_READER})",
+    )
     p.add_argument("--json", action="store_true", help="print the machine-readable summary")
     p.add_argument("--goals", action="store_true", help="with --json: include every goal")
     p.add_argument(

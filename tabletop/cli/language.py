@@ -9,9 +9,11 @@ import tempfile
 
 import numpy as np
 
+from tabletop.errors import ConfigError
 from tabletop.language.run import BACKENDS
+from tabletop.reader.reading import DEFAULT_READER, READERS
 
-__all__ = ["add_commands", "cmd_parse", "cmd_run"]
+__all__ = ["add_commands", "cmd_parse", "cmd_run", "cmd_train_reader"]
 
 REFERENCE = "reference"
 """The MAP value that selects the suite's reference map (built from the scene's geometry)."""
@@ -24,6 +26,12 @@ def _add_backend_args(p: argparse.ArgumentParser) -> None:
         default="offline",
         help="offline: the built-in instruction parser (default); llm: an OpenAI-compatible "
         "chat endpoint",
+    )
+    p.add_argument(
+        "--reader",
+        default=DEFAULT_READER,
+        help=f"with --backend offline, the reader: {', '.join(READERS)} (default: "
+        f"{DEFAULT_READER})",
     )
     p.add_argument("--llm-url", help="chat endpoint root, e.g. http://127.0.0.1:8000/v1")
     p.add_argument("--llm-model", help="model name the endpoint serves")
@@ -65,7 +73,7 @@ def cmd_parse(args: argparse.Namespace) -> int:
     if not args.instruction:
         print("tabletop parse: give an instruction (or --suite)", file=sys.stderr)
         return 2
-    code = generate_code(args.instruction, args.backend, _llm_config(args), args.robot)
+    code = generate_code(args.instruction, args.backend, _llm_config(args), args.robot, args.reader)
     sys.stdout.write(code)
     check_code(code)  # a refusal is reported as an error (exit status 2)
     return 0
@@ -93,13 +101,16 @@ def _report_suite(args, suite, robot, image_dir) -> int:
 
     config = _llm_config(args)
     report = evaluate_suite(
-        robot, lambda text: generate_code(text, args.backend, config), suite, image_dir=image_dir
+        robot,
+        lambda text: generate_code(text, args.backend, config, reader=args.reader),
+        suite,
+        image_dir=image_dir,
     )
     refused = []
     if args.backend == "offline":
         for bad in suite.unparseable:
             try:
-                generate_code(bad.instruction, "offline")
+                generate_code(bad.instruction, "offline", reader=args.reader)
             except ParseError as e:
                 refused.append(bad.fragment in e.fragment)
             else:
@@ -236,6 +247,7 @@ def cmd_run(args: argparse.Namespace) -> int:
             sandbox=SandboxConfig(timeout_s=args.timeout),
             on_code=on_code,
             on_motion=on_motion,
+            reader=args.reader,
         )
     finally:
         if hasattr(robot, "close"):
@@ -305,3 +317,40 @@ def add_commands(sub) -> None:
     p.add_argument("--suite-file", help="a suite TOML (default: the shipped suite)")
     p.add_argument("--json", action="store_true", help="with --suite: machine-readable output")
     p.set_defaults(func=cmd_run)
+
+
+def cmd_train_reader(args: argparse.Namespace) -> int:
+    """``tabletop train reader``: the learned reader's tagger on generated requests (seeded;
+    minutes on two cores; MiniLM's word states cached under out/cache)."""
+    from pathlib import Path
+
+    from tabletop.eval.paraphrase import TUNE_POOLS
+    from tabletop.eval.reader_texts import reader_texts
+    from tabletop.train.reader import train_reader
+
+    given = [f for f, v in (("--steps", args.steps), ("--max-minutes", args.max_minutes)) if v]
+    if args.backbone is not None or args.device != "cpu" or given:
+        raise ConfigError("tabletop train reader takes --out and --threads only")
+    out = Path(args.out) if args.out is not None else Path("out/weights/reader.pt")
+    if out.is_dir():
+        raise ConfigError(f"--out {str(out)!r} is a directory; give a weights file path")
+    if args.threads is not None:
+        import torch
+
+        torch.set_num_threads(int(args.threads))
+    texts = reader_texts(TUNE_POOLS, n_per_pool=READER_TEXTS_PER_POOL, seed=0)
+    tagger = train_reader(texts, out, val_pools=READER_VAL_POOLS, seed=0)
+    v = tagger.meta.get("validation", {})
+    print(f"reader written: {out} ({len(texts)} texts from {len(TUNE_POOLS)} tune pools)")
+    if v:
+        print(
+            f"on pools it never saw ({', '.join(v['pools'])}): plans right "
+            f"{v['plans_right']:.3f} (rule reader with spelling {v['rules_plans_right']:.3f}), "
+            f"words' roles right {v['words_role_right']:.3f}"
+        )
+    return 0
+
+
+#: Generated requests per tune pool, and the pools a first network is measured on unseen.
+READER_TEXTS_PER_POOL = 1000
+READER_VAL_POOLS = ("heldout-10", "heldout-11", "heldout-12")

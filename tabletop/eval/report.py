@@ -43,6 +43,8 @@ class EvalResult:
     task_files: list[str]
     runs: list[EncoderRun]
     out_dir: Path | None = None
+    reader: str = ""
+    """The reader that read every goal's words (:data:`tabletop.reader.READERS`)."""
 
     @property
     def report_path(self) -> Path | None:
@@ -74,6 +76,7 @@ class EvalResult:
             "task_files": self.task_files,
             "success_radius_m": self.success_radius,
             "robot": "mobile" if self.mobile else "arm",
+            "reader": self.reader,
             "report": str(self.report_path) if self.report_path else None,
             "rows": rows,
         }
@@ -216,6 +219,8 @@ class EvalResult:
     def to_markdown(self) -> str:
         """The whole report as Markdown (pictures by relative path)."""
         out = ["# Goal-reaching evaluation", ""]
+        if self.reader:
+            out += [f"Every goal's words were read by the `{self.reader}` reader.", ""]
         if self.mobile:
             out.append(
                 f"A mobile base's goal succeeds when the base's centre ends within "

@@ -35,6 +35,7 @@ from tabletop.eval.harness import (
 from tabletop.eval.results import EncoderRun, GoalResult, TaskRun
 from tabletop.eval.tasks import Goal, Landmark, TaskFile, TaskFileError, load_tasks
 from tabletop.eval.truth import Region, check_absent, resolve_truth
+from tabletop.reader.reading import DEFAULT_READER, get_reader
 from tabletop.sim.ground_truth import GroundTruth
 
 __all__ = [
@@ -111,6 +112,8 @@ class _Context:
         self.images: dict[str, np.ndarray] = {}  # goal id -> rendered query image
         self.heatmaps: dict[str, list] = {}  # goal id -> [(label, values)], for the report
         self.keep_heatmaps: set[str] = set()
+        self.reader = DEFAULT_READER
+        """The reader every goal's words go through (:data:`tabletop.reader.READERS`)."""
 
     def image(self, goal_id: str, view) -> np.ndarray:
         from tabletop.eval.images import render_view
@@ -321,7 +324,8 @@ def _run_code(ctx: _Context, goal: Goal, base: dict, region: Region, t0: float):
     moves_before = len(robot.history)
     code = ""
     try:
-        code = str(instruction_to_code(goal.instruction, getattr(robot, "robot_kind", "arm")))
+        kind = getattr(robot, "robot_kind", "arm")
+        code = str(instruction_to_code(goal.instruction, kind, ctx.reader))
         run = run_instruction(goal.instruction, robot, code=code)
     except TabletopError as e:  # a parse error, rejected code, not found, a refused query
         tcp = robot.current_position()
@@ -375,15 +379,16 @@ def evaluate_task_file(
     map_overrides: dict | None = None,
     scan_overrides: dict | None = None,
     noise: dict | None = None,
+    reader: str = DEFAULT_READER,
 ) -> TaskRun:
-    """Scan (or reuse), map (or reuse), run every goal of ``tf`` with the encoder set
-    ``encoders``; write the figures into ``figures_dir`` when given. ``map_overrides``: map
-    config fields that replace the task file's ``[map]`` ones (an ablation, e.g.
-    ``{"object": {"instances": False}}``); ``scan_overrides``: scan settings that replace the
-    task file's ``[scan]`` ones (e.g. ``{"snr_db": 5.0}``: the same scan, sounds 10 dB
-    quieter); ``noise``: :class:`~tabletop.sim.noise.NoiseConfig` fields that replace the task
-    file's ``[noise]`` ones (the clean scan is taken from the cache and the noise applied to
-    it, so a noisy run costs a map, not a scan)."""
+    """Scan (or reuse), map (or reuse), run every goal of ``tf`` with the encoder set ``encoders``,
+    its words read by the reader called ``reader``; write the figures into ``figures_dir`` when
+    given. ``map_overrides``: map config fields that replace the task file's ``[map]`` ones (an
+    ablation, e.g. ``{"object": {"instances": False}}``); ``scan_overrides``: scan settings that
+    replace the task file's ``[scan]`` ones (e.g. ``{"snr_db": 5.0}``: the same scan, sounds 10
+    dB quieter); ``noise``: :class:`~tabletop.sim.noise.NoiseConfig` fields that replace the
+    task file's ``[noise]`` ones (the clean scan is taken from the cache and the noise applied
+    to it, so a noisy run costs a map, not a scan)."""
     if tf.robot.kind == "mobile":
         return evaluate_room_task_file(
             tf,
@@ -416,7 +421,9 @@ def evaluate_task_file(
     truth = GroundTruth.of(rec)
     regions = _resolve_goals(tf, truth)
     robot = SimArm(m, spec)
+    robot.reader = reader
     ctx = _Context(robot, m, spec, rec)
+    ctx.reader = reader
     if figures_dir is not None:
         ctx.keep_heatmaps = _heatmap_goals(tf)
     results: list[GoalResult] = []
@@ -577,9 +584,11 @@ def run_eval(
     map_overrides: dict | None = None,
     scan_overrides: dict | None = None,
     noise: dict | None = None,
+    reader: str = DEFAULT_READER,
 ):
     """Evaluate task files (paths, directories, shipped names or :class:`TaskFile`s) with one
-    or more encoder sets; write the report into ``out_dir`` when given. ``map_overrides``,
+    or more encoder sets, their words read by ``reader``; write the report into ``out_dir``
+    when given. ``map_overrides``,
     ``scan_overrides``, ``noise``: see :func:`evaluate_task_file`. ``progress`` is called
     as ``progress(stage, done, total)`` (see :data:`Progress`); None reports nothing.
 
@@ -598,6 +607,7 @@ def run_eval(
     names = [encoders] if isinstance(encoders, str) else list(encoders)
     if not names:
         raise ConfigError("give at least one encoder set")
+    get_reader(reader)  # an unknown reader is refused before anything runs
     cb: Progress | None = progress or None
     out = Path(out_dir) if out_dir is not None else None
     runs = []
@@ -619,12 +629,13 @@ def run_eval(
                 map_overrides=map_overrides,
                 scan_overrides=scan_overrides,
                 noise=noise,
+                reader=reader,
             )
             er.tasks.append(tr)
         er.encoder_names = dict(er.tasks[0].encoder_names)
         er.wall_s = time.perf_counter() - t0
         runs.append(er)
-    result = EvalResult([str(f.path or f.name) for f in files], runs, out)
+    result = EvalResult([str(f.path or f.name) for f in files], runs, out, reader)
     if out is not None:
         result.write(out)
     return result

@@ -18,6 +18,7 @@ import numpy as np
 
 from tabletop.errors import ConfigError
 from tabletop.language.sandbox import SandboxConfig, SandboxRun, check_code, run_code
+from tabletop.reader.reading import DEFAULT_READER
 from tabletop.robot.primitives import PRIMITIVES, Primitive
 
 __all__ = [
@@ -235,17 +236,22 @@ class InstructionRun:
 
 
 def generate_code(
-    instruction: str, backend: str = "offline", llm_config=None, robot: str = "arm"
+    instruction: str,
+    backend: str = "offline",
+    llm_config=None,
+    robot: str = "arm",
+    reader: str = DEFAULT_READER,
 ) -> str:
-    """The robot code for ``instruction`` from the ``offline`` parser or an ``llm`` endpoint
-    (prompted for ``robot``: "arm" or "mobile").
+    """The robot code for ``instruction`` from the ``offline`` reader called ``reader``
+    (:data:`tabletop.reader.READERS`) or an ``llm`` endpoint (prompted for ``robot``: "arm"
+    or "mobile").
 
     The code is returned exactly as the sandbox will receive it.
     """
     if backend == "offline":
         from tabletop.language.codegen import instruction_to_code
 
-        return instruction_to_code(instruction, robot)
+        return instruction_to_code(instruction, robot, reader)
     if backend == "llm":
         from tabletop.language.llm import LLMConfig, llm_code
 
@@ -265,6 +271,7 @@ def run_instruction(
     sandbox: SandboxConfig | None = None,
     on_code: Callable[[str], None] | None = None,
     on_motion: Callable[[Motion], None] | None = None,
+    reader: str = DEFAULT_READER,
 ) -> InstructionRun:
     """Turn ``instruction`` into code (or take ``code``), check it, and run it on ``robot``.
 
@@ -272,9 +279,11 @@ def run_instruction(
     ``on_code`` sees the checked code, ``on_motion`` each target and result.
     """
     sandbox = sandbox or SandboxConfig()
+    if hasattr(robot, "reader"):
+        robot.reader = reader  # its queries' words are read by the same reader
     if code is None:
         kind = getattr(robot, "robot_kind", "arm")
-        code = generate_code(instruction, backend, llm_config, kind)
+        code = generate_code(instruction, backend, llm_config, kind, reader)
     checked = check_code(code, sandbox)
     if on_code is not None:
         on_code(code)

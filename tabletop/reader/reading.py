@@ -31,6 +31,7 @@ from tabletop.reader.spelling import Correction, Speller, name_words
 __all__ = [
     "DEFAULT_READER",
     "READERS",
+    "LearnedReader",
     "Reader",
     "Reading",
     "RulesReader",
@@ -128,10 +129,55 @@ class RulesReader:
         raise err
 
 
+class LearnedReader:
+    """The learned tagger (:mod:`tabletop.reader.learned`) on the words after the spelling
+    pass; a step it labels as a motion (compass moves, a base's own motions) is read by the
+    grammar. ``fallback``: read with the rule reader first, and with the tagger only what the
+    grammar refuses (``learned`` alone when False)."""
+
+    def __init__(self, weights=None, fallback: bool = False) -> None:
+        self.weights = weights
+        self.fallback = bool(fallback)
+        self.name = "rules+learned" if fallback else "learned"
+        self._rules = RulesReader(spelling=True, wrappers=False)
+
+    def reference(self, kind: str, text: str) -> str:
+        return self._rules.reference(kind, text)
+
+    def understand(self, text: str, robot: str = "arm") -> Reading:
+        from tabletop.reader.learned import DEFAULT_READER_WEIGHTS, decode, load_tagger, words_of
+
+        if not isinstance(text, str):
+            raise ConfigError(f"an instruction must be a string, got {type(text).__name__}")
+        if self.fallback:
+            try:
+                return self._rules.understand(text, robot)
+            except ParseError:
+                pass
+        read, fixes = self._rules.speller.correct(text)
+        words = words_of(read)
+        if not words:
+            raise ParseError(text, text, "the instruction is empty")
+        tagger = load_tagger(self.weights or DEFAULT_READER_WEIGHTS)
+        roles, rels = tagger.tag(words)
+        qualifiers = [
+            w for w, r in zip(words, roles, strict=True)
+            if r in ("O", "THEN", "REP") and w.strip(",.;:!?\"'").lower() in QUALIFIERS
+        ]  # fmt: skip
+        if qualifiers:
+            raise ParseError(
+                text, " ".join(qualifiers), "the robot cannot honour how it is asked to move"
+            )
+        steps = decode(text, words, roles, rels, robot, parse_instruction)
+        return Reading(text, read, steps, fixes, (), self.name)
+
+
 #: Readers by name; the first is the default.
 READERS: dict[str, type | functools.partial] = {
     "rules+spelling": functools.partial(RulesReader, spelling=True, wrappers=True),
     "rules": functools.partial(RulesReader, spelling=False, wrappers=False),
+    "learned": LearnedReader,
+    "rules+learned": functools.partial(LearnedReader, fallback=True),
 }
 DEFAULT_READER = "rules+spelling"
 

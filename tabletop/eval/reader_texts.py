@@ -1,0 +1,252 @@
+"""Generated training texts of the learned reader (``tabletop train reader``).
+
+A text is built from pieces, each with the role its words play (:data:`~tabletop.reader.
+learned.ROLES`), and every word carries the relation of its step (:data:`~tabletop.reader.
+learned.RELATIONS`). The shapes come from the project's own templates
+(``tabletop/data/reader/templates.toml``) and from the relation templates of the tune
+paraphrase pools; the words that fill them (object names, colours, colour forms, sounds,
+places, verbs, near words) come from those pools and the catalog. The held-out pools
+(:data:`~tabletop.eval.paraphrase.HELDOUT_POOLS`) are never read: asking for one raises.
+
+Noise that people add is drawn seeded: lead-ins and tails around a request, apposition of a
+colour, several steps joined, repetitions, capitals and end punctuation, and typing slips in a
+few words (letters dropped, doubled, swapped or replaced) which keep their labels.
+"""
+
+from __future__ import annotations
+
+import functools
+import re
+import tomllib
+from dataclasses import dataclass
+
+import numpy as np
+
+from tabletop.errors import ConfigError
+from tabletop.eval.paraphrase import HELDOUT_POOLS, TUNE_POOLS, ParaphraseBank, load_bank
+from tabletop.paths import DATA_DIR
+from tabletop.reader.learned import words_of
+from tabletop.sim.catalog import COLORS, OBJECT_KINDS
+
+__all__ = ["ReaderText", "reader_texts"]
+
+TEMPLATES_PATH = DATA_DIR / "reader" / "templates.toml"
+_SLOT = re.compile(r"\{(\w)\}")
+_SIDE_KEYS = {"left_of": "left", "right_of": "right", "in_front_of": "front", "behind": "behind"}
+_AREA_NAMES = {"left": "the left side of the table", "right": "the right side of the table",
+               "front": "the far side of the table", "back": "the near side of the table",
+               "center": "the middle of the table"}  # fmt: skip
+
+
+@dataclass(frozen=True)
+class ReaderText:
+    """One generated request: its ``words`` with a role and a relation per word, and the
+    pool whose words fill it."""
+
+    words: tuple[str, ...]
+    roles: tuple[str, ...]
+    relations: tuple[str, ...]
+    pool: str
+
+    @property
+    def text(self) -> str:
+        return " ".join(self.words)
+
+
+@functools.cache
+def _templates() -> dict:
+    doc = tomllib.loads(TEMPLATES_PATH.read_text(encoding="utf-8"))
+    if doc.get("format") != "tabletop-reader-templates":
+        raise ConfigError(f"{TEMPLATES_PATH} is not a reader template file")
+    return doc
+
+
+class _Maker:
+    """Draws pieces for one pool: ``(text, role)`` lists, role None for plain words."""
+
+    def __init__(self, bank: ParaphraseBank, rng: np.random.Generator) -> None:
+        self.b, self.rng, self.t = bank, rng, _templates()
+
+    def pick(self, options):
+        options = list(options)
+        return options[int(self.rng.integers(len(options)))]
+
+    def chance(self, p: float) -> bool:
+        return bool(self.rng.random() < p)
+
+    # ------------------------------------------------------------------ references
+    def obj(self) -> str:
+        kind = self.pick(sorted(OBJECT_KINDS))
+        ph = self.b.objects.get(kind)
+        names = [n for n in (ph.names if ph else ())] + [
+            kind.replace("_", " "),
+            "{c} " + kind.replace("_", " "),
+        ]
+        if ph and ph.vague and self.chance(0.15):
+            names = [n for n, _ in ph.vague]
+        if self.chance(0.1) and self.b.absent_objects:
+            names = list(self.b.absent_objects)
+        name = self.pick(names)
+        colour = self.pick(sorted(COLORS))
+        if self.chance(0.4) and self.b.colours.get(colour):
+            colour = self.pick(self.b.colours[colour])
+        bare = name.replace("{c}", "").strip()
+        if "{c}" in name and self.chance(0.2):
+            form = self.pick(self.t["apposition"] + list(self.b.colour_forms))
+            name = form.replace("{n}", bare).replace("{c}", colour)
+        else:
+            name = name.replace("{c}", colour) if self.chance(0.7) else bare
+        return name if self.chance(0.3) else f"the {name}"
+
+    def sound(self) -> str:
+        if self.chance(0.1) and self.b.absent_sounds:
+            return self.pick(self.b.absent_sounds)
+        return self.pick(self.pick(list(self.b.sounds.values())))
+
+    def area(self) -> str:
+        if self.chance(0.1) and self.b.absent_areas:
+            return self.pick(self.b.absent_areas)
+        key = self.pick(sorted(self.b.areas))
+        return self.pick([*self.b.areas[key], _AREA_NAMES.get(key, "the tray area")])
+
+    def goal(self, near: bool = False, kinds=("obj", "obj", "obj", "sound", "area")) -> list:
+        """A goal: a reference, sometimes narrowed by a constraint."""
+        n = "N" if near else ""
+        kind = self.pick(kinds)
+        if kind == "obj":
+            out = [(self.obj(), n + "OBJ")]
+        elif kind == "area":
+            out = [(self.area(), n + "AREA")]
+        else:
+            wraps = list(self.b.instructions.get("sound", ())) + self.t["sound"]
+            before, _, after = self.pick(wraps).partition("{s}")
+            out = [(before, None), (self.sound(), n + "SOUND"), (after, None)]
+        if not near and kind == "obj" and self.chance(0.3):
+            word = self.pick(list(self.b.instructions.get("near", ())) + self.t["near"])
+            out += [(word, None), *self.goal(True, ("sound", "sound", "obj", "area"))]
+        return out
+
+    def fill(self, template: str, goals: dict) -> list:
+        out: list = []
+        pos = 0
+        for m in _SLOT.finditer(template):
+            out.append((template[pos : m.start()], None))
+            slot = m.group(1)
+            if slot == "v":
+                out.append((self.pick(self.b.instructions["verbs"]), None))
+            else:
+                out += goals[slot]
+            pos = m.end()
+        out.append((template[pos:], None))
+        return out
+
+    # ------------------------------------------------------------------ one step
+    def step(self) -> tuple[list, str]:
+        ins, t = self.b.instructions, self.t
+        r = self.rng.random()
+        if r < 0.34:
+            tpl = self.pick(t["goto"] + ["{v} {a}"] * 6)
+            return self.fill(tpl, {"a": self.goal()}), "goto"
+        if r < 0.42:
+            return self.fill(self.pick(t["fronted"]), {"a": self.goal()}), "goto"
+        if r < 0.56:
+            tpl = self.pick(list(ins.get("between", ())) or ["go between {a} and {b}"])
+            kinds = ("obj", "obj", "obj", "sound", "area")
+            return self.fill(tpl, {"a": self.goal(kinds=kinds), "b": self.goal(kinds=kinds)}), (
+                "between"
+            )
+        if r < 0.74:
+            key = self.pick(sorted(_SIDE_KEYS))
+            tpl = self.pick(list(ins.get(key, ())) or ["go to the {key} of {a}"])
+            return self.fill(tpl, {"a": self.goal(kinds=("obj",))}), _SIDE_KEYS[key]
+        if r < 0.80:
+            return self.fill(self.pick(t["above"]), {"a": self.goal(kinds=("obj",))}), "above"
+        if r < 0.86:
+            goals = {"a": self.goal(), "b": self.goal()}
+            return self.fill(self.pick(t["backforth"]), goals), "backforth"
+        if r < 0.93:
+            tpl = self.pick(t["compass"])
+            text = tpl.replace("{n}", self.pick(t["numbers"]))
+            text = text.replace("{u}", self.pick(t["units"]))
+            text = text.replace("{d}", self.pick(t["directions"]))
+            return [(text, None)], "motion"
+        tpl = self.pick(t["image"])
+        return self.fill(tpl, {"i": [(self.pick(t["image_paths"]), "IMG")]}), "goto"
+
+
+def _typo(word: str, rng: np.random.Generator) -> str:
+    if len(word) < 4 or not word.isalpha():
+        return word
+    i = int(rng.integers(1, len(word) - 1))
+    op = int(rng.integers(4))
+    if op == 0:
+        return word[:i] + word[i + 1 :]
+    if op == 1:
+        return word[:i] + word[i] + word[i:]
+    if op == 2:
+        return word[: i - 1] + word[i] + word[i - 1] + word[i + 1 :]
+    return word[:i] + "abcdefghijklmnopqrstuvwxyz"[int(rng.integers(26))] + word[i + 1 :]
+
+
+def _label(pieces: list, relation: str, out: tuple[list, list, list]) -> None:
+    words, roles, rels = out
+    for text, role in pieces:
+        for k, w in enumerate(words_of(text)):
+            if role is None:
+                tag = "O"
+            elif role in ("THEN", "REP"):
+                tag = role
+            else:
+                tag = ("B-" if k == 0 else "I-") + role
+            words.append(w)
+            roles.append(tag)
+            rels.append(relation)
+
+
+def _one(maker: _Maker, rng: np.random.Generator, pool: str) -> ReaderText:
+    t = maker.t
+    words: list[str] = []
+    roles: list[str] = []
+    rels: list[str] = []
+    out = (words, roles, rels)
+    n_steps = 1 if rng.random() < 0.75 else int(rng.integers(2, 4))
+    for k in range(n_steps):
+        pieces, relation = maker.step()
+        if k > 0:
+            _label([(maker.pick(t["joiners"]), "THEN")], relation, out)
+        elif rng.random() < 0.35:
+            _label([(maker.pick(t["lead_ins"]), None)], relation, out)
+        if relation in ("goto", "backforth") and rng.random() < 0.08:
+            pieces = [
+                *pieces,
+                (maker.pick(t["repeats"]).replace("{n}", maker.pick(["2", "3", "four"])), "REP"),
+            ]
+        _label(pieces, relation, out)
+    if rng.random() < 0.2:
+        _label([(maker.pick(t["tails"]), None)], rels[-1], out)
+    for i, w in enumerate(words):
+        if rng.random() < 0.03:
+            words[i] = _typo(w, rng)
+    if words and rng.random() < 0.3:
+        words[0] = words[0][:1].upper() + words[0][1:]
+    if words and rng.random() < 0.3:
+        words[-1] += maker.pick([".", "!", "?"])
+    # roles are B-/I- per piece; a role that continues after a plain word starts again
+    return ReaderText(tuple(words), tuple(roles), tuple(rels), pool)
+
+
+def reader_texts(
+    pools: tuple[str, ...] = TUNE_POOLS, n_per_pool: int = 1500, seed: int = 0
+) -> list[ReaderText]:
+    """``n_per_pool`` generated requests per pool of ``pools`` (tune pools only), seeded."""
+    bad = [p for p in pools if p in HELDOUT_POOLS]
+    if bad:
+        raise ConfigError(
+            f"held-out pools {bad} are never read for training; tune pools: {list(TUNE_POOLS)}"
+        )
+    out: list[ReaderText] = []
+    for j, pool in enumerate(pools):
+        rng = np.random.default_rng([seed, j])
+        maker = _Maker(load_bank(pool), rng)
+        out += [_one(maker, rng, pool) for _ in range(n_per_pool)]
+    return out

@@ -1,0 +1,88 @@
+"""The readers' cost (``tabletop bench``): milliseconds per request, one thread, and the words
+still listed by hand in code.
+
+The requests are the project's own ("go to ...", relations, sounds, typing slips), not an
+evaluation pool's. Each reader reads each request once to warm up (models load), then
+``repeats`` times; the median and 95th percentile per request are reported.
+"""
+
+from __future__ import annotations
+
+import ast
+import re
+import time
+from pathlib import Path
+
+import numpy as np
+
+from tabletop.reader.errors import ParseError
+from tabletop.reader.reading import READERS, get_reader
+
+__all__ = ["BENCH_REQUESTS", "listed_words", "run_reader_benchmark"]
+
+BENCH_REQUESTS = (
+    "go to the red mug",
+    "please move between the tray and the teddy bear",
+    "go to the left of the blue lego brick, then to the duck",
+    "head to the mug near the sound of a dog barking",
+    "could you go where you heard the phone ringing",
+    "move 5 cm north",
+    "reach the yelow duk",
+    "would you be so kind as to hover over the green cube",
+    "go back and forth between the ball and the domino twice",
+    "gotothe jenga block",
+)
+
+
+def listed_words(path: str | Path) -> int:
+    """Distinct lower-case words inside the string literals of a Python file, docstrings
+    left out: how many words its author listed by hand."""
+    tree = ast.parse(Path(path).read_text(encoding="utf-8"))
+    docs = set()
+    for node in ast.walk(tree):
+        body = getattr(node, "body", None)
+        if isinstance(body, list) and body and isinstance(body[0], ast.Expr):
+            if isinstance(getattr(body[0], "value", None), ast.Constant):
+                docs.add(id(body[0].value))
+    words: set[str] = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Constant) and isinstance(node.value, str) and id(node) not in docs:
+            words.update(re.findall(r"[a-z]{2,}", node.value.lower()))
+    return len(words)
+
+
+def run_reader_benchmark(repeats: int = 5) -> dict:
+    """Per reader: median and p95 milliseconds per request, and how many it refused."""
+    import torch
+
+    out: dict = {}
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    try:
+        for name in READERS:
+            reader = get_reader(name)
+            refused = 0
+            for text in BENCH_REQUESTS:  # warm-up: spelling tables, MiniLM, the tagger
+                try:
+                    reader.understand(text)
+                except ParseError:
+                    refused += 1
+            times = []
+            for _ in range(repeats):
+                for text in BENCH_REQUESTS:
+                    t0 = time.perf_counter()
+                    try:
+                        reader.understand(text)
+                    except ParseError:
+                        pass
+                    times.append((time.perf_counter() - t0) * 1e3)
+            key = name.replace("+", "_")
+            out[f"reader_{key}_ms_median"] = round(float(np.median(times)), 3)
+            out[f"reader_{key}_ms_p95"] = round(float(np.percentile(times, 95)), 3)
+            out[f"reader_{key}_refused"] = f"{refused}/{len(BENCH_REQUESTS)}"
+    finally:
+        torch.set_num_threads(threads)
+    root = Path(__file__).resolve().parent.parent
+    for rel in ("reader/rules.py", "mapping/place_words.py", "mapping/colour_words.py"):
+        out[f"listed_words_{Path(rel).stem}"] = listed_words(root / rel)
+    return out
