@@ -124,14 +124,25 @@ def test_library_bars_are_switched_off_within_the_block_only(monkeypatch):
 # --------------------------------------------------------------------------- default outputs
 def test_train_writes_under_the_working_directory_by_default(tmp_path, monkeypatch, capsys):
     import tabletop.train.audio as train_audio
+    import tabletop.train.audio_head as train_head
 
     seen = []
     monkeypatch.setattr(train_audio, "train_audio", lambda cfg: seen.append(cfg.out) or cfg.out)
+    monkeypatch.setattr(train_head, "train_audio_head", lambda cfg: seen.append(cfg.out) or cfg.out)
     monkeypatch.chdir(tmp_path)
     assert main(["train", "audio"]) == 0
-    assert main(["train", "audio", "--out", "elsewhere/a.pt"]) == 0
-    assert seen == [Path("out/weights/audio.pt"), Path("elsewhere/a.pt")]
-    assert "weights written: out/weights/audio.pt" in capsys.readouterr().out
+    assert main(["train", "audio", "--backbone", "effnet-lite0"]) == 0
+    assert main(["train", "audio", "--backbone", "small", "--out", "elsewhere/a.pt"]) == 0
+    assert seen == [
+        Path("out/weights/audio_yamnet_head.npz"),
+        Path("out/weights/audio.pt"),
+        Path("elsewhere/a.pt"),
+    ]
+    assert "weights written: out/weights/audio_yamnet_head.npz" in capsys.readouterr().out
+    assert main(["train", "audio", "--steps", "5"]) != 0
+    assert "--steps: not for the YAMNet head" in capsys.readouterr().err
+    assert main(["train", "vision", "--backbone", "yamnet"]) != 0
+    assert "yamnet: for audio only" in capsys.readouterr().err
 
 
 def test_calibrate_writes_under_the_working_directory_by_default(tmp_path, monkeypatch):

