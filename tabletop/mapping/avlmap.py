@@ -20,6 +20,7 @@ uncalibrated prior when none is), saved with it and restored on load.
 from __future__ import annotations
 
 import logging
+import re
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, replace
@@ -469,36 +470,92 @@ class AVLMap:
         return getattr(self, name)(value, major=major)
 
     def object_heatmap(self, query: str, major: bool = True) -> Heatmap:
-        """Heat around the voxels that best match ``query`` (the object module)."""
-        return self.objects.heatmap(_text(query, "object"), self.decay(major), self.judge)
+        """Heat around the voxels that best match ``query`` (the object module); a query of no
+        words (no letter: emoji, punctuation, digits) is not found."""
+        q = _text(query, "object")
+        if (h := self._wordless(q, "object", major)) is not None:
+            return h
+        return self.objects.heatmap(q, self.decay(major), self.judge)
 
     def object_scores(self, query: str) -> tuple[np.ndarray, np.ndarray]:
         """Per occupied voxel: the query's cosine score, and whether it beats the background."""
         return self.objects.scores(_text(query, "object"))
 
     def sound_heatmap(self, query: str, major: bool = True) -> Heatmap:
-        """Heat around where the sound best matching ``query`` was heard (the audio module)."""
+        """Heat around where the sound best matching ``query`` was heard (the audio module); a
+        query of no words is not found."""
         q = _text(query, "sound")
+        if (h := self._wordless(q, "sound", major)) is not None:
+            return h
         return self.sounds.heatmap(q, self.decay(major), self.audio_text, self.judge)
 
+    def _wordless(self, query: str, modality: str, major: bool) -> Heatmap | None:
+        """Not found for a query that holds no word (not one letter: "🦒🦒", "...", "123"),
+        None for one that does."""
+        if _LETTER.search(query):
+            return None
+        why = f"{query!r} holds no words (no letter): it names nothing"
+        return Heatmap.not_found(self.grid, query, modality, self.decay(major), why)
+
     def area_heatmap(self, query: str, major: bool = False) -> Heatmap:
-        """Heat over a named place on the table. A place named by where it is ("the left side
-        of the table", "the far right corner": :func:`~tabletop.mapping.place_words.parse_region`)
-        is a region of the table fitted from the map; one named after an object there ("the
-        area around the tray": :func:`~tabletop.mapping.place_words.area_subject`) is heat
-        around that object's instance when the object module finds it; otherwise ("where the
-        toys are") it is where the frames whose global embedding matches it looked (the area
-        module)."""
+        """Heat over a place on the table, found only where the words name one of this table.
+
+        A place named by where it is ("the left side of the table", "the far right corner":
+        :func:`~tabletop.mapping.place_words.parse_region`) is a region of the table fitted
+        from the map. A place named after what is there ("the area around the tray", "where
+        the dog barked": :func:`~tabletop.mapping.place_words.area_subject`) is heat around
+        it where the object module finds that thing on the table, else where the audio
+        module finds that sound: each decides by its own calibrated found / not-found
+        (the object module's refusal of words that name nothing of the vocabulary, its
+        operating point; the sound vocabulary's and the sound operating point). Words that
+        do neither ("the kitchen", "the top shelf", "the area") are not found, and the
+        reason names them with why each module refused them."""
         q = _text(query, "area")
+        decay = self.decay(major)
+        if (h := self._wordless(q, "area", major)) is not None:
+            return h
         region = parse_region(q)
         if region is not None:
-            return region_heatmap(self.grid, self.table(), q, region, self.decay(major))
+            return region_heatmap(self.grid, self.table(), q, region, decay)
         subject = area_subject(q)
-        if subject is not None and self.objects.uses_instances:
-            h = self.objects.heatmap(subject, self.decay(major), self.judge)
-            if h.found:
+        if subject is None:
+            why = f"{q!r} names no region of this table and nothing on it (words for a place only)"
+            return Heatmap.not_found(self.grid, q, "area", decay, why)
+        refusals = []
+        h = self.objects.heatmap(subject, decay, self.judge)
+        if h.found:
+            return replace(h, query=q, modality="area")
+        refusals.append(f"as a thing: {h.reason}")
+        if len(self.sounds):
+            h = self.sounds.heatmap(subject, decay, self.audio_text, self.judge)
+            if h.found and not (thing := self._rather_a_thing(subject)):
                 return replace(h, query=q, modality="area")
-        return self.areas.heatmap(q, self.decay(major), self.text, self.judge)
+            refusals.append(f"as a sound: {h.reason or thing}")
+        why = f"{subject!r} names no region of this table and nothing on it ({'; '.join(refusals)})"
+        return Heatmap.not_found(self.grid, q, "area", decay, why)
+
+    def _rather_a_thing(self, words: str) -> str:
+        """Why ``words`` name a thing rather than a sound ("" where they name a sound): they
+        lie nearer a vocabulary name, description or other thing of the object module than
+        any phrasing of the sound vocabulary ("the kitchen" is nearer an oven than the sound
+        of a washing machine, "the sofa" a couch; "where the dog barked" is nearer a dog
+        barking than a dog). Decided by rank in the one text space both share; a sound
+        encoder with its own text space, or without a vocabulary, leaves it to the audio
+        module's own decision."""
+        if self.sounds.vocabulary is None or self.audio_text is not self.text:
+            return ""
+        sound = self.sounds.match(words, self.audio_text)
+        m = self.objects.match(words)
+        thing, score = (m.nearest, m.text_score)
+        if m.other_score > score:
+            thing, score = m.other, m.other_score
+        if score < sound.text_score:
+            return ""
+        heard = self.sounds.vocabulary.caption(sound.nearest)
+        return (
+            f"{words!r} names a thing rather than a sound: nearer {thing!r} ({score:.2f}) "
+            f"than any sound ({heard!r}, {sound.text_score:.2f})"
+        )
 
     def table(self) -> TableFit | None:
         """The table top fitted from the map (:func:`~tabletop.mapping.table_regions.fit_table`;
@@ -559,6 +616,10 @@ class AVLMap:
         if heatmap.grid != self.grid:
             raise ConfigError(f"heatmap grid {heatmap.grid} is not this map's {self.grid}")
         return max_position(heatmap, self.voxels.occupancy())
+
+
+#: A letter of any script: a query without one holds no word.
+_LETTER = re.compile(r"[^\W\d_]")
 
 
 def _text(query, what: str) -> str:
