@@ -129,6 +129,11 @@ class AudioModule:
         self.segments: list[AudioSegment] = []
         self.embeddings: list[np.ndarray] = []
         self.positions: list[np.ndarray] = []
+        self.class_logits: list[np.ndarray] = []
+        """Per segment, the encoder's AudioSet class logits (K,) when it gives them (the YAMNet
+        backbone: :mod:`tabletop.mapping.open_sounds`); empty otherwise."""
+        self.class_names: tuple[str, ...] = ()
+        """The names of those classes, in logit order."""
 
     def __len__(self) -> int:
         return len(self.segments)
@@ -155,14 +160,29 @@ class AudioModule:
             raise ConfigError("a track needs the poses of at least one frame")
         mic = T_world_mic[:, :3, 3]
 
+        with_logits = hasattr(encoder, "encode_audio_with_logits") and (
+            not self.segments or len(self.class_logits) == len(self.segments)
+        )
+        logits: dict[tuple[float, float], np.ndarray] = {}
+
         def encode(seg: AudioSegment) -> np.ndarray:
             a, b = int(seg.start_s * sample_rate), int(seg.end_s * sample_rate)
-            e = encoder.encode_audio(audio[a:b], sample_rate, {"span_s": (seg.start_s, seg.end_s)})
+            if with_logits:
+                e, logits[(seg.start_s, seg.end_s)] = encoder.encode_audio_with_logits(
+                    audio[a:b], sample_rate
+                )
+            else:
+                span = {"span_s": (seg.start_s, seg.end_s)}
+                e = encoder.encode_audio(audio[a:b], sample_rate, span)
             return np.asarray(e, np.float32)
 
         segs = segment_audio(audio, sample_rate, self.config.gate)
         embs = [encode(seg) for seg in segs]
         segs, embs = self._join(segs, embs, encode)
+        if with_logits:
+            self.class_names = tuple(encoder.class_names)
+            self._matcher = None  # rebuilt with the open vocabulary
+            self.class_logits += [logits[(s.start_s, s.end_s)] for s in segs]
         for seg, emb in zip(segs, embs, strict=True):
             heard = (timestamps >= seg.start_s) & (timestamps <= seg.end_s)
             if not heard.any():
@@ -217,18 +237,30 @@ class AudioModule:
         return Heatmap(self.grid, values, query, "sound", decay, conf, found, reason, margin)
 
     def matcher(self, text) -> SoundMatcher:
-        """The vocabulary's matcher with ``text`` (built once)."""
+        """The vocabulary's matcher with ``text`` (built once), with the class names of
+        :attr:`class_names` as an open vocabulary when the segments have class logits."""
         if self._matcher is None or self._matcher.text is not text:
+            from tabletop.mapping.open_sounds import OpenSoundVocabulary
+
             cfg = self.config
+            names = self.class_names
             self._matcher = SoundMatcher(
-                self.vocabulary, text, cfg.text_min, cfg.text_margin, other_margin=cfg.other_margin
+                self.vocabulary,
+                text,
+                cfg.text_min,
+                cfg.text_margin,
+                other_margin=cfg.other_margin,
+                open_vocabulary=OpenSoundVocabulary(names, text) if names else None,
             )
         return self._matcher
 
     def match(self, query: str, text):
-        """``query`` read against the vocabulary and scored on every segment
+        """``query`` read against the vocabulary (and the open vocabulary, when the segments
+        have class logits) and scored on every segment
         (:class:`~tabletop.mapping.sound_vocabulary.SoundQuery`)."""
-        return self.matcher(text).match(query, np.stack(self.embeddings))
+        n = len(self.embeddings)
+        logits = np.stack(self.class_logits) if len(self.class_logits) == n else None
+        return self.matcher(text).match(query, np.stack(self.embeddings), logits)
 
     def _vocabulary_heatmap(self, query: str, decay: float, text, judge: Judge) -> Heatmap:
         m = self.match(query, text)

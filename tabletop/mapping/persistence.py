@@ -158,6 +158,10 @@ def save_map(m, path: str | Path, *, rebuild: dict | None = None) -> Path:
         "segment_embeddings": np.array(sounds.embeddings, np.float32).reshape(-1, d),
         "segment_positions": np.array(sounds.positions, np.float64).reshape(-1, 3),
     }
+    if sounds.class_logits and len(sounds.class_logits) == len(sounds):
+        # the segments' AudioSet logits (the open sound vocabulary) and their class names
+        header["class_names"] = list(sounds.class_names)
+        arrays["segment_class_logits"] = np.stack(sounds.class_logits).astype(np.float32)
     if m.visual is not None:
         header["visual"], visual = m.visual.state()
         arrays.update({f"visual_{k}": v for k, v in visual.items()})
@@ -210,6 +214,11 @@ def read_map_file(path: str | Path) -> tuple[dict, dict[str, np.ndarray]]:
         expect["voxel_instance"] = (h["n_voxels"],)
     if "voxel_height_sums" in arrays:
         expect["voxel_height_sums"] = (h["n_voxels"],)
+    if "segment_class_logits" in arrays:
+        names = h.get("class_names")
+        if not isinstance(names, list) or not all(isinstance(n, str) for n in names):
+            raise MapFormatError(f"{path}: segment_class_logits need a list of class_names")
+        expect["segment_class_logits"] = (h["n_segments"], len(names))
     for name, shape in expect.items():
         if name not in arrays:
             raise MapFormatError(f"{path}: array {name!r} is missing")

@@ -41,6 +41,7 @@ from tabletop.errors import AssetError, ConfigError
 from tabletop.paths import DATA_DIR
 
 __all__ = [
+    "OPEN_PREFIX",
     "PHRASINGS_PATH",
     "SOUND_FAMILIES",
     "WORDS_PATH",
@@ -88,6 +89,9 @@ SOUND_FAMILIES: tuple[frozenset[str], ...] = tuple(
         {"clapping", "finger_snapping", "castanets"},
     )
 )
+
+#: Prefix of the AudioSet class names a query asks for through an open vocabulary.
+OPEN_PREFIX = "audioset:"
 
 #: Phrasings of every sound category beside its caption.
 PHRASINGS_PATH = DATA_DIR / "sound_phrasings.toml"
@@ -258,8 +262,16 @@ class SoundMatcher:
         others: Mapping[str, tuple[str, ...]] | None = None,
         other_margin: float = 0.12,
         words: Mapping[str, tuple[str, ...]] | None = None,
+        open_vocabulary=None,
+        open_margin: float = 0.2,
     ) -> None:
         self.vocabulary = vocabulary
+        self.open_vocabulary = open_vocabulary
+        """An :class:`~tabletop.mapping.open_sounds.OpenSoundVocabulary` (AudioSet's class
+        names) for sounds the vocabulary lacks, or None."""
+        self.open_margin = float(open_margin)
+        """A query nearer by more than this to a class name than to every known phrasing is
+        read against the class names, not the vocabulary."""
         self.text = text
         self.text_min = float(text_min)
         self.text_margin = float(text_margin)
@@ -361,12 +373,40 @@ class SoundMatcher:
         j = int(np.argmax(s))
         return owner[j], float(s[j])
 
-    def match(self, query: str, embeddings: np.ndarray) -> SoundQuery:
+    def match(
+        self, query: str, embeddings: np.ndarray, class_logits: np.ndarray | None = None
+    ) -> SoundQuery:
         """``query`` against segments with these embeddings (N, dim). A query that names its
         source after "of" ("the pitter-patter of feet", "a clap of thunder") scores each
         category by the better of the whole query and the source alone: the source says what
-        made the sound, the word before it only how it sounded."""
+        made the sound, the word before it only how it sounded.
+
+        ``class_logits`` (N, K): the segments' AudioSet logits, when the encoder gives them
+        and the matcher has an :attr:`open_vocabulary`. A query the vocabulary cannot answer
+        (it names no known sound, or reads as a sound the vocabulary lacks), or that names a
+        class name better than every known phrasing by :attr:`open_margin`, is then read
+        against the class names and scored through the logits; its ``categories`` are the
+        asked class names, prefixed ``"audioset:"``."""
         e = np.asarray(self.text.encode_text([query])[0], np.float32)
+        bank = self._match_vocabulary(query, embeddings, e)
+        if self.open_vocabulary is None or class_logits is None:
+            return bank
+        ov = self.open_vocabulary.match(query, class_logits, e)
+        if not ov.known:
+            return bank
+        if bank.known and ov.text_score < bank.text_score + self.open_margin:
+            return bank
+        return SoundQuery(
+            query,
+            tuple(f"{OPEN_PREFIX}{c}" for c in ov.classes),
+            ov.text_score,
+            f"{OPEN_PREFIX}{ov.nearest}",
+            ov.scores,
+            ov.log_odds,
+        )
+
+    def _match_vocabulary(self, query: str, embeddings: np.ndarray, e: np.ndarray) -> SoundQuery:
+        """:meth:`match` through the vocabulary alone (``e``: the query's embedding)."""
         per = self.category_scores(query, e)
         source = _source_after_of(query)
         if source:

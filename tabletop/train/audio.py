@@ -457,7 +457,14 @@ def evaluate_audio(
         _eval_segment(c.load(), rate, np.random.default_rng([seed, i]), snr_db)
         for i, c in enumerate(clips)
     ]
-    audio_emb = np.stack([encoder.encode_audio(s, rate) for s in segs])  # (N, D)
+    open_logits = None  # (N, K) AudioSet logits: an encoder with an open vocabulary
+    if vocabulary is not None and hasattr(encoder, "encode_audio_with_logits"):
+        pairs = [encoder.encode_audio_with_logits(s, rate) for s in segs]
+        audio_emb = np.stack([p[0] for p in pairs])
+        open_logits = np.stack([p[1] for p in pairs])
+    else:
+        audio_emb = np.stack([encoder.encode_audio(s, rate) for s in segs])  # (N, D)
+    every = np.arange(len(segs))
     cats = bank.categories
     clip_cat = np.array([cats.index(c.category) for c in clips])
     relevant_a2t = clip_cat[:, None] == np.arange(len(cats))[None, :]  # (N, C)
@@ -465,7 +472,12 @@ def evaluate_audio(
     if vocabulary is not None:
         # The encoder and the texts it was trained against, without the query-time words
         # (tabletop/data/sound_words.toml): the figures judge what training made.
-        matcher = SoundMatcher(vocabulary, text_encoder, words={})
+        open_vocabulary = None
+        if open_logits is not None:
+            from tabletop.mapping.open_sounds import OpenSoundVocabulary
+
+            open_vocabulary = OpenSoundVocabulary(encoder.class_names, text_encoder)
+        matcher = SoundMatcher(vocabulary, text_encoder, words={}, open_vocabulary=open_vocabulary)
         logit = matcher.logits(audio_emb)  # (N, V) over the vocabulary's categories
         vcats = vocabulary.categories
         sim = np.stack(
@@ -476,20 +488,21 @@ def evaluate_audio(
             1,
         )
 
-        def score(texts: list[str], emb: np.ndarray) -> np.ndarray:
-            rows = []
+        def score(texts: list[str], rows: np.ndarray) -> np.ndarray:
+            out = []
+            logits = None if open_logits is None else open_logits[rows]
             for t in texts:
-                m = matcher.match(t, emb)
-                rows.append(m.log_odds if m.known else np.full(len(emb), -np.inf))
-            return np.stack(rows)
+                m = matcher.match(t, audio_emb[rows], logits)
+                out.append(m.log_odds if m.known else np.full(len(rows), -np.inf))
+            return np.stack(out)
     else:
         sim = audio_emb @ text_encoder.encode_text([bank.caption(c) for c in cats]).T
 
-        def score(texts: list[str], emb: np.ndarray) -> np.ndarray:
-            return text_encoder.encode_text(texts) @ emb.T
+        def score(texts: list[str], rows: np.ndarray) -> np.ndarray:
+            return text_encoder.encode_text(texts) @ audio_emb[rows].T
 
     q = sorted(set(clip_cat.tolist()))
-    t2a_scores = score([bank.caption(cats[i]) for i in q], audio_emb)  # (Q, N)
+    t2a_scores = score([bank.caption(cats[i]) for i in q], every)  # (Q, N)
     t2a_rel = relevant_a2t[:, q].T & (t2a_scores > -np.inf).any(axis=1, keepdims=True)
     out = {
         "audio_recall1_heldout": _recall_at(t2a_scores, t2a_rel, 1),
@@ -499,16 +512,14 @@ def evaluate_audio(
     }
     para = [i for i in q if cats[i] in HELDOUT_QUERIES]
     if para:
-        ps = score([HELDOUT_QUERIES[cats[i]] for i in para], audio_emb)
+        ps = score([HELDOUT_QUERIES[cats[i]] for i in para], every)
         prel = relevant_a2t[:, para].T & (ps > -np.inf).any(axis=1, keepdims=True)
         out["audio_paraphrase_recall1_heldout"] = _recall_at(ps, prel, 1)
         out["audio_paraphrase_recall3_heldout"] = _recall_at(ps, prel, 3)
     if threshold is None:
         threshold = _found_threshold()
     if vocabulary is not None and threshold is not None and len(q) >= 6:
-        out.update(
-            _absent_figures(score, clip_cat, cats, bank, audio_emb, threshold, absent_maps, seed)
-        )
+        out.update(_absent_figures(score, clip_cat, cats, bank, threshold, absent_maps, seed))
     out.update(
         n_clips=len(clips),
         n_queries=len(q),
@@ -520,7 +531,7 @@ def evaluate_audio(
     return out
 
 
-def _absent_figures(score, clip_cat, cats, bank, audio_emb, threshold, n_maps, seed) -> dict:
+def _absent_figures(score, clip_cat, cats, bank, threshold, n_maps, seed) -> dict:
     """``audio_absent_rejected`` and ``audio_present_found`` (see :func:`evaluate_audio`)."""
     rng = np.random.default_rng([seed, 77])
     held = sorted(set(clip_cat.tolist()))
@@ -528,7 +539,7 @@ def _absent_figures(score, clip_cat, cats, bank, audio_emb, threshold, n_maps, s
     for _ in range(n_maps):
         chosen = [int(c) for c in rng.choice(held, size=6, replace=False)]
         rows = [int(rng.choice(np.nonzero(clip_cat == c)[0])) for c in chosen]
-        emb = audio_emb[rows]
+        rows = np.array(rows)
         played = {cats[c] for c in chosen}
         near = played | {x for f in SOUND_FAMILIES if f & played for x in f}
         others = [c for c in cats if c not in near]
@@ -536,10 +547,10 @@ def _absent_figures(score, clip_cat, cats, bank, audio_emb, threshold, n_maps, s
             bank.caption(c) for c in rng.choice(others, size=min(2, len(others)), replace=False)
         ]
         texts += [str(t) for t in rng.choice(ABSENT_QUERIES, size=2, replace=False)]
-        s = expit(score(texts, emb))
+        s = expit(score(texts, rows))
         rejected += int((s.max(axis=1) < threshold).sum())
         asked += len(texts)
-        raw = score([bank.caption(cats[c]) for c in chosen], emb)  # log-odds: no rounding
+        raw = score([bank.caption(cats[c]) for c in chosen], rows)  # log-odds: no rounding
         s = expit(raw)
         found += int(((s.max(axis=1) >= threshold) & (raw.argmax(axis=1) == np.arange(6))).sum())
         present += 6

@@ -205,6 +205,22 @@ class YamnetAudioEncoder:
             return np.zeros((0, self.dim), np.float32)
         return np.stack([self.encode_audio(s, sample_rate) for s in segments])
 
+    @property
+    def class_names(self) -> tuple[str, ...]:
+        """The 521 AudioSet class names of :meth:`encode_audio_with_logits`' logits."""
+        from tabletop.mapping.encoders.yamnet import yamnet_class_names
+
+        return yamnet_class_names()
+
+    def encode_audio_with_logits(
+        self, audio: np.ndarray, sample_rate: int
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """One backbone pass for both: the (384,) embedding of :meth:`encode_audio` and the
+        (521,) float32 AudioSet logits of the segment (each class's max over its patches)."""
+        out = self.backbone_output(audio, sample_rate)
+        emb = self.encode_pooled(pool_patches(out.embeddings))[0]
+        return emb, out.logits.max(axis=0)
+
     def class_scores(self, audio: np.ndarray, sample_rate: int) -> np.ndarray:
         """(521,) float32 in [0, 1]: YAMNet's AudioSet class scores of one segment (the
         sigmoid of each class's logit, the max over the segment's patches)."""
