@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from tabletop.reader.errors import LanguageError, ParseError
+from tabletop.reader.errors import LanguageError, LLMError, ParseError
 
 __all__ = [
     "CodeRejected",
@@ -34,7 +34,3 @@ class CodeRejected(SandboxError, ValueError):
 
 class SandboxLimit(SandboxError, RuntimeError):
     """Running code hit a limit (steps, robot calls, moves or time) and was stopped."""
-
-
-class LLMError(LanguageError, RuntimeError):
-    """The chat endpoint could not be reached or gave no usable code."""

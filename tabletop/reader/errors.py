@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from tabletop.errors import TabletopError
 
-__all__ = ["LanguageError", "ParseError"]
+__all__ = ["LLMError", "LanguageError", "ParseError"]
 
 
 class LanguageError(TabletopError):
@@ -22,3 +22,7 @@ class ParseError(LanguageError, ValueError):
         self.instruction = instruction
         self.fragment = fragment
         self.why = why
+
+
+class LLMError(LanguageError, RuntimeError):
+    """The chat endpoint could not be reached or gave no usable code."""

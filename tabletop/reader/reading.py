@@ -5,6 +5,11 @@ relations, :mod:`tabletop.reader.plan`), the words it corrected and the words it
 wrapper around the request. Readers are chosen by name (:data:`READERS`), as encoder sets are:
 
 - ``rules``: the grammar of :mod:`tabletop.reader.rules` on the words as typed;
+- ``learned`` and ``rules+learned``: the tagger of :mod:`tabletop.reader.learned` alone, or
+  on what the grammar (with the spelling pass) refuses;
+- ``llm``: an OpenAI-compatible endpoint asked for the typed plan as structured output
+  (:mod:`tabletop.reader.llm`; its address from ``TABLETOP_LLM_BASE_URL`` and
+  ``TABLETOP_LLM_MODEL``);
 - ``rules+spelling`` (the default): the same grammar after typing slips are corrected against
   the map's vocabulary (:mod:`tabletop.reader.spelling`), and reading a request from where it
   starts after a lead-in the grammar does not read ("would you be so kind as to ...") when
@@ -24,6 +29,7 @@ from typing import Protocol
 
 from tabletop.errors import ConfigError
 from tabletop.reader.errors import ParseError
+from tabletop.reader.llm import LLMReader
 from tabletop.reader.plan import Step
 from tabletop.reader.rules import QUALIFIERS, parse_instruction
 from tabletop.reader.spelling import Correction, Speller, name_words
@@ -178,6 +184,7 @@ READERS: dict[str, type | functools.partial] = {
     "rules": functools.partial(RulesReader, spelling=False, wrappers=False),
     "learned": LearnedReader,
     "rules+learned": functools.partial(LearnedReader, fallback=True),
+    "llm": LLMReader,
 }
 DEFAULT_READER = "rules+spelling"
 
