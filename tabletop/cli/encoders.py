@@ -52,9 +52,11 @@ def cmd_check_encoders(args: argparse.Namespace) -> int:
         if args.vision_weights is None:  # per instance in a map: the default encoder set's
             inst = evaluate_instances("default", cache_dir=args.cache_dir)
             out.update({k: v for k, v in inst.items() if k.startswith(("vision_", "instance_"))})
-        a = evaluate_audio(_default_audio_encoder())
+        audio = _default_audio_encoder()
+        a = evaluate_audio(audio)
         # the log-mel network of the earlier default, measured in the same run beside it
         old = evaluate_audio(MelCNNAudioEncoder())
+        a.update(_open_sound_figures(audio))
         for snr in (15, 5):
             seg = segmentation_figures(snr_db=float(snr))
             out[f"audio_own_segment_{snr}db"] = seg["own_segment"]
@@ -87,6 +89,19 @@ def _default_audio_encoder():
     from tabletop.mapping.encoders.registry import _default_audio
 
     return _default_audio("yamnet", None)[0]
+
+
+def _open_sound_figures(encoder) -> dict:
+    """``audio_open_found`` / ``audio_open_refused`` on the out-of-bank set, where one ships."""
+    from tabletop.errors import AssetError
+    from tabletop.eval.open_sounds import evaluate_open_sounds
+    from tabletop.sim.sound_bank import SoundBank
+
+    try:
+        out_of_bank = SoundBank.out_of_bank()
+    except (AttributeError, AssetError, FileNotFoundError):
+        return {}
+    return evaluate_open_sounds(out_of_bank, encoder)
 
 
 def _is_audio_head(path: Path) -> bool:
