@@ -157,3 +157,28 @@ def test_the_default_encoder_places_held_out_recordings_and_refuses_unplayed_sou
     for absent in ("the sound of a horse neighing", "the sound of a trumpet playing"):
         assert not m.heatmap(absent, 10.0, text, judge).found, absent
     assert not m.heatmap("a submarine sonar ping", 10.0, text, judge).found
+
+
+def test_segments_keep_class_logits_for_sounds_the_bank_never_had():
+    """With the YAMNet encoder each segment keeps its AudioSet logits: a sound outside the
+    bank (a 440 Hz tone, "a dial tone") is found where it played, one that never played
+    (a foghorn) is refused, and a bank sound still goes through the bank's vocabulary."""
+    from tabletop.mapping.encoders.yamnet_audio import YamnetAudioEncoder
+    from tabletop.sim.sound_bank import SoundBank
+
+    enc, text = YamnetAudioEncoder(), text_encoder()
+    x = _track([(1.0, 2.5)], seconds=10.0)
+    dog = max(SoundBank.default().clips("dog", split="train"), key=lambda c: len(c.load()))
+    bark = dog.load()[: 2 * RATE]
+    x[6 * RATE : 6 * RATE + len(bark)] += bark
+    m = AudioModule(GRID, vocabulary=enc.vocabulary)
+    t = np.arange(0, 10.0, 1 / 30)
+    m.add(x, RATE, t, _poses(t, lambda s: (0.1 if s < 4 else 0.5, 0.0)), enc)
+    assert len(m.class_logits) == len(m) >= 2 and m.class_logits[0].shape == (521,)
+    assert len(m.class_names) == 521
+    tone = m.match("a dial tone", text)
+    assert tone.categories and all(c.startswith("audioset:") for c in tone.categories)
+    assert m.segments[int(np.argmax(tone.scores))].start_s < 4
+    assert m.heatmap("a dial tone", 10.0, text, judge_at(0.187)).found
+    assert not m.heatmap("a foghorn", 10.0, text, judge_at(0.187)).found
+    assert m.match("a dog barking", text).categories == ("dog",)
