@@ -222,6 +222,58 @@ def test_an_absent_goal_succeeds_only_when_nothing_is_found(target):
         assert r.error_m is None and r.target_error_m is None
 
 
+def test_an_instruction_the_reader_refuses_is_a_miss_not_a_skip():
+    from tabletop.eval.results import _rate
+    from tabletop.eval.runner import _run_goal
+    from tabletop.eval.tasks import parse_tasks
+    from tabletop.eval.truth import resolve_truth
+    from tabletop.reader.reading import DEFAULT_READER
+
+    goal = {
+        "id": "instruction-0",
+        "type": "instruction",
+        "text": "zorp blick the flurble",
+        "instruction": "zorp blick the flurble",
+        "truth": {"point": [0.5, 0.0, 0.05]},
+    }
+    tf = parse_tasks(
+        {"format": "tabletop-tasks", "version": 1, "scene": SCENE, "goals": [goal]}, "t.toml"
+    )
+    robot = _Robot()
+    robot.history = []
+    ctx = SimpleNamespace(
+        robot=robot, keep_heatmaps=set(), heatmaps={}, images={}, radius=0.10,
+        distance=lambda region, p: region.distance(p), reader=DEFAULT_READER,
+    )  # fmt: skip
+    r = _run_goal(ctx, tf.goals[0], "s", resolve_truth(tf.goals[0].truth, None))
+    assert r.status == "failed" and not r.success and not robot.moves
+    assert r.reason.startswith("ParseError: ")
+    rate = _rate([r])
+    assert rate["attempted"] == 1 and rate["success_rate"] == 0.0 and rate["unavailable"] == 0
+
+
+@pytest.mark.parametrize("target", [None, (0.5, 0.1, 0.05)])
+def test_an_absent_place_succeeds_only_when_nothing_is_found(target):
+    from tabletop.eval.runner import _run_goal
+    from tabletop.eval.tasks import parse_tasks
+    from tabletop.eval.truth import resolve_truth
+
+    place = {
+        "id": "absent-area-0",
+        "type": "absent",
+        "text": "the garden shed",
+        "query": {"area": "the garden shed"},
+        "truth": {"absent": True},
+    }
+    tf = parse_tasks(
+        {"format": "tabletop-tasks", "version": 1, "scene": SCENE, "goals": [place]}, "t.toml"
+    )
+    robot = _Robot(target)
+    ctx = SimpleNamespace(robot=robot, keep_heatmaps=set(), heatmaps={}, images={})
+    r = _run_goal(ctx, tf.goals[0], "s", resolve_truth(tf.goals[0].truth, None))
+    assert r.success == (target is None) and len(robot.moves) == (target is not None)
+
+
 def test_an_absent_goal_naming_a_scene_object_is_refused_before_anything_moves(run, tmp_path):
     from tabletop.eval.runner import evaluate_task_file
 

@@ -180,19 +180,21 @@ def test_valid_file_parses_with_sequences_first():
         ),
         (lambda d: d.update(noise=[1]), ["[noise] must be a table"]),
         (lambda d: d.update(name=7), ["name must be a string, got 7"]),
-        # absent goals: one obj= or sound= part, truth { absent = true }, nowhere else
+        # absent goals: one obj=, sound= or area= part, truth { absent = true }, nowhere else
         (
             lambda d: d["goals"][5]["query"].update(sound="a lion roaring"),
             [
                 "'x'",
                 "an 'absent' goal asks for one thing",
-                "['obj', 'sound']",
+                "['obj', 'sound', 'area']",
                 "got ['obj', 'sound']",
             ],
         ),
         (
-            lambda d: d["goals"][5].update(query={"area": "the kitchen"}),
-            ["an 'absent' goal asks for one thing", "got ['area']"],
+            lambda d: d["goals"][5].update(
+                query={"img": {"eye": [0.3, 0.0, 0.4], "look_at": [0.5, 0.0, 0.0]}}
+            ),
+            ["an 'absent' goal asks for one thing", "got ['img']"],
         ),
         (
             lambda d: d["goals"][5].update(truth={"object": "red_mug"}),
@@ -240,6 +242,7 @@ def test_absent_goal_parses_and_resolves_to_nowhere():
         (("obj", "mug"), "(object red_mug)"),  # the kind
         (("sound", "a dog"), "(sound dog)"),  # the caption
         (("sound", "dog"), "(sound dog)"),  # the category
+        (("area", "the left side of the table"), "(area left side of the table)"),
     ],
 )
 def test_an_absent_goal_naming_what_the_scene_has_is_refused(part, needle):

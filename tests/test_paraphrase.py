@@ -1,7 +1,8 @@
 """Paraphrase suites (tabletop/eval/paraphrase.py): the bank's two pools are disjoint and share
 nothing with training texts, generation is seeded and deterministic (on a ground truth built
-from the scene spec, no scan), every instruction parses, and the shipped suites load, cover
-every goal type with absent goals, and sit on seeds nothing else uses.
+from the scene spec, no scan), every instruction is kept as the bank words it (never filtered
+through the reader), absent goals include places, and the shipped suites load, cover every
+goal type with absent goals, and sit on seeds nothing else uses.
 
 Failure messages name bank entries and goal ids, never held-out phrasings: the team must not
 read them."""
@@ -251,11 +252,14 @@ def test_generation_is_seeded_and_deterministic(pool):
     assert to_toml(_doc(pool, 32, gt_seed=31)) != a  # another seed words and draws otherwise
 
 
+def _template(t: str) -> re.Pattern:
+    """A bank template as a pattern: each placeholder any words."""
+    return re.compile(re.sub(r"\\\{[a-z]\\\}", ".+", re.escape(t)))
+
+
 @pytest.mark.parametrize("pool", POOLS)
 @pytest.mark.parametrize("seed", [31, 33, 35])
 def test_generated_goals_are_asked_the_way_people_ask(pool, seed):
-    from tabletop.language import parse_instruction
-
     gt = spec_ground_truth(seed)
     doc = _doc(pool, seed)
     types = Counter(g["type"] for g in doc["goals"])
@@ -276,13 +280,87 @@ def test_generated_goals_are_asked_the_way_people_ask(pool, seed):
                 assert any(all(w in words for w in cw.split()) for cw in colour_words[o.color]), g[
                     "id"
                 ]
-        if g["type"] == "instruction":
-            steps = parse_instruction(g["instruction"])  # the offline parser reads it
-            assert len(steps) == 1, g["id"]
+        if g["type"] == "instruction":  # one of the bank's templates, filled
+            ins = BANKS[pool].instructions
+            verbs = [re.escape(v) + " .+" for v in ins["verbs"]]
+            forms = [_template(t) for k, ts in ins.items() if k != "verbs" for t in ts]
+            forms += [re.compile(v) for v in verbs]
+            assert any(f.fullmatch(g["instruction"]) for f in forms), g["id"]
         if g["type"] == "absent":
             assert g["truth"] == {"absent": True} and len(g["query"]) == 1
         # a phrase with its own determiner gets no "the" ("a kiwi fruit", "my car keys")
         assert not re.search(r"\bthe (?:a|an|the|my|your|some) ", g["text"].lower()), g["id"]
+
+
+def _tune_text() -> str:
+    return (DATA_DIR / "paraphrases" / "tune.toml").read_text()
+
+
+def test_instructions_are_kept_as_the_bank_words_them_even_where_the_reader_refuses(tmp_path):
+    from tabletop.language import ParseError, parse_instruction
+
+    text = _tune_text()
+    start = text.index("[instructions]\nverbs = [")
+    end = text.index("]", start + len("[instructions]\nverbs = ["))
+    p = tmp_path / "tune.toml"
+    p.write_text(text[:start] + '[instructions]\nverbs = ["zorp blick"' + text[end:])
+    bank = load_bank("tune", p)
+    stem, scene, scan = suite_sections("tune")[0]
+    doc = paraphrase_suite("tune", stem, scene, scan, spec_ground_truth(31), seed=31, bank=bank)
+    said = [g["instruction"] for g in doc["goals"] if g["type"] == "instruction"]
+    verbed = [t for t in said if t.startswith("zorp blick ")]
+    assert verbed, said  # kept, not retried until the reader reads it
+    with pytest.raises(ParseError):
+        parse_instruction(verbed[0])
+
+
+def test_absent_goals_include_places_asked_as_areas():
+    bank = BANKS["tune"]
+    assert bank.absent_areas and all(p.startswith("the ") for p in bank.absent_areas)
+    doc = _doc("tune", 31)
+    areas = [g for g in doc["goals"] if g["type"] == "absent" and "area" in g["query"]]
+    assert len(areas) == 2, [g["id"] for g in doc["goals"] if g["type"] == "absent"]
+    for g in areas:
+        assert g["id"].startswith("absent-area-") and g["truth"] == {"absent": True}
+        assert g["query"]["area"] == g["text"] and g["text"] in bank.absent_areas
+
+
+def test_a_pool_without_absent_places_loads_and_words_no_absent_area(tmp_path):
+    text = _tune_text()
+    start = text.index("[absent.areas]")
+    end = text.index("[instructions]")
+    p = tmp_path / "tune.toml"
+    p.write_text(text[:start] + text[end:])
+    bank = load_bank("tune", p)
+    assert bank.absent_areas == ()
+    stem, scene, scan = suite_sections("tune")[0]
+    doc = paraphrase_suite("tune", stem, scene, scan, spec_ground_truth(31), seed=31, bank=bank)
+    absent = [g for g in doc["goals"] if g["type"] == "absent"]
+    assert len(absent) >= MIN_ABSENT and not [g for g in absent if "area" in g["query"]]
+
+
+def test_a_broken_absent_places_entry_names_it(tmp_path):
+    text = _tune_text()
+    p = tmp_path / "tune.toml"
+    start = text.index("[absent.areas]")
+    end = text.index("[instructions]")
+    p.write_text(text[:start] + "[absent.areas]\nphrases = []\n\n" + text[end:])
+    with pytest.raises(AssetError, match=r"\[absent.areas\].phrases: expected a non-empty list"):
+        load_bank("tune", p)
+    p.write_text(text[:start] + '[absent.areas]\nplaces = ["the attic"]\n\n' + text[end:])
+    with pytest.raises(AssetError, match=r"\[absent.areas\]: unknown keys \['places'\]"):
+        load_bank("tune", p)
+
+
+def test_an_absent_place_the_scene_has_is_refused():
+    from tabletop.eval.tasks import Landmark, TaskFileError
+    from tabletop.eval.truth import check_absent
+
+    gt = spec_ground_truth(31)
+    name = gt.areas[0].name
+    with pytest.raises(TaskFileError, match=f"asks area='the {name}', which this recording has"):
+        check_absent(Landmark((("area", f"the {name}"),), "area"), gt, "goal 'x'")
+    check_absent(Landmark((("area", "the attic"),), "area"), gt, "goal 'x'")  # no error
 
 
 # ---------------------------------------------------------------------------- shipped suites

@@ -31,11 +31,11 @@ absent. A *query* goal (every type but spatial ones and instructions) names map 
 (``obj``, ``sound``, ``img``, ``area``); with several, ``primary`` is the sharp one and the
 others broad constraints, as in :meth:`tabletop.robot.RobotAPI.get_major_map`. A spatial goal
 has a ``relation`` and ``landmarks`` (each a query). An instruction goal has free text for the
-instruction parser. An *absent* goal asks for one thing (``obj`` or ``sound``) that is not
-there; its truth is ``{ absent = true }`` and it succeeds when the map finds nothing. Ground truth
-is given by reference to the recording's ground truth (``object``, ``sound`` [+ ``occurrence``],
-``area``), explicitly (``point``, ``box``, ``camera``), as a relation of other truths
-(``relation`` + ``of``), or as ``absent``.
+instruction parser. An *absent* goal asks for one thing (``obj``, ``sound`` or ``area``: a place
+the table does not have) that is not there; its truth is ``{ absent = true }`` and it succeeds
+when the map finds nothing. Ground truth is given by reference to the recording's ground
+truth (``object``, ``sound`` [+ ``occurrence``], ``area``), explicitly (``point``, ``box``,
+``camera``), as a relation of other truths (``relation`` + ``of``), or as ``absent``.
 """
 
 from __future__ import annotations
@@ -86,8 +86,8 @@ GOAL_TYPES = (
 )
 #: Query parts, as the robot API names them.
 MODALITIES = ("obj", "sound", "img", "area")
-#: What an ``absent`` goal may ask for (one of them).
-ABSENT_MODALITIES = ("obj", "sound")
+#: What an ``absent`` goal may ask for (one of them): a thing, a sound, a place.
+ABSENT_MODALITIES = ("obj", "sound", "area")
 #: Spatial relations and how many landmarks each takes.
 RELATIONS = {
     "between": 2,

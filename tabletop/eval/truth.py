@@ -212,7 +212,8 @@ def _words(text: str) -> str:
 def check_absent(query: Landmark, ground_truth: GroundTruth, where: str = "goal") -> None:
     """An ``absent`` goal's query must not be, word for word (case and leading articles aside),
     what the recording calls something it has: an object's label, name or kind, an inserted
-    sound's caption or category. (Synonyms are the suite writer's responsibility.)
+    sound's caption or category, a named table area. (Synonyms are the suite writer's
+    responsibility.)
 
     Raises:
         TaskFileError: naming the query and what the scene has under that name.
@@ -231,6 +232,8 @@ def check_absent(query: Landmark, ground_truth: GroundTruth, where: str = "goal"
                 for e in gt.sound_events
                 for n in (e.caption, e.category.replace("_", " "))
             }
+        elif kind == "area":
+            names = {a.name: f"area {a.name}" for a in gt.areas}
         else:
             continue
         hit = {_words(n): what for n, what in names.items()}.get(_words(str(text)))
