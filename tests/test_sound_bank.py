@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import hashlib
+import importlib.util
 import json
 import shutil
+import sys
 import wave
 from pathlib import Path
 
@@ -17,6 +19,7 @@ from tabletop.sim.sound_bank import (
     CAPTIONS,
     CAPTIONS_PATH,
     DEFAULT_BANK_DIR,
+    OUT_OF_BANK_DIR,
     SoundBank,
     SoundClip,
     _load_captions,
@@ -25,12 +28,14 @@ from tabletop.sim.sound_bank import (
 
 MANIFEST = DEFAULT_BANK_DIR / "manifest.json"
 #: SPDX ids that may appear in the shipped bank (all openly licensed).
-OPEN_LICENCES = {"CC0-1.0", "CC-BY-3.0", "CC-BY-4.0", "CC-BY-SA-3.0", "GPL-2.0-only",
-                 "GPL-2.0-or-later", "GPL-3.0-only", "GPL-3.0-or-later", "GFDL-1.3-only",
-                 "LAL-1.2", "LGPL-3.0-or-later", "MIT",
+OPEN_LICENCES = {"CC0-1.0", "CC-BY-3.0", "CC-BY-4.0", "CC-BY-SA-3.0", "GPL-1.0-or-later",
+                 "GPL-2.0-only", "GPL-2.0-or-later", "GPL-3.0-only", "GPL-3.0-or-later",
+                 "GFDL-1.3-only", "LAL-1.2", "LGPL-3.0-or-later", "MIT",
                  "LicenseRef-public-domain"}  # fmt: skip
 #: Categories with fewer clips than this are train-only.
 MIN_HELDOUT_CATEGORY = 3
+#: Categories with at least 6 distinct recordings (34 in the first build, 36 in the second).
+MIN_CATEGORIES_WITH_SIX = 36
 
 
 @pytest.fixture(scope="module")
@@ -55,7 +60,7 @@ def test_bank_size_and_coverage(bank):
     assert len(cats) >= 60
     counts = {c: len(bank.clips(category=c)) for c in cats}
     assert sum(n >= 3 for n in counts.values()) >= 55
-    assert sum(n >= 6 for n in counts.values()) >= 34
+    assert sum(n >= 6 for n in counts.values()) >= MIN_CATEGORIES_WITH_SIX
     for must in ("dog", "rooster", "cat", "cow", "clock_alarm", "camera_shutter", "telephone"):
         assert must in cats
     assert bank.sample_rate == 16000
@@ -86,16 +91,39 @@ def test_every_category_with_three_clips_has_train_and_heldout(bank):
             assert not held, cat
 
 
+def _sha(clip: dict) -> str:
+    return hashlib.sha256(clip["id"].encode()).hexdigest()
+
+
 def test_split_follows_the_documented_rule(manifest):
-    """Per category: n < 3 -> all train; n >= 3 -> max(1, round(n / 4)) heldout, smallest
-    sha256(id) first."""
+    """Per category and build batch: with n clips of batches up to b, n < 3 -> all train,
+    n >= 3 -> max(1, round(n / 4)) heldout; batch b's clips (smallest sha256(id) first) make up
+    the shortfall and earlier clips keep their split."""
     by_cat: dict[str, list[dict]] = {}
     for c in manifest["clips"]:
         by_cat.setdefault(c["category"], []).append(c)
     for cat, clips in by_cat.items():
-        order = sorted(clips, key=lambda c: hashlib.sha256(c["id"].encode()).hexdigest())
+        held = 0
+        for b in sorted({c["batch"] for c in clips}):
+            n = sum(c["batch"] <= b for c in clips)
+            k = 0 if n < MIN_HELDOUT_CATEGORY else max(1, round(n / 4))
+            new = sorted((c for c in clips if c["batch"] == b), key=_sha)
+            need = min(max(0, k - held), len(new))
+            assert [c["split"] for c in new] == ["heldout"] * need + ["train"] * (
+                len(new) - need
+            ), (cat, b)
+            held += need
+
+
+def test_the_first_batch_keeps_the_one_batch_rule(manifest):
+    """Batch-1 clips are split as if no later batch existed: a model trained on the first bank
+    has heard no held-out clip, old or new."""
+    first = [c for c in manifest["clips"] if c["batch"] == 1]
+    assert len(first) == 418
+    for cat in {c["category"] for c in first}:
+        clips = sorted((c for c in first if c["category"] == cat), key=_sha)
         k = 0 if len(clips) < MIN_HELDOUT_CATEGORY else max(1, round(len(clips) / 4))
-        assert [c["split"] for c in order] == ["heldout"] * k + ["train"] * (len(clips) - k), cat
+        assert [c["split"] for c in clips] == ["heldout"] * k + ["train"] * (len(clips) - k), cat
 
 
 def test_manifest_documents_the_split_rule(manifest):
@@ -117,7 +145,7 @@ def test_every_clip_records_source_author_and_licence(bank, manifest):
         assert entry["source_version"] == src["version"]
         # an audio file, or the SoundFont / TiMidity++ patch set a clip was rendered from
         audio = (".wav", ".mp3", ".ogg", ".oga", ".flac", ".sf2", ".sf3", ".cfg")
-        assert entry["source_path"].endswith(audio), entry["id"]
+        assert entry["source_path"].lower().endswith(audio), entry["id"]
         if entry["source_path"].endswith((".sf2", ".sf3", ".cfg")):
             assert entry["notes"].startswith("rendered"), entry["id"]
         assert (DEFAULT_BANK_DIR / entry["licence_record"]).is_file(), entry["id"]
@@ -132,6 +160,19 @@ def test_every_clip_records_source_author_and_licence(bank, manifest):
     attribution = (DEFAULT_BANK_DIR / "ATTRIBUTION.md").read_text(encoding="utf-8")
     for entry in manifest["clips"]:
         assert f"`{entry['id']}`" in attribution
+
+
+@pytest.mark.parametrize("root", [DEFAULT_BANK_DIR, OUT_OF_BANK_DIR], ids=["bank", "out_of_bank"])
+def test_copyleft_clips_ship_their_licence_texts(root):
+    """GPL, LGPL and GFDL clips ship the licence's full text (in licenses/common/)."""
+    doc = json.loads((root / "manifest.json").read_text(encoding="utf-8"))
+    texts = doc["licence_texts"]
+    for lic in {c["licence"] for c in doc["clips"]}:
+        if lic.startswith(("GPL", "LGPL", "GFDL")):
+            assert texts.get(lic), lic
+            for path in texts[lic]:
+                assert (root / path).stat().st_size > 5000, path
+    assert "GFDL-1.3-only" not in {c["licence"] for c in doc["clips"] if c["batch"] > 1}
 
 
 def test_clip_files_are_16k_mono_pcm16_as_recorded(manifest):
@@ -155,8 +196,9 @@ def test_loaded_clips_are_float32_peak_normalised(bank, audio):
         assert float(np.sqrt(np.mean(x.astype(np.float64) ** 2))) > 0.01, clip.id
 
 
-def _max_ncc(a: np.ndarray, b: np.ndarray) -> float:
-    """Largest normalised cross-correlation over shifts where both overlap parts are loud."""
+def _max_ncc(a: np.ndarray, b: np.ndarray, min_overlap: int = 2000) -> float:
+    """Largest normalised cross-correlation over shifts where both overlap parts are loud and
+    overlap by at least ``min_overlap`` samples (0.25 s at 8 kHz)."""
     a = a.astype(np.float64)
     b = b.astype(np.float64)
     la, lb = len(a), len(b)
@@ -168,7 +210,7 @@ def _max_ncc(a: np.ndarray, b: np.ndarray) -> float:
     eb = np.concatenate([[0.0], np.cumsum(b**2)])
     a0, a1 = np.maximum(lags, 0), np.minimum(la, lags + lb)
     e_a, e_b = ea[a1] - ea[a0], eb[a1 - lags] - eb[a0 - lags]
-    ok = (a1 - a0 >= 2000) & (e_a >= 0.1 * ea[-1]) & (e_b >= 0.1 * eb[-1])
+    ok = (a1 - a0 >= min_overlap) & (e_a >= 0.1 * ea[-1]) & (e_b >= 0.1 * eb[-1])
     return float(np.max(np.abs(cc[ok]) / np.sqrt(e_a[ok] * e_b[ok]))) if ok.any() else 0.0
 
 
@@ -289,3 +331,70 @@ def test_caption_table_is_the_data_file_read_once_and_read_only(tmp_path):
     bad.write_text("dog = \n")
     with pytest.raises(AssetError, match="unreadable"):
         _load_captions(bad)
+
+
+# --------------------------------------------------------------------------- the out-of-bank set
+@pytest.fixture(scope="module")
+def oob_manifest() -> dict:
+    return json.loads((OUT_OF_BANK_DIR / "manifest.json").read_text(encoding="utf-8"))
+
+
+def test_out_of_bank_set_loads_and_is_for_evaluation_only(oob_manifest):
+    oob = SoundBank.out_of_bank()
+    assert oob is SoundBank.out_of_bank()
+    assert len(oob.categories) >= 10
+    assert oob.sample_rate == 16000
+    assert not oob.clips(split="train")  # nothing here may be trained on
+    for cat, entry in oob_manifest["categories"].items():
+        assert entry["caption"].startswith("the sound of "), cat
+        assert entry["audioset"].strip(), cat  # the AudioSet class it stands for
+        assert oob.clips(category=cat), cat
+    assert "evaluation only" in oob_manifest["processing"]["split"]
+
+
+def _build_script():
+    """tools/build_sound_bank.py as a module (it only defines its tables and functions)."""
+    path = Path(__file__).parents[1] / "tools" / "build_sound_bank.py"
+    spec = importlib.util.spec_from_file_location("build_sound_bank", path)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules.setdefault(spec.name, module)  # dataclasses look their module up while defined
+    spec.loader.exec_module(sys.modules[spec.name])
+    return sys.modules[spec.name]
+
+
+def test_out_of_bank_categories_are_not_bank_categories(bank, oob_manifest):
+    build = _build_script()
+    planned = set(bank.categories) | set(build.HELD_BACK)  # shipped and held-back categories
+    shared = sorted(set(oob_manifest["categories"]) & planned)
+    assert not shared, f"out-of-bank categories that the bank has or plans: {shared}"
+    assert set(oob_manifest["categories"]) == set(build.OUT_OF_BANK_CATEGORIES)
+    audioset = [e["audioset"] for e in oob_manifest["categories"].values()]
+    assert len(set(audioset)) == len(audioset)
+
+
+def test_every_out_of_bank_clip_records_source_author_and_licence(oob_manifest):
+    sources = oob_manifest["sources"]
+    attribution = (OUT_OF_BANK_DIR / "ATTRIBUTION.md").read_text(encoding="utf-8")
+    for entry in oob_manifest["clips"]:
+        assert entry["licence"] in OPEN_LICENCES, entry["id"]
+        assert entry["author"].strip(), entry["id"]
+        src = sources[entry["source_package"]]
+        assert entry["source_version"] == src["version"]
+        assert entry["licence_record"] in src["licence_records"], entry["id"]
+        assert (OUT_OF_BANK_DIR / entry["licence_record"]).stat().st_size > 200, entry["id"]
+        path = OUT_OF_BANK_DIR / entry["file"]
+        assert hashlib.sha256(path.read_bytes()).hexdigest() == entry["sha256"], entry["id"]
+        with wave.open(str(path)) as w:
+            assert (w.getnchannels(), w.getsampwidth(), w.getframerate()) == (1, 2, 16000)
+        assert 0.05 <= entry["duration_s"] <= 4.0
+        assert f"`{entry['id']}`" in attribution
+
+
+def test_out_of_bank_clips_are_no_bank_recordings(audio):
+    """Every out-of-bank clip differs from every bank clip and every other out-of-bank clip
+    (the duplicate check of the bank, at 4 kHz)."""
+    oob = {c.id: resample(c.load(), 16000, 4000) for c in SoundBank.out_of_bank()}
+    bank = {i: resample(x, 16000, 4000) for i, x in audio.items()}
+    for i, (a, x) in enumerate(oob.items()):
+        for b, y in [*bank.items(), *list(oob.items())[i + 1 :]]:
+            assert _max_ncc(x, y, min_overlap=1000) < 0.8, (a, b)

@@ -31,6 +31,7 @@ __all__ = [
     "CAPTIONS",
     "CAPTIONS_PATH",
     "DEFAULT_BANK_DIR",
+    "OUT_OF_BANK_DIR",
     "SPLITS",
     "SoundBank",
     "SoundClip",
@@ -40,6 +41,10 @@ __all__ = [
 
 #: Where the shipped bank lives.
 DEFAULT_BANK_DIR = DATA_DIR / "sounds"
+#: The out-of-bank set: recordings of sound categories the bank lacks, in the bank's format,
+#: every clip "heldout". It is for evaluation only (hearing sounds never taught) and must never
+#: be trained on.
+OUT_OF_BANK_DIR = DEFAULT_BANK_DIR / "out_of_bank"
 #: The two splits: clips for training encoders, and clips no training ever sees.
 SPLITS = ("train", "heldout")
 #: The caption table: category -> caption, for all 50 ESC-50 categories and the shipped bank's.
@@ -180,6 +185,12 @@ class SoundBank:
     def default(cls) -> SoundBank:
         """The bank shipped in ``tabletop/data/sounds`` (loaded once, then shared)."""
         return _default_bank()
+
+    @classmethod
+    def out_of_bank(cls) -> SoundBank:
+        """The out-of-bank set shipped in ``tabletop/data/sounds/out_of_bank``: categories the
+        bank lacks, for evaluation only (loaded once, then shared)."""
+        return _out_of_bank()
 
     @classmethod
     def from_manifest(cls, path: str | Path) -> SoundBank:
@@ -358,3 +369,8 @@ def _load_manifest(path: Path) -> SoundBank:
 @functools.lru_cache(maxsize=1)
 def _default_bank() -> SoundBank:
     return _load_manifest(DEFAULT_BANK_DIR / "manifest.json")
+
+
+@functools.lru_cache(maxsize=1)
+def _out_of_bank() -> SoundBank:
+    return _load_manifest(OUT_OF_BANK_DIR / "manifest.json")
