@@ -29,7 +29,14 @@ def _logits(hot: dict[int, dict[str, float]], n: int = 3) -> np.ndarray:
 
 def test_a_named_class_is_found_where_it_played_and_only_there(text):
     ov = OpenSoundVocabulary(NAMES, text)
-    z = _logits({0: {"Dog": 3, "Bark": 3}, 1: {"Doorbell": 2, "Noise": 0}, 2: {"Rain": 2}})
+    # every segment sounds like a few things; "Noise" names no source and is no competitor
+    z = _logits(
+        {
+            0: {"Dog": 3, "Bark": 3, "Speech": 2},
+            1: {"Doorbell": 2, "Speech": 1, "Rain": 0, "Dog": 0, "Noise": 5},
+            2: {"Rain": 2, "Speech": 1, "Bark": 0.5},
+        }
+    )
     q = ov.match("a doorbell", z)
     assert q.known and q.classes == ("Doorbell",) and q.nearest == "Doorbell"
     assert np.argmax(q.scores) == 1 and q.scores[1] > 0.5
@@ -37,6 +44,10 @@ def test_a_named_class_is_found_where_it_played_and_only_there(text):
     # an absent sound's mass stays near zero on every segment: refused at any operating point
     assert ov.match("a siren wailing", z).scores.max() < 0.01
     np.testing.assert_allclose(q.scores, 1 / (1 + np.exp(-q.log_odds)))
+    # the score: the asked logit over the third strongest other source-naming class, less 1
+    assert q.log_odds[1] == pytest.approx(2 - 0 - 1)
+    with pytest.raises(ConfigError, match="rank"):
+        OpenSoundVocabulary(NAMES, text, rank=0)
 
 
 def test_generic_names_and_far_queries_ask_for_nothing(text):
@@ -55,7 +66,13 @@ def test_the_matcher_keeps_known_sounds_and_opens_for_others(text):
     ov = OpenSoundVocabulary(NAMES, text)
     m = SoundMatcher(vocab, text, words={}, others={}, open_vocabulary=ov)
     emb = np.asarray(text.encode_text(["the sound of a dog barking", "rain", "a bell"]), np.float32)
-    z = _logits({0: {"Dog": 3, "Bark": 3}, 1: {"Rain": 2}, 2: {"Doorbell": 2}})
+    z = _logits(
+        {
+            0: {"Dog": 3, "Bark": 3, "Speech": 1},
+            1: {"Rain": 2, "Speech": 1, "Siren": 0},
+            2: {"Doorbell": 2, "Speech": 1, "Rain": 0, "Siren": 0},
+        }
+    )
     dog = m.match("a dog barking", emb, z)
     assert dog.categories == ("dog",)  # the bank answers what it knows
     bell = m.match("a doorbell", emb, z)
