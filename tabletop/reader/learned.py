@@ -155,13 +155,15 @@ def word_features(sentences: list[list[str]], batch: int = 64) -> list[np.ndarra
     import torch
 
     tok, model = _minilm()
+    device = next(model.parameters()).device
     out: list[np.ndarray] = []
     for i in range(0, len(sentences), batch):
         chunk = sentences[i : i + batch]
         enc = tok(chunk, is_split_into_words=True, return_tensors="pt", padding=True,
                   truncation=True, max_length=128)  # fmt: skip
         with torch.inference_mode():
-            h = model(input_ids=enc["input_ids"], attention_mask=enc["attention_mask"])[0]
+            ids, mask = enc["input_ids"].to(device), enc["attention_mask"].to(device)
+            h = model(input_ids=ids, attention_mask=mask)[0].float().cpu()
         h = h.numpy()
         for j, words in enumerate(chunk):
             first: dict[int, int] = {}

@@ -135,6 +135,12 @@ class RulesReader:
         raise err
 
 
+def read_clause(clause: str, robot: str = "arm") -> tuple[Step, ...]:
+    """The grammar's reading of one clause, after a lead-in it does not read (how the learned
+    reader reads a step it labels as a motion)."""
+    return _CLAUSE_READER.understand(clause, robot).steps
+
+
 class LearnedReader:
     """The learned tagger (:mod:`tabletop.reader.learned`) on the words after the spelling
     pass; a step it labels as a motion (compass moves, a base's own motions) is read by the
@@ -174,9 +180,11 @@ class LearnedReader:
             raise ParseError(
                 text, " ".join(qualifiers), "the robot cannot honour how it is asked to move"
             )
-        steps = decode(text, words, roles, rels, robot, parse_instruction)
+        steps = decode(text, words, roles, rels, robot, read_clause)
         return Reading(text, read, steps, fixes, (), self.name)
 
+
+_CLAUSE_READER = RulesReader(spelling=False, wrappers=True)
 
 #: Readers by name; the first is the default.
 READERS: dict[str, type | functools.partial] = {

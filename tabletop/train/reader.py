@@ -56,13 +56,13 @@ def _features(texts, cache_dir: Path | None) -> list[np.ndarray]:
     return feats
 
 
-def _fit(feats, texts, cfg: TaggerConfig, epochs: int, seed: int, progress=None):
+def _fit(feats, texts, cfg: TaggerConfig, epochs: int, seed: int, progress=None, device="cpu"):
     import torch
     from torch import nn
 
     torch.manual_seed(seed)
     rng = np.random.default_rng(seed)
-    net = _net(cfg)
+    net = _net(cfg).to(device)
     opt = torch.optim.AdamW(net.parameters(), lr=3e-3, weight_decay=1e-4)
     role_ix = {r: i for i, r in enumerate(ROLES)}
     rel_ix = {r: i for i, r in enumerate(RELATIONS)}
@@ -88,6 +88,7 @@ def _fit(feats, texts, cfg: TaggerConfig, epochs: int, seed: int, progress=None)
                 x[k, :n] = torch.from_numpy(feats[j])
                 y_role[k, :n] = torch.from_numpy(ys[j][0])
                 y_rel[k, :n] = torch.from_numpy(ys[j][1])
+            x, y_role, y_rel = x.to(device), y_role.to(device), y_rel.to(device)
             role, rel = net(x, lengths)
             loss = loss_fn(role.reshape(-1, len(ROLES)), y_role.reshape(-1)) + loss_fn(
                 rel.reshape(-1, len(RELATIONS)), y_rel.reshape(-1)
@@ -97,12 +98,12 @@ def _fit(feats, texts, cfg: TaggerConfig, epochs: int, seed: int, progress=None)
             nn.utils.clip_grad_norm_(net.parameters(), 5.0)
             opt.step()
             sched.step()
-            total += float(loss) * len(idx)
+            total += float(loss.detach()) * len(idx)
         log.info("reader epoch %d/%d: loss %.4f", epoch + 1, epochs, total / len(texts))
         if progress is not None:
             progress(epoch + 1, epochs)
     net.eval()
-    return net
+    return net.cpu()
 
 
 def plan_key(steps) -> tuple:
@@ -134,9 +135,9 @@ def plan_key(steps) -> tuple:
 
 
 def _rules(clause: str, robot: str):
-    from tabletop.reader.rules import parse_instruction
+    from tabletop.reader.reading import read_clause
 
-    return parse_instruction(clause, robot)
+    return read_clause(clause, robot)
 
 
 def _plans_right(texts, tagged: Callable[[int], tuple[list, list]], reader=None) -> float:
@@ -190,9 +191,12 @@ def train_reader(
     seed: int = 0,
     cache_dir: str | Path | None = "out/cache",
     progress=None,
+    device: str = "cpu",
 ) -> LearnedTagger:
     """Fit the tagger on ``texts`` (:class:`~tabletop.eval.reader_texts.ReaderText`), first
-    measuring one fitted without ``val_pools`` on their texts; write it to ``out``."""
+    measuring one fitted without ``val_pools`` on their texts (written beside ``out`` as
+    ``<stem>_val.pt``); write it to ``out``. ``device``: where the GRU trains (the MiniLM
+    states come from wherever MiniLM was loaded)."""
     import torch
 
     from tabletop.reader.reading import get_reader
@@ -206,7 +210,11 @@ def train_reader(
     if val_pools:
         tr = [i for i, t in enumerate(texts) if t.pool not in val_pools]
         va = [i for i, t in enumerate(texts) if t.pool in val_pools]
-        net = _fit([feats[i] for i in tr], [texts[i] for i in tr], cfg, epochs, seed, progress)
+        net = _fit(
+            [feats[i] for i in tr], [texts[i] for i in tr], cfg, epochs, seed, progress, device
+        )
+        val_out = Path(out).with_name(Path(out).stem + "_val.pt")
+        save_tagger(val_out, cfg, net, {"seed": seed, "trained_without": list(val_pools)})
         val_texts = [texts[i] for i in va]
         figures = _measure(net, [feats[i] for i in va], val_texts)
         rules = get_reader("rules+spelling")
@@ -215,7 +223,7 @@ def train_reader(
         )
         meta["validation"] = {"pools": list(val_pools), "texts": len(va), **figures}
         log.info("reader on pools it never saw: %s", meta["validation"])
-    net = _fit(feats, list(texts), cfg, epochs, seed, progress)
+    net = _fit(feats, list(texts), cfg, epochs, seed, progress, device)
     meta["seconds"] = round(time.perf_counter() - t0, 1)
     meta["torch_threads"] = torch.get_num_threads()
     save_tagger(out, cfg, net, meta)
