@@ -286,6 +286,18 @@ def test_an_area_that_names_nothing_on_this_table_is_not_found(avlmap, query, su
     assert "as a thing: " in h.reason and "as a sound: " in h.reason  # each module's refusal
 
 
+def test_a_place_is_a_thing_only_where_its_own_words_name_one(avlmap):
+    # the object module's cosine rules, without the kind reader's rescue (the reader learnt
+    # names of things and may name a kind for a place it never saw)
+    assert avlmap._unnamed("playground").startswith(
+        "'playground' is like nothing in this map's vocabulary (nearest: "
+    )
+    assert avlmap._unnamed("tray") == "" and avlmap._unnamed("serving tray") == ""
+    assert avlmap._unnamed("something red") == ""  # no content words: any object
+    h = avlmap.area_heatmap("the far end of the playground")
+    assert not h.found and "(as a thing: " in h.reason
+
+
 def test_place_words_alone_name_no_area(avlmap):
     h = avlmap.area_heatmap("the area over there")
     assert not h.found

@@ -523,9 +523,9 @@ class AVLMap:
             return Heatmap.not_found(self.grid, q, "area", decay, why)
         refusals = []
         h = self.objects.heatmap(subject, decay, self.judge)
-        if h.found:
+        if h.found and not (unread := self._unnamed(subject)):
             return replace(h, query=q, modality="area")
-        refusals.append(f"as a thing: {h.reason}")
+        refusals.append(f"as a thing: {h.reason or unread}")
         if len(self.sounds):
             h = self.sounds.heatmap(subject, decay, self.audio_text, self.judge)
             if h.found and not (thing := self._rather_a_thing(subject)):
@@ -533,6 +533,20 @@ class AVLMap:
             refusals.append(f"as a sound: {h.reason or thing}")
         why = f"{subject!r} names no region of this table and nothing on it ({'; '.join(refusals)})"
         return Heatmap.not_found(self.grid, q, "area", decay, why)
+
+    def _unnamed(self, words: str) -> str:
+        """Why ``words`` name no thing of the vocabulary by their own words ("" where they
+        do): the object module's cosine rules (nearer no name than ``text_min`` unless the
+        words are one name's own, or nearer another thing), without the kind reader's
+        rescue. The reader learnt the names of things; asked a place it never saw, it names a
+        kind with confidence ("the playground" read as a toy prism at 0.86, cosine 0.43), so a
+        place is a thing here only where the words themselves say so."""
+        m = self.objects.match(words)
+        if m.forced:  # "the spot by something red": any object
+            return ""
+        return self.objects._cosine_refusal(
+            m.words, m.text_score, m.nearest, m.described, m.other, m.other_score
+        )
 
     def _rather_a_thing(self, words: str) -> str:
         """Why ``words`` name a thing rather than a sound ("" where they name a sound): they
