@@ -492,8 +492,8 @@ class AVLMap:
     def _wordless(self, query: str, modality: str, major: bool) -> Heatmap | None:
         """Not found for a query that holds no word (not one letter: "🦒🦒", "...", "123"),
         None for one that does."""
-        if _LETTER.search(query):
-            return None
+        if _LETTER.search(query) or _SURROGATE.search(query):
+            return None  # words; or no text at all (a lone surrogate), which the encoder refuses
         why = f"{query!r} holds no words (no letter): it names nothing"
         return Heatmap.not_found(self.grid, query, modality, self.decay(major), why)
 
@@ -534,6 +534,11 @@ class AVLMap:
         why = f"{subject!r} names no region of this table and nothing on it ({'; '.join(refusals)})"
         return Heatmap.not_found(self.grid, q, "area", decay, why)
 
+    def _reads_names(self) -> bool:
+        """Whether the object module reads words against names (instances and a vocabulary;
+        a map of voxel scores alone decides by its voxels' margin)."""
+        return self.objects.uses_instances and bool(self.objects.vocabulary)
+
     def _unnamed(self, words: str) -> str:
         """Why ``words`` name no thing of the vocabulary by their own words ("" where they
         do): the object module's cosine rules (nearer no name than ``text_min`` unless the
@@ -541,6 +546,8 @@ class AVLMap:
         rescue. The reader learnt the names of things; asked a place it never saw, it names a
         kind with confidence ("the playground" read as a toy prism at 0.86, cosine 0.43), so a
         place is a thing here only where the words themselves say so."""
+        if not self._reads_names():
+            return ""  # no names to read the words against: the module's own decision
         m = self.objects.match(words)
         if m.forced:  # "the spot by something red": any object
             return ""
@@ -557,6 +564,8 @@ class AVLMap:
         encoder with its own text space, or without a vocabulary, leaves it to the audio
         module's own decision."""
         if self.sounds.vocabulary is None or self.audio_text is not self.text:
+            return ""
+        if not self._reads_names():
             return ""
         sound = self.sounds.match(words, self.audio_text)
         m = self.objects.match(words)
@@ -634,6 +643,8 @@ class AVLMap:
 
 #: A letter of any script: a query without one holds no word.
 _LETTER = re.compile(r"[^\W\d_]")
+#: Half of a UTF-16 pair on its own: no character, not text.
+_SURROGATE = re.compile("[\ud800-\udfff]")
 
 
 def _text(query, what: str) -> str:
