@@ -94,8 +94,8 @@ def _default_audio_encoder():
 def _open_sound_figures(encoder) -> dict:
     """``audio_open_found`` / ``audio_open_refused`` on the out-of-bank set, where one ships."""
     from tabletop.errors import AssetError
-    from tabletop.eval.open_sounds import evaluate_open_sounds
     from tabletop.sim.sound_bank import SoundBank
+    from tabletop.train.audio_open import evaluate_open_sounds
 
     try:
         out_of_bank = SoundBank.out_of_bank()

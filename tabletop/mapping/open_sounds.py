@@ -28,6 +28,7 @@ for: a query read as one of them names nothing the map can find.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -124,10 +125,7 @@ class OpenSoundVocabulary:
     def embeddings(self) -> np.ndarray:
         """(2, K, dim) float32: each name embedded as "the sound of <name>" and bare."""
         if self._emb is None:
-            plain = [n.lower() for n in self.names]
-            texts = [f"the sound of {n}" for n in plain] + plain
-            e = np.asarray(self.text.encode_text(texts), np.float32)
-            self._emb = e.reshape(2, len(self.names), -1)
+            self._emb = _name_embeddings(self.names, self.text)
         return self._emb
 
     def class_scores(self, query_embedding: np.ndarray) -> np.ndarray:
@@ -156,3 +154,14 @@ class OpenSoundVocabulary:
         classes = tuple(self.names[i] for i in np.flatnonzero(want))
         scores = 1.0 / (1.0 + np.exp(-lo))
         return OpenSoundQuery(query, classes, float(per[best]), self.names[best], scores, lo)
+
+
+@functools.lru_cache(maxsize=4)
+def _name_embeddings(names: tuple[str, ...], text) -> np.ndarray:
+    """(2, K, dim) float32 (see :meth:`OpenSoundVocabulary.embeddings`), once per text
+    encoder: every map's matcher shares them."""
+    plain = [n.lower() for n in names]
+    e = np.asarray(text.encode_text([f"the sound of {n}" for n in plain] + plain), np.float32)
+    e = e.reshape(2, len(names), -1)
+    e.setflags(write=False)
+    return e
