@@ -1165,8 +1165,8 @@ OUT_OF_BANK: list[Source] = [
     B2("whoosh", UFO, "weapons/melee-swoosh.ogg"),
     OCS("whoosh", "Objects.ocg/Weapons.ocg/WeaponSwing1.ogg", "Checkmaty"),
     B2("whoosh", WN, "dagger-swish.wav"),
-    OCS("mechanical_fan", "Structures.ocg/FanLoop.ogg", "cambra"),
-    B2("mechanical_fan", OA, "world/fan.wav"),
+    OCS("mechanical_fan", "Structures.ocg/FanLoop.ogg", "cambra"),  # OpenArena's fan.wav: a
+    # 0.33 s loop of noise, too little to recognise a fan by
     OCS("sizzle", "Liquids.ocg/Sizzle.ogg", "qubodup"),
     OCS("sizzle", "Liquids.ocg/SmokeSizzle.ogg", "luffy"),
     OCS("boiling", "Liquids.ocg/Boiling.ogg", "fryzu82", CC0),
