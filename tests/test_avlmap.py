@@ -298,6 +298,14 @@ def test_a_place_is_a_thing_only_where_its_own_words_name_one(avlmap):
     assert not h.found and "(as a thing: " in h.reason
 
 
+def test_a_place_is_a_sound_only_where_its_words_are_nearer_a_sound_than_any_thing(avlmap):
+    # a place evokes sounds (a sink: water, a toilet flushing), but its words name a thing
+    why = avlmap._rather_a_thing("bathroom sink")
+    assert why.startswith("'bathroom sink' names a thing rather than a sound: nearer 'sink' (")
+    assert avlmap._rather_a_thing("dog barked") == ""  # nearer a dog barking than a dog
+    assert avlmap._rather_a_thing("phone rang") == ""
+
+
 def test_place_words_alone_name_no_area(avlmap):
     h = avlmap.area_heatmap("the area over there")
     assert not h.found
