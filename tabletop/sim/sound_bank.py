@@ -152,9 +152,14 @@ class SoundBank:
         sample_rate: int,
         captions: Mapping[str, str] | None = None,
         name: str = "custom",
+        scan_categories: Iterable[str] | None = None,
     ) -> None:
         self._clips: tuple[SoundClip, ...] = tuple(clips)
         self.name = str(name)
+        self.scan_categories = frozenset(scan_categories) if scan_categories is not None else None
+        """The categories a scan may insert (None: any). The shipped bank pins them
+        (``scan_categories.toml``) so that growing the bank leaves every seeded scan, and so
+        every suite generated from one, as it was."""
         self._sample_rate = int(sample_rate)
         if not self._clips:
             raise ConfigError(f"sound bank {self.name!r} has no clips")
@@ -366,9 +371,21 @@ def _load_manifest(path: Path) -> SoundBank:
     )
 
 
+#: The categories scans insert from the shipped bank (see :attr:`SoundBank.scan_categories`).
+SCAN_CATEGORIES_PATH = DEFAULT_BANK_DIR / "scan_categories.toml"
+
+
 @functools.lru_cache(maxsize=1)
 def _default_bank() -> SoundBank:
-    return _load_manifest(DEFAULT_BANK_DIR / "manifest.json")
+    bank = _load_manifest(DEFAULT_BANK_DIR / "manifest.json")
+    if SCAN_CATEGORIES_PATH.is_file():
+        doc = tomllib.loads(SCAN_CATEGORIES_PATH.read_text(encoding="utf-8"))
+        pinned = [str(c) for c in doc.get("categories", [])]
+        unknown = sorted(set(pinned) - set(bank.categories))
+        if unknown:
+            raise AssetError(f"{SCAN_CATEGORIES_PATH}: categories {unknown} are not in the bank")
+        bank.scan_categories = frozenset(pinned)
+    return bank
 
 
 @functools.lru_cache(maxsize=1)

@@ -36,9 +36,15 @@ def _choose_categories(
     bank, rng: np.random.Generator, n: int, repeats: int, split: str, min_recordings: int = 1
 ):
     """``n`` categories, the first ``repeats`` twice, of those with ``split`` clips and at
-    least ``min_recordings`` clips in all (the most-recorded ones if too few reach it)."""
+    least ``min_recordings`` clips in all (the most-recorded ones if too few reach it), among
+    the bank's :attr:`~tabletop.sim.sound_bank.SoundBank.scan_categories` where it pins them."""
     wanted = None if split == "any" else split
-    usable = [c for c in bank.categories if bank.clips(category=c, split=wanted)]
+    pinned = getattr(bank, "scan_categories", None)
+    usable = [
+        c
+        for c in bank.categories
+        if bank.clips(category=c, split=wanted) and (pinned is None or c in pinned)
+    ]
     unique = n - repeats
     count = {c: len(bank.clips(category=c)) for c in usable}
     rich = [c for c in usable if count[c] >= min_recordings]
