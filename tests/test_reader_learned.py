@@ -55,11 +55,15 @@ def test_a_motion_step_is_read_by_the_grammar_and_repetitions_counted():
     assert rep.times == 3
 
 
-def test_a_step_without_enough_references_is_refused():
+def test_a_step_without_the_references_its_relation_takes_is_refused():
     with pytest.raises(ParseError, match="names nothing"):
         _decode("go over there please")
-    with pytest.raises(ParseError, match="needs 2 places"):
+    with pytest.raises(ParseError, match="'between' takes 2 place"):
         _decode("go between the/B-OBJ tray/I-OBJ and it", "between")
+    with pytest.raises(ParseError, match="points back"):
+        _decode("go between the/B-OBJ tray/I-OBJ and it/B-OBJ", "between")
+    (step,) = _decode("go to the/B-OBJ teddy/B-OBJ bear/B-OBJ")  # one reference, however begun
+    assert step.action == GoTo(Goal(Part("obj", "teddy bear")))
 
 
 def test_weights_round_trip_and_bad_files(tmp_path):
@@ -83,7 +87,7 @@ def test_weights_round_trip_and_bad_files(tmp_path):
     [
         ("go to the red mug", "obj", GoTo),
         ("would you be so kind as to go over to the teddy bear", "obj", GoTo),
-        ("move between the tray and the duck", "obj", Between),
+        ("move between the mug and the duck", "obj", Between),
         ("go where you heard a dog barking", "sound", GoTo),
         ("head to the left side of the table", "area", GoTo),
     ],

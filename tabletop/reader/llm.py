@@ -26,10 +26,12 @@ from tabletop.reader.plan import (
     Goal,
     GoTo,
     Part,
+    Reading,
     Side,
     Step,
 )
 from tabletop.reader.rules import MAX_DISTANCE_M, MAX_REPEAT
+from tabletop.reader.spelling import Speller
 
 __all__ = ["PLAN_SCHEMA", "LLMReader", "plan_from_json"]
 
@@ -159,16 +161,18 @@ class LLMReader:
 
     def __init__(self, config: LLMConfig | None = None) -> None:
         self.config = config or LLMConfig.from_env()
-        from tabletop.reader.reading import RulesReader
-
-        self._rules = RulesReader(spelling=True, wrappers=False)
+        self._speller: Speller | None = None
 
     def reference(self, kind: str, text: str) -> str:
-        return self._rules.reference(kind, text)
+        if kind not in PART_KINDS or kind == "img":
+            raise ConfigError(f"unknown reference kind {kind!r}; valid: obj, sound, area")
+        if not isinstance(text, str):
+            return text
+        if self._speller is None:
+            self._speller = Speller()
+        return self._speller.correct(text)[0]
 
-    def understand(self, text: str, robot: str = "arm"):
-        from tabletop.reader.reading import Reading
-
+    def understand(self, text: str, robot: str = "arm") -> Reading:
         if not isinstance(text, str) or not text.strip():
             raise ConfigError("an instruction must be a non-empty string")
         if robot != "arm":

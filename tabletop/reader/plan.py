@@ -24,6 +24,7 @@ __all__ = [
     "GoTo",
     "Goal",
     "Part",
+    "Reading",
     "Side",
     "Step",
     "Turn",
@@ -133,3 +134,17 @@ class Step:
     action: Action
     times: int
     text: str
+
+
+@dataclass(frozen=True)
+class Reading:
+    """What a reader made of ``text``: the ``steps`` it read from ``read`` (the words after
+    ``corrections``), the ``wrapper`` words it left out, and the reader's name."""
+
+    text: str
+    read: str
+    steps: tuple[Step, ...]
+    corrections: tuple = ()
+    """The typing slips corrected (:class:`~tabletop.reader.spelling.Correction`)."""
+    wrapper: tuple[str, ...] = ()
+    reader: str = ""

@@ -24,15 +24,14 @@ from __future__ import annotations
 
 import functools
 import re
-from dataclasses import dataclass
 from typing import Protocol
 
 from tabletop.errors import ConfigError
 from tabletop.reader.errors import ParseError
 from tabletop.reader.llm import LLMReader
-from tabletop.reader.plan import Step
-from tabletop.reader.rules import QUALIFIERS, parse_instruction
-from tabletop.reader.spelling import Correction, Speller, name_words
+from tabletop.reader.plan import Reading, Step
+from tabletop.reader.rules import QUALIFIERS, UNSUPPORTED_ACTIONS, parse_instruction
+from tabletop.reader.spelling import Speller, name_words
 
 __all__ = [
     "DEFAULT_READER",
@@ -49,19 +48,6 @@ __all__ = [
 MAX_WRAPPER_WORDS = 12
 #: Query kinds whose text a reader corrects (an image is a path or pixels).
 TEXT_KINDS = ("obj", "sound", "area")
-
-
-@dataclass(frozen=True)
-class Reading:
-    """What a reader made of ``text``: the ``steps`` it read from ``read`` (the words after
-    ``corrections``), the ``wrapper`` words it left out, and the reader's name."""
-
-    text: str
-    read: str
-    steps: tuple[Step, ...]
-    corrections: tuple[Correction, ...] = ()
-    wrapper: tuple[str, ...] = ()
-    reader: str = ""
 
 
 class Reader(Protocol):
@@ -172,14 +158,18 @@ class LearnedReader:
             raise ParseError(text, text, "the instruction is empty")
         tagger = load_tagger(self.weights or DEFAULT_READER_WEIGHTS)
         roles, rels = tagger.tag(words)
-        qualifiers = [
-            w for w, r in zip(words, roles, strict=True)
-            if r in ("O", "THEN", "REP") and w.strip(",.;:!?\"'").lower() in QUALIFIERS
-        ]  # fmt: skip
+        plain = [w.strip(",.;:!?\"'").lower() for w, r in zip(words, roles, strict=True)
+                 if r in ("O", "THEN", "REP")]  # fmt: skip
+        every = [w.strip(",.;:!?\"'").lower() for w in words]
+        qualifiers = [w for w in every if w in QUALIFIERS]
         if qualifiers:
             raise ParseError(
                 text, " ".join(qualifiers), "the robot cannot honour how it is asked to move"
             )
+        actions = [w for w in plain if w in UNSUPPORTED_ACTIONS]
+        if actions:
+            raise ParseError(text, " ".join(actions), "the arm goes to places; it does not "
+                             f"{actions[0]} things")  # fmt: skip
         steps = decode(text, words, roles, rels, robot, read_clause)
         return Reading(text, read, steps, fixes, (), self.name)
 
@@ -194,7 +184,7 @@ READERS: dict[str, type | functools.partial] = {
     "rules+learned": functools.partial(LearnedReader, fallback=True),
     "llm": LLMReader,
 }
-DEFAULT_READER = "rules+spelling"
+DEFAULT_READER = "rules+learned"
 
 
 @functools.cache

@@ -120,6 +120,12 @@ QUALIFIERS = frozenset(
     """not no never don't dont without avoid except unless until if while quickly slowly
     carefully gently fast""".split()
 )
+#: Actions the arm does not do (it goes to places): a reader refuses a request that asks one.
+UNSUPPORTED_ACTIONS = frozenset(
+    "grab grasp pick place put push pull lift drop throw open shut squeeze press".split()
+)
+#: Words that point back instead of naming: a reference made of one of them names nothing.
+POINTERS = frozenset("it its them this that these those there here one".split())
 # Words that carry structure: inside an object description they mean the sentence had a
 # construction the grammar does not know, so the parser stops instead of guessing.
 _RESERVED = frozenset(

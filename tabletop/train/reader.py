@@ -69,7 +69,7 @@ def _fit(feats, texts, cfg: TaggerConfig, epochs: int, seed: int, progress=None,
     ys = [(np.array([role_ix[r] for r in t.roles]), np.array([rel_ix[r] for r in t.relations]))
           for t in texts]  # fmt: skip
     loss_fn = nn.CrossEntropyLoss(ignore_index=-1)
-    batch = 64
+    batch = 128
     steps = epochs * ((len(texts) + batch - 1) // batch)
     sched = torch.optim.lr_scheduler.OneCycleLR(opt, max_lr=3e-3, total_steps=steps)
     net.train()
@@ -172,7 +172,7 @@ def _measure(net, feats, texts) -> dict:
             role, rel = net(torch.from_numpy(f)[None], torch.tensor([len(f)]))
             pr = [ROLES[i] for i in role[0].argmax(-1).tolist()]
             pl = [RELATIONS[i] for i in rel[0].argmax(-1).tolist()]
-            preds.append((pr, pl))
+            preds.append((pr, torch.log_softmax(rel[0], dim=-1).numpy()))
             roles_ok += sum(a == b for a, b in zip(pr, t.roles, strict=True))
             rels_ok += sum(a == b for a, b in zip(pl, t.relations, strict=True))
             n += len(pr)
