@@ -153,6 +153,18 @@ def test_save_load_round_trip_and_errors(avlmap, rec, tmp_path):
         )
     cap = rec.ground_truth["sound_events"][0]["caption"]
     np.testing.assert_array_equal(back.sound_heatmap(cap).values, avlmap.sound_heatmap(cap).values)
+    # the open sound vocabulary's per-segment class scores come back with the map
+    n = len(avlmap.sounds.segments)
+    names = ("Dog", "Doorbell", "Speech")
+    logits = [np.arange(3, dtype=np.float32) + i for i in range(n)]
+    avlmap.sounds.class_logits, avlmap.sounds.class_names = logits, names
+    try:
+        again = AVLMap.load(avlmap.save(tmp_path / "open.npz"))
+    finally:
+        avlmap.sounds.class_logits, avlmap.sounds.class_names = [], ()
+        (tmp_path / "open.npz").unlink(missing_ok=True)
+    assert again.sounds.class_names == names
+    np.testing.assert_array_equal(np.stack(again.sounds.class_logits), np.stack(logits))
     # corrupted files name the problem
     data = path.read_bytes()
     (tmp_path / "cut.npz").write_bytes(data[: len(data) // 2])

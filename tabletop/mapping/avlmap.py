@@ -411,6 +411,9 @@ class AVLMap:
             raise MapFormatError(f"{path}: header 'segments' is malformed: {e}") from None
         m.sounds.embeddings = list(a["segment_embeddings"])
         m.sounds.positions = list(a["segment_positions"])
+        if "segment_class_logits" in a:  # the open sound vocabulary's per-segment scores
+            m.sounds.class_logits = list(a["segment_class_logits"])
+            m.sounds.class_names = tuple(h["class_names"])
         m._frames_seen = int(h["frames_seen"])
         if h.get("visual") is not None:
             visual = {k.removeprefix("visual_"): v for k, v in a.items() if k.startswith("visual_")}
