@@ -62,6 +62,10 @@ def _bench(args: argparse.Namespace) -> dict:
     from tabletop.mapping.bench import run_map_benchmark
 
     results.update(run_map_benchmark(rec))
+    print("bench: readers ...", file=sys.stderr)
+    from tabletop.reader.bench import run_reader_benchmark
+
+    results.update(run_reader_benchmark())
     print(f"bench: arm, {args.arm_targets} seeded reach targets ...", file=sys.stderr)
     arm = run_arm_benchmark(n_targets=args.arm_targets, seed=0)
     results.update(
@@ -92,6 +96,19 @@ def _print_bench(results: dict) -> None:
         f"frames/s); object query {r['query_ms']} ms (x{r['query_speedup']} the O(N*M) loop, "
         f"{r['query_reference_ms']} ms; max difference {r['query_reference_max_abs_diff']:.1e}); "
         f"map {r['map_mb']} MB"
+    )
+    readers = sorted({k[len("reader_") : -len("_ms_median")] for k in r if k.endswith("_ms_median")
+                      and k.startswith("reader_")})  # fmt: skip
+    print(
+        "reader: "
+        + "; ".join(
+            f"{n} {r[f'reader_{n}_ms_median']} ms median ({r[f'reader_{n}_ms_p95']} p95, "
+            f"refused {r[f'reader_{n}_refused']})"
+            for n in readers
+        )
+        + f" per request, one thread; words listed by hand: rules {r['listed_words_rules']}, "
+        f"place_words {r['listed_words_place_words']}, colour_words "
+        f"{r['listed_words_colour_words']}"
     )
     print(
         f"arm:   {r['reach_n_targets']} targets, {r['reach_reachable']} reachable: "
