@@ -73,6 +73,5 @@ for name, r in readers.items():
             right += got(r.understand(text).steps) == expect(truth)
         except ParseError:
             refused += 1
-    print(
-        f"{name}: structure right {right}/{len(goals)} = {right / len(goals):.3f}, refused {refused}"
-    )
+    share = right / len(goals)
+    print(f"{name}: structure right {right}/{len(goals)} = {share:.3f}, refused {refused}")
