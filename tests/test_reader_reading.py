@@ -60,16 +60,31 @@ def test_words_that_negate_or_qualify_are_never_dropped(text):
         understand(text)
 
 
-def test_the_default_reader_refuses_what_the_robot_cannot_do():
+@pytest.mark.parametrize(
+    ("reader", "accepts"),
+    [
+        ("rules+spelling", []),
+        # asked only what the grammar refuses, the tagger reads two things joined by "and" as
+        # the space between them
+        ("rules+learned", ["go to the mug and the duck"]),
+    ],
+)
+def test_what_the_robot_cannot_do_is_refused(reader, accepts):
     from tabletop.language.suite import load_suite
 
     accepted = []
     for bad in load_suite().unparseable:
         try:
-            understand(bad.instruction)
+            understand(bad.instruction, reader=reader)
         except ParseError:
             continue
         accepted.append(bad.instruction)
-    # the grammar refuses all of them; the learned reader, asked only what the grammar
-    # refuses, reads two things joined by "and" as the space between them
-    assert accepted == ["go to the mug and the duck"]
+    assert accepted == accepts
+
+
+def test_the_learned_fallback_still_reads_requests_the_arm_cannot_do():
+    # why the default is the grammar with spelling: the tagger has seen no request it must
+    # refuse, so an action it does not know, or nonsense, is read as a place to go
+    assert understand("dance around the table", reader="rules+learned").steps
+    with pytest.raises(ParseError, match="motion verb"):
+        understand("dance around the table")

@@ -184,7 +184,7 @@ READERS: dict[str, type | functools.partial] = {
     "rules+learned": functools.partial(LearnedReader, fallback=True),
     "llm": LLMReader,
 }
-DEFAULT_READER = "rules+learned"
+DEFAULT_READER = "rules+spelling"
 
 
 @functools.cache
