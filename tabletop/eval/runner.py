@@ -112,8 +112,6 @@ class _Context:
         self.images: dict[str, np.ndarray] = {}  # goal id -> rendered query image
         self.heatmaps: dict[str, list] = {}  # goal id -> [(label, values)], for the report
         self.keep_heatmaps: set[str] = set()
-        self.reader = DEFAULT_READER
-        """The reader every goal's words go through (:data:`tabletop.reader.READERS`)."""
 
     def image(self, goal_id: str, view) -> np.ndarray:
         from tabletop.eval.images import render_view
@@ -325,7 +323,8 @@ def _run_code(ctx: _Context, goal: Goal, base: dict, region: Region, t0: float):
     code = ""
     try:
         kind = getattr(robot, "robot_kind", "arm")
-        code = str(instruction_to_code(goal.instruction, kind, ctx.reader))
+        reader = getattr(robot, "reader", DEFAULT_READER)
+        code = str(instruction_to_code(goal.instruction, kind, reader))
         run = run_instruction(goal.instruction, robot, code=code)
     except TabletopError as e:  # a parse error, rejected code, not found, a refused query
         tcp = robot.current_position()
@@ -421,9 +420,8 @@ def evaluate_task_file(
     truth = GroundTruth.of(rec)
     regions = _resolve_goals(tf, truth)
     robot = SimArm(m, spec)
-    robot.reader = reader
+    robot.reader = reader  # every goal's words, instructions and queries alike
     ctx = _Context(robot, m, spec, rec)
-    ctx.reader = reader
     if figures_dir is not None:
         ctx.keep_heatmaps = _heatmap_goals(tf)
     results: list[GoalResult] = []

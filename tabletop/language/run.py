@@ -271,16 +271,18 @@ def run_instruction(
     sandbox: SandboxConfig | None = None,
     on_code: Callable[[str], None] | None = None,
     on_motion: Callable[[Motion], None] | None = None,
-    reader: str = DEFAULT_READER,
+    reader: str | None = None,
 ) -> InstructionRun:
     """Turn ``instruction`` into code (or take ``code``), check it, and run it on ``robot``.
 
     The code is checked before anything runs (:class:`CodeRejected`: the robot does not move).
-    ``on_code`` sees the checked code, ``on_motion`` each target and result.
+    ``on_code`` sees the checked code, ``on_motion`` each target and result. ``reader``
+    (default: the robot's own) reads the instruction and, during the run, the words of the
+    code's queries; the robot's reader is restored after.
     """
     sandbox = sandbox or SandboxConfig()
-    if hasattr(robot, "reader"):
-        robot.reader = reader  # its queries' words are read by the same reader
+    own = getattr(robot, "reader", None)
+    reader = reader or own or DEFAULT_READER
     if code is None:
         kind = getattr(robot, "robot_kind", "arm")
         code = generate_code(instruction, backend, llm_config, kind, reader)
@@ -288,5 +290,11 @@ def run_instruction(
     if on_code is not None:
         on_code(code)
     tracer = TracingRobot(robot, execute=not dry_run, image_dir=image_dir, on_motion=on_motion)
-    run = run_code(checked, tracer, sandbox)
+    if own is not None:
+        robot.reader = reader
+    try:
+        run = run_code(checked, tracer, sandbox)
+    finally:
+        if own is not None:
+            robot.reader = own
     return InstructionRun(instruction, code, tuple(tracer.motions), run, dry_run)
