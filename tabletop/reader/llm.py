@@ -31,7 +31,7 @@ from tabletop.reader.plan import (
     Step,
 )
 from tabletop.reader.rules import MAX_DISTANCE_M, MAX_REPEAT
-from tabletop.reader.spelling import Speller
+from tabletop.reader.spelling import default_speller
 
 __all__ = ["PLAN_SCHEMA", "LLMReader", "plan_from_json"]
 
@@ -161,16 +161,13 @@ class LLMReader:
 
     def __init__(self, config: LLMConfig | None = None) -> None:
         self.config = config or LLMConfig.from_env()
-        self._speller: Speller | None = None
 
     def reference(self, kind: str, text: str) -> str:
         if kind not in PART_KINDS or kind == "img":
             raise ConfigError(f"unknown reference kind {kind!r}; valid: obj, sound, area")
         if not isinstance(text, str):
             return text
-        if self._speller is None:
-            self._speller = Speller()
-        return self._speller.correct(text)[0]
+        return default_speller().correct(text)[0]
 
     def understand(self, text: str, robot: str = "arm") -> Reading:
         if not isinstance(text, str) or not text.strip():

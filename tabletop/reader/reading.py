@@ -31,7 +31,7 @@ from tabletop.reader.errors import ParseError
 from tabletop.reader.llm import LLMReader
 from tabletop.reader.plan import Reading, Step
 from tabletop.reader.rules import QUALIFIERS, UNSUPPORTED_ACTIONS, parse_instruction
-from tabletop.reader.spelling import Speller, name_words
+from tabletop.reader.spelling import Speller, default_speller, name_words
 
 __all__ = [
     "DEFAULT_READER",
@@ -80,13 +80,10 @@ class RulesReader:
         self.spelling = bool(spelling)
         self.wrappers = bool(wrappers)
         self.name = "rules+spelling" if spelling else "rules"
-        self._speller: Speller | None = None
 
     @property
     def speller(self) -> Speller:
-        if self._speller is None:
-            self._speller = Speller()
-        return self._speller
+        return default_speller()
 
     def reference(self, kind: str, text: str) -> str:
         if kind not in TEXT_KINDS:

@@ -128,14 +128,16 @@ UNSUPPORTED_ACTIONS = frozenset(
 POINTERS = frozenset("it its them this that these those there here one".split())
 # Words that carry structure: inside an object description they mean the sentence had a
 # construction the grammar does not know, so the parser stops instead of guessing.
-_RESERVED = frozenset(
-    """left right front behind back between middle halfway of and or then near next close
+_RESERVED = (
+    frozenset(
+        """left right front behind back between middle halfway of and or then near next close
     closest nearest beside times twice thrice once sound sounds noise image picture photo where
-    heard hear north south east west quickly slowly carefully gently fast not no don't dont
-    never without avoid except if while until unless below under beneath over above to from
+    heard hear north south east west below under beneath over above to from
     with into onto towards toward after before again repeat meters metres meter metre cm mm
     grab pick place put push get fetch bring take go move open close turn rotate face look it its
     them there here me you everything all every""".split()
+    )
+    | QUALIFIERS
 )
 _ARTICLES = re.compile(r"^(?:(?:the|a|an|some|any|that|this)\s+)+")
 
@@ -436,11 +438,9 @@ def _sound_names() -> frozenset[str]:
 @functools.cache
 def _captions() -> dict[str, str]:
     """The sound bank's caption table (category -> caption), read from its data file."""
-    import tomllib
+    from tabletop.reader.spelling import data_toml
 
-    from tabletop.paths import DATA_DIR
-
-    return tomllib.loads((DATA_DIR / "sounds" / "captions.toml").read_text(encoding="utf-8"))
+    return data_toml("sounds/captions.toml")
 
 
 # ---------------------------------------------------------------------- parsing

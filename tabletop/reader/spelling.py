@@ -34,6 +34,8 @@ __all__ = [
     "Correction",
     "Speller",
     "SpellingConfig",
+    "data_toml",
+    "default_speller",
     "domain_words",
     "english_words",
     "name_words",
@@ -117,12 +119,20 @@ def _strings(value: object) -> Iterable[str]:
 
 
 @functools.cache
+def data_toml(name: str) -> dict:
+    """The TOML data file ``name`` (relative to the package's data folder), read once; an
+    empty table when it is absent."""
+    path = DATA_DIR / name
+    if not path.is_file():
+        return {}
+    return tomllib.loads(path.read_text(encoding="utf-8"))
+
+
+@functools.cache
 def _vocabulary_texts() -> tuple[str, ...]:
     texts: list[str] = []
     for name in _VOCAB_FILES:
-        path = DATA_DIR / name
-        if path.is_file():
-            texts.extend(_strings(tomllib.loads(path.read_text(encoding="utf-8"))))
+        texts.extend(_strings(data_toml(name)))
     return tuple(t.replace("_", " ").lower() for t in texts)
 
 
@@ -137,15 +147,11 @@ def name_words() -> frozenset[str]:
     """Words that name something in the map's vocabulary: the catalog's kinds, the other
     objects, the colour survey's names and the sound categories (no descriptions)."""
     words: set[str] = set()
-
-    def load(name: str) -> dict:
-        return tomllib.loads((DATA_DIR / name).read_text(encoding="utf-8"))
-
     texts = [
-        *load("descriptions.toml"),
-        *load("other_objects.toml").get("others", []),
-        *load("colours/survey.toml").get("names", {}),
-        *load("sounds/captions.toml"),
+        *data_toml("descriptions.toml"),
+        *data_toml("other_objects.toml").get("others", []),
+        *data_toml("colours/survey.toml").get("names", {}),
+        *data_toml("sounds/captions.toml"),
     ]
     for t in texts:
         words.update(_WORD.findall(str(t).replace("_", " ").lower()))
@@ -181,6 +187,12 @@ def _common_words(n: int = 300) -> frozenset[str]:
     with open(path, encoding="utf-8") as f:
         words = [w for w in (line.strip() for line in f) if w.isalpha() and len(w) > 1]
     return frozenset(words[:n]) | {"a", "i"}
+
+
+@functools.cache
+def default_speller() -> Speller:
+    """The speller of the shipped vocabulary, built once and shared by every reader."""
+    return Speller()
 
 
 class Speller:
