@@ -6,8 +6,15 @@ import pytest
 from robot_helpers import box_distance, scan_and_map
 
 from tabletop.errors import ConfigError, TabletopError
+from tabletop.eval.suites import RELATION_WORDS
+from tabletop.eval.tasks import RELATIONS as TASK_RELATIONS
+from tabletop.eval.truth import relation_point
+from tabletop.language.codegen import plan_to_code
 from tabletop.mapping import Heatmap
 from tabletop.mapping.targets import surface_z
+from tabletop.reader.plan import Above, Between, Side
+from tabletop.reader.reading import understand
+from tabletop.relations import RELATIONS, relation, relation_by_side
 from tabletop.robot import (
     GoalNotFound,
     ImageGoalUnavailable,
@@ -16,6 +23,7 @@ from tabletop.robot import (
     SimArm,
     SpatialConfig,
 )
+from tabletop.robot.primitives import motion_to, primitive
 
 
 class PointRobot(RobotAPI):
@@ -278,3 +286,55 @@ def test_move_to_refuses_what_is_not_a_point(arm):
         with pytest.raises(ConfigError, match="finite 3-vector"):
             arm.move_to(bad)
     assert len(arm.history) == n  # nothing moved
+
+
+@pytest.mark.parametrize("rel", [r.name for r in RELATIONS])
+def test_a_relation_is_declared_once_and_every_layer_agrees(rec_map, gt, rel):
+    """One spec per relation (tabletop.relations): the robot API's target and motion
+    primitives, the evaluation's truth point, task files' landmark count, code generation, the
+    suites' wording and the reader's plan all follow it."""
+    r = relation(rel)
+    names = ["red mug", "blue mug"][: r.landmarks]
+    # robot API: a target primitive named as the relation, and a motion declared to move there
+    target = primitive(rel)
+    assert target.kind == "target" and len(target.params) == r.landmarks
+    assert motion_to(rel).target == rel
+    robot = PointRobot(rec_map[1])
+    point = getattr(robot, rel)(*names)
+    # the evaluation's truth: the same point from the landmarks' boxes
+    anchors = []
+    for n in names:
+        c, lo, hi = robot._landmark(n)
+        anchors.append((c, (hi - lo) / 2))
+    truth = relation_point(rel, anchors, robot.spatial)
+    np.testing.assert_allclose(point[:2], truth[:2], atol=1e-9)
+    if r.axis is not None:  # a side: beyond the landmark's box along the axis
+        mug = gt["red_mug"]
+        lo, hi = np.array(mug["aabb_min"]), np.array(mug["aabb_max"])
+        axis = np.array(r.axis)
+        assert (point - robot.get_pos("red mug")) @ axis > np.abs(axis) @ (hi - lo) / 2
+    # task files take exactly its landmarks
+    assert TASK_RELATIONS[rel] == r.landmarks
+    # the suites' wording, read by the default reader, is the plan that calls its motion
+    text = (
+        f"go {r.wording} the red mug and the blue mug"
+        if r.landmarks == 2
+        else f"go {r.wording} the red mug"
+    )
+    (step,) = understand(text).steps
+    action = step.action
+    want = {"between": Between, "above": Above}.get(rel, Side)
+    assert isinstance(action, want)
+    if r.side is not None:
+        assert action.side == r.side and relation_by_side(action.side) is r
+    if rel != "above":  # above an object is the object's own motion (move_to_object)
+        assert f"robot.{motion_to(rel).name}(" in plan_to_code((step,))
+    if rel != "above":
+        assert RELATION_WORDS[rel] == r.wording
+
+
+def test_an_unknown_relation_or_side_is_named_with_the_valid_ones():
+    with pytest.raises(ConfigError, match="valid: .*left_of"):
+        relation("next_to")
+    with pytest.raises(ConfigError, match="valid: .*front"):
+        relation_by_side("up")

@@ -37,7 +37,15 @@ from types import MappingProxyType
 import numpy as np
 
 from tabletop.errors import AssetError, ConfigError
-from tabletop.eval.suites import _FULL, _SCAN, RELATION_WORDS, Wording, generate_suite, to_toml
+from tabletop.eval.suites import (
+    _FULL,
+    _SCAN,
+    RELATION_WORDS,
+    SIDE_RELATIONS,
+    Wording,
+    generate_suite,
+    to_toml,
+)
 from tabletop.eval.tasks import parse_tasks
 from tabletop.mapping.sound_vocabulary import SOUND_FAMILIES
 from tabletop.paths import DATA_DIR
@@ -176,7 +184,7 @@ INSTRUCTION_KEYS = (
     *[r for r in RELATION_WORDS if r != "between"],
 )
 _PLACEHOLDERS = {"sound": ("{s}",), "between": ("{a}", "{b}"), "verbs": (), "near": ()}
-_SIDES = ("left_of", "right_of", "in_front_of", "behind")
+_SIDES = SIDE_RELATIONS
 
 
 # ---------------------------------------------------------------------------- the bank

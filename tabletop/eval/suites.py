@@ -25,6 +25,7 @@ import numpy as np
 
 from tabletop.eval.tasks import FORMAT_NAME, FORMAT_VERSION, Truth, parse_tasks
 from tabletop.eval.truth import resolve_truth, sound_occurrences
+from tabletop.relations import RELATIONS
 from tabletop.sim.ground_truth import AreaTruth, GroundTruth, ObjectTruth, SoundEventTruth
 from tabletop.transforms import aabb_distance
 
@@ -200,13 +201,9 @@ def _the(phrase: str) -> str:
 
 
 #: Relation words of goal texts and instructions.
-RELATION_WORDS = {
-    "between": "between",
-    "left_of": "to the left of",
-    "right_of": "to the right of",
-    "in_front_of": "in front of",
-    "behind": "behind",
-}
+RELATION_WORDS = {r.name: r.wording for r in RELATIONS if r.name != "above"}
+#: The side relations, in declaration order.
+SIDE_RELATIONS = tuple(r.name for r in RELATIONS if r.side is not None)
 _VERBS = ("go to", "move to", "reach", "approach")
 
 
@@ -407,7 +404,7 @@ def generate_suite(
                 and 0.12 <= np.linalg.norm(np.subtract(a.center, b.center)) <= 0.45
             ):
                 spatial.append(("between", [a, b]))
-        for rel in ("left_of", "right_of", "in_front_of", "behind"):
+        for rel in SIDE_RELATIONS:
             t = Truth("relation", relation=rel, of=(Truth("object", object=a.name),))
             p = resolve_truth(t, gt).center
             if _reachable(p) and _xy_clear(p, gt.objects, margin=clear_beside):
@@ -437,7 +434,7 @@ def generate_suite(
             if _xy_clear(mid, gt.objects) and 0.12 <= d <= 0.45:
                 mm.append(("between-sound", e, o))
     for o, e in amb:
-        for rel in ("left_of", "right_of", "in_front_of", "behind"):
+        for rel in SIDE_RELATIONS:
             t = Truth("relation", relation=rel, of=(Truth("object", object=o.name),))
             p = resolve_truth(t, gt).center
             if _reachable(p) and _xy_clear(p, gt.objects, margin=0.05):

@@ -47,6 +47,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from tabletop.errors import ConfigError
+from tabletop.relations import RELATIONS as _RELATIONS
 
 __all__ = [
     "ABSENT_MODALITIES",
@@ -89,14 +90,7 @@ MODALITIES = ("obj", "sound", "img", "area")
 #: What an ``absent`` goal may ask for (one of them): a thing, a sound, a place.
 ABSENT_MODALITIES = ("obj", "sound", "area")
 #: Spatial relations and how many landmarks each takes.
-RELATIONS = {
-    "between": 2,
-    "left_of": 1,
-    "right_of": 1,
-    "in_front_of": 1,
-    "behind": 1,
-    "above": 1,
-}
+RELATIONS = {r.name: r.landmarks for r in _RELATIONS}
 _TRUTH_KINDS = ("object", "sound", "area", "point", "box", "camera", "relation", "absent")
 _SCAN_FIELDS = ("seed", "speed", "episodes", "episode_s", "repeat_sounds", "clip_split", "snr_db")
 _MAP_FIELDS = ("frame_step", "pixel_step", "voxel_size")

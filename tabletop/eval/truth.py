@@ -19,6 +19,8 @@ import numpy as np
 from tabletop.eval.calibration import AREA_HEIGHT_M
 from tabletop.eval.map_goals import heard_column
 from tabletop.eval.tasks import Landmark, TaskFileError, Truth
+from tabletop.relations import relation as _relation
+from tabletop.relations import side_point
 from tabletop.robot.api import SpatialConfig
 from tabletop.sim.ground_truth import (
     AreaTruth,
@@ -29,15 +31,6 @@ from tabletop.sim.ground_truth import (
 )
 
 __all__ = ["AREA_HEIGHT_M", "Region", "check_absent", "resolve_truth", "sound_occurrences"]
-
-
-#: Unit directions of the side relations (robot API conventions: left = +y, in front = +x).
-_SIDES = {
-    "left_of": (0.0, 1.0, 0.0),
-    "right_of": (0.0, -1.0, 0.0),
-    "in_front_of": (1.0, 0.0, 0.0),
-    "behind": (-1.0, 0.0, 0.0),
-}
 
 
 @dataclass(frozen=True)
@@ -163,11 +156,7 @@ def relation_point(
     top = c[2] + half[2]
     if relation == "above":
         return np.array([c[0], c[1], top + s.above_gap])
-    d = np.array(_SIDES[relation])
-    dist = max(s.side_offset, float(np.abs(d[:2]) @ half[:2]) + s.side_gap)
-    p = c + dist * d
-    p[2] = top
-    return p
+    return side_point(_relation(relation).axis, c, half, top, s.side_offset, s.side_gap)
 
 
 def resolve_truth(t: Truth, ground_truth: GroundTruth, where: str = "truth") -> Region:

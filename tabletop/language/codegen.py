@@ -40,6 +40,7 @@ from tabletop.reader.plan import (
     Turn,
 )
 from tabletop.reader.reading import DEFAULT_READER, understand
+from tabletop.relations import RELATIONS
 from tabletop.robot.primitives import Primitive, motion_to, primitive
 
 __all__ = ["instruction_to_code", "plan_to_code"]
@@ -53,12 +54,7 @@ _ABOVE = primitive("above")
 _MOVE_TO = primitive("move_to")
 _MOVE_ABOVE = motion_to(_ABOVE.name)  # move_to_object
 _MOVE_BETWEEN = motion_to("between")  # move_in_between
-_MOVE_SIDE = {
-    "left": motion_to("left_of"),
-    "right": motion_to("right_of"),
-    "front": motion_to("in_front_of"),
-    "behind": motion_to("behind"),
-}
+_MOVE_SIDE = {r.side: motion_to(r.name) for r in RELATIONS if r.side is not None}
 _MOVE_COMPASS = {d: primitive(f"move_{d}") for d in ("north", "south", "east", "west")}
 _MOVE_FORWARD = primitive("move_forward")
 _TURN = primitive("turn")

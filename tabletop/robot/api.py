@@ -27,6 +27,7 @@ from tabletop.errors import ConfigError, GoalNotFound, TabletopError
 from tabletop.mapping.heatmaps import Heatmap, fuse
 from tabletop.mapping.targets import max_position, region_box, surface_z
 from tabletop.reader.reading import DEFAULT_READER, get_reader
+from tabletop.relations import relation, side_point
 
 __all__ = [
     "GoalNotFound",
@@ -227,13 +228,9 @@ class RobotAPI(abc.ABC):
         """(3,) [m]: the point beside landmark ``name`` (an object name or a heatmap) along the
         horizontal ``direction`` (a unit axis), ``side_offset`` from its centre and at least
         ``side_gap`` beyond its extent, level with its top."""
-        d = np.asarray(direction, np.float64)
         c, lo, hi = self._landmark(name)
-        half = float(np.abs(d[:2]) @ ((hi - lo)[:2] / 2))
-        dist = max(self.spatial.side_offset, half + self.spatial.side_gap)
-        p = c + dist * d
-        p[2] = hi[2]  # level with the object's top: a gripper beside it clears its neighbours
-        return p
+        s = self.spatial
+        return side_point(direction, c, (hi - lo) / 2, hi[2], s.side_offset, s.side_gap)
 
     def above(self, name) -> np.ndarray:
         """(3,) [m]: ``above_gap`` above the top of object ``name``, over its centre."""
@@ -241,16 +238,16 @@ class RobotAPI(abc.ABC):
         return np.array([c[0], c[1], hi[2] + self.spatial.above_gap])
 
     def left_of(self, name) -> np.ndarray:
-        return self.side_target(name, (0.0, 1.0, 0.0))
+        return self.side_target(name, relation("left_of").axis)
 
     def right_of(self, name) -> np.ndarray:
-        return self.side_target(name, (0.0, -1.0, 0.0))
+        return self.side_target(name, relation("right_of").axis)
 
     def in_front_of(self, name) -> np.ndarray:
-        return self.side_target(name, (1.0, 0.0, 0.0))
+        return self.side_target(name, relation("in_front_of").axis)
 
     def behind(self, name) -> np.ndarray:
-        return self.side_target(name, (-1.0, 0.0, 0.0))
+        return self.side_target(name, relation("behind").axis)
 
     def between(self, a, b) -> np.ndarray:
         """(3,) [m]: midway between landmarks ``a`` and ``b`` (object names or heatmaps)
