@@ -90,7 +90,9 @@ def test_tiny_training_run_writes_a_head_the_encoder_loads(tmp_path):
     base = SoundBank.default()
     clips = [c for k in ("dog", "cow") for c in base.clips(k, split="train")[:3]]
     bank = SoundBank(clips, sample_rate=base.sample_rate, name="tiny")
-    cfg = HeadTrainConfig(out=tmp_path / "head.npz", copies=2, epochs=2, hidden=16, members=2)
+    cfg = HeadTrainConfig(
+        out=tmp_path / "head.npz", copies=2, epochs=2, hidden=16, members=2, open_scorer=False
+    )
     path = train_audio_head(cfg, bank, evaluate=False)
     meta = load_head(path).meta
     assert meta["n_train_clips"] == 6 and meta["train_config"]["copies"] == 2

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 from tabletop.errors import ConfigError
@@ -38,3 +39,24 @@ def test_out_of_bank_figures_are_shares_and_seeded():
 def test_an_encoder_without_class_logits_is_refused_by_name():
     with pytest.raises(ConfigError, match="no open vocabulary"):
         evaluate_open_sounds(SoundBank.out_of_bank(), MelCNNAudioEncoder())
+
+
+def test_the_scorer_is_fitted_on_training_clips_to_refuse_what_did_not_play():
+    from tabletop.mapping.encoders.yamnet import yamnet_class_names
+    from tabletop.mapping.open_sounds import OpenSoundVocabulary
+    from tabletop.train.audio_open import fit_open_scorer
+
+    base = SoundBank.default()
+    clips = [base.clips(k, split="train")[0] for k in base.categories[::6]]
+    bank = SoundBank(clips, sample_rate=base.sample_rate, name="every sixth")
+    text = MiniLMTextEncoder()
+    sc = fit_open_scorer(bank, text_encoder=text, n_maps=20, refused_aim=0.9)
+    assert sc.null.shape == (521,) and np.isfinite([sc.w_rel, sc.w_abs, sc.bias]).all()
+    assert sc.meta["train_refused"] >= 0.9 and 0 <= sc.meta["train_found"] <= 1
+    assert sc.meta["fitted_on"].startswith("every sixth: 14 training clips")
+    OpenSoundVocabulary(yamnet_class_names(), text, scorer=sc)  # of YAMNet's names
+    few = SoundBank(clips[:3], sample_rate=base.sample_rate, name="three")
+    with pytest.raises(ConfigError, match="8 or more"):
+        fit_open_scorer(few, text_encoder=text, n_maps=2)
+    with pytest.raises(ConfigError, match="no training clips"):
+        fit_open_scorer(_first_clips(base, 3), text_encoder=text, n_maps=2)

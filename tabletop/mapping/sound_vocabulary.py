@@ -304,6 +304,7 @@ class SoundMatcher:
         self.other_margin = float(other_margin)
         self._targets: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
         self._other_targets: tuple[np.ndarray, list[str]] | None = None
+        self._category_classes: np.ndarray | None = None
 
     def targets(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(phrasing embeddings (T, dim), their category index (T,), prototypes (C, dim)). The
@@ -357,6 +358,19 @@ class SoundMatcher:
         np.maximum.at(out, owner, s)
         return out
 
+    def category_classes(self) -> np.ndarray:
+        """(C, K) bool: the :attr:`open_vocabulary` classes each category's texts (caption
+        and phrasings) ask for, read as queries (once per matcher)."""
+        if self._category_classes is None:
+            ov = self.open_vocabulary
+            emb, owner, _ = self.targets()
+            n = sum(len(self.vocabulary.texts[c]) for c in self.vocabulary.categories)
+            out = np.zeros((len(self.vocabulary.categories), len(ov.names)), bool)
+            for e, i in zip(emb[:n], owner[:n], strict=True):
+                out[i] |= ov.asked(e)
+            self._category_classes = out
+        return self._category_classes
+
     def nearest_other(self, embedding: np.ndarray) -> tuple[str, float]:
         """The sound of :attr:`others` whose phrasing is nearest a query's ``embedding``, and
         that cosine (``("", -1.0)`` without others)."""
@@ -395,7 +409,17 @@ class SoundMatcher:
         if not ov.known:
             return bank
         if bank.known and ov.text_score < bank.text_score + self.open_margin:
-            return bank
+            # Nearer a class name than every known phrasing, but less so than open_margin:
+            # the bank answers where its asked categories read as one of the query's classes
+            # ("a hound": the dog's texts read as "Dog" too); a query whose classes none of
+            # them reads as names another sound ("glass breaking" asks for "Shatter", which
+            # glass clinking is not).
+            asked = np.isin(self.open_vocabulary.names, ov.classes)
+            covers = self.category_classes()[
+                [self.vocabulary.categories.index(c) for c in bank.categories]
+            ]
+            if ov.text_score <= bank.text_score or (covers & asked).any():
+                return bank
         return SoundQuery(
             query,
             tuple(f"{OPEN_PREFIX}{c}" for c in ov.classes),

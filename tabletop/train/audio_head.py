@@ -96,6 +96,10 @@ class HeadTrainConfig:
     """Dropout on the standardised input and the hidden layer (training only)."""
     n_threads: int = 1
     """torch and onnxruntime threads."""
+    open_scorer: bool = True
+    """Also fit the open vocabulary's segment scorer
+    (:func:`~tabletop.train.audio_open.fit_open_scorer`) and write it beside ``out`` as
+    ``audio_open_scorer.json`` (the shipped one: ``tabletop/data/weights/``)."""
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "out", Path(self.out))
@@ -353,6 +357,13 @@ def train_audio_head(config: HeadTrainConfig | None = None, bank=None, *, evalua
     }
     head = dataclasses.replace(head, meta=meta)
     save_head(cfg.out, head)
+    if cfg.open_scorer:
+        from tabletop.mapping.open_sounds import save_open_scorer
+        from tabletop.train.audio_open import fit_open_scorer
+
+        scorer = fit_open_scorer(bank, backbone, seed=cfg.seed)
+        save_open_scorer(cfg.out.with_name("audio_open_scorer.json"), scorer)
+        log.info("open sound scorer: %s", scorer.meta)
     if evaluate:
         enc = YamnetAudioEncoder(cfg.out, backbone=backbone)
         meta["heldout"] = evaluate_audio(enc, bank)
