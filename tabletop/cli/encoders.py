@@ -11,7 +11,7 @@ import time
 import zipfile
 from pathlib import Path
 
-from tabletop.cli.output import check_parents_are_directories, stdout_to_stderr
+from tabletop.cli.output import check_output_flag, check_parents_are_directories, stdout_to_stderr
 from tabletop.errors import ConfigError
 
 __all__ = ["TRAIN_OUT", "add_commands", "cmd_check_encoders", "cmd_train"]
@@ -45,6 +45,8 @@ def cmd_check_encoders(args: argparse.Namespace) -> int:
     from tabletop.train.audio import evaluate_audio
     from tabletop.train.vision import evaluate_vision
 
+    if args.vision_weights is None:  # the per-instance measure writes scans and maps there
+        check_output_flag("--cache-dir", args.cache_dir, directory=True)
     out = {}
     with stdout_to_stderr() if args.json else contextlib.nullcontext():
         vis = evaluate_vision(weights=args.vision_weights or EFFNET_WEIGHTS_PATH)

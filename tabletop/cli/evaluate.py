@@ -11,7 +11,7 @@ import time
 import tomllib
 from pathlib import Path
 
-from tabletop.cli.output import check_parents_are_directories, stdout_to_stderr
+from tabletop.cli.output import check_output_flag, check_parents_are_directories, stdout_to_stderr
 from tabletop.cli.progress import ProgressBars
 from tabletop.errors import ConfigError
 from tabletop.reader.reading import DEFAULT_READER, READERS
@@ -286,6 +286,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
     write the report."""
     from tabletop.eval.runner import run_eval
 
+    _check_directory_flag("--out", args.out)  # before the scan, not after it
     out = Path(args.out)
     encoders = [e.strip() for e in args.encoders.split(",") if e.strip()]
     if args.robot == "mobile":
@@ -377,6 +378,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     if not args.no_cache:
         _check_directory_flag("--cache-dir", args.cache_dir)
     out = args.out if args.out is not None else CALIBRATION_OUT_DIR / f"{args.encoders}.json"
+    check_output_flag("--out", out)
     _check_calibration_output(Path(out))
     seeds = list(CALIBRATION_SEEDS)[: args.scenes] if args.scenes else list(CALIBRATION_SEEDS)
     print(f"calibrating {args.encoders!r} on scenes {seeds} ...", file=sys.stderr)

@@ -7,20 +7,31 @@ import os
 import sys
 from pathlib import Path
 
+from tabletop.atomic import check_writable
 from tabletop.errors import ConfigError
 
-__all__ = ["check_parents_are_directories", "stdout_to_stderr"]
+__all__ = ["check_output_flag", "check_parents_are_directories", "stdout_to_stderr"]
+
+
+def check_output_flag(
+    flag: str, path: str | Path, *, directory: bool = False, hint: str = ""
+) -> Path:
+    """The one check of every command's output option, before any work: ``path`` (a file, or
+    a directory with ``directory``) can be written (:func:`tabletop.atomic.check_writable`:
+    a valid name, no file where a directory must be, a parent that takes new files).
+    :class:`ConfigError` names ``flag``, the path and why, with ``hint`` appended."""
+    try:
+        return check_writable(path, directory=directory, what=flag)
+    except ConfigError as e:
+        raise ConfigError(f"{e}{hint}") from None
 
 
 def check_parents_are_directories(flag: str, path: str | Path, hint: str = "") -> None:
     """The nearest existing ancestor of ``path`` must be a directory (a path through a file can
     never be created): :class:`ConfigError` naming the flag, the path and that ancestor, with
-    ``hint`` appended, checked before any work."""
-    for parent in Path(path).parents:
-        if parent.exists():
-            if not parent.is_dir():
-                raise ConfigError(f"{flag} {str(path)!r}: {str(parent)!r} is not a directory{hint}")
-            return
+    ``hint`` appended, checked before any work; and that it takes new files
+    (:func:`check_output_flag`)."""
+    check_output_flag(flag, path, directory=Path(path).is_dir(), hint=hint)
 
 
 @contextlib.contextmanager

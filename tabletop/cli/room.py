@@ -34,11 +34,13 @@ def cmd_rooms(args: argparse.Namespace) -> int:
 
 
 def cmd_scan_room(args: argparse.Namespace) -> int:
+    from tabletop.cli.output import check_output_flag
     from tabletop.recording import check_output, save_recording
     from tabletop.sim.ground_truth import GroundTruth
     from tabletop.sim.room_scan import RoomScanConfig, scan_room
 
-    check_output(args.out, args.overwrite)  # before the scan, not after it
+    check_output_flag("--out", args.out, directory=True)  # before the scan, not after it
+    check_output(args.out, args.overwrite)
     spec = _room(args)
     config = RoomScanConfig(
         seed=args.seed,

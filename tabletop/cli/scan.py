@@ -101,10 +101,12 @@ def _do_scan(args: argparse.Namespace):
 
 
 def cmd_scan(args: argparse.Namespace) -> int:
+    from tabletop.cli.output import check_output_flag
     from tabletop.recording import check_output, save_recording
     from tabletop.sim.ground_truth import GroundTruth
 
-    check_output(args.out, args.overwrite)  # before the scan, not after it
+    check_output_flag("--out", args.out, directory=True)  # before the scan, not after it
+    check_output(args.out, args.overwrite)
     spec, rec, stats = _do_scan(args)
     t0 = time.perf_counter()
     save_recording(rec, args.out, overwrite=args.overwrite)

@@ -8,6 +8,9 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from tabletop.atomic import atomic_path, check_writable
+from tabletop.errors import ConfigError
+
 __all__ = ["heatmap_views", "write_heatmap_views"]
 
 
@@ -61,10 +64,14 @@ def write_heatmap_views(
 ) -> list[Path]:
     """Write ``<prefix>_top.png`` and ``<prefix>_side.png``; return their paths."""
     prefix = Path(path_prefix)
-    prefix.parent.mkdir(parents=True, exist_ok=True)
-    paths = []
-    for name, img in heatmap_views(m, heatmap, target).items():
-        p = prefix.with_name(f"{prefix.name}_{name}.png")
-        cv2.imwrite(str(p), img)
-        paths.append(p)
+    views = heatmap_views(m, heatmap, target)
+    paths = [prefix.with_name(f"{prefix.name}_{name}.png") for name in views]
+    for p in paths:  # every picture's path before the first is written
+        check_writable(p, what="picture")
+    for p, img in zip(paths, views.values(), strict=True):
+        with atomic_path(p) as tmp:
+            ok, data = cv2.imencode(".png", img)
+            if not ok:
+                raise ConfigError(f"picture {str(p)!r}: the view could not be encoded as PNG")
+            tmp.write_bytes(data.tobytes())
     return paths
