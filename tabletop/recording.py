@@ -433,6 +433,12 @@ def _header_error(header_path: Path, field: str, value: object, valid: str) -> R
     return RecordingError(f"{header_path}: {field} is {shown}; valid: {valid}")
 
 
+def _json_kind(v: object) -> str:
+    """The JSON name of a decoded value's type (array, string, number, ...)."""
+    kinds = ((list, "array"), (str, "string"), (bool, "boolean"), ((int, float), "number"))
+    return next((name for t, name in kinds if isinstance(v, t)), "null")
+
+
 def _is_int(v: object) -> bool:
     return isinstance(v, int) and not isinstance(v, bool)
 
@@ -540,9 +546,25 @@ def load_recording(path: str | Path, *, workers: int = 2) -> Recording:
     if not header_path.is_file():
         raise RecordingError(f"{path} is not a recording: {header_path} is missing")
     try:
-        h = json.loads(header_path.read_text())
+        text = header_path.read_bytes().decode("utf-8")
+    except UnicodeDecodeError as e:
+        raise RecordingError(
+            f"{header_path} is not text (byte {e.start} is not UTF-8): a recording's header is "
+            f"a JSON object of format {FORMAT_NAME!r}"
+        ) from None
+    except OSError as e:
+        raise RecordingError(f"{header_path} cannot be read: {e.strerror or e}") from None
+    try:
+        h = json.loads(text)
     except json.JSONDecodeError as e:
         raise RecordingError(f"{header_path} is not valid JSON (truncated?): {e}") from None
+    except RecursionError:
+        raise RecordingError(f"{header_path} nests JSON too deeply to be a header") from None
+    if not isinstance(h, dict):
+        raise RecordingError(
+            f"{header_path} holds a JSON {_json_kind(h)}, not an object: a recording's header "
+            f"is a JSON object of format {FORMAT_NAME!r}"
+        )
     if h.get("format") != FORMAT_NAME:
         raise RecordingError(f"{header_path}: format is {h.get('format')!r}, not {FORMAT_NAME!r}")
     if h.get("version") not in READABLE_VERSIONS:

@@ -370,11 +370,18 @@ def shipped_spec_path(folder: str, what: str, name: str) -> Path:
 def read_spec_file(path: str | Path, folder: str, what: str) -> tuple[dict, Path]:
     """(parsed data, path) of a ``what`` spec ("scene", "room") from a ``.toml`` or ``.json``
     file, or of one shipped in ``tabletop/data/<folder>`` by name."""
+    if str(path) == "":
+        raise SceneError(f"{what} spec is empty: give a file or one of the shipped {folder}")
     path = Path(path)
     if not path.exists() and path.suffix == "":
         path = shipped_spec_path(folder, what, str(path))
     if not path.is_file():
-        raise SceneError(f"{what} spec {path} not found; shipped {folder}: {shipped_specs(folder)}")
+        from tabletop.paths import input_file_problem
+
+        problem = input_file_problem(path) or "not found"
+        raise SceneError(
+            f"{what} spec {str(path)!r} {problem}; shipped {folder}: {shipped_specs(folder)}"
+        )
     try:
         if path.suffix == ".toml":
             data = tomllib.loads(path.read_text())
