@@ -50,10 +50,20 @@ class LLMConfig:
     """Largest reply [bytes] read; a longer one is an error."""
 
     def __post_init__(self) -> None:
+        _check_types(self)
         if not re.match(r"^https?://[^/\s]+", self.base_url or ""):
             raise ConfigError(
                 f"LLM base_url must be an http(s) URL such as http://127.0.0.1:8000/v1, "
                 f"got {self.base_url!r}"
+            )
+        try:
+            port = urllib.parse.urlsplit(self.base_url).port
+        except ValueError:  # a port out of range, or not a number
+            port = -1
+        if port is not None and not 1 <= port <= 65535:
+            raise ConfigError(
+                f"LLM base_url {self.base_url!r}: the port must be a number in 1-65535, e.g. "
+                "http://127.0.0.1:8000/v1"
             )
         if not self.model or not self.model.strip():
             raise ConfigError("LLM model must be a non-empty name")
@@ -98,11 +108,19 @@ class LLMConfig:
         env = os.environ if env is None else env
         p = Path(path)
         if not p.is_file():
-            raise ConfigError(f"LLM config {str(p)!r} does not exist")
+            from tabletop.paths import input_file_problem
+
+            problem = input_file_problem(path) or "does not exist"
+            raise ConfigError(f"LLM config {str(path)!r} {problem}")
         try:
             table = tomllib.loads(p.read_text())["llm"]
-        except (tomllib.TOMLDecodeError, KeyError) as e:
+        except (tomllib.TOMLDecodeError, KeyError, UnicodeDecodeError) as e:
             raise ConfigError(f"LLM config {str(p)!r}: needs an [llm] table ({e})") from None
+        if not isinstance(table, dict):
+            raise ConfigError(
+                f"LLM config {str(p)!r}: 'llm' is a {type(table).__name__} ({table!r:.40}), not "
+                "a table: write [llm] and its keys below it (base_url, model, ...)"
+            )
         known = {
             "base_url",
             "model",
@@ -119,14 +137,46 @@ class LLMConfig:
             )
         values = {k: v for k, v in table.items() if k != "api_key_env"}
         key_env = table.get("api_key_env", ENV_API_KEY)
+        if not isinstance(key_env, str) or not key_env:
+            raise ConfigError(
+                f"LLM config {str(p)!r}: api_key_env must be the name of an environment "
+                f"variable (a string), got {key_env!r:.40}"
+            )
         values["api_key"] = env.get(key_env)
         try:
             return cls(**values)
         except TypeError as e:
             raise ConfigError(f"LLM config {str(p)!r}: {e}") from None
+        except ConfigError as e:
+            raise ConfigError(f"LLM config {str(p)!r}: {e}") from None
 
     def with_overrides(self, **overrides) -> LLMConfig:
         return replace(self, **{k: v for k, v in overrides.items() if v is not None})
+
+
+#: Each setting's valid types and how the error names them.
+_FIELD_TYPES = {
+    "base_url": ((str,), "a string (an http(s) URL)"),
+    "model": ((str,), "a string (the model's name)"),
+    "api_key": ((str, type(None)), "a string or none"),
+    "timeout_s": ((int, float), "a number of seconds"),
+    "temperature": ((int, float), "a number in [0, 2]"),
+    "max_tokens": ((int,), "an integer >= 1"),
+    "max_reply_bytes": ((int,), "an integer >= 1"),
+}
+
+
+def _check_types(config: LLMConfig) -> None:
+    """Every setting of ``config`` has its type (booleans are not numbers; numbers finite):
+    :class:`ConfigError` naming the field, its valid form and its value."""
+    for name, (types, valid) in _FIELD_TYPES.items():
+        v = getattr(config, name)
+        ok = isinstance(v, types) and not isinstance(v, bool)
+        if ok and isinstance(v, float) and not math.isfinite(v):
+            raise ConfigError(f"LLM {name} must be finite ({valid}), got {v}")
+        if not ok:
+            shown = "(hidden)" if name == "api_key" else f"{v!r:.40}"
+            raise ConfigError(f"LLM {name} must be {valid}, got {type(v).__name__} {shown}")
 
 
 def _shut(sock: socket.socket) -> None:
