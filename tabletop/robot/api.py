@@ -18,6 +18,9 @@ primitive's landmark is an object name or a heatmap (a place found by any query)
 from __future__ import annotations
 
 import abc
+import functools
+import inspect
+import numbers
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -26,15 +29,19 @@ import numpy as np
 from tabletop.errors import ConfigError, GoalNotFound, TabletopError
 from tabletop.mapping.heatmaps import Heatmap, fuse
 from tabletop.mapping.targets import max_position, region_box, surface_z
+from tabletop.paths import input_file_problem
 from tabletop.reader.reading import DEFAULT_READER, get_reader
 from tabletop.relations import relation, side_point
 
 __all__ = [
     "GoalNotFound",
     "ImageGoalUnavailable",
+    "PrimitiveArgumentError",
     "RobotAPI",
+    "RobotClosed",
     "RobotError",
     "SpatialConfig",
+    "check_primitive_args",
 ]
 
 
@@ -44,6 +51,155 @@ class RobotError(TabletopError):
 
 class ImageGoalUnavailable(ConfigError):
     """An image goal was asked of a map without the visual localization module."""
+
+
+class PrimitiveArgumentError(RobotError, ConfigError, TypeError):
+    """A primitive was called with an argument of the wrong type or value (``move_north("5")``):
+    a :class:`TypeError` and a :class:`ValueError` alike, naming the argument and its valid
+    form."""
+
+
+class RobotClosed(RobotError, RuntimeError):
+    """A primitive was called on a robot after its ``close()``."""
+
+
+def _is_real(v) -> bool:
+    return isinstance(v, numbers.Real) and not isinstance(v, (bool, np.bool_))
+
+
+def _number(v) -> str | None:
+    if not _is_real(v):
+        return "a number"
+    if not np.isfinite(float(v)):
+        return "a finite number"
+    return None
+
+
+def _landmark_arg(v) -> str | None:
+    if isinstance(v, Heatmap):
+        return None
+    if isinstance(v, str) and v.strip():
+        return None
+    return "an object name (a non-empty str) or a heatmap from get_major_map / get_map"
+
+
+def _point_arg(v) -> str | None:
+    want = "a finite 3-vector [m] (x, y, z numbers), e.g. (0.4, 0.0, 0.1)"
+    if isinstance(v, (str, bytes, dict, set)):
+        return want
+    try:
+        a = np.asarray(v)
+    except (TypeError, ValueError):
+        return want
+    if a.shape != (3,) or a.dtype.kind not in "iuf" or not np.all(np.isfinite(a)):
+        return want
+    return None
+
+
+def _text_arg(v) -> str | None:
+    return None if v is None or (isinstance(v, str) and v.strip()) else "a non-empty str"
+
+
+def _image_arg(v) -> str | None:
+    if v is None or isinstance(v, (str, Path, np.ndarray)):
+        return None
+    return "an image file path (str) or an (H, W, 3) uint8 RGB array"
+
+
+#: The valid form of each primitive parameter (by its declared name,
+#: :data:`tabletop.robot.primitives.PRIMITIVES`): a check returning what is expected, or None.
+_PARAM_CHECKS = {
+    "distance_m": lambda v: _number(v) and f"{_number(v)} of metres, e.g. 0.1",
+    "dx": lambda v: _number(v) and f"{_number(v)} of metres",
+    "dy": lambda v: _number(v) and f"{_number(v)} of metres",
+    "angle_deg": lambda v: _number(v) and f"{_number(v)} of degrees, e.g. 90",
+    "name": _landmark_arg,
+    "a": _landmark_arg,
+    "b": _landmark_arg,
+    "pos": _point_arg,
+    "heatmap": lambda v: (
+        None
+        if isinstance(v, Heatmap)
+        else "a Heatmap (expected a heatmap from get_major_map / get_map, or their product)"
+    ),
+    "obj": _text_arg,
+    "sound": _text_arg,
+    "area": _text_arg,
+    "img": _image_arg,
+    "primary": lambda v: (
+        None
+        if v is None or v in ("obj", "sound", "img", "area")
+        else "None or one of 'obj', 'sound', 'img', 'area'"
+    ),
+    "path": lambda v: None if isinstance(v, (str, Path)) else "an image file path (str)",
+}
+
+
+def _shown(v) -> str:
+    r = repr(v)
+    return f"{type(v).__name__} {r if len(r) <= 60 else r[:57] + '...'}"
+
+
+def check_primitive_args(name: str, params: tuple[str, ...], arguments: dict) -> None:
+    """The one check of every primitive's arguments: each given parameter of ``params`` must
+    have its valid form (:data:`_PARAM_CHECKS`); :class:`PrimitiveArgumentError` names the
+    call, the argument, its valid form and what it got."""
+    for param in params:
+        if param not in arguments:
+            continue
+        check = _PARAM_CHECKS.get(param)
+        want = None if check is None else check(arguments[param])
+        if want:
+            raise PrimitiveArgumentError(
+                f"{name}({param}=...): {param} must be {want}; got {_shown(arguments[param])}"
+            )
+
+
+def _checked(fn, params: tuple[str, ...]):
+    """``fn`` (a primitive's method) behind :func:`check_primitive_args` and the closed
+    check; its signature unchanged."""
+    sig = inspect.signature(fn)
+
+    @functools.wraps(fn)
+    def method(self, *args, **kwargs):
+        if getattr(self, "closed", False):
+            raise RobotClosed(
+                f"{fn.__name__}: this {type(self).__name__} was closed; make a new one"
+            )
+        try:  # what is given is checked first, then what is missing
+            given = sig.bind_partial(self, *args, **kwargs)
+            check_primitive_args(fn.__name__, params, given.arguments)
+            sig.bind(self, *args, **kwargs)
+        except TypeError as e:
+            if isinstance(e, PrimitiveArgumentError):
+                raise
+            raise PrimitiveArgumentError(f"{fn.__name__}({', '.join(params)}): {e}") from None
+        return fn(self, *args, **kwargs)
+
+    method._checked_primitive = True
+    return method
+
+
+def _check_primitives_of(cls: type) -> None:
+    """Put every declared primitive ``cls`` itself defines behind :func:`_checked`."""
+    from tabletop.robot.primitives import PRIMITIVES
+
+    for p in PRIMITIVES:
+        attr = cls.__dict__.get(p.name)
+        if isinstance(attr, staticmethod):
+            fn = attr.__func__
+            if not getattr(fn, "_checked_static", False):
+
+                def static(*args, _fn=fn, _p=p, **kwargs):
+                    bound = inspect.signature(_fn).bind(*args, **kwargs)
+                    check_primitive_args(_p.name, _p.params, bound.arguments)
+                    return _fn(*args, **kwargs)
+
+                functools.update_wrapper(static, fn)
+                static._checked_static = True
+                setattr(cls, p.name, staticmethod(static))
+        elif inspect.isfunction(attr) and not getattr(attr, "_checked_primitive", False):
+            setattr(cls, p.name, _checked(attr, p.params))
 
 
 @dataclass(frozen=True)
@@ -94,6 +250,18 @@ class RobotAPI(abc.ABC):
     """The reader (:data:`tabletop.reader.READERS`) that reads each ``obj=``/``sound=``/
     ``area=`` reference before the map scores it; set it on an instance to compare readers."""
 
+    closed = False
+    """True once :meth:`close` ran: every primitive then raises :class:`RobotClosed`."""
+
+    def __init_subclass__(cls, **kwargs) -> None:
+        super().__init_subclass__(**kwargs)
+        _check_primitives_of(cls)  # one argument check for every embodiment's primitives
+
+    def close(self) -> None:
+        """Release what the robot holds (a simulator, a driver); primitives called after it
+        raise :class:`RobotClosed`."""
+        self.closed = True
+
     def __init__(self, avlmap, spatial: SpatialConfig | None = None) -> None:
         self.map = avlmap
         self.spatial = spatial or SpatialConfig()
@@ -115,9 +283,12 @@ class RobotAPI(abc.ABC):
         """(H, W, 3) uint8 RGB image read from ``path`` (PNG, JPEG, ...)."""
         import cv2
 
+        if not isinstance(path, (str, Path)):
+            raise ConfigError(f"path must be an image file path (str), got {type(path).__name__}")
+        problem = input_file_problem(path)
+        if problem:
+            raise ConfigError(f"image {str(path)!r} {problem}")
         p = Path(path)
-        if not p.is_file():
-            raise ConfigError(f"image {str(p)!r} does not exist")
         bgr = cv2.imread(str(p), cv2.IMREAD_COLOR)
         if bgr is None:
             raise ConfigError(f"image {str(p)!r} could not be decoded (not an image file?)")
@@ -306,3 +477,6 @@ class RobotAPI(abc.ABC):
     def move_east(self, distance_m: float):
         """Move ``distance_m`` [m] along -y (right) from the current position."""
         return self.move_to(self.offset(0.0, -distance_m))
+
+
+_check_primitives_of(RobotAPI)

@@ -21,16 +21,40 @@ or objects are counted after every physics step (the planner's trajectories incl
 
 from __future__ import annotations
 
+import dataclasses
+from dataclasses import dataclass
+
 import numpy as np
 
 from tabletop.arm.driver import ArmDriver, PyBulletDriver, touching_points
 from tabletop.arm.model import HOME_Q, PandaModel
-from tabletop.arm.reach import ReachConfig, ReachController, ReachResult
+from tabletop.arm.reach import GoalChoice, ReachConfig, ReachController, ReachResult
+from tabletop.arm.success import SUCCESS_RADIUS_M
 from tabletop.mapping.targets import APPROACH_RADIUS_M, approach_point, surface_z
 from tabletop.robot.api import RobotAPI, SpatialConfig, _point
 from tabletop.robot.obstacles import ARM, Embodiment, arm_obstacles
 
-__all__ = ["ArmRobot", "SimArm"]
+__all__ = ["ArmReachResult", "ArmRobot", "SimArm"]
+
+
+@dataclass(frozen=True)
+class ArmReachResult(ReachResult):
+    """The outcome of :meth:`ArmRobot.move_to`: the reach controller's result (``target`` is
+    the point the controller was asked for, the approach point; ``goal`` the point it
+    commanded) with the point ``move_to`` itself was given, and why they differ."""
+
+    requested: np.ndarray | None = None
+    """(3,) [m] world: the point ``move_to`` was given (what the caller asked for)."""
+    requested_error_m: float = float("nan")
+    """|final_tcp - requested| [m]."""
+    note: str = ""
+    """Why the commanded goal differs from ``requested`` (empty when it does not): the
+    approach from above raised it, the goal selection moved it, or it lies outside the
+    workspace and nothing moved."""
+
+
+def _xyz(p) -> str:
+    return "(" + ", ".join(f"{v:+.3f}" for v in p) + ") m"
 
 
 class _ContactCountingDriver(PyBulletDriver):
@@ -127,13 +151,68 @@ class ArmRobot(RobotAPI):
         """(3,) [m]: where ``move_to(pos)`` sends the TCP (:meth:`approach_goal`)."""
         return self.approach_goal(pos)[0]
 
-    def move_to(self, pos) -> ReachResult:
+    def move_to(self, pos) -> ArmReachResult:
         """Reach ``pos`` (3,) [m] base frame with the TCP, approached from above
-        (:meth:`approach_goal`); failures are reasons in the result."""
-        goal, ref = self.approach_goal(pos)
-        result = self.controller.move_to(goal, reference=ref)
-        self.history.append(result)
-        return result
+        (:meth:`approach_goal`); failures are reasons in the result, which states the point
+        asked (``requested``), the point commanded (``goal``), the final TCP, and in
+        ``note`` why the first two differ.
+
+        A point outside the workspace (below the table's top) whose approach point lies
+        beyond the success radius from it is refused: nothing moves, the reason is
+        ``outside_workspace`` (raising it onto the table would reach another place)."""
+        p = _point(pos)
+        goal, ref = self.approach_goal(p)
+        ws = self.controller.workspace
+        far = float(np.linalg.norm(goal - p))
+        if not ws.contains(p) and far > SUCCESS_RADIUS_M:
+            result = self.controller.move_to(p, reference=p)  # refused: nothing moves
+            below = ws.lower[2] - p[2]
+            where = (
+                f"{below:.2f} m below the table's top (z = {ws.lower[2]:g})"
+                if below > 0
+                else f"outside the workspace {list(ws.lower)} .. {list(ws.upper)} m"
+            )
+            note = (
+                f"the target {_xyz(p)} lies {where}: the arm cannot reach it; approached from "
+                f"above it would stop at {_xyz(goal)}, {far:.2f} m from it (beyond the "
+                f"{SUCCESS_RADIUS_M * 100:.0f} cm success radius), so nothing moved"
+            )
+        else:
+            result = self.controller.move_to(goal, reference=ref)
+            note = self._difference(p, result)
+        honest = ArmReachResult(
+            **{f.name: getattr(result, f.name) for f in dataclasses.fields(ReachResult)},
+            requested=p,
+            requested_error_m=float(np.linalg.norm(result.final_tcp - p)),
+            note=note,
+        )
+        self.history.append(honest)
+        return honest
+
+    def _difference(self, p: np.ndarray, result: ReachResult) -> str:
+        """Why ``result``'s commanded goal differs from the requested point ``p`` (empty when
+        it is within the controller's tolerance of it)."""
+        goal = result.goal
+        shift = float(np.linalg.norm(goal - p))
+        if shift <= self.controller.config.tolerance:
+            return ""
+        why = []
+        if result.target[2] > p[2] + 1e-9:
+            what = "the table" if p[2] < 0 else "the surface or object at it"
+            why.append(
+                f"raised {result.target[2] - p[2]:.3f} m to approach from above: the gripper "
+                f"stops {self.spatial.above_gap:g} m over {what}"
+            )
+        if result.goal_choice == GoalChoice.STANDOFF:
+            why.append("lifted to a standoff: the point was inside an obstacle")
+        elif result.goal_choice == GoalChoice.ALTERNATIVE:
+            why.append(
+                "the goal selection chose another point within "
+                f"{self.controller.config.goal_radius:g} m: the arm could not clear the first"
+            )
+        return f"asked {_xyz(p)}, commanded {_xyz(goal)} ({shift:.3f} m apart): " + "; ".join(
+            why or ["the approach moved it"]
+        )
 
     def current_position(self) -> np.ndarray:
         """(3,) [m] base frame: the TCP (``panda_grasptarget``), from the measured joints."""
@@ -172,7 +251,7 @@ class SimArm(ArmRobot):
         self.contacts: list[int] = []
         """PyBullet contact points (robot vs table/objects) counted during each move."""
 
-    def move_to(self, pos) -> ReachResult:
+    def move_to(self, pos) -> ArmReachResult:
         before = self.driver.contacts
         result = super().move_to(pos)
         self.contacts.append(self.driver.contacts - before)
@@ -183,7 +262,11 @@ class SimArm(ArmRobot):
         self.world.set_arm(np.asarray(q, np.float64), self.model.finger_opening)
 
     def close(self) -> None:
-        self.world.close()
+        """Close the simulator; primitives called after it raise
+        :class:`~tabletop.robot.api.RobotClosed` (a second close does nothing)."""
+        if not self.closed:
+            self.world.close()
+        super().close()
 
     def __enter__(self) -> SimArm:
         return self

@@ -202,6 +202,7 @@ EXCLUDED: dict[str, str] = {
     "vector; generated code names the side instead",
     "heading": "a mobile base's yaw; generated code turns with turn and face instead",
     "plan": "a mobile base's path without moving, for tools and reports",
+    "close": "releases the simulator or driver; the code's caller ends the robot, not the code",
 }
 
 _BY_NAME = {p.name: p for p in PRIMITIVES}
