@@ -68,6 +68,10 @@ def cmd_parse(args: argparse.Namespace) -> int:
     from tabletop.language.run import generate_code
     from tabletop.language.sandbox import check_code
 
+    if args.suite and args.instruction:
+        raise ConfigError(
+            f"give an instruction or --suite, not both (got {args.instruction!r} and --suite)"
+        )
     if args.suite:
         return _suite_on_reference(args)
     if not args.instruction:
@@ -210,8 +214,9 @@ def cmd_run(args: argparse.Namespace) -> int:
     else:
         from tabletop.robot import SimArm
 
+        spec = _scene_of_map(args, m)
         print("starting the simulated arm ...", file=sys.stderr)
-        robot = SimArm(m, args.scene)
+        robot = SimArm(m, spec)
 
     def on_code(code: str) -> None:
         print(f"code ({args.backend}, checked by the sandbox):")
@@ -230,11 +235,16 @@ def cmd_run(args: argparse.Namespace) -> int:
         line = f"  {'':17s} -> {'reached' if reached else 'NOT reached'} ({reason})"
         if where is not None:
             line += f", ends at {_fmt(where)}"
-        if err is not None:
+        requested = getattr(r, "requested", None)
+        if requested is not None:  # the arm: measured from the point asked, not the one commanded
+            line += f", {r.requested_error_m * 100:.1f} cm from the point asked {_fmt(requested)}"
+        elif err is not None:
             line += f", {err * 100:.1f} cm from the target"
         if getattr(r, "standoff_applied", False):
             line += " (the target was inside an obstacle: stopped at a standoff)"
         print(line, flush=True)
+        if getattr(r, "note", ""):
+            print(f"  {'':17s}    why: {r.note}", flush=True)
 
     try:
         run = run_instruction(
@@ -261,8 +271,28 @@ def cmd_run(args: argparse.Namespace) -> int:
     print(
         f"{len(run.motions)} target(s), {run.run.steps} steps, {run.run.elapsed_s:.2f} s"
         + ("" if args.dry_run else f", {len(results) - failed} reached, {failed} not reached")
+        + (f"; WARNING: {mismatch}" if (mismatch := getattr(args, "_scene_mismatch", "")) else "")
     )
     return 0 if failed == 0 else 1
+
+
+def _scene_of_map(args: argparse.Namespace, m):
+    """The scene spec of ``--scene``, checked against the scene the map was built from (a map
+    reached in another world is refused); with ``--other-scene`` a mismatch is a warning, printed
+    now and in the summary."""
+    from tabletop.errors import TabletopError
+    from tabletop.mapping.persistence import check_map_scene
+    from tabletop.sim.scene import load_scene_spec
+
+    spec = load_scene_spec(args.scene)
+    try:
+        check_map_scene(args.map, getattr(m, "source", None), spec.to_dict(), args.scene)
+    except TabletopError as e:
+        if not args.other_scene:
+            raise ConfigError(f"{e} (or pass --other-scene to run it anyway)") from None
+        args._scene_mismatch = str(e)
+        print(f"WARNING (--other-scene): {e}", file=sys.stderr)
+    return spec
 
 
 # ---------------------------------------------------------------------- registration
@@ -301,7 +331,17 @@ def add_commands(sub) -> None:
         "room: the wheeled base in the room a room map was built from (--room); point: a "
         "robot that jumps to each target",
     )
-    p.add_argument("--scene", default="default", help="the scene the map was built from")
+    p.add_argument(
+        "--scene",
+        default="default",
+        help="the scene the map was built from (checked against the map; default: default)",
+    )
+    p.add_argument(
+        "--other-scene",
+        action="store_true",
+        help="run the arm in --scene although the map was not built from it (or does not say "
+        "what it was built from): warned, not refused",
+    )
     p.add_argument("--room", default="default", help="with --embodiment room: the room")
     p.add_argument(
         "--image-dir",
@@ -334,6 +374,9 @@ def cmd_train_reader(args: argparse.Namespace) -> int:
     out = Path(args.out) if args.out is not None else Path("out/weights/reader.pt")
     if out.is_dir():
         raise ConfigError(f"--out {str(out)!r} is a directory; give a weights file path")
+    from tabletop.cli.output import check_output_flag
+
+    check_output_flag("--out", out, hint="; give a weights file path")
     if args.threads is not None:
         import torch
 

@@ -6,9 +6,37 @@ import argparse
 import sys
 import time
 
+from tabletop.cli.output import check_output_flag
 from tabletop.cli.progress import ProgressBars
 
-__all__ = ["add_commands", "cmd_build_map", "cmd_query"]
+__all__ = ["MIN_MAP_VOXELS", "MIN_PIXELS_PER_FRAME", "add_commands", "cmd_build_map", "cmd_query"]
+
+MIN_PIXELS_PER_FRAME = 100
+"""``--pixel-step`` must keep at least this many pixels of each frame (320x240 at the default
+step 3 keeps 8560); fewer leaves a map of a few dozen voxels."""
+MIN_MAP_VOXELS = 1000
+"""A map of fewer occupied voxels is reported as too sparse to answer queries (a scan of the
+default table at 1 cm keeps about 19 000)."""
+
+
+def _check_pixel_step(step: int, width: int, height: int) -> None:
+    """``--pixel-step`` keeps at least :data:`MIN_PIXELS_PER_FRAME` pixels of a frame of
+    ``width`` x ``height`` px: else :class:`ConfigError` naming the largest step that does."""
+    from tabletop.errors import ConfigError
+
+    def kept(s: int) -> int:
+        return -(-width // s) * -(-height // s)
+
+    if step >= 1 and kept(step) < MIN_PIXELS_PER_FRAME:
+        largest = max(
+            (s for s in range(1, max(width, height) + 1) if kept(s) >= MIN_PIXELS_PER_FRAME),
+            default=1,
+        )
+        raise ConfigError(
+            f"--pixel-step {step} keeps {kept(step)} pixels of each {width}x{height} frame, fewer "
+            f"than {MIN_PIXELS_PER_FRAME}: the map would hold a few dozen voxels; valid: 1 to "
+            f"{largest} for this recording (default 3)"
+        )
 
 
 def cmd_build_map(args: argparse.Namespace) -> int:
@@ -16,10 +44,12 @@ def cmd_build_map(args: argparse.Namespace) -> int:
     from tabletop.mapping.persistence import check_map_output
     from tabletop.recording import load_recording
 
-    check_map_output(args.out, args.overwrite)  # before the map is built, not after
+    check_output_flag("--out", args.out)  # before the map is built, not after
+    check_map_output(args.out, args.overwrite)
     print(f"loading {args.recording} ...", file=sys.stderr)
     rec = load_recording(args.recording)
     config = map_config(voxel_size=args.voxel_size, pixel_step=args.pixel_step)
+    _check_pixel_step(config.pixel_step, *rec.image_size)  # before the build
     t0 = time.perf_counter()
     with ProgressBars() as bars:
         m = build_map(
@@ -42,6 +72,14 @@ def cmd_build_map(args: argparse.Namespace) -> int:
             f"features, {st.visual_s:.1f} s)"
         )
     print(f"written:   {path}")
+    if st.voxels < MIN_MAP_VOXELS:
+        print(
+            f"tabletop build-map: warning: the map holds {st.voxels} occupied voxels, fewer than "
+            f"{MIN_MAP_VOXELS}: too sparse to answer queries reliably (a smaller --pixel-step or "
+            "--voxel-size, or a recording that sees more of the table)",
+            file=sys.stderr,
+        )
+        return 1
     return 0
 
 
@@ -50,6 +88,9 @@ def cmd_query(args: argparse.Namespace) -> int:
     from tabletop.mapping.render import write_heatmap_views
     from tabletop.robot.api import RobotAPI
 
+    if args.out is not None:  # before the map is loaded and queried
+        for view in ("top", "side"):
+            check_output_flag("--out", f"{args.out}_{view}.png")
     if args.encoders is not None:  # before the map is loaded
         from tabletop.mapping.persistence import check_map_encoders
 

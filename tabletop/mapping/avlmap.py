@@ -40,7 +40,7 @@ from tabletop.mapping.encoders.base import check_same_space
 from tabletop.mapping.errors import MapFormatError
 from tabletop.mapping.heatmaps import Heatmap
 from tabletop.mapping.object_module import ObjectModule
-from tabletop.mapping.persistence import read_map_file, save_map
+from tabletop.mapping.persistence import read_map_file, save_map, source_of
 from tabletop.mapping.place_words import area_subject, parse_region
 from tabletop.mapping.registration import table_corrections
 from tabletop.mapping.table_regions import (
@@ -151,6 +151,9 @@ class AVLMap:
         self.encoder_names = dict(encoder_names or {})
         self.encoder_set = encoder_set
         self.rebuild_info = dict(rebuild_info or {})
+        self.source: dict = {}
+        """What the map was built from (:func:`~tabletop.mapping.persistence.source_of`: the
+        scene's name and fingerprint, the recording's fingerprint); empty when unknown."""
         self.self_filter = self_filter
         self.registration = None
         """The table registration :meth:`build` applied (a :class:`TableCorrections`; None for
@@ -290,6 +293,7 @@ class AVLMap:
             calibration=calibration,
             self_filter=self_filter,
         )
+        m.source = source_of(recording)
         T_hand = recording.T_world_hand
         m.registration = table_corrections(
             recording.depth, recording.K, recording.T_world_cam, config.registration
@@ -415,6 +419,7 @@ class AVLMap:
             m.sounds.class_logits = list(a["segment_class_logits"])
             m.sounds.class_names = tuple(h["class_names"])
         m._frames_seen = int(h["frames_seen"])
+        m.source = dict(h.get("source") or {})
         if h.get("visual") is not None:
             visual = {k.removeprefix("visual_"): v for k, v in a.items() if k.startswith("visual_")}
             try:

@@ -22,6 +22,7 @@ See ``docs/mapping.md``.
 
 from __future__ import annotations
 
+import hashlib
 import json
 import logging
 import math
@@ -30,9 +31,10 @@ from pathlib import Path
 
 import numpy as np
 
-from tabletop.atomic import atomic_path
+from tabletop.atomic import atomic_path, check_writable
 from tabletop.errors import ConfigError
 from tabletop.mapping.errors import MapFormatError
+from tabletop.paths import input_file_problem
 
 __all__ = [
     "MAP_FORMAT",
@@ -40,9 +42,15 @@ __all__ = [
     "READABLE_VERSIONS",
     "MapFormatError",
     "check_map_encoders",
+    "check_map_fingerprints",
     "check_map_output",
+    "check_map_scene",
+    "encoder_fingerprint",
     "read_map_file",
     "save_map",
+    "scene_fingerprint",
+    "source_of",
+    "weights_fingerprints",
 ]
 
 log = logging.getLogger(__name__)
@@ -54,9 +62,154 @@ MAP_VERSION = 5
 READABLE_VERSIONS = (1, 2, 3, 4, 5)
 
 
+def _digest(obj) -> str:
+    """A short content hash of a JSON-serialisable value (keys sorted)."""
+    text = json.dumps(obj, sort_keys=True, separators=(",", ":"), default=str)
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+def scene_fingerprint(scene: dict) -> str | None:
+    """The fingerprint of a scene spec's content (``SceneSpec.to_dict()``, as a simulated
+    recording's ground truth keeps it under ``scene``): its table and objects, not its name.
+    None when ``scene`` is not such a dict."""
+    if not isinstance(scene, dict) or "objects" not in scene:
+        return None
+    return _digest({"table": scene.get("table"), "objects": scene.get("objects")})
+
+
+def source_of(recording) -> dict:
+    """What a map built from ``recording`` was built from: the scene's name and fingerprint
+    (:func:`scene_fingerprint`; None for a recording without ground truth) and a fingerprint of
+    the recording's poses and timestamps."""
+    gt = recording.ground_truth if isinstance(recording.ground_truth, dict) else {}
+    meta = recording.meta if isinstance(recording.meta, dict) else {}
+    h = hashlib.sha256()
+    for a in (recording.timestamps, recording.T_world_hand):
+        h.update(np.ascontiguousarray(a).tobytes())
+    return {
+        "scene": meta.get("scene"),
+        "scene_fingerprint": scene_fingerprint(gt.get("scene")),
+        "recording_fingerprint": h.hexdigest()[:16],
+        "frames": len(recording),
+    }
+
+
+#: Files hashed whole up to this size [bytes]; larger ones (foundation-model checkpoints) by
+#: their size and first and last MiB.
+_WHOLE_FILE_BYTES = 64 * 2**20
+
+
+def _file_fingerprint(path: Path) -> str:
+    h = hashlib.sha256()
+    size = path.stat().st_size
+    h.update(str(size).encode())
+    with open(path, "rb") as f:
+        if size <= _WHOLE_FILE_BYTES:
+            h.update(f.read())
+        else:
+            h.update(f.read(2**20))
+            f.seek(-(2**20), 2)
+            h.update(f.read())
+    return h.hexdigest()[:16]
+
+
+def _weight_files(encoder_set: str, rebuild: dict) -> dict[str, Path]:
+    """The weights files the encoder set ``encoder_set`` with ``rebuild`` loads, by role."""
+    if encoder_set == "default":
+        from tabletop.mapping.encoders.audio import DEFAULT_AUDIO_WEIGHTS
+        from tabletop.mapping.encoders.lseg import EFFNET_WEIGHTS_PATH
+        from tabletop.mapping.encoders.yamnet_audio import DEFAULT_HEAD_WEIGHTS
+
+        kind = rebuild.get("audio_encoder") or "melcnn"
+        audio = DEFAULT_HEAD_WEIGHTS if kind == "yamnet" else DEFAULT_AUDIO_WEIGHTS
+        return {
+            "vision": Path(rebuild.get("vision_weights") or EFFNET_WEIGHTS_PATH),
+            "audio": Path(rebuild.get("audio_weights") or audio),
+        }
+    if encoder_set == "openclip":
+        keys = (("image_text", "checkpoint"), ("audio", "clap_checkpoint"))
+        return {role: Path(rebuild[k]) for role, k in keys if rebuild.get(k)}
+    return {}  # the oracle reads the recording's labels, kept in ``rebuild``
+
+
+def weights_fingerprints(encoder_set: str, rebuild: dict) -> dict[str, str | None]:
+    """Per role, the fingerprint of the weights file the encoder set loads (None: the file is
+    missing)."""
+    out: dict[str, str | None] = {}
+    for role, path in _weight_files(encoder_set, rebuild).items():
+        out[role] = _file_fingerprint(path) if path.is_file() else None
+    return out
+
+
+def encoder_fingerprint(encoder_set: str, encoders: dict, rebuild: dict) -> str:
+    """The fingerprint of a map's encoder fields as written (set, names, rebuild info)."""
+    return _digest({"encoder_set": encoder_set, "encoders": encoders, "rebuild": rebuild})
+
+
+def check_map_fingerprints(path: str | Path, h: dict) -> None:
+    """Check a map header's encoder fields against what the map was written with: the set its
+    names say (``encoders.set``) is its ``encoder_set``; the fields match the fingerprint
+    written with them; the weights files the set loads are the ones it was built with.
+    :class:`MapFormatError` names the file, the field and what differs."""
+    names = h.get("encoders") or {}
+    said = str(names.get("set", "")).split(" ", 1)[0]
+    if said and said != h["encoder_set"]:
+        raise MapFormatError(
+            f"{path}: header field 'encoder_set' is {h['encoder_set']!r} but its encoders are "
+            f"{names.get('set')!r}: the header was edited; build the map again with "
+            f"--encoders {h['encoder_set']}"
+        )
+    prints = h.get("fingerprints")
+    if prints is None:
+        return  # written before maps carried fingerprints
+    if not isinstance(prints, dict):
+        raise MapFormatError(f"{path}: header field 'fingerprints' must be an object")
+    fields = encoder_fingerprint(h["encoder_set"], names, h["rebuild"])
+    if prints.get("encoders") != fields:
+        raise MapFormatError(
+            f"{path}: its encoder fields (encoder_set {h['encoder_set']!r}, encoders, rebuild) "
+            "do not match the fingerprint written with the map: they were edited after it "
+            "was built; build the map again"
+        )
+    saved = prints.get("weights") or {}
+    now = weights_fingerprints(h["encoder_set"], h["rebuild"])
+    for role, fp in saved.items():
+        if now.get(role) != fp:
+            file = _weight_files(h["encoder_set"], h["rebuild"]).get(role)
+            state = "is missing" if now.get(role) is None else "has changed (retrained?)"
+            raise MapFormatError(
+                f"{path}: built with {role} weights {str(file)!r} of fingerprint {fp}; that "
+                f"file {state}: the map's embeddings no longer match its encoder; build the "
+                "map again"
+            )
+
+
+def check_map_scene(path: str | Path, source: dict | None, spec_dict: dict, name: str) -> None:
+    """Check that the map at ``path``, built from ``source`` (its header's ``source``), was
+    built from the scene ``spec_dict`` (``SceneSpec.to_dict()``) called ``name``:
+    :class:`MapFormatError` naming both scenes when not, or when the map does not say."""
+    built = (source or {}).get("scene_fingerprint")
+    if built is None:
+        raise MapFormatError(
+            f"{path} does not record the scene it was built from (a map written before maps "
+            "carried it, or of a recording without ground truth): it cannot be checked "
+            f"against --scene {name!r}"
+        )
+    if built != scene_fingerprint(spec_dict):
+        raise MapFormatError(
+            f"{path} was built from scene {(source or {}).get('scene')!r} (fingerprint "
+            f"{built}), not from --scene {name!r} (fingerprint {scene_fingerprint(spec_dict)}): "
+            "the arm would reach the map's places in another world; give the scene the map "
+            "was built from"
+        )
+
+
 def _read_header(path: Path) -> dict:
     """The JSON header of a map file, read without its arrays (:class:`MapFormatError` when
     there is none)."""
+    problem = input_file_problem(path)
+    if problem:
+        raise MapFormatError(f"map file {str(path)!r} {problem}")
     try:
         with np.load(path, allow_pickle=False) as z:
             header = json.loads(z["header"].tobytes().decode())
@@ -123,9 +276,8 @@ def save_map(m, path: str | Path, *, rebuild: dict | None = None) -> Path:
     """Write map ``m`` to ``path`` (``.npz``; any other suffix is an error, never renamed)
     atomically. ``rebuild`` is what the encoder set needs to be re-created on load (the
     registry fills it for the oracle)."""
-    path = Path(path)
+    path = check_writable(path, what="map file")  # before the arrays are gathered
     _check_suffix(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
     sounds, areas = m.sounds, m.areas
     header = {
         "format": MAP_FORMAT,
@@ -143,6 +295,12 @@ def save_map(m, path: str | Path, *, rebuild: dict | None = None) -> Path:
         "n_segments": len(sounds),
         "segments": [[s.start_s, s.end_s] for s in sounds.segments],
         "visual": None,
+        "source": dict(getattr(m, "source", None) or {}),
+    }
+    rebuild_info = header["rebuild"]
+    header["fingerprints"] = {
+        "encoders": encoder_fingerprint(m.encoder_set, m.encoder_names, rebuild_info),
+        "weights": weights_fingerprints(m.encoder_set, rebuild_info),
     }
     st = m.voxels.state()
     d = m.voxels.dim
@@ -173,13 +331,19 @@ def save_map(m, path: str | Path, *, rebuild: dict | None = None) -> Path:
 
 def read_map_file(path: str | Path) -> tuple[dict, dict[str, np.ndarray]]:
     """The header and arrays of a map file, validated."""
+    problem = input_file_problem(path)
+    if problem:
+        raise MapFormatError(f"map file {str(path)!r} {problem}")
     path = Path(path)
-    if not path.is_file():
-        raise MapFormatError(f"map file {path} not found")
     try:
         with np.load(path, allow_pickle=False) as z:
             arrays = {k: z[k] for k in z.files}
-    except (zipfile.BadZipFile, OSError, ValueError, EOFError) as e:
+    except ValueError:  # not a zip of arrays: numpy takes it for a pickle or another format
+        raise MapFormatError(
+            f"{path} is not a map file: a map is a .npz archive of format {MAP_FORMAT!r} "
+            "(tabletop build-map --out); this file is something else"
+        ) from None
+    except (zipfile.BadZipFile, OSError, EOFError) as e:
         raise MapFormatError(f"{path} is not a readable map file (truncated?): {e}") from None
     if "header" not in arrays:
         raise MapFormatError(f"{path} has no header: not a {MAP_FORMAT} file")
@@ -267,7 +431,8 @@ def read_map_file(path: str | Path) -> tuple[dict, dict[str, np.ndarray]]:
             f"{path}: header field 'encoder_set' is {h['encoder_set']!r:.60}; valid: "
             f"{list(ENCODER_SETS)}"
         )
-    for k in ("calibration", "visual"):
+    for k in ("calibration", "visual", "source", "fingerprints"):
         if h.get(k) is not None and not isinstance(h[k], dict):
             raise MapFormatError(f"{path}: header field {k!r} must be an object or null")
+    check_map_fingerprints(path, h)
     return h, arrays
