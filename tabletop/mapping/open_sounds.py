@@ -6,21 +6,25 @@ names a class far better than any sound the bank taught ("a doorbell", "a kettle
 "a siren") is read against the class names by MiniLM text similarity and scored on each
 segment through those logits:
 
-1. **Words -> classes.** The query's MiniLM embedding is compared with every class name (as
-   "the sound of <name>" and as the bare name; the better counts). The classes within
+1. **Words -> classes.** The query's MiniLM embedding is compared with every class name (its
+   variants below, as "the sound of <variant>" and bare; the best counts). The classes within
    ``text_margin`` of the best are asked for. A query below ``text_min`` to every name names
    no AudioSet class.
-2. **Segments -> classes.** A segment's log-odds for the query are the asked classes' logit
-   (their log-sum-exp) minus the segment's ``rank``-th strongest *other* explanation (the
-   ``rank``-th largest logit among the classes not asked that name a source), minus
-   ``offset``: relative to what else the segment sounds like, never one absolute score.
-   AudioSet's labels nest ("Music", "Musical instrument", "Tabla"; "Explosion" beside
-   "Gunshot, gunfire"), so the asked class need not be the single strongest, only near the
-   strongest few. A sound that did not play sits far below them, and the map's calibrated
-   operating point refuses it like any absent sound. ``rank = 3`` and ``offset = 1`` were
-   chosen on the bank's training clips, each queried by its caption through the class names
-   (found where it played 0.45, refused where it did not 0.95, in seeded maps of six;
-   plain softmax mass over all 521 classes: 0.18 and 0.985), never on out-of-bank recordings.
+2. **Segments -> classes.** A segment's log-odds for the query come from its logits ``z``
+   for the asked classes (:class:`OpenScorer`): how far the asked class rises above its own
+   level on sounds it does not name (YAMNet's classes sit at very different levels: "Music"
+   high everywhere, "Cash register" low), and how it stands against the segment's third
+   strongest other source-naming class (AudioSet's labels nest: "Music", "Musical
+   instrument", "Tabla"; "Explosion" beside "Gunshot, gunfire"). The two are weighed by a
+   logistic fit on the bank's training clips, each category asked for by its caption as if
+   the bank lacked it, and its bias lowered until 0.97 of the sounds not played there are
+   refused at the map's operating point (:func:`~tabletop.train.audio_open.fit_open_scorer`,
+   run by ``tabletop train audio``; ``tabletop/data/weights/audio_open_scorer.json``).
+   Without a fitted scorer (class names other than YAMNet's) the score is the rank rule:
+   the asked logit over the third strongest other class, less ``offset``.
+
+A class name is read by its variants (:func:`name_variants`: "Burst, pop" as "burst" and
+"pop" too; "Coin (dropping)" as "coin dropping"), each as "the sound of <variant>" and bare.
 
 Names that say only "some sound" ("Sound effect", "Noise", "Silence", ...) are never asked
 for: a query read as one of them names nothing the map can find.

@@ -397,9 +397,11 @@ class SoundMatcher:
 
         ``class_logits`` (N, K): the segments' AudioSet logits, when the encoder gives them
         and the matcher has an :attr:`open_vocabulary`. A query the vocabulary cannot answer
-        (it names no known sound, or reads as a sound the vocabulary lacks), or that names a
-        class name better than every known phrasing by :attr:`open_margin`, is then read
-        against the class names and scored through the logits; its ``categories`` are the
+        (it names no known sound, or reads as a sound the vocabulary lacks), that names a
+        class name better than every known phrasing by :attr:`open_margin`, or better at all
+        while none of its asked categories' own texts reads as one of its classes
+        (:meth:`category_classes`), is then read against the class names and scored through
+        the logits; its ``categories`` are the
         asked class names, prefixed ``"audioset:"``."""
         e = np.asarray(self.text.encode_text([query])[0], np.float32)
         bank = self._match_vocabulary(query, embeddings, e)
