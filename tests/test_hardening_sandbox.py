@@ -167,7 +167,7 @@ def test_lists_handed_to_the_robot_are_bounded():
     with pytest.raises(SandboxLimit, match="line 5: robot.get_pos given a list of 4096 elements"):
         run_code(_nest(3, leaf="0") + "robot.get_pos(l3)\n", robot)
     p = "p = robot.current_position()\n"
-    run_code(p + "robot.move_to(p * [[1.0], [2.0]])\n", robot)  # an array: not a list
+    run_code(p + "robot.move_to(p * [1.0, 1.0, 2.0])\n", robot)  # an array: not a list
     run_code(p + "robot.move_to([p[0], p[1], 0.1])\n", robot)
     assert len(robot.moves) == 2
     with pytest.raises(ConfigError, match="max_arg_elements"):

@@ -166,14 +166,17 @@ def _checked(fn, params: tuple[str, ...]):
             raise RobotClosed(
                 f"{fn.__name__}: this {type(self).__name__} was closed; make a new one"
             )
-        try:  # what is given is checked first, then what is missing
+        # a missing or extra argument is Python's TypeError, as for any call (the sandbox names
+        # its line); what is given is checked first
+        try:
             given = sig.bind_partial(self, *args, **kwargs)
-            check_primitive_args(fn.__name__, params, given.arguments)
+        except TypeError as e:
+            raise TypeError(f"{fn.__name__}({', '.join(params)}): {e}") from None
+        check_primitive_args(fn.__name__, params, given.arguments)
+        try:
             sig.bind(self, *args, **kwargs)
         except TypeError as e:
-            if isinstance(e, PrimitiveArgumentError):
-                raise
-            raise PrimitiveArgumentError(f"{fn.__name__}({', '.join(params)}): {e}") from None
+            raise TypeError(f"{fn.__name__}({', '.join(params)}): {e}") from None
         return fn(self, *args, **kwargs)
 
     method._checked_primitive = True
