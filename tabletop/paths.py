@@ -45,8 +45,10 @@ def input_file_problem(path: str | Path) -> str | None:
         if not p.exists():
             parent = next((a for a in p.parents if a.exists()), None)
             if parent is not None and not parent.is_dir():
-                return f"does not exist ({str(parent)!r} is a file, not a directory)"
-            return "does not exist"
+                return (
+                    f"is not found: it does not exist ({str(parent)!r} is a file, not a directory)"
+                )
+            return "is not found: it does not exist"
         if not p.is_file():
             return "is not a regular file"
     except OSError as e:  # a name too long, a loop of links
