@@ -17,7 +17,17 @@ from tabletop.arm.collision import (
 )
 from tabletop.arm.diffik import DiffIKConfig, DiffIKStep, MinkDiffIK, top_down_rotation
 from tabletop.arm.driver import ArmDriver, JointState, KinematicDriver, PyBulletDriver
-from tabletop.arm.errors import ArmError, DriverError, FrameError, SafetyError
+from tabletop.arm.errors import (
+    ArmError,
+    ConnectionLost,
+    ConnectionRefused,
+    DriverError,
+    FrameError,
+    MotionStoppedShort,
+    ReflexError,
+    SafetyError,
+)
+from tabletop.arm.franky_driver import FR3_LIMITS, ROBOT_LIMITS, FrankyDriver, TrackingReport
 from tabletop.arm.ik import IKResult, pose_error, solve_ik
 from tabletop.arm.mjcf import build_mujoco_model, urdf_for_mujoco
 from tabletop.arm.model import (
@@ -63,8 +73,10 @@ from tabletop.arm.workspace import Workspace
 __all__ = [
     "ARM_JOINT_NAMES",
     "FINGER_JOINT_NAMES",
+    "FR3_LIMITS",
     "HOME_Q",
     "PANDA_LIMITS",
+    "ROBOT_LIMITS",
     "SELF_COLLISION_DISABLED",
     "SUCCESS_RADIUS_M",
     "TCP_FRAME",
@@ -73,12 +85,15 @@ __all__ = [
     "Box",
     "Clearance",
     "CollisionChecker",
+    "ConnectionLost",
+    "ConnectionRefused",
     "ConvexObstacle",
     "Cylinder",
     "DiffIKConfig",
     "DiffIKStep",
     "DriverError",
     "FrameError",
+    "FrankyDriver",
     "GoalChoice",
     "IKResult",
     "JointLimits",
@@ -88,6 +103,7 @@ __all__ = [
     "KinematicDriver",
     "MinkDiffIK",
     "MotionCheck",
+    "MotionStoppedShort",
     "Obstacle",
     "PandaModel",
     "PandaPyDriver",
@@ -101,8 +117,10 @@ __all__ = [
     "ReachResult",
     "ReachRoute",
     "ReachSuccess",
+    "ReflexError",
     "RobotSelfFilter",
     "SafetyError",
+    "TrackingReport",
     "TrajectoryCheck",
     "TrajectoryConfig",
     "Workspace",

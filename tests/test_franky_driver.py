@@ -1,0 +1,277 @@
+"""FrankyDriver against franky-sim: a libfranka-protocol server simulating an FR3 in MuJoCo.
+
+The tests start the server themselves (``franky-sim -s mujoco``) on a loopback address nothing
+else listens on (libfranka's ports are fixed, so a free address plays the part of a free port),
+connect through the real franky client, and kill the server at the end. They skip, saying why,
+where franky or franky-sim is not installed or the server does not start.
+
+The simulator runs slower than real time on a busy machine (its clock is the robot's clock), so
+durations here are robot time and the motions are short.
+"""
+
+import importlib.util
+import random
+import socket
+import subprocess
+import sys
+import threading
+import time
+
+import numpy as np
+import pytest
+
+from tabletop.arm.errors import (
+    ConnectionLost,
+    ConnectionRefused,
+    DriverError,
+    MotionStoppedShort,
+    SafetyError,
+)
+from tabletop.arm.model import HOME_Q, PandaModel
+from tabletop.arm.trajectory import PANDA_LIMITS, TrajectoryConfig, time_parametrize
+from tabletop.errors import ConfigError
+
+_MISSING = [m for m in ("franky", "franky_sim") if importlib.util.find_spec(m) is None]
+pytestmark = pytest.mark.skipif(
+    bool(_MISSING),
+    reason=f"{' and '.join(_MISSING)} not installed (pip install franky-control franky-sim; "
+    "scripts/bootstrap installs them with TABLETOP_BACKENDS=1)",
+)
+
+FCI_PORT = 1337  # libfranka's command port (fixed by the protocol)
+
+
+def _listening(host: str) -> bool:
+    with socket.socket() as s:
+        s.settimeout(0.2)
+        return s.connect_ex((host, FCI_PORT)) == 0
+
+
+def _free_loopback() -> str:
+    rng = random.Random()
+    for _ in range(50):
+        host = f"127.{rng.randrange(1, 250)}.{rng.randrange(0, 250)}.{rng.randrange(2, 250)}"
+        if _listening(host):
+            continue
+        try:
+            with socket.socket() as s:
+                s.bind((host, FCI_PORT))
+        except OSError:
+            continue
+        return host
+    pytest.skip("no free loopback address for franky-sim (tried 50)")
+
+
+class SimServer:
+    """A franky-sim server process on its own loopback address."""
+
+    def __init__(self, timeout: float = 60.0) -> None:
+        self.host = _free_loopback()
+        cmd = [sys.executable, "-m", "franky_sim.run_server", "-s", "mujoco"]
+        self.proc = subprocess.Popen(
+            [*cmd, "--hostname", self.host],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT,
+            text=True,
+        )
+        self.output: list[str] = []
+        ready = threading.Event()
+
+        def pump() -> None:  # keep reading so the server never blocks on a full pipe
+            for line in self.proc.stdout:
+                self.output.append(line)
+                if "Connect to the server" in line:
+                    ready.set()
+
+        threading.Thread(target=pump, daemon=True).start()
+        t_end = time.monotonic() + timeout
+        while not ready.wait(0.2):
+            if self.proc.poll() is not None or time.monotonic() > t_end:
+                self.kill()
+                pytest.skip("franky-sim did not start: " + "".join(self.output)[-800:])
+
+    def kill(self) -> None:
+        if self.proc.poll() is None:
+            self.proc.kill()
+        self.proc.wait(timeout=10)
+
+
+@pytest.fixture(scope="module")
+def server():
+    srv = SimServer()
+    yield srv
+    srv.kill()
+
+
+@pytest.fixture(scope="module")
+def model():
+    return PandaModel()
+
+
+@pytest.fixture(scope="module")
+def driver(server, model):
+    from tabletop.arm.franky_driver import FrankyDriver
+
+    drv = FrankyDriver(
+        server.host,
+        robot_model="fr3",
+        model=model,
+        realtime=False,
+        velocity_scale=0.5,
+        acceleration_scale=0.5,
+        jerk_scale=0.2,
+    )
+    yield drv
+    drv.close()
+
+
+def _fast_config() -> TrajectoryConfig:
+    return TrajectoryConfig(velocity_scale=0.5, acceleration_scale=0.5, jerk_scale=0.2)
+
+
+def test_state_reading_and_the_clock(driver):
+    a, b = driver.read_state(), driver.read_state()
+    assert a.q.shape == (7,) and a.dq.shape == (7,)
+    assert np.all(np.isfinite(a.q))
+    # franky-sim starts at its own home; the FR3's joint 6 range starts at 0.5445 rad
+    assert driver.limits.q_lower[5] <= a.q[5] <= driver.limits.q_upper[5]
+    assert b.time_s >= a.time_s
+
+
+def test_a_trajectory_is_executed_and_its_tracking_reported(driver, model):
+    from tabletop.arm.franky_driver import FR3_LIMITS
+
+    q0 = driver.read_state().q
+    driver.command_positions(HOME_Q, 1.5)  # to the project's home, within the velocity limit
+    assert np.abs(driver.read_state().q - HOME_Q).max() < driver.goal_tolerance
+    q1 = HOME_Q + np.array([0.25, 0.1, -0.2, 0.15, 0.2, -0.1, 0.3])
+    q2 = HOME_Q + np.array([-0.15, 0.05, 0.1, 0.1, -0.1, 0.05, -0.2])
+    traj = time_parametrize([driver.read_state().q, q1, q2], FR3_LIMITS, _fast_config())
+    driver.execute_trajectory(traj)
+    rep = driver.last_tracking
+    q_end = driver.read_state().q
+    tcp_err = np.linalg.norm(model.fk(q_end)[:3, 3] - model.fk(q2)[:3, 3])
+    print(
+        f"\nfranky-sim tracking: {traj.duration:.3f} s planned, {rep.executed_duration:.3f} s "
+        f"executed; measured against franky's command: max {rep.max_error:.4f} rad, rms "
+        f"{rep.rms_error:.4f} rad; franky's command off the planned path by at most "
+        f"{rep.path_deviation:.4f} rad; final joint error {rep.final_error:.4f} rad, TCP "
+        f"{tcp_err * 1000:.1f} mm"
+    )
+    assert rep.final_error < driver.goal_tolerance
+    assert tcp_err < 0.01
+    assert len(rep.times) > 50  # sampled while it ran
+    assert 0.5 * traj.duration < rep.executed_duration < 2.0 * traj.duration
+    assert rep.path_deviation < 0.03  # franky regenerated the planned segments (0.014 seen)
+    # franky-sim's MuJoCo position control lags franky's command (0.12 rad seen at half speed)
+    assert rep.max_error < 0.25
+    assert rep.max_error > 0  # measured, not the command echoed back
+    del q0
+
+
+def test_a_limit_violation_is_refused_on_our_side_before_sending(driver):
+    from tabletop.arm.franky_driver import FR3_LIMITS
+
+    q_now = driver.read_state().q
+    # joint 6 at 0.45 rad is inside the Panda's range but below the FR3's (0.5445 rad)
+    target = q_now.copy()
+    target[5] = 0.45
+    with pytest.raises(SafetyError, match=r"fr3 joint limits: joint 6 = 0.4500 rad"):
+        driver.command_positions(target, 5.0)
+    path = [q_now, target]
+    traj = time_parametrize(path, PANDA_LIMITS, _fast_config())
+    with pytest.raises(SafetyError, match=r"fr3 limits.*position of joint 6"):
+        driver.execute_trajectory(traj)
+    too_fast = time_parametrize(
+        [q_now, q_now + np.array([0.3, 0, 0, 0, 0, 0, 0])],
+        FR3_LIMITS,
+        TrajectoryConfig(velocity_scale=1.0, acceleration_scale=1.0, jerk_scale=1.0),
+    )
+    with pytest.raises(SafetyError, match="above velocity_scale x limit"):
+        driver.execute_trajectory(too_fast)
+    assert np.abs(driver.read_state().q - q_now).max() < 1e-3  # nothing moved
+
+
+def test_a_motion_blocked_by_the_joint_stop_stops_short(driver, model):
+    """Our checks bypassed (the FR3 model's limit widened), a target beyond the simulated
+    arm's joint range: franky-sim reports no error, the arm stops at the joint stop."""
+    q_now = driver.read_state().q
+    target = q_now.copy()
+    target[0] = 2.85  # franky-sim's MuJoCo joint 1 range ends at 2.7437 rad
+    saved = driver.limits, driver.workspace
+    from tabletop.arm.trajectory import JointLimits
+    from tabletop.arm.workspace import Workspace
+
+    lim = driver.limits
+    driver.limits = JointLimits(
+        np.minimum(lim.q_lower, -3.0), np.maximum(lim.q_upper, 3.0), lim.v_max, lim.a_max, lim.j_max
+    )
+    driver.workspace = Workspace((-2.0, -2.0, -1.0), (2.0, 2.0, 2.0))
+    try:
+        with pytest.raises(MotionStoppedShort, match="rad from its goal") as info:
+            driver.command_positions(target, 3.0)
+    finally:
+        driver.limits, driver.workspace = saved
+    assert 0.05 < info.value.distance < 0.2
+    driver.command_positions(HOME_Q, 3.0)  # the driver still works
+
+
+def test_a_stop_from_another_thread_makes_the_motion_stop_short(driver):
+    q_now = driver.read_state().q
+    target = q_now + np.array([0.3, 0, 0, 0, 0, 0, 0])
+    timer = threading.Timer(0.3, driver.stop)
+    timer.start()
+    with pytest.raises(MotionStoppedShort, match="stopped on request") as info:
+        driver.command_positions(target, 2.0)
+    timer.join()
+    assert info.value.distance > driver.goal_tolerance
+    driver.command_positions(q_now, 2.0)  # the robot accepts motions again
+
+
+def test_the_gripper_moves_and_reports_its_width(driver):
+    driver.move_gripper(0.02, 0.05)
+    assert abs(driver.gripper_width() - 0.02) < 0.005
+    driver.move_gripper(0.07, 0.05)
+    assert abs(driver.gripper_width() - 0.07) < 0.005
+    with pytest.raises(Exception, match=r"gripper width must be in \[0, 0.08\] m"):
+        driver.move_gripper(0.2)
+
+
+def test_nothing_listening_is_a_refused_connection():
+    from tabletop.arm.franky_driver import FrankyDriver
+
+    host = _free_loopback()
+    t = time.monotonic()
+    with pytest.raises(ConnectionRefused, match=f"could not connect to a Franka robot at {host}"):
+        FrankyDriver(host, realtime=False)
+    assert time.monotonic() - t < 5.0
+
+
+def test_killing_the_server_mid_motion_is_a_lost_connection(model):
+    from tabletop.arm.franky_driver import FR3_LIMITS, FrankyDriver
+
+    srv = SimServer()
+    try:
+        # (franky-sim serves one client at a time: the Panda model is checked on this server)
+        with pytest.raises(ConfigError, match=r"robot_model must be one of \['fr3', 'panda'\]"):
+            FrankyDriver(srv.host, robot_model="ur5", realtime=False)
+        drv = FrankyDriver(srv.host, robot_model="panda", model=model, realtime=False)
+        assert drv.limits is PANDA_LIMITS
+        q0 = drv.read_state().q
+        q = q0.copy()
+        q[5] = 3.8  # inside the FR3's joint 6 range, beyond the Panda's (3.7525 rad)
+        assert FR3_LIMITS.q_upper[5] > 3.8
+        with pytest.raises(SafetyError, match="panda joint limits: joint 6"):
+            drv.command_positions(q, 10.0)
+        threading.Timer(0.5, srv.kill).start()
+        t = time.monotonic()
+        with pytest.raises(ConnectionLost, match="lost during a motion"):
+            drv.command_positions(q0 + np.array([0.4, 0, 0, 0, 0, 0, 0]), 3.0)
+        assert time.monotonic() - t < 15.0  # the client noticed, nothing hangs
+        assert drv.closed
+        with pytest.raises(ConnectionLost, match="is closed"):
+            drv.read_state()
+        assert isinstance(ConnectionLost("x"), DriverError)
+    finally:
+        srv.kill()
+    assert srv.proc.returncode is not None
