@@ -16,6 +16,7 @@ import subprocess
 import sys
 import threading
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -38,6 +39,7 @@ pytestmark = pytest.mark.skipif(
     "scripts/bootstrap installs them with TABLETOP_BACKENDS=1)",
 )
 
+REFLEX_SERVER = "franky_sim_reflex_server.py"
 FCI_PORT = 1337  # libfranka's command port (fixed by the protocol)
 
 
@@ -65,9 +67,11 @@ def _free_loopback() -> str:
 class SimServer:
     """A franky-sim server process on its own loopback address."""
 
-    def __init__(self, timeout: float = 60.0) -> None:
+    def __init__(self, timeout: float = 60.0, reflexes: bool = False) -> None:
         self.host = _free_loopback()
-        cmd = [sys.executable, "-m", "franky_sim.run_server", "-s", "mujoco"]
+        cmd = [sys.executable, "-u", "-m", "franky_sim.run_server", "-s", "mujoco"]
+        if reflexes:  # franky-sim plus the real robot's joint position limit reflex
+            cmd = [sys.executable, "-u", str(Path(__file__).with_name(REFLEX_SERVER))]
         self.proc = subprocess.Popen(
             [*cmd, "--hostname", self.host],
             stdout=subprocess.PIPE,
@@ -275,3 +279,43 @@ def test_killing_the_server_mid_motion_is_a_lost_connection(model):
     finally:
         srv.kill()
     assert srv.proc.returncode is not None
+
+
+def test_a_limit_reflex_is_a_typed_error_and_the_driver_recovers(model):
+    """On a franky-sim server that adds the real robot's joint position limit reflex
+    (tests/franky_sim_reflex_server.py): a command past the FR3's joint 1 limit, our own check
+    bypassed, is aborted by the robot; the driver says which reflex, recovers, and moves on."""
+    from tabletop.arm.errors import ReflexError
+    from tabletop.arm.franky_driver import FrankyDriver
+    from tabletop.arm.trajectory import JointLimits
+    from tabletop.arm.workspace import Workspace
+
+    srv = SimServer(reflexes=True)
+    try:
+        drv = FrankyDriver(srv.host, robot_model="fr3", model=model, realtime=False)
+        q0 = drv.read_state().q
+        target = q0.copy()
+        target[0] = 2.85  # the FR3's joint 1 ends at 2.7437 rad
+        with pytest.raises(SafetyError, match="fr3 joint limits: joint 1"):
+            drv.command_positions(target, 5.0)  # our side refuses first
+        lim = drv.limits
+        drv.limits = JointLimits(
+            np.minimum(lim.q_lower, -3.0),
+            np.maximum(lim.q_upper, 3.0),
+            lim.v_max,
+            lim.a_max,
+            lim.j_max,
+        )
+        drv.workspace = Workspace((-2.0, -2.0, -1.0), (2.0, 2.0, 2.0))
+        with pytest.raises(ReflexError, match="aborted the motion with a reflex") as info:
+            drv.command_positions(target, 5.0)
+        assert "joint_position_limits_violation" in info.value.errors
+        assert info.value.recovered
+        q_stop = drv.read_state().q
+        assert 2.5 < q_stop[0] <= 2.7437 + 0.01  # stopped at the limit, not past it
+        drv.limits = lim
+        drv.command_positions(q0, 5.0)  # recovered: the robot moves again
+        assert np.abs(drv.read_state().q - q0).max() < drv.goal_tolerance
+        drv.close()
+    finally:
+        srv.kill()

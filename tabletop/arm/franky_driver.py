@@ -79,6 +79,16 @@ def _import_franky():
     return franky
 
 
+def _error_names(state) -> list[str]:
+    """The names of libfranka's error flags (the boolean attributes of a state's Errors)."""
+    errors = state.last_motion_errors
+    return [
+        n
+        for n in dir(errors)
+        if not n.startswith("_") and isinstance(getattr(errors, n), bool | np.bool_)
+    ]
+
+
 def _ms(seconds: float) -> int:
     return max(1, round(seconds * 1000.0))
 
@@ -389,13 +399,12 @@ class FrankyDriver:
     def _on_control_exception(self, exc: Exception, goal: np.ndarray) -> None:
         robot = self._robot
         try:
-            errors = robot.state.last_motion_errors
-            names = tuple(
-                n for n in dir(errors) if not n.startswith("_") and getattr(errors, n) is True
-            )
+            st = robot.state
+            names = tuple(n for n in _error_names(st) if getattr(st.last_motion_errors, n))
         except (self._franky.NetworkException, RuntimeError) as lost:
             raise self._lost(lost, "while a motion was aborted") from None
-        if not names:
+        reflex = "reflex" in str(exc).lower()
+        if not names and not reflex:
             if "network" in str(exc).lower() or "udp" in str(exc).lower():
                 raise self._lost(exc, "during a motion") from None
             dist = float(np.abs(np.asarray(robot.state.q) - goal).max())
@@ -403,11 +412,11 @@ class FrankyDriver:
             raise MotionStoppedShort(
                 f"the motion was {why} {dist:.4f} rad from its goal: {exc}", dist
             ) from None
-        recovered = False
         try:
-            recovered = bool(robot.recover_from_errors())
+            recovered = self.recover()
         except self._franky.Exception as rec:
             log.warning("automatic error recovery failed: %s", rec)
+            recovered = False
         raise ReflexError(
             f"the robot aborted the motion with a reflex {list(names)}: {exc}; automatic "
             f"error recovery {'succeeded' if recovered else 'failed'}",
@@ -416,11 +425,22 @@ class FrankyDriver:
         ) from None
 
     def recover(self) -> bool:
-        """Run the robot's automatic error recovery; True when it accepts motions again."""
+        """Run the robot's automatic error recovery; True once the robot's state shows no
+        error and no reflex (franky's own answer is judged on the state it held when the
+        recovery's reply came, which may still show the error)."""
         robot = self._robot_or_raise()
+        fr = self._franky
         try:
-            return bool(robot.recover_from_errors())
-        except (self._franky.NetworkException, RuntimeError) as exc:
+            robot.recover_from_errors()
+            t_end = time.monotonic() + max(1.0, self.stall_timeout)
+            while time.monotonic() < t_end:
+                st = robot.state
+                clear = not any(getattr(st.current_errors, n) for n in _error_names(st))
+                if clear and st.robot_mode != fr.RobotMode.Reflex:
+                    return True
+                time.sleep(0.01)
+            return False
+        except (fr.NetworkException, RuntimeError) as exc:
             raise self._lost(exc, "during error recovery") from None
 
     def execute_trajectory(self, trajectory: JointTrajectory) -> None:
