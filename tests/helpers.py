@@ -1,6 +1,10 @@
 """Shared test helpers."""
 
+import atexit
 import functools
+import shutil
+import tempfile
+from pathlib import Path
 
 import numpy as np
 
@@ -120,3 +124,30 @@ def visual_scene():
     queries = [(g, o.label) for g, o in zip(goals, objs, strict=True)]
     config = map_config(frame_step=4, visual=VisualLocalizationConfig(matcher="sift", stride=10))
     return rec, queries, build_map(rec, "oracle", config)
+
+
+#: the fast scan of test_scan.py and test_ground_truth.py: three audio episodes, one sound
+#: category inserted twice
+FAST_SCAN = dict(seed=1, speed=0.45, episodes=3, episode_s=2.5, repeat_sounds=1)
+
+
+@functools.lru_cache(maxsize=1)
+def fast_scan():
+    """(recording, stats) of the ``FAST_SCAN`` scan of the default scene, built once per test
+    session for the modules that read it (conftest runs them on one worker)."""
+    from tabletop.sim.scan import ScanConfig, run_scan
+    from tabletop.sim.scene import load_scene_spec
+
+    return run_scan(load_scene_spec("default"), ScanConfig(**FAST_SCAN))
+
+
+@functools.lru_cache(maxsize=1)
+def fast_scan_reloaded():
+    """The ``fast_scan`` recording written to disk and read back, once per test session."""
+    from tabletop.recording import load_recording, save_recording
+
+    tmp = Path(tempfile.mkdtemp(prefix="tabletop-fast-scan-"))
+    atexit.register(shutil.rmtree, tmp, ignore_errors=True)
+    path = tmp / "rec"
+    save_recording(fast_scan()[0], path)
+    return load_recording(path)

@@ -7,10 +7,9 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from helpers import ground_truth_dict
+from helpers import FAST_SCAN, fast_scan, fast_scan_reloaded, ground_truth_dict
 
 from tabletop.errors import RecordingError, TabletopError
-from tabletop.recording import load_recording, save_recording
 from tabletop.sim import (
     GroundTruth,
     GroundTruthError,
@@ -19,16 +18,15 @@ from tabletop.sim import (
     SoundEventTruth,
 )
 from tabletop.sim.noise import NoiseConfig, apply_noise
-from tabletop.sim.scan import ScanConfig, run_scan
 from tabletop.sim.scene import load_scene_spec
 
 # test_scan.py's fast scan: three audio episodes, one sound category inserted twice.
-FAST = dict(seed=1, speed=0.45, episodes=3, episode_s=2.5, repeat_sounds=1)
+FAST = FAST_SCAN
 
 
 @pytest.fixture(scope="module")
 def rec():
-    return run_scan(load_scene_spec("default"), ScanConfig(**FAST))[0]
+    return fast_scan()[0]  # shared with test_scan.py
 
 
 @pytest.fixture(scope="module")
@@ -52,15 +50,14 @@ def small() -> dict:
 
 
 # ---------------------------------------------------------------------------- round trip
-def test_a_real_scan_round_trips_exactly(rec, tmp_path):
+def test_a_real_scan_round_trips_exactly(rec):
     d = json.loads(json.dumps(rec.ground_truth))
     gt = GroundTruth.from_dict(d)
     assert gt.to_dict() == d
     assert json.dumps(gt.to_dict()) == json.dumps(d)  # same keys in the same order
     assert GroundTruth.of(rec) == gt
-    # through disk: what the recording stores is the JSON form
-    save_recording(rec, tmp_path / "rec")
-    assert GroundTruth.of(load_recording(tmp_path / "rec")) == gt
+    # through disk (save_recording, load_recording): what the recording stores is the JSON form
+    assert GroundTruth.of(fast_scan_reloaded()) == gt
 
 
 def test_a_real_scan_reads_as_typed_values(rec):

@@ -5,31 +5,26 @@ import copy
 
 import numpy as np
 import pytest
-from helpers import assert_on_table
+from helpers import FAST_SCAN, assert_on_table, fast_scan, fast_scan_reloaded
 
 from tabletop.errors import ConfigError
-from tabletop.recording import load_recording, save_recording
 from tabletop.sim.noise import NoiseConfig, apply_noise
-from tabletop.sim.scan import ScanConfig, plan_scan, run_scan
-from tabletop.sim.scene import load_scene_spec
+from tabletop.sim.scan import ScanConfig, plan_scan
 from tabletop.sim.world import INSTANCE_TABLE
 from tabletop.transforms import backproject, transform_points
 
 # A faster sweep than the default keeps the test short; the path is the same shape.
-FAST = dict(speed=0.45, episodes=3, episode_s=2.5, repeat_sounds=1)
+FAST = {k: v for k, v in FAST_SCAN.items() if k != "seed"}
 
 
 @pytest.fixture(scope="module")
 def scan():
-    return run_scan(load_scene_spec("default"), ScanConfig(seed=1, **FAST))
+    return fast_scan()  # seed 1; shared with test_ground_truth.py
 
 
 @pytest.fixture(scope="module")
-def reloaded(scan, tmp_path_factory):
-    rec, _ = scan
-    path = tmp_path_factory.mktemp("scan") / "rec"
-    save_recording(rec, path)
-    return load_recording(path)
+def reloaded():
+    return fast_scan_reloaded()  # fast_scan through save_recording and load_recording
 
 
 def test_frames_are_30hz_and_motion_is_smooth(scan):
