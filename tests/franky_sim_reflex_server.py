@@ -91,9 +91,7 @@ class ReflexRobotServer(FrankaRobotServer):
         if not self.in_reflex:
             return state
         errors = tuple(i == JOINT_POSITION_LIMITS_VIOLATION for i in range(41))
-        return state.replace(
-            robot_mode=RobotMode.kReflex, errors=errors, reflex_reason=errors
-        )
+        return state.replace(robot_mode=RobotMode.kReflex, errors=errors, reflex_reason=errors)
 
 
 class ReflexSimulationServer(SimulationServer):
