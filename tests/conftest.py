@@ -28,9 +28,11 @@ COSTS = {
     "test_eval_runner.py": 208,
     "test_kind_reader.py": 146,
     "test_encoders_registry.py": 105,
+    "test_instance_eval.py": 90,
     "test_scan.py": 77,  # with test_ground_truth.py: one scan for both
     "test_robot_api.py": 76,  # with test_robot_obstacles.py
     "test_visual_localize.py": 61,  # with test_visual_database.py, test_visual_photometric.py
+    "test_robot_mobile_room.py": 62,
     "test_fuzz_sandbox.py": 50,
     "test_encoders_openclip.py": 36,
     "test_encoders_audio.py": 34,
@@ -39,7 +41,6 @@ COSTS = {
     "test_registration.py": 26,
     "test_encoders_vision.py": 22,
     "test_room_scan.py": 14,
-    "test_robot_mobile_room.py": 14,
     "test_fuzz_loaders.py": 13,
     "test_arm_reach.py": 13,
     "test_visual_panorama.py": 10,
