@@ -1,5 +1,6 @@
 """The learned reader: decoding tags into plans, its weights file, and the committed tagger."""
 
+import numpy as np
 import pytest
 import torch
 
@@ -7,9 +8,13 @@ from tabletop.errors import AssetError
 from tabletop.reader import ParseError
 from tabletop.reader.learned import (
     DEFAULT_READER_WEIGHTS,
+    RELATIONS,
+    ROLES,
     TaggerConfig,
     _net,
+    best_roles,
     decode,
+    goal_counts,
     load_tagger,
     save_tagger,
     words_of,
@@ -99,3 +104,62 @@ def test_the_committed_tagger_reads_plain_requests(text, kind, relation):
     assert isinstance(step.action, relation)
     goal = step.action.goal if relation is GoTo else step.action.a
     assert goal.primary.kind == kind
+
+
+def _logp(rows: list[dict[str, float]]) -> np.ndarray:
+    """(T, len(ROLES)) log-probabilities: each word's given roles' probabilities, the rest
+    sharing what is left."""
+    out = np.full((len(rows), len(ROLES)), 1e-6)
+    for t, row in enumerate(rows):
+        for role, p in row.items():
+            out[t, ROLES.index(role)] = p
+    return np.log(out / out.sum(axis=1, keepdims=True))
+
+
+def test_goal_counts_gives_the_best_roles_for_each_number_of_goals():
+    # "the red mug and the duck": the tagger leans to one reference over all six words
+    words = "the red mug and the duck".split()
+    logp = _logp([
+        {"B-OBJ": 0.9, "O": 0.1},
+        {"I-OBJ": 0.9, "O": 0.1},
+        {"I-OBJ": 0.9, "O": 0.1},
+        {"I-OBJ": 0.55, "O": 0.45},
+        {"I-OBJ": 0.55, "B-OBJ": 0.4, "O": 0.05},
+        {"I-OBJ": 0.9, "O": 0.1},
+    ])  # fmt: skip
+    counts = goal_counts(logp)
+    assert counts[1][1] == ["B-OBJ"] + ["I-OBJ"] * 5
+    assert counts[2][1] == ["B-OBJ", "I-OBJ", "I-OBJ", "O", "B-OBJ", "I-OBJ"]
+    assert counts[1][0] > counts[2][0] > counts[3][0]
+    assert counts[0][1] == ["O"] * 6
+    assert len(words) == len(counts[2][1])
+    # a constraint before any goal is that goal; a constraint after one is not counted
+    logp = _logp([{"B-NOBJ": 0.9}, {"O": 0.9}, {"B-NSOUND": 0.9}])
+    assert goal_counts(logp)[1][1] == ["B-NOBJ", "O", "B-NSOUND"]
+
+
+def test_the_joint_reading_cuts_references_as_the_relation_takes():
+    words = "go between the red mug and the duck".split()
+    role_logp = _logp([
+        {"O": 0.95},
+        {"O": 0.95},
+        {"B-OBJ": 0.9, "O": 0.1},
+        {"I-OBJ": 0.9, "O": 0.1},
+        {"I-OBJ": 0.9, "O": 0.1},
+        {"I-OBJ": 0.55, "O": 0.45},
+        {"I-OBJ": 0.55, "B-OBJ": 0.4, "O": 0.05},
+        {"I-OBJ": 0.9, "O": 0.1},
+    ])  # fmt: skip
+    rels = np.log(np.full((len(words), len(RELATIONS)), 0.01))
+    rels[:, RELATIONS.index("between")] = np.log(0.9)
+    # the unconstrained roles join the two things into one: refused without the joint reading
+    roles = best_roles(role_logp)
+    with pytest.raises(ParseError, match="'between' takes 2"):
+        decode(" ".join(words), words, roles, rels, "arm", parse_instruction)
+    (step,) = decode(" ".join(words), words, roles, rels, "arm", parse_instruction, role_logp)
+    assert step.action == Between(Goal(Part("obj", "red mug")), Goal(Part("obj", "duck")))
+    # a step the tagger reads as something the arm does not do is refused, naming it
+    rels[:] = np.log(0.01)
+    rels[:, RELATIONS.index("none")] = np.log(0.9)
+    with pytest.raises(ParseError, match="asks something else"):
+        decode(" ".join(words), words, roles, rels, "arm", parse_instruction, role_logp)

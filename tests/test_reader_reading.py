@@ -7,7 +7,7 @@ import pytest
 from tabletop.errors import ConfigError
 from tabletop.language import instruction_to_code
 from tabletop.reader import ParseError
-from tabletop.reader.plan import Between, GoTo
+from tabletop.reader.plan import Between, Goal, GoTo, Part, Side
 from tabletop.reader.reading import READERS, understand
 
 
@@ -52,21 +52,33 @@ def test_unknown_reader_names_the_valid_ones():
         understand(None)
 
 
+@pytest.mark.parametrize("reader", ["rules+spelling", "learned", "rules+learned"])
 @pytest.mark.parametrize(
-    "text", ["do not under any circumstances go to the mug", "go to the mug slowly"]
+    "text", ["do not under any circumstances go to the mug", "never again go near the duck"]
 )
-def test_words_that_negate_or_qualify_are_never_dropped(text):
+def test_a_negated_goal_is_refused_by_every_reader(reader, text):
     with pytest.raises(ParseError):
-        understand(text)
+        understand(text, reader=reader)
+
+
+def test_words_of_manner_stop_the_grammar_but_the_learned_reader_says_it_ignores_them():
+    with pytest.raises(ParseError):
+        understand("go to the mug slowly", reader="rules+spelling")
+    for reader in ("learned", "rules+learned"):
+        reading = understand("go to the mug slowly", reader=reader)
+        assert [s.action for s in reading.steps] == [GoTo(Goal(Part("obj", "mug")))]
+        assert reading.unhonoured == ("slowly",)
+    code = instruction_to_code("carefully move over to the red mug")
+    assert code.startswith("# not honoured: 'carefully'") and 'move_to_object("red mug")' in code
 
 
 @pytest.mark.parametrize(
     ("reader", "accepts"),
     [
         ("rules+spelling", []),
-        # asked only what the grammar refuses, the tagger reads two things joined by "and" as
-        # the space between them
-        ("rules+learned", ["go to the mug and the duck"]),
+        # the learned readers read a manner word as not honoured (the goal is kept, and said
+        # to be read so), and two things joined by "and" as the space between them
+        ("rules+learned", ["go to the mug and the duck", "go to the mug quickly"]),
     ],
 )
 def test_what_the_robot_cannot_do_is_refused(reader, accepts):
@@ -82,9 +94,32 @@ def test_what_the_robot_cannot_do_is_refused(reader, accepts):
     assert accepted == accepts
 
 
-def test_the_learned_fallback_still_reads_requests_the_arm_cannot_do():
-    # why the default is the grammar with spelling: the tagger has seen no request it must
-    # refuse, so an action it does not know, or nonsense, is read as a place to go
-    assert understand("dance around the table", reader="rules+learned").steps
-    with pytest.raises(ParseError, match="motion verb"):
-        understand("dance around the table")
+@pytest.mark.parametrize(
+    "text",
+    [
+        "could you knock the duck off the table",  # an action on a thing
+        "take the teddy bear and hide it behind the tray",
+        "whistle a tune for me",  # no place at all
+        "xqzt vlorp",  # no words
+    ],
+)
+def test_the_learned_readers_refuse_requests_that_are_not_places(text):
+    for reader in ("learned", "rules+learned"):
+        with pytest.raises(ParseError):
+            understand(text, reader=reader)
+
+
+@pytest.mark.parametrize(
+    ("text", "action"),
+    [
+        ("put the gripper just in front of the red mug", Side("front", "red mug")),
+        ("place yourself between the tray and the duck", None),
+        ("pull up on the right side of the tray", Side("right", "tray")),
+    ],
+)
+def test_verbs_that_move_the_arm_itself_are_read_as_motions(text, action):
+    (step,) = understand(text, reader="learned").steps
+    if action is None:
+        assert isinstance(step.action, Between)
+    else:
+        assert step.action == action

@@ -26,17 +26,22 @@ def test_every_word_has_a_role_and_a_relation(texts):
 
 
 def test_the_labels_decode_into_plans_of_every_relation(texts):
-    seen, refused = set(), 0
+    seen, refused, to_refuse = set(), 0, 0
     for t in texts:
+        refuse = "none" in t.relations  # a request the arm must refuse: every word says so
+        assert not refuse or set(t.relations) == {"none"}
+        to_refuse += refuse
         try:
             steps = decode(t.text, list(t.words), list(t.roles), list(t.relations), "arm",
                            read_clause)  # fmt: skip
         except ParseError:  # a slip typed into a compass move's unit or direction
-            refused += 1
+            refused += not refuse
             continue
+        assert not refuse, t
         seen.update(type(s.action).__name__ for s in steps)
     assert {"GoTo", "Between", "Side", "Above", "BackAndForth", "Compass"} <= seen
     assert refused <= 0.03 * len(texts)
+    assert 0.05 * len(texts) <= to_refuse <= 0.15 * len(texts)  # REFUSALS = 0.1
 
 
 def test_seeded_and_held_out_pools_refused(texts):

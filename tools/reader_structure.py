@@ -14,6 +14,7 @@ import json
 import sys
 import tomllib
 
+from tabletop.eval.paraphrase import HELDOUT_POOLS
 from tabletop.reader.errors import ParseError
 from tabletop.reader.plan import Between, GoTo, Side
 from tabletop.reader.reading import LearnedReader, get_reader
@@ -53,6 +54,9 @@ def got(steps):
 
 pools = sys.argv[1].split(",")
 weights = sys.argv[2]
+show = sys.argv[3].split(",") if len(sys.argv) > 3 else []  # readers whose misses to print
+if any(p in HELDOUT_POOLS for p in pools):
+    raise SystemExit(f"tune pools only; held out: {HELDOUT_POOLS}")
 goals = []
 for p in pools:
     for f in sorted(glob.glob(f"tabletop/data/tasks/paraphrase-{p}/*.toml")):
@@ -70,8 +74,13 @@ for name, r in readers.items():
     right = refused = 0
     for text, truth in goals:
         try:
-            right += got(r.understand(text).steps) == expect(truth)
-        except ParseError:
+            g = got(r.understand(text).steps)
+            right += g == expect(truth)
+            if name in show and g != expect(truth):
+                print(f"  MISS {text!r}: {g} want {expect(truth)}")
+        except ParseError as e:
             refused += 1
+            if name in show:
+                print(f"  REFUSED {text!r}: {e}")
     share = right / len(goals)
     print(f"{name}: structure right {right}/{len(goals)} = {share:.3f}, refused {refused}")

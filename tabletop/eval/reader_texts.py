@@ -26,13 +26,17 @@ from tabletop.errors import ConfigError
 from tabletop.eval.paraphrase import HELDOUT_POOLS, TUNE_POOLS, ParaphraseBank, load_bank
 from tabletop.paths import DATA_DIR
 from tabletop.reader.learned import words_of
+from tabletop.relations import RELATIONS
 from tabletop.sim.catalog import COLORS, OBJECT_KINDS
 
-__all__ = ["ReaderText", "reader_texts"]
+__all__ = ["REFUSALS", "ReaderText", "reader_texts"]
+
+#: Share of generated requests that the arm must refuse (relation ``none``).
+REFUSALS = 0.1
 
 TEMPLATES_PATH = DATA_DIR / "reader" / "templates.toml"
 _SLOT = re.compile(r"\{(\w)\}")
-_SIDE_KEYS = {"left_of": "left", "right_of": "right", "in_front_of": "front", "behind": "behind"}
+_SIDE_KEYS = {r.name: r.side for r in RELATIONS if r.side is not None}
 _AREA_NAMES = {"left": "the left side of the table", "right": "the right side of the table",
                "front": "the far side of the table", "back": "the near side of the table",
                "center": "the middle of the table"}  # fmt: skip
@@ -173,6 +177,24 @@ class _Maker:
         tpl = self.pick(t["image"])
         return self.fill(tpl, {"i": [(self.pick(t["image_paths"]), "IMG")]}), "goto"
 
+    # ------------------------------------------------------------------ refusals
+    def refusal(self) -> list:
+        """A request the arm must refuse: an action on things, a negated or conditional goal,
+        chat with no place in it, or words that make nothing."""
+        t, r = self.t, self.rng.random()
+        if r < 0.45:
+            return self.fill(self.pick(t["refuse_actions"]), {"a": self.goal(), "b": self.goal()})
+        if r < 0.7:
+            return self.fill(self.pick(t["refuse_negations"]), {"a": self.goal(), "b": self.goal()})
+        if r < 0.9:
+            return [(self.pick(t["refuse_chat"]), None)]
+        letters = t["nonsense_letters"]
+        words = [
+            "".join(self.pick(letters) for _ in range(int(self.rng.integers(2, 9))))
+            for _ in range(int(self.rng.integers(1, 5)))
+        ]
+        return [(" ".join(words), None)]
+
 
 def _typo(word: str, rng: np.random.Generator) -> str:
     if len(word) < 4 or not word.isalpha():
@@ -209,7 +231,13 @@ def _one(maker: _Maker, rng: np.random.Generator, pool: str) -> ReaderText:
     roles: list[str] = []
     rels: list[str] = []
     out = (words, roles, rels)
-    n_steps = 1 if rng.random() < 0.75 else int(rng.integers(2, 4))
+    if rng.random() < REFUSALS:
+        if rng.random() < 0.35:
+            _label([(maker.pick(t["lead_ins"]), None)], "none", out)
+        _label(maker.refusal(), "none", out)
+        n_steps = 0
+    else:
+        n_steps = 1 if rng.random() < 0.75 else int(rng.integers(2, 4))
     for k in range(n_steps):
         pieces, relation = maker.step()
         if k > 0:
@@ -221,6 +249,9 @@ def _one(maker: _Maker, rng: np.random.Generator, pool: str) -> ReaderText:
                 *pieces,
                 (maker.pick(t["repeats"]).replace("{n}", maker.pick(["2", "3", "four"])), "REP"),
             ]
+        if relation != "motion" and rng.random() < 0.08:  # how to move: plain words
+            manner = [(maker.pick(t["manner"]), None)]
+            pieces = [*manner, *pieces] if rng.random() < 0.5 else [*pieces, *manner]
         _label(pieces, relation, out)
     if rng.random() < 0.2:
         _label([(maker.pick(t["tails"]), None)], rels[-1], out)

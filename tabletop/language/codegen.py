@@ -188,4 +188,9 @@ def instruction_to_code(instruction: str, robot: str = "arm", reader: str = DEFA
     """Read ``instruction`` for ``robot`` ("arm" or "mobile") with the reader called
     ``reader`` (:data:`tabletop.reader.READERS`) and write its robot code (:class:`ParseError`
     if not understood)."""
-    return plan_to_code(understand(instruction, robot, reader).steps)
+    reading = understand(instruction, robot, reader)
+    code = plan_to_code(reading.steps)
+    if reading.unhonoured:
+        said = ", ".join(repr(w) for w in reading.unhonoured)
+        code = f"# not honoured: {said} (the robot moves at its controller's speed)\n" + code
+    return code

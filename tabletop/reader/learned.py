@@ -8,7 +8,9 @@ over all-MiniLM-L6-v2's frozen, already contextual token states):
   of an object, a sound, a table place or an image, either the step's own goal (``OBJ`` ...)
   or a constraint on it (``NOBJ`` ...: "the mug *near the dog barking*");
 - the **relation** of the step it belongs to (:data:`RELATIONS`): go to, between, a side of,
-  above, back and forth, or a motion the grammar reads (compass moves, a base's own motions).
+  above, back and forth, a motion the grammar reads (compass moves, a base's own motions), or
+  ``none``: a request the arm must refuse (an action on a thing, a negated or conditional goal,
+  chat with no place in it).
 
 :func:`decode` turns the labels into the same plan the rule reader makes
 (:mod:`tabletop.reader.plan`): references become typed parts, constraints narrow the goal
@@ -42,6 +44,7 @@ from tabletop.reader.plan import (
     Side,
     Step,
 )
+from tabletop.relations import SIDES
 
 __all__ = [
     "DEFAULT_READER_WEIGHTS",
@@ -77,8 +80,9 @@ RELATIONS: tuple[str, ...] = (
     "above",
     "backforth",
     "motion",
+    "none",
 )
-_SIDES = ("left", "right", "front", "behind")
+_SIDES = SIDES
 #: Count words of a repetition.
 _COUNTS = {"once": 1, "twice": 2, "thrice": 3, "one": 1, "two": 2, "three": 3, "four": 4}
 _COUNTS |= {"five": 5, "six": 6, "seven": 7, "eight": 8, "nine": 9, "ten": 10}
@@ -210,6 +214,18 @@ class LearnedTagger:
         roles = best_roles(torch.log_softmax(role[0], dim=-1).numpy())
         return roles, torch.log_softmax(rel[0], dim=-1).numpy()
 
+    def scores(self, words: list[str]) -> tuple[np.ndarray, np.ndarray]:
+        """Each word's role and relation log-probabilities ((n_words, len(ROLES)) and
+        (n_words, len(RELATIONS)) float32), for :func:`decode`'s joint reading."""
+        torch = self._torch
+        if not words:
+            return np.zeros((0, len(ROLES)), np.float32), np.zeros((0, len(RELATIONS)), np.float32)
+        (feats,) = word_features([words])
+        with torch.inference_mode():
+            role, rel = self.net(torch.from_numpy(feats)[None], torch.tensor([len(words)]))
+        return (torch.log_softmax(role[0], dim=-1).numpy(),
+                torch.log_softmax(rel[0], dim=-1).numpy())  # fmt: skip
+
 
 @functools.cache
 def _allowed() -> np.ndarray:
@@ -238,6 +254,75 @@ def best_roles(logp: np.ndarray) -> list[str]:
     for b in reversed(back):
         path.append(int(b[path[-1]]))
     return [ROLES[i] for i in reversed(path)]
+
+
+@functools.cache
+def _starts() -> tuple[np.ndarray, np.ndarray]:
+    """(R, R) bool: role j after role i begins a new reference (as :func:`_spans` cuts them),
+    and (R,) bool: role j is a goal's own reference (not a constraint on one)."""
+    body = [r[2:] if r[:2] in ("B-", "I-") else "" for r in ROLES]
+    start = np.array([[bj != "" and bj != bi for bj in body] for bi in body])
+    own = np.array([b != "" and not b.startswith("N") for b in body])
+    return start, own
+
+
+#: Goals counted apart by the joint reading (a step takes at most 2; more is "too many").
+_MAX_GOALS = 3
+
+
+def goal_counts(
+    logp: np.ndarray, banned: tuple[str, ...] = ("THEN",)
+) -> list[tuple[float, list[str]]]:
+    """For each number of goals n in 0 .. _MAX_GOALS (the last: that many or more), the most
+    likely roles of a step's words that name exactly n goals, and their log-probability
+    (-inf where none can). A goal begins where a reference begins that is a goal's own, or a
+    constraint before any goal (:func:`_goals` makes that one a goal). Roles in ``banned``
+    are not used (a step's words hold no step boundary)."""
+    T, R = logp.shape
+    C = _MAX_GOALS + 1
+    out: list[tuple[float, list[str]]] = [(-np.inf, []) for _ in range(C)]
+    if T == 0:
+        out[0] = (0.0, [])
+        return out
+    ok = _allowed()
+    start, own = _starts()
+    lp = logp.copy()
+    for b in banned:
+        lp[:, ROLES.index(b)] = -np.inf
+    first_ok = np.array([not r.startswith("I-") for r in ROLES])
+    # the first word: a reference begins with it if it has one
+    score = np.full((R, C), -np.inf)
+    body0 = np.array([r[:2] in ("B-", "I-") for r in ROLES])
+    c0 = body0.astype(int)
+    score[np.arange(R), c0] = np.where(first_ok, lp[0], -np.inf)
+    backs = []
+    for t in range(1, T):
+        new = np.full((R, C), -np.inf)
+        back = np.zeros((R, C, 2), np.int64)
+        for c in range(C):
+            inc = start & (own[None, :] | (c == 0))  # (prev, cur)
+            cand = np.where(ok, score[:, c][:, None], -np.inf)  # (prev, cur)
+            for d in (0, 1):
+                c2 = min(c + d, C - 1)
+                m = np.where(inc == bool(d), cand, -np.inf)
+                best_prev = m.argmax(axis=0)
+                val = m[best_prev, np.arange(R)]
+                better = val > new[:, c2]
+                new[better, c2] = val[better]
+                back[better, c2, 0] = best_prev[better]
+                back[better, c2, 1] = c
+        score = new + lp[t][:, None]
+        backs.append(back)
+    for n in range(C):
+        j = int(score[:, n].argmax())
+        if not np.isfinite(score[j, n]):
+            continue
+        total, path, c = float(score[j, n]), [j], n
+        for back in reversed(backs):
+            j, c = int(back[j, c, 0]), int(back[j, c, 1])
+            path.append(j)
+        out[n] = (total, [ROLES[i] for i in reversed(path)])
+    return out
 
 
 def save_tagger(path: str | Path, config: TaggerConfig, net, meta: dict) -> Path:
@@ -323,6 +408,9 @@ def _landmark(goal: Goal) -> str | Goal:
     return goal.primary.text if not goal.near and goal.primary.kind == "obj" else goal
 
 
+#: An image reference names a file: a path with a folder or an image file's extension.
+_IMAGE_PATH = re.compile(r"[/\\~]|\.(?:png|jpe?g|bmp|webp|tiff?|gif)\b", re.IGNORECASE)
+
 #: A count said as "N times" beyond this is refused by the step check, wherever it was tagged.
 MAX_TIMES_SAID = 20
 
@@ -367,6 +455,10 @@ def _check(text: str, clause: str, relation: str, goals: list[Goal], times: int)
         for part in (g.primary, *g.near):
             if part.kind != "img" and set(part.text.split()) <= POINTERS:
                 raise ParseError(text, part.text, "a word that points back names no place")
+            if part.kind == "img" and not _IMAGE_PATH.search(part.text):
+                raise ParseError(
+                    text, part.text, "an image goal needs a file path, e.g. 'the image ./goal.png'"
+                )
     if relation in (*_SIDES, "above") and goals[0].primary.kind != "obj":
         raise ParseError(
             text, clause, f"'{relation}' is taken of a thing, not a {goals[0].primary.kind}"
@@ -375,14 +467,48 @@ def _check(text: str, clause: str, relation: str, goals: list[Goal], times: int)
         raise ParseError(text, clause, f"repeat 1 to {MAX_REPEAT} times, not {times}")
 
 
+#: Goals each relation takes (a ``motion`` step is read by the grammar; ``none`` is refused).
+_NEEDS = {"between": 2, "backforth": 2, "motion": None, "none": None}
+
+
+#: How much less likely [nats] than the tagger's own reading a joint reading may be: beyond
+#: it, the step keeps the tagger's roles and relation (and is refused if they disagree).
+#: Picked on generated requests of the validation pools (``tabletop train reader`` prints
+#: plans right at each), never on an evaluation suite.
+JOINT_MARGIN = 6.0
+
+
+def _joint(role_logp: np.ndarray, rel_logp: np.ndarray, margin: float = JOINT_MARGIN
+           ) -> tuple[list[str], str]:  # fmt: skip
+    """A step's roles and relation read together: the relation and the roles that name as
+    many goals as it takes, most likely jointly (a relation's score is its words' summed
+    log-probabilities). So a reference the tagger split in two, or two it joined, is cut the
+    way the step's relation allows, instead of being refused, when that reading is at most
+    ``margin`` nats less likely than the tagger's own (its best roles and relation apart)."""
+    counts = goal_counts(role_logp)
+    free = max(counts, key=lambda c: c[0])
+    rel_sum = rel_logp.sum(axis=0)
+    own = (float(rel_sum.max() + free[0]), free[1], RELATIONS[int(np.argmax(rel_sum))])
+    best = (-np.inf, free[1], own[2])
+    for r, name in enumerate(RELATIONS):
+        need = _NEEDS.get(name, 1)
+        score, roles = free if need is None else counts[need]
+        if rel_sum[r] + score > best[0]:
+            best = (float(rel_sum[r] + score), roles, name)
+    chosen = best if best[0] >= own[0] - margin else own
+    return chosen[1], chosen[2]
+
+
 def decode(text: str, words: list[str], roles: list[str], relations, robot: str,
-           rules) -> tuple[Step, ...]:  # fmt: skip
+           rules, role_logp: np.ndarray | None = None,
+           margin: float = JOINT_MARGIN) -> tuple[Step, ...]:  # fmt: skip
     """The plan of tagged ``words``; ``relations`` are each word's relation label or its
     (n_words, len(RELATIONS)) log-probabilities; ``rules(clause, robot)`` reads a ``motion``
-    step.
+    step. With ``role_logp`` (the roles' (n_words, len(ROLES)) log-probabilities), each step's
+    roles and relation are read jointly (:func:`_joint`); ``roles`` then only cut the steps.
 
     Raises:
-        ParseError: a step has no reference.
+        ParseError: a step has no reference, or asks what the arm does not do.
     """
     if not isinstance(relations, np.ndarray):  # labels: a one-hot score per word
         index = {r: i for i, r in enumerate(RELATIONS)}
@@ -401,12 +527,17 @@ def decode(text: str, words: list[str], roles: list[str], relations, robot: str,
             chunks[-1].append(i)
     for idx in (c for c in chunks if c):
         clause = " ".join(words[i] for i in idx)
-        times = _count([words[i] for i in idx if roles[i] == "REP"])
+        if role_logp is not None:
+            step_roles, relation = _joint(role_logp[idx], relations[idx], margin)
+        else:
+            step_roles, relation = [roles[i] for i in idx], _relation(relations[idx])
+        times = _count([words[i] for i, r in zip(idx, step_roles, strict=True) if r == "REP"])
         said = _said_times([words[i] for i in idx])
         if said is not None and (times == 1 or said > MAX_TIMES_SAID):
             times = said  # "N times" read inside a reference still counts
-        goals = _goals(_spans([words[i] for i in idx], [roles[i] for i in idx]))
-        relation = _relation(relations[idx])
+        goals = _goals(_spans([words[i] for i in idx], step_roles))
+        if relation == "none":
+            raise ParseError(text, clause, "the arm goes to places; this step asks something else")
         if relation == "motion":
             steps.extend(rules(clause, robot))
             continue

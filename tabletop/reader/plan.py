@@ -148,3 +148,6 @@ class Reading:
     """The typing slips corrected (:class:`~tabletop.reader.spelling.Correction`)."""
     wrapper: tuple[str, ...] = ()
     reader: str = ""
+    unhonoured: tuple[str, ...] = ()
+    """Words read that do not change where the robot goes and that it does not honour (how
+    fast or how carefully to move: it moves at its controller's speed); said to the user."""

@@ -30,7 +30,7 @@ from tabletop.errors import ConfigError
 from tabletop.reader.errors import ParseError
 from tabletop.reader.llm import LLMReader
 from tabletop.reader.plan import Reading, Step
-from tabletop.reader.rules import QUALIFIERS, UNSUPPORTED_ACTIONS, parse_instruction
+from tabletop.reader.rules import MANNER, NEGATIONS, QUALIFIERS, parse_instruction
 from tabletop.reader.spelling import Speller, default_speller, name_words
 
 __all__ = [
@@ -140,7 +140,13 @@ class LearnedReader:
         return self._rules.reference(kind, text)
 
     def understand(self, text: str, robot: str = "arm") -> Reading:
-        from tabletop.reader.learned import DEFAULT_READER_WEIGHTS, decode, load_tagger, words_of
+        from tabletop.reader.learned import (
+            DEFAULT_READER_WEIGHTS,
+            best_roles,
+            decode,
+            load_tagger,
+            words_of,
+        )
 
         if not isinstance(text, str):
             raise ConfigError(f"an instruction must be a string, got {type(text).__name__}")
@@ -154,34 +160,29 @@ class LearnedReader:
         if not words:
             raise ParseError(text, text, "the instruction is empty")
         tagger = load_tagger(self.weights or DEFAULT_READER_WEIGHTS)
-        roles, rels = tagger.tag(words)
+        role_logp, rels = tagger.scores(words)
+        roles = best_roles(role_logp)
         plain = [w.strip(",.;:!?\"'").lower() for w, r in zip(words, roles, strict=True)
                  if r in ("O", "THEN", "REP")]  # fmt: skip
-        every = [w.strip(",.;:!?\"'").lower() for w in words]
-        qualifiers = [w for w in every if w in QUALIFIERS]
-        if qualifiers:
-            raise ParseError(
-                text, " ".join(qualifiers), "the robot cannot honour how it is asked to move"
-            )
-        actions = [w for w in plain if w in UNSUPPORTED_ACTIONS]
-        if actions:
-            raise ParseError(text, " ".join(actions), "the arm goes to places; it does not "
-                             f"{actions[0]} things")  # fmt: skip
-        steps = decode(text, words, roles, rels, robot, read_clause)
-        return Reading(text, read, steps, fixes, (), self.name)
+        negations = [w for w in plain if w in NEGATIONS]
+        if negations:  # the tagger refuses these too; a word that reverses a goal never slips
+            raise ParseError(text, " ".join(negations), "the robot cannot honour a negated goal")
+        steps = decode(text, words, roles, rels, robot, read_clause, role_logp)
+        manner = tuple(w for w in plain if w in MANNER)
+        return Reading(text, read, steps, fixes, (), self.name, manner)
 
 
 _CLAUSE_READER = RulesReader(spelling=False, wrappers=True)
 
 #: Readers by name; the first is the default.
 READERS: dict[str, type | functools.partial] = {
+    "rules+learned": functools.partial(LearnedReader, fallback=True),
+    "learned": LearnedReader,
     "rules+spelling": functools.partial(RulesReader, spelling=True, wrappers=True),
     "rules": functools.partial(RulesReader, spelling=False, wrappers=False),
-    "learned": LearnedReader,
-    "rules+learned": functools.partial(LearnedReader, fallback=True),
     "llm": LLMReader,
 }
-DEFAULT_READER = "rules+spelling"
+DEFAULT_READER = "rules+learned"
 
 
 @functools.cache

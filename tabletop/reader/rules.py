@@ -47,9 +47,11 @@ from tabletop.reader.plan import (
 )
 
 __all__ = [
+    "MANNER",
     "MAX_DISTANCE_M",
     "MAX_DRIVE_M",
     "MAX_REPEAT",
+    "NEGATIONS",
     "QUALIFIERS",
     "parse_instruction",
 ]
@@ -120,6 +122,12 @@ QUALIFIERS = frozenset(
     """not no never don't dont without avoid except unless until if while quickly slowly
     carefully gently fast""".split()
 )
+#: The qualifiers that reverse or exclude a goal: no reader goes to a goal said with one of
+#: them outside its references ("don't go to the mug").
+NEGATIONS = frozenset("not no never don't dont without avoid except unless".split())
+#: The qualifiers that say how to move, not where: the learned reader reads the goal and says
+#: these are not honoured (the arm moves at its controller's speed).
+MANNER = frozenset("quickly slowly carefully gently fast".split())
 #: Actions the arm does not do (it goes to places): a reader refuses a request that asks one.
 UNSUPPORTED_ACTIONS = frozenset(
     "grab grasp pick place put push pull lift drop throw open shut squeeze press".split()

@@ -30,6 +30,7 @@ from tabletop.reader.learned import (
     LearnedTagger,
     TaggerConfig,
     _net,
+    best_roles,
     decode,
     save_tagger,
     word_features,
@@ -140,24 +141,27 @@ def _rules(clause: str, robot: str):
     return read_clause(clause, robot)
 
 
-def _plans_right(texts, tagged: Callable[[int], tuple[list, list]], reader=None) -> float:
+def _plans_right(texts, tagged: Callable[[int], tuple], reader=None) -> float:
     from tabletop.reader.errors import ParseError
 
     right = 0
     for i, t in enumerate(texts):
         words = list(t.words)
+        refuse = "none" in t.relations
         try:
             gold = plan_key(decode(t.text, words, list(t.roles), list(t.relations), "arm", _rules))
         except ParseError:
-            continue  # a generated text whose own labels make no plan: counted as a miss
+            if not refuse:
+                continue  # a generated text whose own labels make no plan: counted as a miss
+            gold = "refused"
         try:
             if reader is not None:
                 got = plan_key(reader(t.text))
             else:
-                roles, rels = tagged(i)
-                got = plan_key(decode(t.text, words, roles, rels, "arm", _rules))
+                roles, rels, role_logp = tagged(i)
+                got = plan_key(decode(t.text, words, roles, rels, "arm", _rules, role_logp))
         except ParseError:
-            continue
+            got = "refused"
         right += got == gold
     return right / max(len(texts), 1)
 
@@ -172,7 +176,9 @@ def _measure(net, feats, texts) -> dict:
             role, rel = net(torch.from_numpy(f)[None], torch.tensor([len(f)]))
             pr = [ROLES[i] for i in role[0].argmax(-1).tolist()]
             pl = [RELATIONS[i] for i in rel[0].argmax(-1).tolist()]
-            preds.append((pr, torch.log_softmax(rel[0], dim=-1).numpy()))
+            role_logp = torch.log_softmax(role[0], dim=-1).numpy()
+            rel_logp = torch.log_softmax(rel[0], dim=-1).numpy()
+            preds.append((best_roles(role_logp), rel_logp, role_logp))
             roles_ok += sum(a == b for a, b in zip(pr, t.roles, strict=True))
             rels_ok += sum(a == b for a, b in zip(pl, t.relations, strict=True))
             n += len(pr)
@@ -192,11 +198,15 @@ def train_reader(
     cache_dir: str | Path | None = "out/cache",
     progress=None,
     device: str = "cpu",
+    refit: bool = False,
 ) -> LearnedTagger:
-    """Fit the tagger on ``texts`` (:class:`~tabletop.eval.reader_texts.ReaderText`), first
-    measuring one fitted without ``val_pools`` on their texts (written beside ``out`` as
-    ``<stem>_val.pt``); write it to ``out``. ``device``: where the GRU trains (the MiniLM
-    states come from wherever MiniLM was loaded)."""
+    """Fit the tagger on ``texts`` (:class:`~tabletop.eval.reader_texts.ReaderText`) without
+    those of ``val_pools``, measure it on theirs, and write it to ``out`` with the figures: so
+    the figures describe the network written. ``refit``: then fit a second network on every
+    text and write that one instead (the first goes beside ``out`` as ``<stem>_val.pt``).
+    A network fitted without ``val_pools`` already at ``<stem>_val.pt`` for the same texts and
+    seed is reused (a run stopped after it resumes there). ``device``: where the tagger trains
+    (the MiniLM states come from wherever MiniLM was loaded)."""
     import torch
 
     from tabletop.reader.reading import get_reader
@@ -205,16 +215,21 @@ def train_reader(
     cache = Path(cache_dir) if cache_dir is not None else None
     feats = _features(texts, cache)
     cfg = TaggerConfig()
-    meta: dict = {"seed": seed, "epochs": epochs, "texts": len(texts),
+    key = _texts_key(texts)
+    meta: dict = {"seed": seed, "epochs": epochs, "texts": len(texts), "texts_key": key,
                   "pools": sorted({t.pool for t in texts})}  # fmt: skip
     if val_pools:
         tr = [i for i, t in enumerate(texts) if t.pool not in val_pools]
         va = [i for i, t in enumerate(texts) if t.pool in val_pools]
-        net = _fit(
-            [feats[i] for i in tr], [texts[i] for i in tr], cfg, epochs, seed, progress, device
-        )
         val_out = Path(out).with_name(Path(out).stem + "_val.pt")
-        save_tagger(val_out, cfg, net, {"seed": seed, "trained_without": list(val_pools)})
+        val_meta = {"seed": seed, "epochs": epochs, "texts_key": key,
+                    "trained_without": list(val_pools)}  # fmt: skip
+        net = _resume(val_out, cfg, val_meta)
+        if net is None:
+            net = _fit(
+                [feats[i] for i in tr], [texts[i] for i in tr], cfg, epochs, seed, progress, device
+            )
+            save_tagger(val_out, cfg, net, val_meta)
         val_texts = [texts[i] for i in va]
         figures = _measure(net, [feats[i] for i in va], val_texts)
         rules = get_reader("rules+spelling")
@@ -222,9 +237,44 @@ def train_reader(
             val_texts, None, lambda s: rules.understand(s).steps
         )
         meta["validation"] = {"pools": list(val_pools), "texts": len(va), **figures}
+        meta["trained_without"] = list(val_pools)
         log.info("reader on pools it never saw: %s", meta["validation"])
-    net = _fit(feats, list(texts), cfg, epochs, seed, progress, device)
+    if refit or not val_pools:
+        net = _fit(feats, list(texts), cfg, epochs, seed, progress, device)
+        meta.pop("trained_without", None)
     meta["seconds"] = round(time.perf_counter() - t0, 1)
     meta["torch_threads"] = torch.get_num_threads()
     save_tagger(out, cfg, net, meta)
     return LearnedTagger(cfg, {k: v.detach() for k, v in net.state_dict().items()}, meta)
+
+
+def _texts_key(texts) -> str:
+    """A short hash of the texts and their labels (what a resumed network must have seen)."""
+    h = hashlib.sha256()
+    for t in texts:
+        h.update(" ".join(t.words).encode())
+        h.update(" ".join(t.roles).encode())
+        h.update(" ".join(t.relations).encode())
+        h.update(t.pool.encode())
+    return h.hexdigest()[:16]
+
+
+def _resume(path: Path, cfg: TaggerConfig, meta: dict):
+    """The network at ``path`` if it was fitted with ``cfg`` and ``meta`` (else None)."""
+    if not path.is_file():
+        return None
+    import torch
+
+    from tabletop.reader.learned import load_tagger
+
+    try:
+        tagger = load_tagger.__wrapped__(path)
+    except Exception:  # a damaged or foreign file: fit afresh
+        return None
+    if tagger.config != cfg or any(tagger.meta.get(k) != v for k, v in meta.items()):
+        return None
+    log.info("reader: resuming from %s", path)
+    net = tagger.net
+    for p in net.parameters():
+        p.requires_grad_(False)
+    return net.to(torch.float32)
