@@ -293,17 +293,13 @@ def test_fuzz_a_primitive_given_a_wrong_type_names_the_argument(case, positional
     assert robot.moves == [] and robot.images == []  # refused before it ran
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="found by the fuzz strategy above: primary=<array> raises numpy's 'truth value is "
-    "ambiguous' ValueError and [True, 0, 0] is taken as a point (booleans are refused as "
-    "numbers elsewhere); both are kept out of the strategy until the check is fixed",
-)
 @pytest.mark.parametrize(
     "call, kwargs",
     [("get_major_map", {"primary": np.zeros(3)}), ("move_to", {"pos": [True, 0, 0]})],
 )
-def test_known_gaps_of_the_primitive_check(call, kwargs):
+def test_the_gaps_the_fuzz_strategy_found_are_closed(call, kwargs):
+    """Found by the strategy above: an array as primary= reached numpy's ambiguous truth
+    value, and [True, 0, 0] was taken as a point."""
     with pytest.raises(PrimitiveArgumentError):
         getattr(PointRobot(), call)(**kwargs)
 

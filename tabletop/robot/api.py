@@ -87,6 +87,8 @@ def _point_arg(v) -> str | None:
     want = "a finite 3-vector [m] (x, y, z numbers), e.g. (0.4, 0.0, 0.1)"
     if isinstance(v, (str, bytes, dict, set)):
         return want
+    if isinstance(v, (list, tuple)) and any(isinstance(x, (bool, np.bool_)) for x in v):
+        return want  # a truth value is no coordinate (numpy would read True as 1)
     try:
         a = np.asarray(v)
     except (TypeError, ValueError):
@@ -128,7 +130,7 @@ _PARAM_CHECKS = {
     "img": _image_arg,
     "primary": lambda v: (
         None
-        if v is None or v in ("obj", "sound", "img", "area")
+        if v is None or (isinstance(v, str) and v in ("obj", "sound", "img", "area"))
         else "None or one of 'obj', 'sound', 'img', 'area'"
     ),
     "path": lambda v: None if isinstance(v, (str, Path)) else "an image file path (str)",
