@@ -232,8 +232,8 @@ def test_an_instruction_the_reader_refuses_is_a_miss_not_a_skip():
     goal = {
         "id": "instruction-0",
         "type": "instruction",
-        "text": "zorp blick the flurble",
-        "instruction": "zorp blick the flurble",
+        "text": "xqzt vlorp",
+        "instruction": "xqzt vlorp",
         "truth": {"point": [0.5, 0.0, 0.05]},
     }
     tf = parse_tasks(
