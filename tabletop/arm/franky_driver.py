@@ -37,6 +37,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from tabletop.arm.driver import JointState
+from tabletop.arm.driver_checks import (
+    check_start,
+    check_trajectory_velocity,
+    check_velocity,
+    check_workspace,
+)
 from tabletop.arm.errors import (
     ConnectionLost,
     ConnectionRefused,
@@ -273,22 +279,10 @@ class FrankyDriver:
                 f"{what} leaves the {self.robot_model} joint limits: joint {j + 1} = "
                 f"{q[j]:.4f} rad, allowed [{lo[j]:.4f}, {hi[j]:.4f}]"
             )
-        for frame in ("panda_hand", "panda_grasptarget"):
-            p = self.model.fk(q, frame)[:3, 3]
-            if not self.workspace.contains(p):
-                raise SafetyError(
-                    f"{what} puts {frame} at {np.round(p, 3).tolist()} m, outside the workspace "
-                    f"box {list(self.workspace.lower)}..{list(self.workspace.upper)}"
-                )
+        check_workspace(self.model, self.workspace, q, what)
 
     def _check_velocity(self, dq: np.ndarray) -> None:
-        over = np.abs(dq) > self.v_limit + 1e-9
-        if over.any():
-            raise SafetyError(
-                f"joint velocity {np.round(dq, 3).tolist()} rad/s exceeds the limit "
-                f"{np.round(self.v_limit, 3).tolist()} rad/s at joints "
-                f"{[int(i) + 1 for i in np.nonzero(over)[0]]}"
-            )
+        check_velocity(dq, self.v_limit)
 
     def check_trajectory(self, trajectory: JointTrajectory) -> None:
         """Raise :class:`SafetyError` unless every sample of ``trajectory`` is safe to send."""
@@ -301,23 +295,11 @@ class FrankyDriver:
             raise SafetyError(
                 f"trajectory refused ({self.robot_model} limits): " + "; ".join(check.violations)
             )
-        over = np.abs(trajectory.dq) > self.v_limit + 1e-9
-        if over.any():
-            k, j = np.argwhere(over)[0]
-            raise SafetyError(
-                f"trajectory refused: velocity of joint {j + 1} at sample {k} is "
-                f"{trajectory.dq[k, j]:.3f} rad/s, above velocity_scale x limit "
-                f"{self.v_limit[j]:.3f} rad/s"
-            )
+        check_trajectory_velocity(trajectory, self.v_limit)
         for k in range(0, len(trajectory), max(1, len(trajectory) // 200)):
             self._check_target(trajectory.q[k], f"trajectory sample {k}")
         self._check_target(trajectory.q[-1], f"trajectory sample {len(trajectory) - 1}")
-        gap = float(np.abs(trajectory.q[0] - self.read_state().q).max())
-        if gap > self.start_tolerance:
-            raise SafetyError(
-                f"trajectory refused: it starts {gap:.4f} rad from the measured configuration "
-                f"(allowed {self.start_tolerance} rad)"
-            )
+        check_start(trajectory, self.read_state().q, self.start_tolerance)
 
     # ------------------------------------------------------------------ motions
     def _waypoints(self, trajectory: JointTrajectory) -> list:

@@ -25,6 +25,12 @@ from collections.abc import Callable
 import numpy as np
 
 from tabletop.arm.driver import JointState
+from tabletop.arm.driver_checks import (
+    check_start,
+    check_trajectory_velocity,
+    check_velocity,
+    check_workspace,
+)
 from tabletop.arm.errors import DriverError, SafetyError
 from tabletop.arm.model import PandaModel, as_arm_q
 from tabletop.arm.trajectory import PANDA_LIMITS, JointLimits, JointTrajectory, check_trajectory
@@ -106,22 +112,10 @@ class PandaPyDriver:
                 f"lower={np.round(self.model.q_lower, 4).tolist()}, "
                 f"upper={np.round(self.model.q_upper, 4).tolist()}"
             )
-        for frame in ("panda_hand", "panda_grasptarget"):
-            p = self.model.fk(q, frame)[:3, 3]
-            if not self.workspace.contains(p):
-                raise SafetyError(
-                    f"{what} puts {frame} at {np.round(p, 3).tolist()} m, outside the workspace "
-                    f"box {list(self.workspace.lower)}..{list(self.workspace.upper)}"
-                )
+        check_workspace(self.model, self.workspace, q, what)
 
     def _check_velocity(self, dq: np.ndarray) -> None:
-        over = np.abs(dq) > self.v_limit + 1e-9
-        if over.any():
-            raise SafetyError(
-                f"joint velocity {np.round(dq, 3).tolist()} rad/s exceeds the limit "
-                f"{np.round(self.v_limit, 3).tolist()} rad/s at joints "
-                f"{[int(i) + 1 for i in np.nonzero(over)[0]]}"
-            )
+        check_velocity(dq, self.v_limit)
 
     def _use(self, kind: str):
         if self._active != kind:
@@ -167,22 +161,10 @@ class PandaPyDriver:
         check = check_trajectory(trajectory, self.limits)
         if not check.ok:
             raise SafetyError("trajectory refused: " + "; ".join(check.violations))
-        over = np.abs(trajectory.dq) > self.v_limit + 1e-9
-        if over.any():
-            k, j = np.argwhere(over)[0]
-            raise SafetyError(
-                f"trajectory refused: velocity of joint {j + 1} at sample {k} is "
-                f"{trajectory.dq[k, j]:.3f} rad/s, above velocity_scale x limit "
-                f"{self.v_limit[j]:.3f} rad/s"
-            )
+        check_trajectory_velocity(trajectory, self.v_limit)
         for k, q in enumerate(trajectory.q):
             self._check_target(q, f"trajectory sample {k}")
-        gap = float(np.abs(trajectory.q[0] - self.read_state().q).max())
-        if gap > self.start_tolerance:
-            raise SafetyError(
-                f"trajectory refused: it starts {gap:.4f} rad from the measured configuration "
-                f"(allowed {self.start_tolerance} rad)"
-            )
+        check_start(trajectory, self.read_state().q, self.start_tolerance)
 
     def execute_trajectory(self, trajectory: JointTrajectory) -> None:
         """Check the whole trajectory, then stream its samples at its own rate.
