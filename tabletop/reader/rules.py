@@ -128,10 +128,6 @@ NEGATIONS = frozenset("not no never don't dont without avoid except unless".spli
 #: The qualifiers that say how to move, not where: the learned reader reads the goal and says
 #: these are not honoured (the arm moves at its controller's speed).
 MANNER = frozenset("quickly slowly carefully gently fast".split())
-#: Actions the arm does not do (it goes to places): a reader refuses a request that asks one.
-UNSUPPORTED_ACTIONS = frozenset(
-    "grab grasp pick place put push pull lift drop throw open shut squeeze press".split()
-)
 #: Words that point back instead of naming: a reference made of one of them names nothing.
 POINTERS = frozenset("it its them this that these those there here one".split())
 # Words that carry structure: inside an object description they mean the sentence had a
