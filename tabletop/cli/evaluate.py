@@ -414,9 +414,9 @@ def add_commands(sub) -> None:
         "'paraphrase-heldout-7', 'paraphrase-heldout-8', 'paraphrase-heldout-9', "
         "'paraphrase-heldout-10', 'paraphrase-heldout-11', 'paraphrase-heldout-12' (goals "
         "asked as people ask, to tune on; the last twelve were held out until their report), "
-        "'paraphrase-heldout-13', 'paraphrase-heldout-14', 'paraphrase-heldout-15' (held out: "
-        "each run once for a report, never read), 'clutter' (dense tables: goals "
-        "on, beside and between objects), "
+        "'paraphrase-heldout-13', 'paraphrase-heldout-14', 'paraphrase-heldout-15', "
+        "'paraphrase-heldout-16' (held out: each run once for a report, never read), "
+        "'clutter' (dense tables: goals on, beside and between objects), "
         "'mobile' (a wheeled base in rooms, 1 m success radius)",
     )
     p.add_argument(
