@@ -292,7 +292,7 @@ def test_one_or_two_sound_segments_are_judged_not_found_by_fiat(avlmap):
     ],
 )
 def test_an_area_that_names_nothing_on_this_table_is_not_found(avlmap, query, subject):
-    h = avlmap.area_heatmap(query)
+    h = avlmap.area_heatmap(_place(query))
     assert not h.found and h.confidence == 0.0 and not h.values.any()
     assert h.reason.startswith(f"{subject!r} names no region of this table and nothing on it")
     assert "as a thing: " in h.reason and "as a sound: " in h.reason  # each module's refusal
@@ -306,7 +306,7 @@ def test_a_place_is_a_thing_only_where_its_own_words_name_one(avlmap):
     )
     assert avlmap._unnamed("tray") == "" and avlmap._unnamed("serving tray") == ""
     assert avlmap._unnamed("something red") == ""  # no content words: any object
-    h = avlmap.area_heatmap("the far end of the playground")
+    h = avlmap.area_heatmap(_place("the far end of the playground"))
     assert not h.found and "(as a thing: " in h.reason
 
 
@@ -318,8 +318,22 @@ def test_a_place_is_a_sound_only_where_its_words_are_nearer_a_sound_than_any_thi
     assert avlmap._rather_a_thing("phone rang") == ""
 
 
+def _place(text: str):
+    """An area's words as the default reader reads them (the map scores the reading)."""
+    from tabletop.reader.reading import get_reader
+
+    return get_reader().reference("area", text)
+
+
+def test_the_map_takes_an_area_as_the_reader_read_it_not_its_words(avlmap):
+    with pytest.raises(ConfigError, match=r"an area is read by the reader before the map scores"):
+        avlmap.area_heatmap("the left side of the table")
+    with pytest.raises(ConfigError, match="must be an AreaRef, got int"):
+        avlmap.query("area", 3)
+
+
 def test_place_words_alone_name_no_area(avlmap):
-    h = avlmap.area_heatmap("the area over there")
+    h = avlmap.area_heatmap(_place("the area over there"))
     assert not h.found
     assert h.reason == (
         "'the area over there' names no region of this table and nothing on it "
@@ -330,7 +344,7 @@ def test_place_words_alone_name_no_area(avlmap):
 @pytest.mark.parametrize("query", ["🦒🦒", "...", "123", "?! 42"])
 def test_a_query_of_no_words_is_not_found_in_any_modality(avlmap, query):
     for kind in ("obj", "sound", "area"):
-        h = avlmap.query(kind, query)
+        h = avlmap.query(kind, _place(query) if kind == "area" else query)
         assert not h.found and not h.values.any(), (kind, query)
         assert h.reason == f"{query!r} holds no words (no letter): it names nothing"
 
@@ -341,7 +355,7 @@ def test_an_area_named_after_a_sound_is_where_it_was_heard(avlmap, rec):
     hits = 0
     for e in unique:
         q = f"the spot near {e['caption']}"
-        h = avlmap.area_heatmap(q)
+        h = avlmap.area_heatmap(_place(q))
         assert h.modality == "area" and h.query == q
         hits += h.found and np.linalg.norm(avlmap.get_max_pos_3d(h) - e["table_point"]) <= 0.10
     assert hits >= len(unique) - 1  # as the sound queries themselves
@@ -364,11 +378,11 @@ def test_named_table_regions_come_from_the_map_geometry(avlmap, rec):
     gt = GroundTruth.of(rec)
     for name in ("left side of the table", "front of the table", "center of the table"):
         a = gt.area(name)
-        h = avlmap.area_heatmap("the " + name)
+        h = avlmap.area_heatmap(_place("the " + name))
         assert h.found and h.evidence is None  # geometry, not an image embedding
         p = avlmap.get_max_pos_3d(h)
         assert a.x[0] <= p[0] <= a.x[1] and a.y[0] <= p[1] <= a.y[1]
-    tray = avlmap.area_heatmap("the tray area")
+    tray = avlmap.area_heatmap(_place("the tray area"))
     assert tray.found and tray.evidence is not None  # named by what is there: the object module
 
 
@@ -376,7 +390,7 @@ def test_query_dispatches_by_kind_and_names_the_valid_ones(avlmap):
     np.testing.assert_array_equal(
         avlmap.query("obj", "red mug").values, avlmap.object_heatmap("red mug").values
     )
-    assert avlmap.query("area", "the tray area", major=False).decay == avlmap.decay(False)
+    assert avlmap.query("area", _place("the tray area"), major=False).decay == avlmap.decay(False)
     with pytest.raises(ConfigError, match=r"unknown query kind 'smell'; valid: \['obj'"):
         avlmap.query("smell", "roses")
 
@@ -430,7 +444,7 @@ def test_object_instances_are_saved_and_an_older_file_segments_again(avlmap, rec
 def test_an_area_named_after_an_object_is_around_its_instance(avlmap, rec):
     tray = next(o for o in rec.ground_truth["objects"] if o["kind"] == "tray")
     for q in ("the area around the tray", "the spot by the tray"):
-        h = avlmap.area_heatmap(q)
+        h = avlmap.area_heatmap(_place(q))
         assert h.found and h.modality == "area" and h.query == q
         assert box_distance(avlmap.get_max_pos_3d(h), tray) <= 0.02
 

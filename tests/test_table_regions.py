@@ -5,7 +5,6 @@ import pytest
 from module_helpers import GRID, labelled_voxels
 
 from tabletop.errors import ConfigError
-from tabletop.mapping.place_words import parse_region
 from tabletop.mapping.table_regions import (
     EDGE_MARGIN_M,
     ROBOT_CLEARANCE_M,
@@ -14,6 +13,7 @@ from tabletop.mapping.table_regions import (
     region_heatmap,
 )
 from tabletop.mapping.targets import max_position
+from tabletop.reader.place_words import parse_region
 
 
 @pytest.mark.parametrize(
@@ -141,7 +141,7 @@ def test_regions_divide_the_usable_table_and_heat_their_rectangle():
 
 
 def test_hand_sides_extremes_and_the_arm_are_geometry():
-    from tabletop.mapping.place_words import parse_region
+    from tabletop.reader.place_words import parse_region
 
     for text, want in [
         ("the left-hand side of the table", ("left", None)),
@@ -169,7 +169,7 @@ def test_hand_sides_extremes_and_the_arm_are_geometry():
 
 
 def test_area_subject_names_the_object_a_place_is_named_after():
-    from tabletop.mapping.place_words import area_subject
+    from tabletop.reader.place_words import area_subject
 
     assert area_subject("the area around the tray") == "tray"
     assert area_subject("the spot by the blue mug") == "blue mug"

@@ -174,7 +174,7 @@ def test_the_check_refuses_a_pose_the_matches_support_but_the_map_does_not(avlma
 
 def test_calibration_samples_label_every_modality(avlmap, queries, rec):
     from tabletop.eval.calibration import calibration_samples
-    from tabletop.mapping.place_words import parse_region
+    from tabletop.reader.place_words import parse_region
 
     rng = np.random.default_rng(5)
     foreign = np.zeros((240, 320, 3), np.uint8)  # a picture of no scene: random rectangles

@@ -98,7 +98,7 @@ def _print_bench(results: dict) -> None:
         f"map {r['map_mb']} MB"
     )
     readers = sorted({k[len("reader_") : -len("_ms_median")] for k in r if k.endswith("_ms_median")
-                      and k.startswith("reader_")})  # fmt: skip
+                      and k.startswith("reader_") and k != "reader_places_ms_median"})  # fmt: skip
     print(
         "reader: "
         + "; ".join(
@@ -106,7 +106,9 @@ def _print_bench(results: dict) -> None:
             f"refused {r[f'reader_{n}_refused']})"
             for n in readers
         )
-        + f" per request, one thread; words listed by hand: rules {r['listed_words_rules']}, "
+        + f" per request, one thread; places {r.get('reader_places_ms_median')} ms median "
+        f"({r.get('reader_places_ms_p95')} p95) per area phrase; "
+        f"words listed by hand: rules {r['listed_words_rules']}, "
         f"place_words {r['listed_words_place_words']}, colour_words "
         f"{r['listed_words_colour_words']}"
     )

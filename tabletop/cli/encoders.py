@@ -23,6 +23,7 @@ TRAIN_OUT = {
     "vision (--backbone small)": Path("out/weights/vision_dense.pt"),
     "shape": Path("out/weights/shape_prior.json"),
     "kind-reader": Path("out/weights/kind_reader.json"),
+    "places": Path("out/weights/place_reader.json"),
 }
 """Where ``tabletop train WHAT`` writes its weights unless given ``--out``."""
 _SHIPPED = {
@@ -32,6 +33,7 @@ _SHIPPED = {
     "vision (effnet-lite0)": "tabletop/data/weights/vision_dense_effnet.pt",
     "shape": "tabletop/data/weights/shape_prior.json",
     "kind-reader": "tabletop/data/weights/kind_reader.json",
+    "places": "tabletop/data/weights/place_reader.json",
 }
 
 
@@ -187,11 +189,43 @@ def _only_out(args: argparse.Namespace) -> None:
         raise ConfigError(f"{', '.join(given)}: not for {args.what} (it takes --out only)")
 
 
+def _is_place_reader(path: Path) -> bool:
+    """Whether ``path`` is a place classifier ``tabletop train places`` wrote."""
+    try:
+        return json.loads(path.read_text()).get("format") == "tabletop-place-reader"
+    except (OSError, ValueError, TypeError, AttributeError):
+        return False
+
+
 def cmd_train(args: argparse.Namespace) -> int:
     if args.what == "reader":
         from tabletop.cli.language import cmd_train_reader
 
         return cmd_train_reader(args)
+    if args.what == "places":
+        _only_out(args)
+        out = Path(args.out) if args.out is not None else TRAIN_OUT["places"]
+        _check_weights_output(out, str(TRAIN_OUT["places"]), "a place classifier", _is_place_reader)
+        from tabletop.eval.paraphrase import TUNE_POOLS
+        from tabletop.eval.place_texts import place_texts
+        from tabletop.train.places import train_places
+
+        clf = train_places(place_texts(TUNE_POOLS), out, seed=0)
+        m = clf.meta
+        print(
+            f"place classifier written: {out} ({m['phrases']} phrases of "
+            f"{len(m['pools'])} tune pools)"
+        )
+        print("each pool left out once, on the phrases the grammar refuses:")
+        for th, s in m["leave_one_pool_out"].items():
+            mark = "  <- threshold" if float(th) == clf.threshold else ""
+            print(
+                f"  at {th}: regions read right {s['grammar_refused_regions_right']}/"
+                f"{s['grammar_refused_regions']} (wrong region "
+                f"{s['grammar_refused_regions_wrong_region']}), other read as a region "
+                f"{s['other_read_as_region']}/{s['other']}{mark}"
+            )
+        return 0
     if args.what == "kind-reader":
         _only_out(args)
         out = Path(args.out) if args.out is not None else TRAIN_OUT["kind-reader"]
@@ -313,7 +347,7 @@ def add_commands(sub) -> None:
         help="train an embedded default encoder, the object shape prior or the kind reader "
         "(seeded)",
     )
-    p.add_argument("what", choices=["audio", "vision", "shape", "kind-reader", "reader"])
+    p.add_argument("what", choices=["audio", "vision", "shape", "kind-reader", "reader", "places"])
     p.add_argument(
         "--out",
         default=None,

@@ -8,6 +8,7 @@ import time
 
 from tabletop.cli.output import check_output_flag
 from tabletop.cli.progress import ProgressBars
+from tabletop.reader.reading import DEFAULT_READER, READERS
 
 __all__ = ["MIN_MAP_VOXELS", "MIN_PIXELS_PER_FRAME", "add_commands", "cmd_build_map", "cmd_query"]
 
@@ -86,6 +87,7 @@ def cmd_build_map(args: argparse.Namespace) -> int:
 def cmd_query(args: argparse.Namespace) -> int:
     from tabletop.mapping import AVLMap, fuse
     from tabletop.mapping.render import write_heatmap_views
+    from tabletop.reader.reading import get_reader
     from tabletop.robot.api import RobotAPI
 
     if args.out is not None:  # before the map is loaded and queried
@@ -95,6 +97,7 @@ def cmd_query(args: argparse.Namespace) -> int:
         from tabletop.mapping.persistence import check_map_encoders
 
         check_map_encoders(args.map, args.encoders)
+    reader = get_reader(args.reader)  # an unknown name is refused before the map is loaded
     m = AVLMap.load(args.map)
     parts = []
     for kind, major in (
@@ -111,7 +114,8 @@ def cmd_query(args: argparse.Namespace) -> int:
         if q is None:
             continue
         modality = kind.removeprefix("near_")
-        value = RobotAPI.load_image(q) if modality == "img" else q
+        # the words of a reference are read by the one reader every caller asks
+        value = RobotAPI.load_image(q) if modality == "img" else reader.reference(modality, q)
         parts.append(m.query(modality, value, major))
     if not parts:
         print("tabletop query: give at least one of --obj, --sound, --area, --img", file=sys.stderr)
@@ -179,4 +183,9 @@ def add_commands(sub) -> None:
         help="the encoder set the map must have been built with (refused otherwise)",
     )
     p.add_argument("--out", help="picture prefix: writes PREFIX_top.png and PREFIX_side.png")
+    p.add_argument(
+        "--reader",
+        default=DEFAULT_READER,
+        help=f"the reader of the words: {', '.join(READERS)} (default: {DEFAULT_READER})",
+    )
     p.set_defaults(func=cmd_query)

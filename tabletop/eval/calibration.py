@@ -21,6 +21,7 @@ from tabletop.mapping.calibration import (
     expected_calibration_error,
     fit_platt,
 )
+from tabletop.reader.reading import get_reader
 from tabletop.sim.ground_truth import GroundTruth
 from tabletop.transforms import aabb_distance
 
@@ -123,7 +124,7 @@ def calibration_samples(
         add(
             "area",
             a.name,
-            m.area_heatmap(a.name),
+            m.area_heatmap(get_reader().reference("area", a.name)),
             lambda p, b=(lo, hi): [aabb_distance(p, *b)],
         )
 

@@ -139,7 +139,6 @@ QUERY_TIME_SOURCES = frozenset(
         "mapping/sound_vocabulary.py",
         "mapping/kind_reader.py",
         "mapping/colour_words.py",
-        "mapping/place_words.py",
         "mapping/shape.py",
         "mapping/heatmaps.py",
         "mapping/targets.py",

@@ -41,9 +41,9 @@ from tabletop.mapping.errors import MapFormatError
 from tabletop.mapping.heatmaps import Heatmap
 from tabletop.mapping.object_module import ObjectModule
 from tabletop.mapping.persistence import read_map_file, save_map, source_of
-from tabletop.mapping.place_words import area_subject, parse_region
 from tabletop.mapping.registration import table_corrections
 from tabletop.mapping.table_regions import (
+    AreaRef,
     TableFit,
     fit_surfaces,
     fit_table,
@@ -471,7 +471,8 @@ class AVLMap:
 
     def query(self, kind: str, value, major: bool = True) -> Heatmap:
         """The heatmap of one query part: ``kind`` one of :data:`QUERY_KINDS` (``value`` a text,
-        or an (H, W, 3) uint8 image for ``"img"``), sharp (``major``) or broad."""
+        an :class:`AreaRef` for ``"area"``, or an (H, W, 3) uint8 image for ``"img"``), sharp
+        (``major``) or broad."""
         name = QUERY_KINDS.get(kind)
         if name is None:
             raise ConfigError(f"unknown query kind {kind!r}; valid: {list(QUERY_KINDS)}")
@@ -505,27 +506,36 @@ class AVLMap:
         why = f"{query!r} holds no words (no letter): it names nothing"
         return Heatmap.not_found(self.grid, query, modality, self.decay(major), why)
 
-    def area_heatmap(self, query: str, major: bool = False) -> Heatmap:
-        """Heat over a place on the table, found only where the words name one of this table.
+    def area_heatmap(self, query: AreaRef, major: bool = False) -> Heatmap:
+        """Heat over a place on the table, found only where the reader's reading names one of
+        this table.
 
-        A place named by where it is ("the left side of the table", "the far right corner":
-        :func:`~tabletop.mapping.place_words.parse_region`) is a region of the table fitted
-        from the map. A place named after what is there ("the area around the tray", "where
-        the dog barked": :func:`~tabletop.mapping.place_words.area_subject`) is heat around
-        it where the object module finds that thing on the table, else where the audio
-        module finds that sound: each decides by its own calibrated found / not-found
-        (the object module's refusal of words that name nothing of the vocabulary, its
-        operating point; the sound vocabulary's and the sound operating point). Words that
-        do neither ("the kitchen", "the top shelf", "the area") are not found, and the
-        reason names them with why each module refused them."""
-        q = _text(query, "area")
+        The words are read by the reader (:mod:`tabletop.reader.places`: ``get_reader().
+        reference("area", text)``), which gives an :class:`AreaRef`; the map holds no words of
+        places. A place named by where it is ("the left side of the table", "the far right
+        corner") is a ``region`` of the table fitted from the map. A place named after what is
+        there ("the area around the tray", "where the dog barked") has a ``subject``: heat
+        around it where the object module finds that thing on the table, else where the audio
+        module finds that sound: each decides by its own calibrated found / not-found (the
+        object module's refusal of words that name nothing of the vocabulary, its operating
+        point; the sound vocabulary's and the sound operating point). A reading with neither
+        ("the area"), or a subject that is neither ("the kitchen", "the top shelf"), is not
+        found, and the reason names why each module refused it."""
+        if isinstance(query, str):
+            raise ConfigError(
+                f"an area is read by the reader before the map scores it: pass "
+                f"tabletop.reader.get_reader().reference('area', {query!r}) (an AreaRef), not "
+                f"the words"
+            )
+        if not isinstance(query, AreaRef):
+            raise ConfigError(f"an area query must be an AreaRef, got {type(query).__name__}")
+        q = _text(query.text, "area")
         decay = self.decay(major)
         if (h := self._wordless(q, "area", major)) is not None:
             return h
-        region = parse_region(q)
-        if region is not None:
-            return region_heatmap(self.grid, self.table(), q, region, decay)
-        subject = area_subject(q)
+        if query.region is not None:
+            return region_heatmap(self.grid, self.table(), q, query.region, decay)
+        subject = query.subject
         if subject is None:
             why = f"{q!r} names no region of this table and nothing on it (words for a place only)"
             return Heatmap.not_found(self.grid, q, "area", decay, why)

@@ -4,12 +4,11 @@ right corner", "the middle", "near the robot".
 A region named by where it is on the table is geometry, not an image embedding: the table is
 fitted from the map (:func:`fit_table`: the dominant horizontal layer of occupied voxels, its
 height and its extent), and the phrase is parsed into a lateral and a depth constraint
-(:func:`~tabletop.mapping.place_words.parse_region`) in the robot frame: +x points away from
+(by the reader: :mod:`tabletop.reader.places`) in the robot frame: +x points away from
 the robot ("front", "far"), +y to its left. Phrases that name what is in an area ("the tray
-area", "where the toys are") are not geometric: ``parse_region`` returns None for them and they
-go to the area module.
-
-The phrasings that name a region are listed in :mod:`tabletop.mapping.place_words`.
+area", "where the toys are") are not geometric: the reader gives their subject instead, which
+the map looks for as a thing or a sound. The map receives an :class:`AreaRef` (what the reader
+read) and holds no words of places.
 
 The table's usable part starts :data:`ROBOT_CLEARANCE_M` in front of the robot base (the base
 and shoulder stand nearer than that) and keeps :data:`EDGE_MARGIN_M` from the fitted edges.
@@ -29,6 +28,7 @@ from tabletop.mapping.heatmaps import Heatmap
 __all__ = [
     "EDGE_MARGIN_M",
     "ROBOT_CLEARANCE_M",
+    "AreaRef",
     "TableFit",
     "TableRegion",
     "fit_surfaces",
@@ -51,6 +51,23 @@ class TableRegion:
     lateral: str | None
     depth: str | None
     text: str
+
+
+@dataclass(frozen=True)
+class AreaRef:
+    """A place as the reader read it (:mod:`tabletop.reader.places`): a ``region`` of the
+    table's own geometry, or a ``subject`` (what a place is named after: "the area around the
+    tray" -> "tray"), or neither (words that name no place here: not found). ``how`` says what
+    read it ("grammar", "learned 0.93", ...), for the reason a query reports."""
+
+    text: str
+    region: TableRegion | None = None
+    subject: str | None = None
+    how: str = ""
+
+    def __post_init__(self) -> None:
+        if self.region is not None and self.subject is not None:
+            raise ConfigError(f"{self.text!r}: an area is a region or a subject, not both")
 
 
 @dataclass(frozen=True)

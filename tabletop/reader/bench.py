@@ -18,7 +18,7 @@ import numpy as np
 from tabletop.reader.errors import ParseError
 from tabletop.reader.reading import READERS, get_reader
 
-__all__ = ["BENCH_REQUESTS", "listed_words", "run_reader_benchmark"]
+__all__ = ["BENCH_PLACES", "BENCH_REQUESTS", "listed_words", "run_reader_benchmark"]
 
 BENCH_REQUESTS = (
     "go to the red mug",
@@ -31,6 +31,15 @@ BENCH_REQUESTS = (
     "would you be so kind as to hover over the green cube",
     "go back and forth between the ball and the domino twice",
     "gotothe jenga block",
+)
+#: Area phrases for the place reader's cost: the grammar reads the first two, the classifier
+#: the next two, the last is a place off the table (the project's own wording).
+BENCH_PLACES = (
+    "the left side of the table",
+    "the far right corner",
+    "the leftward zone of the table",
+    "the rightward bit",
+    "the garage",
 )
 
 
@@ -80,9 +89,23 @@ def run_reader_benchmark(repeats: int = 5) -> dict:
             out[f"reader_{key}_ms_median"] = round(float(np.median(times)), 3)
             out[f"reader_{key}_ms_p95"] = round(float(np.percentile(times, 95)), 3)
             out[f"reader_{key}_refused"] = f"{refused}/{len(BENCH_REQUESTS)}"
+        from tabletop.reader.places import PlaceReader, text_encoder
+
+        places = PlaceReader(learned=True)
+        for text in BENCH_PLACES:  # warm-up: MiniLM, the classifier
+            places.read(text)
+        times = []
+        for _ in range(repeats):
+            for text in BENCH_PLACES:
+                text_encoder().clear_cache()  # every phrase embedded afresh
+                t0 = time.perf_counter()
+                places.read(text)
+                times.append((time.perf_counter() - t0) * 1e3)
+        out["reader_places_ms_median"] = round(float(np.median(times)), 3)
+        out["reader_places_ms_p95"] = round(float(np.percentile(times, 95)), 3)
     finally:
         torch.set_num_threads(threads)
     root = Path(__file__).resolve().parent.parent
-    for rel in ("reader/rules.py", "mapping/place_words.py", "mapping/colour_words.py"):
+    for rel in ("reader/rules.py", "reader/place_words.py", "mapping/colour_words.py"):
         out[f"listed_words_{Path(rel).stem}"] = listed_words(root / rel)
     return out

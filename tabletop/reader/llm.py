@@ -162,12 +162,17 @@ class LLMReader:
     def __init__(self, config: LLMConfig | None = None) -> None:
         self.config = config or LLMConfig.from_env()
 
-    def reference(self, kind: str, text: str) -> str:
+    def reference(self, kind: str, text: str):
         if kind not in PART_KINDS or kind == "img":
             raise ConfigError(f"unknown reference kind {kind!r}; valid: obj, sound, area")
         if not isinstance(text, str):
-            return text
-        return default_speller().correct(text)[0]
+            raise ConfigError(f"{kind}= must be a string, got {type(text).__name__}")
+        text = default_speller().correct(text)[0]
+        if kind == "area":
+            from tabletop.reader.places import PlaceReader
+
+            return PlaceReader(learned=True).read(text)
+        return text
 
     def understand(self, text: str, robot: str = "arm") -> Reading:
         if not isinstance(text, str) or not text.strip():

@@ -27,8 +27,10 @@ import re
 from typing import Protocol
 
 from tabletop.errors import ConfigError
+from tabletop.mapping.table_regions import AreaRef
 from tabletop.reader.errors import ParseError
 from tabletop.reader.llm import LLMReader
+from tabletop.reader.places import PlaceReader
 from tabletop.reader.plan import Reading, Step
 from tabletop.reader.rules import MANNER, NEGATIONS, QUALIFIERS, parse_instruction
 from tabletop.reader.spelling import Speller, default_speller, name_words
@@ -58,7 +60,7 @@ class Reader(Protocol):
 
     def understand(self, text: str, robot: str = "arm") -> Reading: ...
 
-    def reference(self, kind: str, text: str) -> str: ...
+    def reference(self, kind: str, text: str) -> str | AreaRef: ...
 
 
 def _leads(text: str) -> list[tuple[str, str]]:
@@ -85,12 +87,18 @@ class RulesReader:
     def speller(self) -> Speller:
         return default_speller()
 
-    def reference(self, kind: str, text: str) -> str:
+    def reference(self, kind: str, text: str, places: PlaceReader | None = None) -> str | AreaRef:
+        """The words of one reference, corrected (``obj``, ``sound``), or an area read into an
+        :class:`AreaRef` (``area``: by ``places``, default the grammar alone)."""
         if kind not in TEXT_KINDS:
             raise ConfigError(f"unknown reference kind {kind!r}; valid: {list(TEXT_KINDS)}")
-        if not self.spelling or not isinstance(text, str):
-            return text
-        return self.speller.correct(text)[0]
+        if not isinstance(text, str):
+            raise ConfigError(f"{kind}= must be a string, got {type(text).__name__}")
+        if self.spelling:
+            text = self.speller.correct(text)[0]
+        if kind == "area":
+            return (places or _GRAMMAR_PLACES).read(text)
+        return text
 
     def understand(self, text: str, robot: str = "arm") -> Reading:
         if not isinstance(text, str):
@@ -136,8 +144,8 @@ class LearnedReader:
         self.name = "rules+learned" if fallback else "learned"
         self._rules = RulesReader(spelling=True, wrappers=False)
 
-    def reference(self, kind: str, text: str) -> str:
-        return self._rules.reference(kind, text)
+    def reference(self, kind: str, text: str) -> str | AreaRef:
+        return self._rules.reference(kind, text, _LEARNED_PLACES)
 
     def understand(self, text: str, robot: str = "arm") -> Reading:
         from tabletop.reader.learned import (
@@ -173,6 +181,8 @@ class LearnedReader:
 
 
 _CLAUSE_READER = RulesReader(spelling=False, wrappers=True)
+_GRAMMAR_PLACES = PlaceReader(learned=False)
+_LEARNED_PLACES = PlaceReader(learned=True)
 
 #: Readers by name; the first is the default.
 READERS: dict[str, type | functools.partial] = {

@@ -1,0 +1,179 @@
+"""Places: the words of an area query read into an :class:`~tabletop.mapping.table_regions.
+AreaRef` that the map scores.
+
+Three readings, in this order:
+
+1. the grammar of :mod:`tabletop.reader.place_words`: a region of the table's own geometry
+   named in words it lists ("the far right corner", "the robot's left");
+2. a learned classifier (``learned=True``): the phrase's MiniLM sentence embedding, one
+   linear layer and a softmax over the regions that people name (left, right, front: the half
+   away from the robot, back: the half by it, the centre) and "other" (no region of the
+   table). It was fitted by ``tabletop train places`` on the tune pools' own area phrasings and
+   on their names of things and of places off the table (:mod:`tabletop.eval.place_texts`), so
+   it reads region wording that no list holds; a region is taken only at a probability of at
+   least its ``threshold``, chosen on pools left out of its fit;
+3. otherwise the place's subject: what a place named after its contents is named after ("the
+   area around the tray" -> "tray"), which the map looks for as a thing or a sound; a phrase of
+   place words only names nothing.
+"""
+
+from __future__ import annotations
+
+import functools
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from tabletop.errors import AssetError, ConfigError
+from tabletop.mapping.table_regions import AreaRef, TableRegion
+from tabletop.paths import DATA_DIR
+from tabletop.reader.place_words import area_subject, parse_region
+
+__all__ = [
+    "DEFAULT_PLACE_WEIGHTS",
+    "PLACE_CLASSES",
+    "PLACE_FORMAT",
+    "REGION_OF_CLASS",
+    "PlaceClassifier",
+    "PlaceReader",
+    "load_place_classifier",
+    "text_encoder",
+]
+
+DEFAULT_PLACE_WEIGHTS = DATA_DIR / "weights" / "place_reader.json"
+PLACE_FORMAT = "tabletop-place-reader"
+#: The classifier's classes: the five regions people name, and "other" (no region of the
+#: table: a thing, a place elsewhere, or words for a place only).
+PLACE_CLASSES = ("left", "right", "front", "back", "center", "other")
+#: A class of the classifier -> the region it names: (lateral, depth).
+REGION_OF_CLASS = {
+    "left": ("left", None),
+    "right": ("right", None),
+    "front": (None, "far"),
+    "back": (None, "near"),
+    "center": ("middle", "middle"),
+}
+
+
+@dataclass(frozen=True)
+class PlaceClassifier:
+    """Softmax over ``classes`` of ``embedding @ W + b``; ``space``: the text encoder."""
+
+    classes: tuple[str, ...]
+    W: np.ndarray  # (dim, classes)
+    b: np.ndarray  # (classes,)
+    threshold: float
+    space: str
+    meta: dict = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        unknown = [c for c in self.classes if c != "other" and c not in REGION_OF_CLASS]
+        if unknown or "other" not in self.classes:
+            raise AssetError(
+                f"place classifier classes {list(self.classes)}: each must be one of "
+                f"{[*REGION_OF_CLASS, 'other']}, with 'other' among them"
+            )
+        if self.W.shape != (self.W.shape[0], len(self.classes)) or self.b.shape != (
+            len(self.classes),
+        ):
+            raise AssetError(
+                f"place classifier shapes W {self.W.shape}, b {self.b.shape} do not match "
+                f"{len(self.classes)} classes"
+            )
+
+    def probabilities(self, embeddings: np.ndarray) -> np.ndarray:
+        """(N, classes) probabilities of (N, dim) unit text embeddings."""
+        z = np.asarray(embeddings, np.float64) @ self.W + self.b
+        z -= z.max(axis=1, keepdims=True)
+        p = np.exp(z)
+        return p / p.sum(axis=1, keepdims=True)
+
+    def to_json(self) -> dict:
+        return {
+            "format": PLACE_FORMAT,
+            "classes": list(self.classes),
+            "space": self.space,
+            "threshold": self.threshold,
+            "W": np.round(self.W, 6).tolist(),
+            "b": np.round(self.b, 6).tolist(),
+            "meta": self.meta,
+        }
+
+
+def _text_encoder(space: str):
+    from tabletop.mapping.encoders.minilm import MINILM_SPACE
+
+    if space != MINILM_SPACE:
+        raise AssetError(
+            f"the place classifier was fitted in the text space {space!r}; this reader embeds "
+            f"with {MINILM_SPACE!r}: refit it with `tabletop train places`"
+        )
+    return text_encoder()
+
+
+@functools.cache
+def text_encoder():
+    """The place reader's text encoder (MiniLM; one per process, its embeddings cached)."""
+    from tabletop.mapping.encoders.minilm import MiniLMTextEncoder
+
+    return MiniLMTextEncoder()
+
+
+@functools.cache
+def load_place_classifier(path: str | Path = DEFAULT_PLACE_WEIGHTS) -> PlaceClassifier:
+    """The classifier ``tabletop train places`` wrote to ``path`` (cached per path)."""
+    path = Path(path)
+    try:
+        d = json.loads(path.read_text())
+    except OSError as e:
+        raise AssetError(
+            f"cannot read the place classifier {str(path)!r} ({e.strerror}); write one with "
+            f"`tabletop train places`"
+        ) from None
+    except ValueError as e:
+        raise AssetError(f"{str(path)!r} is not a place classifier (not JSON: {e})") from None
+    if not isinstance(d, dict) or d.get("format") != PLACE_FORMAT:
+        raise AssetError(f"{str(path)!r} is not a place classifier (format {PLACE_FORMAT!r})")
+    try:
+        return PlaceClassifier(
+            tuple(d["classes"]),
+            np.asarray(d["W"], np.float64),
+            np.asarray(d["b"], np.float64),
+            float(d["threshold"]),
+            str(d["space"]),
+            dict(d.get("meta", {})),
+        )
+    except (KeyError, TypeError, ValueError) as e:
+        raise AssetError(f"{str(path)!r}: a malformed place classifier ({e!r})") from None
+
+
+class PlaceReader:
+    """Reads an area query's words (see the module docstring); ``learned``: with the
+    classifier after the grammar."""
+
+    def __init__(self, learned: bool = True, weights: str | Path | None = None) -> None:
+        self.learned = bool(learned)
+        self.weights = Path(weights) if weights is not None else DEFAULT_PLACE_WEIGHTS
+
+    def classifier(self) -> PlaceClassifier:
+        return load_place_classifier(self.weights)
+
+    def read(self, text: str) -> AreaRef:
+        if not isinstance(text, str):
+            raise ConfigError(f"an area must be a string, got {type(text).__name__}")
+        region = parse_region(text)
+        if region is not None:
+            return AreaRef(text, region=region, how="grammar")
+        if self.learned and text.strip():
+            clf = self.classifier()
+            p = clf.probabilities(_text_encoder(clf.space).encode_text([text]))[0]
+            k = int(np.argmax(p))
+            name = clf.classes[k]
+            if name != "other" and p[k] >= clf.threshold:
+                lateral, depth = REGION_OF_CLASS[name]
+                how = f"learned: {name} at {p[k]:.2f}"
+                return AreaRef(text, region=TableRegion(lateral, depth, text), how=how)
+        subject = area_subject(text)
+        return AreaRef(text, subject=subject, how="subject" if subject else "place words only")
