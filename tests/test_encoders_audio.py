@@ -229,8 +229,18 @@ def test_a_labelled_mix_splits_the_target_by_power_and_the_average_follows_the_w
     assert torch.allclose(ema["weight"], net.weight - 0.9)  # a tenth of the way
 
 
+def _bank_it_knows(encoder) -> SoundBank:
+    """The shipped bank's clips of the categories the network was trained on: a category the
+    bank gained later is new to it (its queries are misses), which would measure the bank's
+    growth rather than the committed weights."""
+    bank = SoundBank.default()
+    known = set(encoder.vocabulary.categories)
+    clips = [c for c in bank if c.category in known]
+    return SoundBank(clips, sample_rate=bank.sample_rate, captions=bank.captions, name="known")
+
+
 def test_heldout_recall_of_committed_weights(encoder):
-    m = evaluate_audio(encoder)
+    m = evaluate_audio(encoder, _bank_it_knows(encoder))
     assert m["n_clips"] >= 20
     for k in ("audio_recall1_heldout", "audio_recall3_heldout", "audio_to_text_recall3_heldout"):
         assert 0.0 <= m[k] <= 1.0

@@ -87,6 +87,9 @@ SOUND_FAMILIES: tuple[frozenset[str], ...] = tuple(
         {"maracas", "tambourine"},
         {"guitar", "banjo", "harp"},
         {"clapping", "finger_snapping", "castanets"},
+        {"sheep", "goat"},
+        {"rain", "thunderstorm"},
+        {"water", "sea_waves"},
     )
 )
 

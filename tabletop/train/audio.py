@@ -101,6 +101,7 @@ HELDOUT_QUERIES: dict[str, str] = {
     "horse": "a pony",
     "owl": "a night bird hooting",
     "goose": "a flock of geese",
+    "goat": "a mountain goat",
     "monkey": "a baboon",
     "wolf": "a coyote howling",
     "elephant": "a jumbo elephant",
