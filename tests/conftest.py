@@ -34,6 +34,7 @@ COSTS = {
     "test_visual_localize.py": 61,  # with test_visual_database.py, test_visual_photometric.py
     "test_robot_mobile_room.py": 62,
     "test_fuzz_sandbox.py": 50,
+    "test_import.py": 60,  # a 70-frame scan, three small oracle maps, 14 checked imports
     "test_encoders_openclip.py": 36,
     "test_encoders_audio.py": 34,
     "test_fuzz_cli.py": 27,
