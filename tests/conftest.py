@@ -13,7 +13,7 @@ import pytest
 
 #: files that share a cached scan or map: they run on one worker, one after another
 FAMILIES = {
-    "fast_scan": ("test_scan.py", "test_ground_truth.py"),
+    "fast_scan": ("test_scan.py", "test_ground_truth.py", "test_eval_parallel.py"),
     "robot_scan": ("test_robot_api.py", "test_robot_obstacles.py"),
     "visual_scene": (
         "test_visual_database.py",

@@ -11,6 +11,7 @@ import time
 import zipfile
 from pathlib import Path
 
+from tabletop.cli.evaluate import add_backend_flags
 from tabletop.cli.output import check_output_flag, check_parents_are_directories, stdout_to_stderr
 from tabletop.errors import ConfigError
 
@@ -197,7 +198,25 @@ def _is_place_reader(path: Path) -> bool:
         return False
 
 
+def _render_backend(args: argparse.Namespace):
+    """The backend ``--workers``/``--ray`` name for rendering vision's training data (None: in
+    this process); refused for every other training, before any work."""
+    from tabletop.parallel import Backend, import_ray
+
+    if args.workers is None and args.ray is None:
+        return None
+    if args.what != "vision":
+        raise ConfigError(
+            f"--workers, --ray: for vision only (they render its training data), not {args.what}"
+        )
+    backend = Backend(workers=args.workers, ray=args.ray)
+    if args.ray is not None:
+        import_ray(args.ray)
+    return backend
+
+
 def cmd_train(args: argparse.Namespace) -> int:
+    backend = _render_backend(args)
     if args.what == "reader":
         from tabletop.cli.language import cmd_train_reader
 
@@ -313,7 +332,7 @@ def cmd_train(args: argparse.Namespace) -> int:
 
         if args.max_minutes is not None:
             opts["max_minutes"] = args.max_minutes
-        path = train_vision(VisionTrainConfig(out=out, backbone=backbone, **opts))
+        path = train_vision(VisionTrainConfig(out=out, backbone=backbone, **opts), backend=backend)
     print(f"weights written: {path}")
     return 0
 
@@ -381,6 +400,7 @@ def add_commands(sub) -> None:
         default=None,
         help="vision: stop training after this many minutes, > 0 (the weights are still saved)",
     )
+    add_backend_flags(p, "renders of vision's training data (slices of layouts)")
     p.set_defaults(func=cmd_train)
 
     p = sub.add_parser("check-encoders", help="measure the committed encoders on held-out data")

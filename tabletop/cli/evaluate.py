@@ -17,10 +17,12 @@ from tabletop.errors import ConfigError
 from tabletop.reader.reading import DEFAULT_READER, READERS
 
 __all__ = [
+    "add_backend_flags",
     "add_commands",
     "cmd_calibrate",
     "cmd_demo",
     "cmd_eval",
+    "cmd_eval_compare",
     "cmd_eval_map",
     "print_result",
 ]
@@ -46,6 +48,7 @@ def cmd_eval(args: argparse.Namespace) -> int:
         _check_directory_flag("--out", args.out)
         if not args.no_cache:
             _check_directory_flag("--cache-dir", args.cache_dir)
+        _check_backend_flags(args)
     except ConfigError as e:
         print(f"tabletop eval: {e}", file=sys.stderr)
         return 2
@@ -75,6 +78,8 @@ def cmd_eval(args: argparse.Namespace) -> int:
             scan_overrides=scan_overrides,
             noise=noise,
             reader=args.reader,
+            workers=args.workers,
+            ray=args.ray,
         )
     wall = time.perf_counter() - t0
     if args.json:
@@ -89,6 +94,36 @@ def cmd_eval(args: argparse.Namespace) -> int:
         return 0
     print_result(res, wall)
     return 0
+
+
+def _check_backend_flags(args: argparse.Namespace) -> None:
+    """``--workers`` and ``--ray`` are checked before any scan: a whole number of workers, and
+    Ray installed when ``--ray`` is given (it is an optional extra)."""
+    from tabletop.parallel import Backend, import_ray
+
+    Backend(workers=args.workers, ray=args.ray)  # --workers 0 fails here, not in a pool
+    if args.ray is not None:
+        import_ray(args.ray)
+
+
+def add_backend_flags(p, what: str = "units of work") -> None:
+    """``--workers N`` and ``--ray ADDRESS`` (:mod:`tabletop.parallel`) on a parser."""
+    p.add_argument(
+        "--workers",
+        type=int,
+        default=None,
+        metavar="N",
+        help=f"run the {what} in N worker processes on this machine (one math thread each); "
+        "default: one after another in this process",
+    )
+    p.add_argument(
+        "--ray",
+        default=None,
+        metavar="ADDRESS",
+        help=f"send the {what} as Ray tasks to the cluster at ADDRESS (HOST:PORT, or auto for "
+        "the one `ray start` runs on this node; the `ray` extra); run from a directory every "
+        "node sees at the same path (docs/evaluation.md); with --workers N, at most N at once",
+    )
 
 
 def _check_directory_flag(flag: str, path: str | Path) -> None:
@@ -176,6 +211,8 @@ def _cmd_robustness(args: argparse.Namespace, encoders: list[str], conditions: l
             cache_dir=None if args.no_cache else args.cache_dir,
             conditions=conditions,
             on_condition=lambda n: print(f"condition: {n}", file=log, flush=True),
+            workers=args.workers,
+            ray=args.ray,
         )
     if args.json:
         d = res.to_json()
@@ -234,6 +271,34 @@ def _without_goals(d: dict) -> dict:
         for r in d["rows"]
     ]
     return d
+
+
+# ---------------------------------------------------------------------- eval-compare
+def cmd_eval_compare(args: argparse.Namespace) -> int:
+    """``tabletop eval-compare A B``: 0 when the two evaluations' JSON are equal but for the
+    timings (:data:`tabletop.eval.compare.IGNORED`), else 1 with the differences."""
+    from tabletop.eval.compare import IGNORED, compare_results, goal_count, load_results
+
+    docs = []
+    for path in args.results:
+        try:
+            docs.append(load_results(path))
+        except (OSError, ValueError) as e:
+            print(f"tabletop eval-compare: {path}: {e}", file=sys.stderr)
+            return 2
+    a, b = docs
+    diffs = compare_results(a, b)
+    if diffs:
+        for line in diffs[:50]:
+            print(line)
+        more = " (the first 50 shown)" if len(diffs) > 50 else ""
+        print(f"{len(diffs)} differences{more}")
+        return 1
+    print(
+        f"the same: {goal_count(a)} goals in {len(a.get('rows', ()))} rows, every field but "
+        f"{', '.join(sorted(IGNORED))}"
+    )
+    return 0
 
 
 # ---------------------------------------------------------------------- eval-map
@@ -475,7 +540,21 @@ def add_commands(sub) -> None:
         help="run the tasks clean and under each sensor condition (all, or comma-separated "
         "names: pose, depth, drop-frames, extrinsic, clock) and print the drop per goal type",
     )
+    add_backend_flags(p, "units of work (an encoder set x a task file)")
     p.set_defaults(func=cmd_eval)
+
+    p = sub.add_parser(
+        "eval-compare",
+        help="whether two evaluations' results are the same goal for goal (timings aside)",
+    )
+    p.add_argument(
+        "results",
+        nargs=2,
+        metavar="RESULTS",
+        help="results.json files, report directories holding one, or `tabletop eval --json "
+        "--goals` output",
+    )
+    p.set_defaults(func=cmd_eval_compare)
 
     p = sub.add_parser("eval-map", help="score map goals: object, sound, ambiguous, image")
     p.add_argument("--seeds", type=int, default=3, help="seeds per scene (default 3)")

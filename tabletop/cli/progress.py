@@ -52,6 +52,8 @@ def _isatty(stream) -> bool:
 
 
 def _default_unit(stage: str) -> str:
+    if stage.startswith("units"):
+        return "unit"  # a unit of work run by a worker (tabletop.parallel)
     return "goal" if stage.startswith("goals") else "frame"
 
 
@@ -104,6 +106,13 @@ class ProgressBars:
         if self._bar is not None:
             self._bar.total = total
             self._bar.update(done - self._bar.n)
+
+    def note(self, text: str) -> None:
+        """Write one line (a unit of work that finished, ...) above the bar, or as it is."""
+        if self._bar is not None:
+            self._bar.write(text, file=self.file)
+        else:
+            print(text, file=self.file, flush=True)
 
     def stage(self, name: str) -> Callable[[int, int], None]:
         """A ``progress(done, total)`` callback that reports as the stage ``name``."""

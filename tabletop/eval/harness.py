@@ -264,14 +264,24 @@ def cached_map(
     name: str, map_settings: dict, rec, encoders: str, cache: Path | None, rec_key: str, progress
 ):
     """(AVLMap, map seconds, cached?) of a recording with the encoder set and ``map_settings``
-    (:func:`map_config` overrides), through the cache."""
-    from tabletop.mapping import AVLMap, load_calibration
+    (:func:`map_config` overrides), through the cache. One process at a time per entry: a
+    second process that needs the same missing map waits and loads the first's."""
+    from tabletop.atomic import exclusive
 
     config = map_config(**map_settings)
     settings = config.to_dict()
     settings.pop("descriptions")  # query-time text: given afresh to a map from the cache
     key = _key({"rec": rec_key, "map": settings, "mapping": _fingerprint("mapping", "arm")})
     path = cache / f"map-{encoders}-{key}.npz" if cache else None
+    if path is None:
+        return _load_or_build_map(name, config, rec, encoders, None, progress)
+    with exclusive(path):
+        return _load_or_build_map(name, config, rec, encoders, path, progress)
+
+
+def _load_or_build_map(name: str, config, rec, encoders: str, path: Path | None, progress):
+    from tabletop.mapping import AVLMap, load_calibration
+
     if path is not None and path.is_file():
         try:
             m = AVLMap.load(path, encoders=encoders)

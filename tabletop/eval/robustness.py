@@ -220,9 +220,12 @@ def run_robustness(
     cache_dir=None,
     conditions: Sequence[str] | None = None,
     on_condition=None,
+    workers: int | None = None,
+    ray: str | None = None,
 ) -> RobustnessResult:
     """Run ``tasks`` clean and under each of ``conditions`` (names in :data:`CONDITIONS`; all
-    by default) with ``encoders``. ``on_condition(name)`` is called as each begins."""
+    by default) with ``encoders``. ``on_condition(name)`` is called as each begins.
+    ``workers``, ``ray``: each condition's units of work in parallel (:func:`run_eval`)."""
     from tabletop.eval.harness import DEFAULT_CACHE_DIR
     from tabletop.eval.runner import collect_task_files, run_eval
 
@@ -246,6 +249,8 @@ def run_robustness(
             progress=progress,
             cache_dir=cache,
             noise=noise,
+            workers=workers,
+            ray=ray,
         )
     res = RobustnessResult(results, {n: CONDITIONS[n] for n in names}, time.perf_counter() - t0)
     if out is not None:

@@ -49,7 +49,10 @@ __all__ = [
 log = logging.getLogger(__name__)
 
 Progress = Callable[[str, int, int], None]
-"""``progress(stage, done, total)``: stage is "scan <name>", "map <name>" or "goals <name>"."""
+"""``progress(stage, done, total)``: stage is "scan <name>", "map <name>" or "goals <name>";
+with workers or Ray (:func:`run_eval`'s ``workers``, ``ray``) "units", one step per unit of
+work (an encoder set x a task file) as it finishes, and a line on each through the callback's
+``note(text)`` method when it has one (:class:`tabletop.cli.progress.ProgressBars` does)."""
 
 
 # ---------------------------------------------------------------------------- task files
@@ -583,6 +586,8 @@ def run_eval(
     scan_overrides: dict | None = None,
     noise: dict | None = None,
     reader: str = DEFAULT_READER,
+    workers: int | None = None,
+    ray: str | None = None,
 ):
     """Evaluate task files (paths, directories, shipped names or :class:`TaskFile`s) with one
     or more encoder sets, their words read by ``reader``; write the report into ``out_dir``
@@ -590,10 +595,19 @@ def run_eval(
     ``scan_overrides``, ``noise``: see :func:`evaluate_task_file`. ``progress`` is called
     as ``progress(stage, done, total)`` (see :data:`Progress`); None reports nothing.
 
+    The units of work are the pairs (encoder set, task file). ``workers=N`` runs them in N
+    worker processes, ``ray`` (a cluster's address or "auto") as Ray tasks
+    (:mod:`tabletop.parallel`); the results are merged in the serial order and equal a serial
+    run's goal for goal (all but the timings). Units that need the same missing recording or
+    map wait for the one that makes it (the cache's lock), so it is made once.
+
     An encoder set that cannot be built here is a row marked unavailable with the reason (no
     scan is wasted on it). Returns an :class:`~tabletop.eval.report.EvalResult`.
     """
     from tabletop.eval.report import EvalResult
+    from tabletop.parallel import Backend
+
+    backend = Backend(workers=workers, ray=ray)
 
     files = collect_task_files(tasks)
     kinds = sorted({tf.robot.kind for tf in files})
@@ -608,6 +622,18 @@ def run_eval(
     get_reader(reader)  # an unknown reader is refused before anything runs
     cb: Progress | None = progress or None
     out = Path(out_dir) if out_dir is not None else None
+    if not backend.serial:
+        runs = _run_units(
+            files, names, backend, out, cb,
+            dict(
+                cache_dir=cache_dir, map_overrides=map_overrides, scan_overrides=scan_overrides,
+                noise=noise, reader=reader,
+            ),
+        )  # fmt: skip
+        result = EvalResult([str(f.path or f.name) for f in files], runs, out, reader)
+        if out is not None:
+            result.write(out)
+        return result
     runs = []
     for name in names:
         t0 = time.perf_counter()
@@ -637,6 +663,59 @@ def run_eval(
     if out is not None:
         result.write(out)
     return result
+
+
+def _eval_unit(tf: TaskFile, encoders: str, figures_dir: Path | None, options: dict) -> TaskRun:
+    """One unit of work in a worker: a task file under an encoder set (no progress bars)."""
+    return evaluate_task_file(tf, encoders, figures_dir=figures_dir, progress=None, **options)
+
+
+def _run_units(files, names, backend, out: Path | None, progress, options: dict) -> list:
+    """The rows of :func:`run_eval`, their units (encoder set x task file) run by ``backend``
+    and put back in the serial order."""
+    from tabletop.eval.results import EncoderRun
+    from tabletop.parallel import run_units
+
+    rows: list[EncoderRun] = []
+    units, where = [], []
+    for name in names:  # in the serial order: rows, then task files
+        reason = _check_encoder_set(name)
+        rows.append(EncoderRun(name, {}, not reason, reason))
+        if reason:
+            continue
+        for tf in files:
+            fig = out / "figures" / name / _slug(tf.name) if out is not None else None
+            units.append((tf, name, fig, options))
+            where.append(len(rows) - 1)
+    labels = [f"{name} x {tf.name}" for tf, name, _, _ in units]
+    total, finished = len(units), [0]
+    t0 = time.perf_counter()
+    row_wall = [0.0] * len(rows)
+    note = getattr(progress, "note", None)
+    log.info("%d units of work (encoder set x task file) on %s", total, backend.describe())
+
+    def done(i: int, tr: TaskRun, secs: float) -> None:
+        finished[0] += 1
+        row_wall[where[i]] = time.perf_counter() - t0  # the row's last unit so far
+        if note is not None:
+            ok = sum(g.success for g in tr.goals)
+            note(
+                f"[{finished[0]}/{total}] {labels[i]}: {ok}/{len(tr.goals)} goals succeeded, "
+                f"{secs:.1f} s (scan {tr.scan_s:.1f} s, map {tr.map_s:.1f} s)"
+            )
+        if progress:
+            progress("units", finished[0], total)
+
+    if progress:
+        progress("units", 0, total)
+    results = run_units(_eval_unit, units, backend, labels=labels, on_done=done)
+    for i, tr in enumerate(results):
+        rows[where[i]].tasks.append(tr)
+    for k, er in enumerate(rows):
+        if er.available:
+            er.encoder_names = dict(er.tasks[0].encoder_names)
+            er.wall_s = row_wall[k]  # from the start until its last unit finished
+    return rows
 
 
 def _slug(s: str) -> str:

@@ -30,6 +30,7 @@ of :data:`HELDOUT_COMBOS` (a training scene that draws one is repainted). Synony
 from __future__ import annotations
 
 import logging
+import math
 import time
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
@@ -38,6 +39,7 @@ import numpy as np
 
 from tabletop.atomic import atomic_path
 from tabletop.errors import ConfigError, SceneError
+from tabletop.parallel import Backend
 
 __all__ = [
     "BACKBONES",
@@ -456,12 +458,38 @@ def render_dataset(
     seed: int,
     lit: bool = True,
     variety: RenderVariety | None = None,
+    backend: Backend | None = None,
+    progress=None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Render ``views`` images of each layout: ((N, H, W, 3) uint8, (N, H, W) int16 class ids
     into :func:`vision_classes`). ``lit=False`` uses :meth:`SimWorld.render` (fixed light).
     ``variety`` adds :class:`RenderVariety` (training; a robustness check of held-out layouts
     in :func:`evaluate_vision`); None or all off renders what the first encoder was trained
-    on, and what the recorded held-out figures measure."""
+    on, and what the recorded held-out figures measure.
+
+    ``backend`` (:class:`~tabletop.parallel.Backend`: worker processes or Ray tasks) renders
+    slices of the layouts in parallel; every layout draws from its own seeded streams, so the
+    images are the same as one process renders. ``progress(done, total)`` counts layouts."""
+    layout_seeds = [int(ls) for ls in layout_seeds]
+    if backend is not None and not backend.serial and len(layout_seeds) > 1:
+        from tabletop.parallel import run_units
+
+        n = backend.workers or 8  # Ray: slices for as many CPUs as the cluster gives
+        size = max(1, math.ceil(len(layout_seeds) / (4 * n)))  # a few slices per worker
+        parts = [layout_seeds[i : i + size] for i in range(0, len(layout_seeds), size)]
+        units = [(p, views, heldout, seed, lit, variety) for p in parts]
+        done = [0]
+
+        def step(i, _res, _secs):
+            done[0] += len(parts[i])
+            if progress is not None:
+                progress(done[0], len(layout_seeds))
+
+        out = run_units(
+            render_dataset, units, backend,
+            labels=[f"layouts {p[0]}..{p[-1]}" for p in parts], on_done=step,
+        )  # fmt: skip
+        return np.concatenate([r for r, _ in out]), np.concatenate([lab for _, lab in out])
     from tabletop.sim.catalog import object_kind
     from tabletop.sim.world import (
         INSTANCE_FLOOR,
@@ -511,6 +539,8 @@ def render_dataset(
                         rgb = _texture(rgb, lab == lut[INSTANCE_TABLE], vrng)
                 rgbs.append(rgb)
                 labels.append(lab)
+        if progress is not None:
+            progress(len(rgbs) // views, len(layout_seeds))
     return np.stack(rgbs), np.stack(labels)
 
 
@@ -638,12 +668,16 @@ def _set_train_mode(net, cfg: VisionTrainConfig) -> None:
                 m.eval()
 
 
-def train_vision(config: VisionTrainConfig | None = None, progress=None) -> Path:
+def train_vision(
+    config: VisionTrainConfig | None = None, progress=None, backend: Backend | None = None
+) -> Path:
     """Render the data, train the network, measure it on held-out layouts, save the weights.
 
     Returns the path written (``config.out`` or :func:`default_vision_out` of the backbone).
     Deterministic for a given config on a given machine (seeded renders, init and batches).
-    ``progress(step, steps)`` is called after every optimiser step when given.
+    ``progress(step, steps)`` is called after every optimiser step when given. ``backend``
+    renders the training data in worker processes or on a Ray cluster
+    (:func:`render_dataset`: the same images as rendered here).
     """
     import torch
     import torch.nn.functional as F
@@ -663,9 +697,15 @@ def train_vision(config: VisionTrainConfig | None = None, progress=None) -> Path
         torch.manual_seed(cfg.seed)
         rng = np.random.default_rng(cfg.seed)
         seeds = [cfg.seed * 100_000 + i for i in range(cfg.train_layouts)]
-        log.info("rendering %d layouts x %d views", len(seeds), cfg.views_per_layout)
+        where = backend.describe() if backend is not None else "this process"
+        log.info("rendering %d layouts x %d views (%s)", len(seeds), cfg.views_per_layout, where)
         rgbs, labels = render_dataset(
-            seeds, cfg.views_per_layout, heldout=False, seed=cfg.seed, variety=cfg.variety
+            seeds,
+            cfg.views_per_layout,
+            heldout=False,
+            seed=cfg.seed,
+            variety=cfg.variety,
+            backend=backend,
         )
         t_render = time.monotonic() - t0
         log.info("rendered %d images in %.0f s", len(rgbs), t_render)

@@ -1,0 +1,93 @@
+"""Whether two evaluations' results are the same goal for goal: their JSON (``results.json``,
+or ``tabletop eval --json --goals``) compared field by field, timings and run facts aside.
+
+```python
+from tabletop.eval.compare import compare_results
+
+diffs = compare_results(serial.to_json(), parallel.to_json())
+assert not diffs, diffs  # ["rows[0].tasks[1].goals[3].tcp: [...] != [...]", ...]
+```
+
+Left out (:data:`IGNORED`): wall times (``time_s``, ``planning_s``, ``scan_s``, ``map_s``,
+``wall_s``, ``time_per_goal_s``, ``planning_ms_median``, ``planning_ms_p95``), whether a
+task's scan and map came from the cache (``cached``: which of two units that share a map
+builds it depends on which starts first) and where the report was written (``report``).
+Everything else must be equal: statuses, reasons, targets, final TCPs, errors, successes,
+contacts, routes, code, the summaries.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+__all__ = ["IGNORED", "TIMING_FIELDS", "compare_results", "goal_count", "load_results"]
+
+#: Wall-time fields: they differ between any two runs.
+TIMING_FIELDS = frozenset(
+    {
+        "time_s",
+        "planning_s",
+        "scan_s",
+        "map_s",
+        "wall_s",
+        "time_per_goal_s",
+        "planning_ms_median",
+        "planning_ms_p95",
+    }
+)
+#: Every field :func:`compare_results` leaves out: the timings, the cache's state, the report's
+#: place.
+IGNORED = TIMING_FIELDS | {"cached", "report"}
+
+
+def load_results(path: str | Path) -> dict:
+    """An evaluation's JSON: a ``results.json``, a directory holding one (a report directory),
+    or the output of ``tabletop eval --json --goals``."""
+    p = Path(path)
+    if p.is_dir():
+        p = p / "results.json"
+    return json.loads(p.read_text())
+
+
+def compare_results(a: dict, b: dict, ignored: frozenset[str] = IGNORED) -> list[str]:
+    """The differences between two evaluations' JSON, one line each (empty: the same), fields
+    named in ``ignored`` left out at every depth."""
+    out: list[str] = []
+    _diff(a, b, "", ignored, out)
+    return out
+
+
+def goal_count(d: dict) -> int:
+    """How many goal outcomes an evaluation's JSON holds (every row's, every task's)."""
+    return sum(len(t.get("goals", ())) for r in d.get("rows", ()) for t in r.get("tasks", ()))
+
+
+def _diff(a, b, where: str, ignored, out: list[str]) -> None:
+    if isinstance(a, dict) and isinstance(b, dict):
+        for k in sorted(set(a) | set(b), key=str):
+            if k in ignored:
+                continue
+            at = f"{where}.{k}" if where else str(k)
+            if k not in a or k not in b:
+                out.append(f"{at}: only in the {'second' if k not in a else 'first'}")
+            else:
+                _diff(a[k], b[k], at, ignored, out)
+    elif isinstance(a, list) and isinstance(b, list):
+        if len(a) != len(b):
+            out.append(f"{where}: {len(a)} items != {len(b)} items")
+        for i, (x, y) in enumerate(zip(a, b, strict=False)):
+            _diff(x, y, f"{where}[{i}]", ignored, out)
+    elif type(a) is not type(b) or a != b:
+        if not (_number(a) and _number(b) and (a == b or (math.isnan(a) and math.isnan(b)))):
+            out.append(f"{where}: {_short(a)} != {_short(b)}")  # (1 == 1.0; NaN == NaN)
+
+
+def _number(x) -> bool:
+    return isinstance(x, (int, float)) and not isinstance(x, bool)
+
+
+def _short(x) -> str:
+    s = json.dumps(x)
+    return s if len(s) <= 120 else s[:117] + "..."
