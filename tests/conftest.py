@@ -29,6 +29,7 @@ COSTS = {
     "test_kind_reader.py": 146,
     "test_encoders_registry.py": 105,
     "test_instance_eval.py": 90,
+    "test_franky_driver.py": 90,  # franky-sim in real time; a scan, a map and a reach
     "test_scan.py": 77,  # with test_ground_truth.py: one scan for both
     "test_robot_api.py": 76,  # with test_robot_obstacles.py
     "test_visual_localize.py": 61,  # with test_visual_database.py, test_visual_photometric.py

@@ -225,3 +225,24 @@ def test_goal_candidates_lie_within_the_radius_outside_objects_nearest_first(mod
         assert np.linalg.norm(p - goal) >= 0.01
     with pytest.raises(ConfigError, match=r"ReachConfig.goal_radius must be in \[0, 0.1\) m"):
         ReachConfig(goal_radius=0.12)
+
+
+def test_batch_execution_sends_the_local_path_as_one_checked_trajectory(model):
+    """A driver that runs whole motions gets the local path as one trajectory through few
+    waypoints; the arm ends where streaming the same steps ends it."""
+
+    class WholeMotions(KinematicDriver):
+        runs_whole_motions = True
+
+    stream = ReachController(model, KinematicDriver(HOME_Q), SCENE)
+    batch = ReachController(model, WholeMotions(HOME_Q), SCENE)
+    assert (stream.execution, batch.execution) == ("stream", "batch")
+    a, b = stream.move_to([0.35, -0.35, 0.12]), batch.move_to([0.35, -0.35, 0.12])
+    assert a.reached and b.reached and b.error_m <= 0.005
+    np.testing.assert_allclose(b.final_tcp, model.fk(batch.driver.read_state().q)[:3, 3])
+    assert np.linalg.norm(a.final_tcp - b.final_tcp) <= 0.005
+    assert batch.driver.commands == sum(len(t) - 1 for t in batch.driver.trajectories)
+    motions = len(batch.driver.trajectories)
+    assert motions >= 1 and b.steps > 10 * motions  # far fewer motions than control steps
+    with pytest.raises(ConfigError, match=r"execution 'fast'; valid: auto, stream, batch"):
+        ReachConfig(execution="fast")

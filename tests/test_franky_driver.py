@@ -324,3 +324,37 @@ def test_a_limit_reflex_is_a_typed_error_and_the_driver_recovers(model):
         drv.close()
     finally:
         srv.kill()
+
+
+def test_the_goal_reaching_loop_runs_through_franky_as_in_the_simulator(driver, model):
+    """A map from a PyBullet scan, ``ArmRobot(map, FrankyDriver)``: a goal is reached through
+    libfranka's protocol (the local path sent as whole trajectories), the MuJoCo arm ends where
+    the map's target says, and where the PyBullet arm ends. (One goal: each goal kind reaches
+    the same controller, and a motion here runs in the simulator's real time.)"""
+    from robot_helpers import box_distance, scan_and_map
+
+    from tabletop.robot import SimArm
+    from tabletop.robot.arm import ArmRobot
+
+    rec, m = scan_and_map()
+    gt = {o["name"]: o for o in rec.ground_truth["objects"]}
+    goals = [("obj", dict(obj="red mug"), gt["red_mug"])]
+    robots = {"franky": ArmRobot(m, driver, model), "pybullet": SimArm(m, "default")}
+    try:
+        assert robots["franky"].controller.execution == "batch"
+        assert robots["pybullet"].controller.execution == "stream"
+        for kind, query, truth in goals:
+            ends = {}
+            for name, robot in robots.items():
+                target = robot.get_max_pos_3d(robot.get_major_map(**query))
+                res = robot.move_to(target)
+                assert res.reached, (name, kind, res.reason)
+                tcp = model.fk(robot.driver.read_state().q)[:3, 3]  # Pinocchio on the arm's q
+                assert np.linalg.norm(tcp - res.goal) <= 0.01, (name, kind)
+                if truth is not None:
+                    assert box_distance(tcp, truth) <= 0.10, (name, kind)
+                ends[name] = tcp
+            assert np.linalg.norm(ends["franky"] - ends["pybullet"]) <= 0.01, kind
+        assert driver.last_tracking is not None and driver.last_tracking.final_error < 0.01
+    finally:
+        robots["pybullet"].close()

@@ -148,6 +148,10 @@ class FrankyDriver:
         connect_attempts: tries to connect (a server just started may not answer at once).
     """
 
+    #: Each command is one franky motion, at rest at both ends: the reach controller sends its
+    #: local path as one trajectory (:attr:`tabletop.arm.reach.ReachConfig.execution`).
+    runs_whole_motions = True
+
     def __init__(
         self,
         hostname: str,

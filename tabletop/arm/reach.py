@@ -92,6 +92,10 @@ class ReachRoute(enum.StrEnum):
     PLANNED = "planned"  # the local move stalled; the global planner's trajectory, then local
 
 
+#: How the local controller's steps reach the arm (:attr:`ReachConfig.execution`).
+EXECUTIONS = ("auto", "stream", "batch")
+
+
 @dataclass(frozen=True)
 class ReachConfig:
     """Parameters of :class:`ReachController`."""
@@ -143,9 +147,25 @@ class ReachConfig:
     planner: PlannerConfig = field(default_factory=PlannerConfig)
     """The global planner's parameters (its margin is replaced by ``clearance_margin``)."""
     trajectory: TrajectoryConfig = field(default_factory=TrajectoryConfig)
-    """Limits scaling and sample period of the planned trajectory."""
+    """Limits scaling and sample period of the planned trajectory (and of the local path's,
+    when it is executed as one)."""
+    execution: str = "auto"
+    """How the local controller's steps reach the arm: ``"stream"`` commands each control step
+    and reads the arm back; ``"batch"`` steps the model, then executes the local path as one
+    time-parametrised trajectory through few waypoints (drivers that run whole motions, such
+    as libfranka's through franky, rest between commands); ``"auto"`` picks ``"batch"`` for a
+    driver that says ``runs_whole_motions`` and ``"stream"`` otherwise."""
+    batch_tolerance: float = 0.05
+    """With batch execution: the most [rad] any step of the local path may lie from the
+    straight joint-space segments of the waypoints that replace it."""
 
     def __post_init__(self) -> None:
+        if self.execution not in EXECUTIONS:
+            raise ConfigError(
+                f"ReachConfig.execution {self.execution!r}; valid: {', '.join(EXECUTIONS)}"
+            )
+        if not self.batch_tolerance > 0:
+            raise ConfigError(f"batch_tolerance must be positive [rad], got {self.batch_tolerance}")
         for name in ("tolerance", "waypoint_tolerance", "standoff", "max_speed"):
             if not getattr(self, name) > 0:
                 raise ConfigError(f"ReachConfig.{name} must be positive, got {getattr(self, name)}")
@@ -245,6 +265,12 @@ class ReachController:
         self.model = model
         self.driver = driver
         self.config = config or ReachConfig()
+        # the driver's own joint limits where it has them (an FR3 is tighter than a Panda)
+        self.limits = getattr(driver, "limits", None) or PANDA_LIMITS
+        mode = self.config.execution
+        if mode == "auto":
+            mode = "batch" if getattr(driver, "runs_whole_motions", False) else "stream"
+        self.execution = mode
         self.workspace = workspace or Workspace()
         self.obstacles = tuple(obstacles)
         self.diffik = diffik or MinkDiffIK(model, self.obstacles)
@@ -551,7 +577,7 @@ class ReachController:
         q_now = self.driver.read_state().q
         # Plan to the goal configuration inside the published limits (the local finish
         # covers the difference when the IK solution touched the URDF's wider ones).
-        lo, hi = PANDA_LIMITS.q_lower + 1e-3, PANDA_LIMITS.q_upper - 1e-3
+        lo, hi = self.limits.q_lower + 1e-3, self.limits.q_upper - 1e-3
         q_to = np.clip(q_goal, lo, hi)
         # Likewise the start, when tracking left the arm a hair outside (at most 0.01 rad:
         # the trajectory may start that far from the measured configuration).
@@ -568,7 +594,7 @@ class ReachController:
                 np.round(q_to, 4).tolist(),
             )
             return plan, 0
-        traj = time_parametrize(plan.path, PANDA_LIMITS, self.config.trajectory)
+        traj = time_parametrize(plan.path, self.limits, self.config.trajectory)
         self.driver.execute_trajectory(traj)
         run.min_clear = min(run.min_clear, plan.min_clearance_m)
         log.info(
@@ -585,13 +611,63 @@ class ReachController:
 
         Updates ``run`` (steps, refusals, clearance); returns ``REACHED`` or why it stopped.
         """
+        path = [self.driver.read_state().q] if self.execution == "batch" else None
+        try:
+            return self._follow_steps(waypoints, R, run, path)
+        finally:
+            if path is not None:
+                self._execute_path(path)
+
+    def _execute_path(self, path: list[np.ndarray]) -> None:
+        """Batch execution: the local path's steps as one trajectory through few waypoints
+        (each step within ``batch_tolerance`` of the straight segments, each segment checked
+        for clearance as the steps were)."""
+        if len(path) < 2:
+            return
+        q = np.asarray(path)
+        tol, margin = self.config.batch_tolerance, self.config.clearance_margin
+
+        def straight(i: int, j: int, c0) -> bool:
+            s = np.linspace(0.0, 1.0, j - i + 1)[:, None]
+            if np.abs(q[i : j + 1] - (q[i] + s * (q[j] - q[i]))).max() > tol:
+                return False
+            return self.checker.check_motion(q[i], q[j], margin, c0).ok
+
+        keep, i = [0], 0
+        while i < len(q) - 1:
+            c0 = self.checker.clearance(q[i])  # never closer than the path already is
+            # the farthest step a straight segment reaches (a binary search; one step always
+            # does: each was checked when it was taken)
+            lo, hi = i + 1, len(q) - 1
+            if not straight(i, hi, c0):
+                while hi - lo > 1:
+                    mid = (lo + hi) // 2
+                    if straight(i, mid, c0):
+                        lo = mid
+                    else:
+                        hi = mid
+                hi = lo
+            keep.append(hi)
+            i = hi
+        traj = time_parametrize(q[keep], self.limits, self.config.trajectory)
+        log.info("local path: %d steps as %d waypoints, %.2f s", len(q), len(keep), traj.duration)
+        self.driver.execute_trajectory(traj)
+
+    def _follow_steps(self, waypoints, R: np.ndarray, run: _Run, path: list | None):
+        """The local controller's loop; with ``path`` (batch execution) each step goes onto the
+        path instead of to the arm."""
         c = self.config
-        q = self.driver.read_state().q
+        q = path[-1] if path is not None else self.driver.read_state().q
         dt = self.diffik.config.dt
         step_len = c.max_speed * dt
         steps0 = run.steps
-        lo = np.maximum(self.model.q_lower, PANDA_LIMITS.q_lower)
-        hi = np.minimum(self.model.q_upper, PANDA_LIMITS.q_upper)
+        lo = np.maximum(self.model.q_lower, self.limits.q_lower)
+        hi = np.minimum(self.model.q_upper, self.limits.q_upper)
+
+        def stop() -> None:
+            if path is None:
+                self.driver.stop()
+
         for wp, tol in waypoints:
             start = self.model.fk(q)[:3, 3]
             seg = wp - start
@@ -604,14 +680,14 @@ class ReachController:
                 if dist <= tol and s >= seg_len:
                     break
                 if run.steps - steps0 >= run.steps_left:
-                    self.driver.stop()
+                    stop()
                     return ReachReason.TIMEOUT
                 if dist < best - 1e-3:
                     best, since_best = dist, 0
                 else:
                     since_best += 1
                 if since_best >= c.stall_steps and s >= seg_len:
-                    self.driver.stop()
+                    stop()
                     near = self.checker.clearance(q).distance
                     if near < self.diffik.config.collision_min_distance + 0.01:
                         return ReachReason.BLOCKED
@@ -635,14 +711,19 @@ class ReachController:
                     run.refused += 1
                     consecutive_refusals += 1
                     if consecutive_refusals >= c.max_refusals:
-                        self.driver.stop()
+                        stop()
                         return ReachReason.BLOCKED
-                    self.driver.command_positions(q, dt)  # hold position for one period
-                    q = self.driver.read_state().q
+                    if path is None:
+                        self.driver.command_positions(q, dt)  # hold position for one period
+                        q = self.driver.read_state().q
                     continue
                 consecutive_refusals = 0
                 run.min_clear = min(run.min_clear, mc.swept_lower_bound)
-                self.driver.command_positions(q_next, dt)
                 run.steps += 1
-                q = self.driver.read_state().q
+                if path is None:
+                    self.driver.command_positions(q_next, dt)
+                    q = self.driver.read_state().q
+                else:
+                    path.append(q_next)
+                    q = q_next
         return ReachReason.REACHED
