@@ -23,6 +23,8 @@ __all__ = ["atomic_path", "check_writable", "exclusive", "exit_on_signals"]
 
 #: The longest file name (one path component) most file systems take [bytes].
 NAME_MAX = 255
+#: The longest path the system takes (bytes, Linux's PATH_MAX).
+PATH_MAX = 4096
 
 
 def check_writable(path: str | Path, *, directory: bool = False, what: str = "output") -> Path:
@@ -45,6 +47,12 @@ def check_writable(path: str | Path, *, directory: bool = False, what: str = "ou
     for part in p.parts:
         if len(os.fsencode(part)) > NAME_MAX:
             raise ConfigError(f"{what} path {shown}: a name in it is longer than {NAME_MAX} bytes")
+    if len(os.fsencode(str(p.absolute()))) >= PATH_MAX:
+        raise ConfigError(f"{what} path {shown} is longer than the system's {PATH_MAX} bytes")
+    try:
+        p.exists()
+    except OSError as e:  # what the file system refuses to look up
+        raise ConfigError(f"{what} path {shown} cannot be used: {e.strerror or e}") from None
     if p.exists():
         if directory and not p.is_dir():
             raise ConfigError(f"{what} {shown} exists and is not a directory")

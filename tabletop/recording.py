@@ -541,6 +541,10 @@ def load_recording(path: str | Path, *, workers: int = 2) -> Recording:
     Every file the header lists must exist with its recorded size: a missing or truncated
     file raises :class:`RecordingError` naming it.
     """
+    if not isinstance(path, (str, Path)):
+        raise RecordingError(f"a recording is a directory path, got {type(path).__name__}")
+    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+        raise RecordingError(f"workers must be a whole number >= 1, got {workers!r}")
     path = Path(path)
     header_path = path / _HEADER
     if not header_path.is_file():
@@ -656,3 +660,5 @@ def load_recording(path: str | Path, *, workers: int = 2) -> Recording:
         )
     except RecordingError as e:
         raise RecordingError(f"{path}: {e}") from None
+    except (TypeError, ValueError) as e:  # arrays of the wrong kind (text where numbers are)
+        raise RecordingError(f"{path}: a pose or header array is malformed ({e})") from None

@@ -40,6 +40,7 @@ COSTS = {
     "test_encoders_audio.py": 34,
     "test_fuzz_cli.py": 27,
     "test_places.py": 25,  # MiniLM on about 600 phrases, two small fits
+    "test_hardening_probe.py": 15,  # one two-frame oracle map
     "test_sound_bank.py": 27,
     "test_registration.py": 26,
     "test_encoders_vision.py": 22,

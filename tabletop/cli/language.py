@@ -197,6 +197,11 @@ def cmd_run(args: argparse.Namespace) -> int:
         tmp = tempfile.TemporaryDirectory()
         image_dir = write_suite_images(suite, tmp.name)
     world = None  # the room's simulator, for the wheeled base
+    if args.embodiment == "room":  # a dry run too: the targets are the room map's
+        from tabletop.sim.room import load_room_spec
+
+        load_room_spec(args.room)  # an unknown room is named, with the shipped ones
+        _check_map_room(args, m)
     if args.dry_run or args.embodiment == "point":
         robot = PointRobot(m, (0.3, 0.0, 0.3))
     elif args.embodiment == "base":
@@ -293,6 +298,24 @@ def _scene_of_map(args: argparse.Namespace, m):
         args._scene_mismatch = str(e)
         print(f"WARNING (--other-scene): {e}", file=sys.stderr)
     return spec
+
+
+def _check_map_room(args: argparse.Namespace, m) -> None:
+    """``--embodiment room``: the map must have been built in ``--room`` (a table scene's map,
+    or another room's, would send the base to the map's places in another world); with
+    ``--other-scene`` a mismatch is a warning, printed now and in the summary."""
+    built = (getattr(m, "source", None) or {}).get("room")
+    if built == args.room:
+        return
+    what = f"room {built!r}" if built else "no room (a table scene's map, or one that does not say)"
+    msg = (
+        f"{args.map} was built in {what}, not in --room {args.room!r}: the base would drive to "
+        "the map's places in another world; give the room the map was built in"
+    )
+    if not args.other_scene:
+        raise ConfigError(f"{msg} (or pass --other-scene to run it anyway)")
+    args._scene_mismatch = msg
+    print(f"WARNING (--other-scene): {msg}", file=sys.stderr)
 
 
 # ---------------------------------------------------------------------- registration

@@ -22,6 +22,7 @@ from __future__ import annotations
 import logging
 import re
 import time
+import unicodedata
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -35,8 +36,10 @@ from tabletop.mapping.area_module import AreaModule
 from tabletop.mapping.audio_module import AudioModule
 from tabletop.mapping.audio_segments import AudioSegment
 from tabletop.mapping.calibration import Calibration
+from tabletop.mapping.colour_words import FILLER_WORDS
 from tabletop.mapping.config import MapConfig
 from tabletop.mapping.encoders.base import check_same_space
+from tabletop.mapping.encoders.minilm import MINILM_SPACE
 from tabletop.mapping.errors import MapFormatError
 from tabletop.mapping.heatmaps import Heatmap
 from tabletop.mapping.object_module import ObjectModule
@@ -499,11 +502,20 @@ class AVLMap:
         return self.sounds.heatmap(q, self.decay(major), self.audio_text, self.judge)
 
     def _wordless(self, query: str, modality: str, major: bool) -> Heatmap | None:
-        """Not found for a query that holds no word (not one letter: "🦒🦒", "...", "123"),
-        None for one that does."""
-        if _LETTER.search(query) or _SURROGATE.search(query):
-            return None  # words; or no text at all (a lone surrogate), which the encoder refuses
-        why = f"{query!r} holds no words (no letter): it names nothing"
+        """Not found for a query that holds no word (not one letter: "🦒🦒", "...", "123"), or
+        only words that name no particular thing ("the", "it"), or, for the default English
+        text encoder, no letter of the Latin script ("كوب": it cannot read the words, and its
+        nearest name would be noise); None for one that does."""
+        if _SURROGATE.search(query):
+            return None  # no text at all (a lone surrogate), which the encoder refuses
+        if not _LETTER.search(query):
+            why = f"{query!r} holds no words (no letter): it names nothing"
+        elif self.text.space == MINILM_SPACE and not _LATIN.search(query):
+            why = f"{query!r} is in a script the text encoder ({MINILM_SPACE}, English) cannot read"
+        elif not (set(re.findall(r"[a-z]+", query.lower())) - FILLER_WORDS):
+            why = f"{query!r} holds no word that names a thing, a sound or a place"
+        else:
+            return None
         return Heatmap.not_found(self.grid, query, modality, self.decay(major), why)
 
     def area_heatmap(self, query: AreaRef, major: bool = False) -> Heatmap:
@@ -661,11 +673,21 @@ class AVLMap:
 
 #: A letter of any script: a query without one holds no word.
 _LETTER = re.compile(r"[^\W\d_]")
+_LATIN = re.compile(r"[A-Za-z\u00c0-\u024f]")
 #: Half of a UTF-16 pair on its own: no character, not text.
 _SURROGATE = re.compile("[\ud800-\udfff]")
 
 
 def _text(query, what: str) -> str:
+    """The query's words, compatibility-normalised (NFKC: full-width letters are letters);
+    a query that is not a non-empty line of text is a :class:`ConfigError`."""
     if not isinstance(query, str) or not query.strip():
         raise ConfigError(f"a {what} query is a non-empty string, got {query!r}")
-    return query
+    if any(unicodedata.category(c) == "Cc" for c in query):  # C0 and C1 controls
+        raise ConfigError(
+            f"a {what} query is one line of words; {query!r} holds a control character "
+            "(a line break, a tab or a terminal escape)"
+        )
+    if not _LETTER.search(query):
+        return query  # no letter: no words, whatever compatibility forms would make of it
+    return unicodedata.normalize("NFKC", query)

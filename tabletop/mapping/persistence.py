@@ -79,8 +79,8 @@ def scene_fingerprint(scene: dict) -> str | None:
 
 def source_of(recording) -> dict:
     """What a map built from ``recording`` was built from: the scene's name and fingerprint
-    (:func:`scene_fingerprint`; None for a recording without ground truth) and a fingerprint of
-    the recording's poses and timestamps."""
+    (:func:`scene_fingerprint`; None for a recording without ground truth), the room's name
+    (a room scan's), and a fingerprint of the recording's poses and timestamps."""
     gt = recording.ground_truth if isinstance(recording.ground_truth, dict) else {}
     meta = recording.meta if isinstance(recording.meta, dict) else {}
     h = hashlib.sha256()
@@ -88,6 +88,7 @@ def source_of(recording) -> dict:
         h.update(np.ascontiguousarray(a).tobytes())
     return {
         "scene": meta.get("scene"),
+        "room": meta.get("room"),
         "scene_fingerprint": scene_fingerprint(gt.get("scene")),
         "recording_fingerprint": h.hexdigest()[:16],
         "frames": len(recording),
@@ -331,12 +332,17 @@ def save_map(m, path: str | Path, *, rebuild: dict | None = None) -> Path:
 
 def read_map_file(path: str | Path) -> tuple[dict, dict[str, np.ndarray]]:
     """The header and arrays of a map file, validated."""
+    if not isinstance(path, (str, Path)):
+        raise MapFormatError(f"a map file is a path, got {type(path).__name__}")
     problem = input_file_problem(path)
     if problem:
         raise MapFormatError(f"map file {str(path)!r} {problem}")
     path = Path(path)
     try:
-        with np.load(path, allow_pickle=False) as z:
+        z = np.load(path, allow_pickle=False)
+        if not isinstance(z, np.lib.npyio.NpzFile):  # one array (.npy), not an archive
+            raise ValueError("one array")
+        with z:
             arrays = {k: z[k] for k in z.files}
     except ValueError:  # not a zip of arrays: numpy takes it for a pickle or another format
         raise MapFormatError(

@@ -32,6 +32,10 @@ ENV_MODEL = "TABLETOP_LLM_MODEL"
 ENV_API_KEY = "TABLETOP_LLM_API_KEY"
 
 
+#: The longest an LLM request may be given [s] (a day; a clock cannot wait for 1e308 s).
+MAX_TIMEOUT_S = 86400.0
+
+
 @dataclass(frozen=True)
 class LLMConfig:
     """Where the chat endpoint is and how to ask it."""
@@ -56,8 +60,17 @@ class LLMConfig:
                 f"LLM base_url must be an http(s) URL such as http://127.0.0.1:8000/v1, "
                 f"got {self.base_url!r}"
             )
+        if any(c.isspace() or not c.isprintable() for c in self.base_url):
+            raise ConfigError(
+                f"LLM base_url {self.base_url!r} holds a space or a control character; a URL "
+                "has neither (e.g. http://127.0.0.1:8000/v1)"
+            )
         try:
-            port = urllib.parse.urlsplit(self.base_url).port
+            parts = urllib.parse.urlsplit(self.base_url)
+        except ValueError as e:  # an unclosed IPv6 bracket
+            raise ConfigError(f"LLM base_url {self.base_url!r} is not a URL: {e}") from None
+        try:
+            port = parts.port
         except ValueError:  # a port out of range, or not a number
             port = -1
         if port is not None and not 1 <= port <= 65535:
@@ -68,14 +81,14 @@ class LLMConfig:
         if not self.model or not self.model.strip():
             raise ConfigError("LLM model must be a non-empty name")
         if (
-            not 0 < self.timeout_s < math.inf
+            not 0 < self.timeout_s <= MAX_TIMEOUT_S
             or self.max_tokens < 1
             or not 0 <= self.temperature <= 2
             or self.max_reply_bytes < 1
         ):
             raise ConfigError(
-                "LLM timeout_s must be finite and > 0 [s], max_tokens >= 1, temperature in "
-                "[0, 2], max_reply_bytes >= 1; got "
+                f"LLM timeout_s must be in (0, {MAX_TIMEOUT_S:g}] s, max_tokens >= 1, "
+                "temperature in [0, 2], max_reply_bytes >= 1; got "
                 f"{self.timeout_s}, {self.max_tokens}, {self.temperature}, {self.max_reply_bytes}"
             )
 

@@ -267,7 +267,21 @@ class RobotAPI(abc.ABC):
         raise :class:`RobotClosed`."""
         self.closed = True
 
+    #: Whether the embodiment needs a map (its obstacles come from it); a mapless robot (None)
+    #: serves only tracing and tests.
+    needs_map = False
+
     def __init__(self, avlmap, spatial: SpatialConfig | None = None) -> None:
+        if avlmap is None and self.needs_map:
+            raise ConfigError(
+                f"{type(self).__name__} needs a map: an AVLMap "
+                "(tabletop.mapping.AVLMap.load(path)), got None"
+            )
+        if avlmap is not None and not all(hasattr(avlmap, a) for a in ("grid", "query", "config")):
+            raise ConfigError(
+                f"{type(self).__name__} needs an AVLMap (tabletop.mapping.AVLMap.load(path)), got "
+                f"{type(avlmap).__name__}"
+            )
         self.map = avlmap
         self.spatial = spatial or SpatialConfig()
         self.last_heatmaps: tuple = ()

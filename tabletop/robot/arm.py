@@ -90,6 +90,8 @@ class ArmRobot(RobotAPI):
         approach_radius: horizontal radius [m] of the surface ``move_to`` clears.
     """
 
+    needs_map = True
+
     def __init__(
         self,
         avlmap,

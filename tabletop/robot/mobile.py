@@ -64,6 +64,8 @@ class MobileBase(RobotAPI):
         spatial: offsets of the spatial primitives.
     """
 
+    needs_map = True
+
     def __init__(
         self,
         avlmap,
@@ -81,7 +83,11 @@ class MobileBase(RobotAPI):
         """The obstacle grid (not inflated)."""
         self.blocked: OccupancyGrid = self.grid.inflated(self.config.radius)
         """The configuration space: obstacles inflated by the radius."""
-        s = np.asarray(start, np.float64)
+        try:
+            s = np.asarray(start, np.float64)
+        except (TypeError, ValueError):
+            why = f"start must be a finite (2,) or (3,) point [m], got {start!r}"
+            raise ConfigError(why) from None
         if s.shape not in ((2,), (3,)) or not np.all(np.isfinite(s)):
             raise ConfigError(f"start must be a finite (2,) or (3,) point [m], got {s.tolist()}")
         self._pos = np.array([s[0], s[1], 0.0])

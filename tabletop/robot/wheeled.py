@@ -203,6 +203,8 @@ class MobileRobot(RobotAPI):
 
     robot_kind = "mobile"
 
+    needs_map = True
+
     def __init__(
         self,
         avlmap,

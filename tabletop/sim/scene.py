@@ -370,6 +370,11 @@ def shipped_spec_path(folder: str, what: str, name: str) -> Path:
 def read_spec_file(path: str | Path, folder: str, what: str) -> tuple[dict, Path]:
     """(parsed data, path) of a ``what`` spec ("scene", "room") from a ``.toml`` or ``.json``
     file, or of one shipped in ``tabletop/data/<folder>`` by name."""
+    if not isinstance(path, (str, Path)):
+        raise SceneError(
+            f"{what} spec must be a file path or a shipped {what}'s name, got "
+            f"{type(path).__name__}; shipped {folder}: {shipped_specs(folder)}"
+        )
     if str(path) == "":
         raise SceneError(f"{what} spec is empty: give a file or one of the shipped {folder}")
     path = Path(path)
@@ -393,6 +398,12 @@ def read_spec_file(path: str | Path, folder: str, what: str) -> tuple[dict, Path
         raise SceneError(
             f"{what} spec {path} is not valid {path.suffix[1:].upper()}: {e}"
         ) from None
+    except UnicodeDecodeError:
+        raise SceneError(f"{what} spec {path} is not text (not UTF-8): not a {what} spec") from None
+    if not isinstance(data, dict):
+        raise SceneError(
+            f"{what} spec {path} holds a {type(data).__name__}, not a table of a {what}'s fields"
+        )
     return data, path
 
 

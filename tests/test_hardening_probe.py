@@ -1,0 +1,128 @@
+"""Bad inputs an outside probe found still reaching a traceback or a silent answer: each now
+gets a clear error or an honest "not found" (docs/hardening.md)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from tabletop.atomic import check_writable
+from tabletop.errors import ConfigError, RecordingError, SceneError
+from tabletop.mapping import AVLMap
+from tabletop.mapping.errors import MapFormatError
+from tabletop.reader.llm_client import LLMConfig
+from tabletop.recording import load_recording
+from tabletop.sim.scene import load_scene_spec
+
+
+@pytest.fixture(scope="module")
+def oracle_map():
+    from test_hardening_honest import small_recording
+
+    from tabletop.eval.harness import build_map, map_config
+
+    return build_map(small_recording(2), "oracle", map_config(visual=None))
+
+
+def test_a_path_longer_than_the_system_takes_is_named(tmp_path):
+    deep = tmp_path.joinpath(*["d" * 200] * 25, "m.npz")
+    with pytest.raises(ConfigError, match="is longer than the system's 4096 bytes"):
+        check_writable(deep)
+
+
+def test_scene_specs_that_are_not_text_or_not_a_table_are_named(tmp_path):
+    garbage, null = tmp_path / "garbage.toml", tmp_path / "null.json"
+    garbage.write_bytes(b"\xda\xff\x00garbage")
+    null.write_text("null")
+    with pytest.raises(SceneError, match=r"is not text \(not UTF-8\)"):
+        load_scene_spec(garbage)
+    with pytest.raises(SceneError, match="holds a NoneType, not a table of a scene's fields"):
+        load_scene_spec(null)
+    for bad in (None, 5):
+        with pytest.raises(SceneError, match="must be a file path or a shipped scene's name"):
+            load_scene_spec(bad)
+
+
+def test_a_recording_path_or_option_of_the_wrong_type_is_named(tmp_path):
+    for bad in (None, 5, [1], b"/tmp"):
+        with pytest.raises(RecordingError, match="a recording is a directory path, got"):
+            load_recording(bad)
+    for workers in ("2", 0, True):
+        with pytest.raises(RecordingError, match="workers must be a whole number >= 1"):
+            load_recording(tmp_path, workers=workers)
+
+
+def test_a_map_path_of_the_wrong_type_or_a_single_array_is_named(tmp_path):
+    np.save(tmp_path / "m.npy", np.zeros(3))
+    with pytest.raises(MapFormatError, match="is not a map file: a map is a .npz archive"):
+        AVLMap.load(tmp_path / "m.npy")
+    with pytest.raises(MapFormatError, match="a map file is a path, got NoneType"):
+        AVLMap.load(None)
+
+
+@pytest.mark.parametrize(
+    ("url", "why"),
+    [
+        ("http://exa mple.com/v1", "holds a space or a control character"),
+        ("http://127.0.0.1:1/v1\r\nX-Injected: 1", "holds a space or a control character"),
+        ("http://[::1/v1", "is not a URL"),
+    ],
+)
+def test_an_llm_url_with_spaces_controls_or_a_broken_host_is_named(url, why):
+    with pytest.raises(ConfigError, match=why):
+        LLMConfig(base_url=url, model="m")
+
+
+def test_an_llm_timeout_no_clock_can_wait_is_named():
+    with pytest.raises(ConfigError, match=r"timeout_s must be in \(0, 86400\] s"):
+        LLMConfig(base_url="http://127.0.0.1:8000/v1", model="m", timeout_s=1e308)
+
+
+@pytest.mark.parametrize("query", ["the", "it", "a the"])
+def test_a_query_of_words_that_name_nothing_is_not_found(oracle_map, query):
+    for which in ("object", "sound"):
+        h = getattr(oracle_map, f"{which}_heatmap")(query)
+        assert not h.found and not h.values.any()
+        assert h.reason == f"{query!r} holds no word that names a thing, a sound or a place"
+
+
+def test_a_script_the_english_text_encoder_cannot_read_is_not_found(oracle_map):
+    h = oracle_map.object_heatmap("كوب")
+    assert not h.found and "cannot read" in h.reason
+    # full-width Latin letters are letters: read as the plain word
+    wide, plain = oracle_map.object_heatmap("ｒｅｄ ｍｕｇ"), oracle_map.object_heatmap("red mug")
+    assert wide.found and np.array_equal(wide.values, plain.values)
+
+
+@pytest.mark.parametrize("query", ["\x1b[31mred mug\x1b[0m", "mug\r\nduck", "red\tmug"])
+def test_a_query_with_control_characters_is_refused_by_name(oracle_map, query):
+    with pytest.raises(ConfigError, match="holds a control character"):
+        oracle_map.object_heatmap(query)
+
+
+def test_nothing_here_reads_a_path_it_was_not_given():
+    assert not Path("m.npz").exists()  # the checks above wrote nothing in the working directory
+
+
+def test_a_robot_without_a_map_or_given_something_else_is_named(oracle_map):
+    from tabletop.robot import MobileBase
+
+    with pytest.raises(ConfigError, match="MobileBase needs a map: an AVLMap"):
+        MobileBase(None)
+    with pytest.raises(ConfigError, match="MobileBase needs an AVLMap .*, got str"):
+        MobileBase("map.npz")
+    with pytest.raises(ConfigError, match="start must be a finite .* point .*, got 'here'"):
+        MobileBase(oracle_map, start="here")
+
+
+def test_a_table_map_is_refused_for_the_room_base(oracle_map, tmp_path, capsys):
+    from tabletop.cli import main
+
+    path = oracle_map.save(tmp_path / "table.npz")
+    code = main(["run", str(path), "go to the mug", "--embodiment", "room", "--dry-run"])
+    err = capsys.readouterr().err
+    assert code == 2 and "was built in no room" in err and "--other-scene" in err
+    code = main(["run", str(path), "go to the mug", "--embodiment", "room", "--room", "nowhere"])
+    assert code == 2 and "no shipped room 'nowhere'" in capsys.readouterr().err
