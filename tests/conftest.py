@@ -26,6 +26,7 @@ FAMILIES = {
 COSTS = {
     "test_avlmap.py": 228,
     "test_eval_runner.py": 208,
+    "test_eval_parallel.py": 90,  # with test_scan.py, test_ground_truth.py: their fast scan
     "test_kind_reader.py": 146,
     "test_encoders_registry.py": 105,
     "test_instance_eval.py": 90,
