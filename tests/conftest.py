@@ -35,6 +35,7 @@ COSTS = {
     "test_robot_api.py": 76,  # with test_robot_obstacles.py
     "test_visual_localize.py": 61,  # with test_visual_database.py, test_visual_photometric.py
     "test_robot_mobile_room.py": 62,
+    "test_viewer.py": 60,  # a map, a headless browser drawing it in software
     "test_fuzz_sandbox.py": 50,
     "test_import.py": 60,  # a 70-frame scan, three small oracle maps, 14 checked imports
     "test_encoders_openclip.py": 36,

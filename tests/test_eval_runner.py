@@ -3,6 +3,7 @@ generated from the scan's ground truth, written, run through the robot API on Si
 reported; a second run reuses the cached recording and map."""
 
 import json
+from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
@@ -78,6 +79,18 @@ def test_goals_succeed_and_json_has_the_summary(run):
     assert set(d["in_a_row"]) >= {"1", "2", "3"}
     assert d["in_a_row"]["1"]["sequences"] == 1
     assert d["all"]["goals"] == len(tf.goals)
+
+
+def test_each_task_names_its_cached_map_and_recording_for_the_viewer(run):
+    from tabletop.viewer.session import ViewerSession
+
+    _, cache, out, result = run
+    (t,) = result.to_json()["rows"][0]["tasks"]
+    assert Path(t["map_file"]).is_file() and Path(t["map_file"]).parent == cache
+    assert (Path(t["recording_dir"]) / "recording.json").is_file()
+    # `tabletop view MAP --eval OUT` steps through the goals that ran on that map
+    goals = ViewerSession(t["map_file"], eval_dir=out).eval_goals()
+    assert len(goals) == len(t["goals"]) and all(g.same_map for g in goals)
 
 
 def test_report_is_written_and_references_its_pictures(run):

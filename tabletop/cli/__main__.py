@@ -2,6 +2,6 @@
 
 import sys
 
-from tabletop.cli.app import main
+from tabletop.cli import main
 
 sys.exit(main())

@@ -8,7 +8,7 @@ import logging
 import sys
 
 from tabletop.atomic import exit_on_signals
-from tabletop.cli import bench, encoders, evaluate, ingest, language, maps, room, scan
+from tabletop.cli import bench, encoders, evaluate, ingest, language, maps, room, scan, view
 from tabletop.cli.progress import interactive, no_library_bars
 from tabletop.errors import TabletopError
 
@@ -19,7 +19,7 @@ DESCRIPTION = (
 )
 
 #: The command groups, in the order ``tabletop --help`` lists their commands.
-GROUPS = (scan, ingest, room, maps, evaluate, language, encoders, bench)
+GROUPS = (scan, ingest, room, maps, evaluate, language, encoders, bench, view)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -8,6 +8,8 @@ import json
 import os
 import platform
 import sys
+import tempfile
+from pathlib import Path
 
 from tabletop.cli.output import stdout_to_stderr
 
@@ -24,6 +26,14 @@ def _machine() -> dict:
 
 
 def cmd_bench(args: argparse.Namespace) -> int:
+    if args.viewer:
+        with stdout_to_stderr() if args.json else contextlib.nullcontext():
+            results = {"machine": _machine(), **_viewer_bench(None)}
+        if args.json:
+            print(json.dumps(results, indent=1))
+        else:
+            _print_viewer(results)
+        return 0
     if args.arm_targets < 1:  # before the scan and the map, not after them
         print(
             f"tabletop bench: --arm-targets {args.arm_targets}: valid an integer >= 1",
@@ -61,7 +71,10 @@ def _bench(args: argparse.Namespace) -> dict:
     print("bench: map (oracle encoders) and its references ...", file=sys.stderr)
     from tabletop.mapping.bench import run_map_benchmark
 
-    results.update(run_map_benchmark(rec))
+    with tempfile.TemporaryDirectory() as tmp:
+        saved = Path(tmp) / "default-1cm.npz"
+        results.update(run_map_benchmark(rec, save_to=saved))
+        results.update(_viewer_bench(saved))
     print("bench: readers ...", file=sys.stderr)
     from tabletop.reader.bench import run_reader_benchmark
 
@@ -72,6 +85,46 @@ def _bench(args: argparse.Namespace) -> dict:
         {f"reach_{k}" if k in ("n_targets", "reachable", "seed") else k: v for k, v in arm.items()}
     )
     return results
+
+
+#: The default table's scan of the viewer's figure when it runs alone (``--viewer``): the
+#: bench's own scan, through the evaluation cache.
+VIEWER_SCAN = {"seed": 0, "episodes": 2, "repeat_sounds": 0}
+
+
+def _viewer_bench(map_path) -> dict:
+    """The viewer's time to first picture on a 1 cm map of the default table (``map_path``; None:
+    the bench's scan of the default table, mapped with the oracle encoders, from the cache)."""
+    print("bench: viewer, time to first picture in headless chromium ...", file=sys.stderr)
+    try:
+        import viser  # noqa: F401
+    except ImportError:
+        return {"viewer_skipped": "the viewer extra is not installed (pip install -e '.[viewer]')"}
+    from tabletop.viewer.bench import time_to_first_picture
+
+    if map_path is not None:
+        return time_to_first_picture(map_path)
+    from tabletop.eval.harness import DEFAULT_CACHE_DIR, scene_map
+    from tabletop.sim.scene import load_scene_spec
+
+    _, m = scene_map(load_scene_spec("default"), VIEWER_SCAN, "oracle", cache_dir=DEFAULT_CACHE_DIR)
+    with tempfile.TemporaryDirectory() as tmp:
+        return time_to_first_picture(m.save(Path(tmp) / "default-1cm.npz"))
+
+
+def _print_viewer(r: dict) -> None:
+    if "viewer_skipped" in r:
+        print(f"viewer: skipped: {r['viewer_skipped']}")
+        return
+    print(
+        f"viewer: first picture of a {r['viewer_voxel_size_m'] * 100:g} cm map of the default "
+        f"table ({r['viewer_voxels']} voxels) {r['viewer_first_picture_s']} s after `tabletop "
+        f"view` started, the browser opening it the first time (served after "
+        f"{r['viewer_served_s']} s, drawn {r['viewer_drawn_s']} s after the page was asked for); "
+        f"{r['viewer_first_picture_warm_s']} s the second time (its scripts cached: served "
+        f"{r['viewer_served_warm_s']} s, drawn {r['viewer_drawn_warm_s']} s); aim 3 s; "
+        f"{r['viewer_browser']}"
+    )
 
 
 def _print_bench(results: dict) -> None:
@@ -136,6 +189,7 @@ def _print_bench(results: dict) -> None:
         f"(mink step / DLS iteration = {r['mink_over_dls_ratio']:.2f}); a whole reach "
         f"{r['reach_s_median']:.2f} s median ({r['reach_s_p95']:.2f} p95)"
     )
+    _print_viewer(r)
 
 
 def add_commands(sub) -> None:
@@ -143,4 +197,10 @@ def add_commands(sub) -> None:
     p = sub.add_parser("bench", help="performance figures of every part, in one run")
     p.add_argument("--json", action="store_true", help="machine-readable output")
     p.add_argument("--arm-targets", type=int, default=200, help="reach targets, >= 1 (default 200)")
+    p.add_argument(
+        "--viewer",
+        action="store_true",
+        help="only the viewer's time to first picture (1 cm map of the default table, headless "
+        "chromium; the viewer extra)",
+    )
     p.set_defaults(func=cmd_bench)

@@ -373,7 +373,23 @@ def cmd_demo(args: argparse.Namespace) -> int:
     wall = time.perf_counter() - t0
     print()
     print_result(res, wall, " (scan, map, reaches)")
+    _print_view_command(
+        [(t.map_path, t.recording_path) for r in res.runs for t in r.tasks], out
+    )
     return 0 if all(r.available for r in res.runs) else 1
+
+
+def _print_view_command(maps: list[tuple[str, str]], eval_dir: Path | None) -> None:
+    """The one command that opens the demo's map in the viewer (the optional viewer extra)."""
+    from tabletop.cli.view import view_command
+
+    for map_path, rec in maps:
+        if map_path:
+            print(
+                "see it in 3D (pip install -e '.[viewer]'): "
+                + view_command(map_path, rec or None, eval_dir)
+            )
+            return
 
 
 def _mobile_demo(out: Path, encoders: list[str]) -> int:
@@ -398,6 +414,7 @@ def _mobile_demo(out: Path, encoders: list[str]) -> int:
                 f"error {g.get('error_m', '–')} m, collisions {g.get('collisions', '–')}"
             )
         print(f"report: {where / 'report.md'} ({time.perf_counter() - t0:.0f} s)")
+        _print_view_command([(res.get("map_file", ""), res.get("recording_dir", ""))], None)
     return 0
 
 

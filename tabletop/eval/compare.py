@@ -11,7 +11,8 @@ assert not diffs, diffs  # ["rows[0].tasks[1].goals[3].tcp: [...] != [...]", ...
 Left out (:data:`IGNORED`): wall times (``time_s``, ``planning_s``, ``scan_s``, ``map_s``,
 ``wall_s``, ``time_per_goal_s``, ``planning_ms_median``, ``planning_ms_p95``), whether a
 task's scan and map came from the cache (``cached``: which of two units that share a map
-builds it depends on which starts first) and where the report was written (``report``).
+builds it depends on which starts first), where the report was written (``report``) and
+where a task's map and recording are cached (``map_file``, ``recording_dir``).
 Everything else must be equal: statuses, reasons, targets, final TCPs, errors, successes,
 contacts, routes, code, the summaries.
 """
@@ -38,8 +39,8 @@ TIMING_FIELDS = frozenset(
     }
 )
 #: Every field :func:`compare_results` leaves out: the timings, the cache's state, the report's
-#: place.
-IGNORED = TIMING_FIELDS | {"cached", "report"}
+#: place, and where a task's map and recording are cached (``map_file``, ``recording_dir``).
+IGNORED = TIMING_FIELDS | {"cached", "report", "map_file", "recording_dir"}
 
 
 def load_results(path: str | Path) -> dict:

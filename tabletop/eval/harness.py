@@ -217,7 +217,7 @@ def cached_recording(name: str, scan: dict, spec, cache: Path | None, progress: 
     fields), through the cache."""
     from tabletop.sim.scan import ScanConfig, run_scan
 
-    path = cache / f"rec-{spec.name}-{recording_key(spec, scan)}" if cache else None
+    path = cached_recording_path(spec, scan, cache)
 
     def scan_it():
         t0 = time.perf_counter()
@@ -260,6 +260,23 @@ def scan_recording(scene: dict, scan: dict, cache_dir: str | Path | None = DEFAU
     return rec, cached
 
 
+def cached_map_path(map_settings: dict, encoders: str, cache: Path | None, rec_key: str):
+    """Where :func:`cached_map` keeps the map of the recording ``rec_key`` with ``encoders`` and
+    ``map_settings`` (None without a cache)."""
+    if cache is None:
+        return None
+    settings = map_config(**map_settings).to_dict()
+    settings.pop("descriptions")  # query-time text: given afresh to a map from the cache
+    key = _key({"rec": rec_key, "map": settings, "mapping": _fingerprint("mapping", "arm")})
+    return Path(cache) / f"map-{encoders}-{key}.npz"
+
+
+def cached_recording_path(spec, scan: dict, cache: Path | None):
+    """Where :func:`cached_recording` keeps the recording of ``spec`` scanned with ``scan``
+    (None without a cache)."""
+    return Path(cache) / f"rec-{spec.name}-{recording_key(spec, scan)}" if cache else None
+
+
 def cached_map(
     name: str, map_settings: dict, rec, encoders: str, cache: Path | None, rec_key: str, progress
 ):
@@ -269,10 +286,7 @@ def cached_map(
     from tabletop.atomic import exclusive
 
     config = map_config(**map_settings)
-    settings = config.to_dict()
-    settings.pop("descriptions")  # query-time text: given afresh to a map from the cache
-    key = _key({"rec": rec_key, "map": settings, "mapping": _fingerprint("mapping", "arm")})
-    path = cache / f"map-{encoders}-{key}.npz" if cache else None
+    path = cached_map_path(map_settings, encoders, cache, rec_key)
     if path is None:
         return _load_or_build_map(name, config, rec, encoders, None, progress)
     with exclusive(path):

@@ -65,6 +65,8 @@ class EvalResult:
                     "map_s": round(t.map_s, 1),
                     "cached": t.cached,
                     "figures": t.figures,
+                    "map_file": t.map_path,
+                    "recording_dir": t.recording_path,
                     "goals": [g.to_json() for g in t.goals],
                 }
                 for t in r.tasks

@@ -108,6 +108,8 @@ class TaskRun:
     noise: dict = field(default_factory=dict)  # the sensor noise applied (empty: clean)
     robot: str = "arm"  # "arm" or "mobile" (the task file's [robot] kind)
     success_radius: float = SUCCESS_RADIUS_M  # [m]
+    map_path: str = ""  # the map file the goals ran on (in the cache; "" without one)
+    recording_path: str = ""  # its (clean) recording's directory in the cache ("" without one)
 
 
 @dataclass

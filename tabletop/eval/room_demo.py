@@ -129,7 +129,7 @@ def run_room_demo(out_dir, encoders: str = "default", progress=None) -> dict:
     """Scan, map and reach a few goals in the default room; write ``report.md``,
     ``results.json`` and the pictures into ``out_dir``; return the results."""
     from tabletop.base import TABLETOP_BASE, KinematicBaseDriver
-    from tabletop.eval.harness import cached_map, map_config
+    from tabletop.eval.harness import cached_map, cached_map_path, map_config
     from tabletop.eval.room import cached_room_recording, room_map_settings, room_recording_key
     from tabletop.eval.tasks import Truth
     from tabletop.eval.truth import resolve_truth
@@ -147,6 +147,7 @@ def run_room_demo(out_dir, encoders: str = "default", progress=None) -> dict:
     settings = {**room_map_settings(spec), "frame_step": 3}
     map_config(**settings)
     key = room_recording_key(spec, dict(DEMO_SCAN))
+    map_path = cached_map_path(settings, encoders, cache, key)  # beside its use (hashes the source)
     m, map_s, _ = cached_map("room-demo", settings, rec, encoders, cache, key, progress)
     gt = GroundTruth.of(rec)
     labels = [o.label for o in gt.objects]
@@ -275,6 +276,8 @@ def run_room_demo(out_dir, encoders: str = "default", progress=None) -> dict:
         "map_s": round(map_s, 1),
         "wall_s": round(time.perf_counter() - t0, 1),
         "success_radius_m": radius,
+        "map_file": str(map_path),
+        "recording_dir": str(cache / f"rec-room-{spec.name}-{key}"),
         "goals": results,
         "successes": sum(r.get("success", False) for r in results),
         "flyer_vs_ground": None

@@ -27,7 +27,9 @@ from tabletop.errors import ConfigError, GoalNotFound, TabletopError
 from tabletop.eval.harness import (
     DEFAULT_CACHE_DIR,
     cached_map,
+    cached_map_path,
     cached_recording,
+    cached_recording_path,
     map_config,
     recording_key,
     scan_recording,
@@ -414,10 +416,13 @@ def evaluate_task_file(
         sensor = NoiseConfig.from_dict({**dict(tf.noise), **dict(noise or {})})
     except ConfigError as e:
         raise TaskFileError(f"{tf.path or tf.name} [noise]: {e}") from None
+    # the cache's paths as its keys are now (they hash the source: taken beside each use)
+    rec_path = cached_recording_path(spec, scan, cache)
     rec, scan_s, rec_cached = cached_recording(tf.name, scan, spec, cache, progress)
     rec_key = recording_key(spec, scan, sensor.to_dict() if sensor.any else None)
     if sensor.any:
         rec = apply_noise(rec, sensor)
+    map_path = cached_map_path(settings, encoders, cache, rec_key)
     m, map_s, map_cached = cached_map(tf.name, settings, rec, encoders, cache, rec_key, progress)
     # Resolve every truth before anything moves: a wrong reference is a task-file error.
     truth = GroundTruth.of(rec)
@@ -448,6 +453,8 @@ def evaluate_task_file(
             cached=rec_cached and map_cached,
             encoder_names=dict(m.encoder_names),
             noise=sensor.to_dict() if sensor.any else {},
+            map_path=_path_str(map_path),
+            recording_path=_path_str(rec_path),
         )
         if figures_dir is not None:
             from tabletop.eval.report import write_task_figures
@@ -459,6 +466,11 @@ def evaluate_task_file(
         ctx.close()
         robot.close()
     return run
+
+
+def _path_str(p) -> str:
+    """An existing cache file's or directory's path as text ("" for none)."""
+    return str(p) if p is not None and Path(p).exists() else ""
 
 
 def _map_settings(tf: TaskFile, overrides: dict | None, base: dict | None = None) -> dict:
@@ -516,6 +528,7 @@ def evaluate_room_task_file(
     scan = {**dict(tf.scan), **dict(scan_overrides or {})}
     rec, scan_s, rec_cached = cached_room_recording(tf.name, scan, spec, cache, progress)
     rec_key = room_recording_key(spec, scan)
+    map_path = cached_map_path(settings, encoders, cache, rec_key)
     m, map_s, map_cached = cached_map(tf.name, settings, rec, encoders, cache, rec_key, progress)
     truth = GroundTruth.of(rec)
     regions = _resolve_goals(tf, truth)
@@ -556,6 +569,10 @@ def evaluate_room_task_file(
             encoder_names=dict(m.encoder_names),
             robot="mobile",
             success_radius=tf.robot.success_radius,
+            map_path=_path_str(map_path),
+            recording_path=_path_str(
+                cache / f"rec-room-{spec.name}-{rec_key}" if cache is not None else None
+            ),
         )
     finally:
         world.close()

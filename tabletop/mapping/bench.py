@@ -103,9 +103,12 @@ def default_encoder_speed(recording, frames: int = 40) -> dict:
     }
 
 
-def run_map_benchmark(recording, reference_frames: int = 3) -> dict:
-    """Build an oracle map of ``recording`` and time fusion and queries against references."""
+def run_map_benchmark(recording, reference_frames: int = 3, save_to=None) -> dict:
+    """Build an oracle map of ``recording`` and time fusion and queries against references;
+    the map is written to ``save_to`` when given (the viewer's benchmark opens it)."""
     m = AVLMap.build(recording, MapConfig(), encoders="oracle")
+    if save_to is not None:
+        m.save(save_to)
     st = m.stats
     fusion_fps = st.fused_frames / st.fusion_s
     encoder_fps = st.frames / st.encoder_s
