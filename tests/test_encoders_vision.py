@@ -268,8 +268,13 @@ def test_cli_train_vision_picks_the_backbone_and_its_output(tmp_path, monkeypatc
     import tabletop.train.vision as tv
     from tabletop.cli import main
 
-    seen = []
-    monkeypatch.setattr(tv, "train_vision", lambda cfg: seen.append(cfg) or cfg.out)
+    seen, backends = [], []
+
+    def fake_train(cfg, backend=None):
+        backends.append(backend)
+        return seen.append(cfg) or cfg.out
+
+    monkeypatch.setattr(tv, "train_vision", fake_train)
     monkeypatch.chdir(tmp_path)
     assert main(["train", "vision"]) == 0
     assert main(["train", "vision", "--backbone", "small", "--steps", "5", "--threads", "2"]) == 0
@@ -279,6 +284,7 @@ def test_cli_train_vision_picks_the_backbone_and_its_output(tmp_path, monkeypatc
     ]
     assert seen[0].backbone == "effnet-lite0" and seen[0].n_threads == 1
     assert (seen[1].backbone, seen[1].steps, seen[1].n_threads) == ("small", 5, 2)
+    assert backends == [None, None]  # rendered in this process unless --workers or --ray
     with pytest.raises(SystemExit):
         main(["train", "vision", "--backbone", "resnet"])
     assert "invalid choice: 'resnet'" in capsys.readouterr().err
