@@ -126,3 +126,16 @@ def test_a_table_map_is_refused_for_the_room_base(oracle_map, tmp_path, capsys):
     assert code == 2 and "was built in no room" in err and "--other-scene" in err
     code = main(["run", str(path), "go to the mug", "--embodiment", "room", "--room", "nowhere"])
     assert code == 2 and "no shipped room 'nowhere'" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    ("field", "value"), [("max_steps", "many"), ("max_loop", 2.5), ("max_calls", True)]
+)
+def test_a_sandbox_limit_that_is_not_a_whole_number_is_named(field, value):
+    from tabletop.language.sandbox import SandboxConfig
+
+    with pytest.raises(ConfigError, match=f"SandboxConfig.{field} must be a whole number >= 1"):
+        SandboxConfig(**{field: value})
+    for t in ("soon", float("inf"), float("nan")):
+        with pytest.raises(ConfigError, match="timeout_s must be a finite number > 0"):
+            SandboxConfig(timeout_s=t)

@@ -35,7 +35,7 @@ import tokenize
 import unicodedata
 from collections.abc import Callable
 from dataclasses import dataclass
-from numbers import Real
+from numbers import Integral, Real
 
 import numpy as np
 
@@ -164,10 +164,14 @@ class SandboxConfig:
             "max_depth",
             "max_arg_elements",
         ):
-            if getattr(self, name) < 1:
-                raise ConfigError(f"SandboxConfig.{name} must be >= 1, got {getattr(self, name)}")
-        if not self.timeout_s > 0:
-            raise ConfigError(f"SandboxConfig.timeout_s must be > 0 [s], got {self.timeout_s}")
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, Integral) or value < 1:
+                raise ConfigError(
+                    f"SandboxConfig.{name} must be a whole number >= 1, got {value!r}"
+                )
+        t = self.timeout_s
+        if isinstance(t, bool) or not isinstance(t, Real) or not (0 < t < float("inf")):
+            raise ConfigError(f"SandboxConfig.timeout_s must be a finite number > 0 [s], got {t!r}")
 
 
 @dataclass(frozen=True)
