@@ -139,3 +139,15 @@ def test_a_sandbox_limit_that_is_not_a_whole_number_is_named(field, value):
     for t in ("soon", float("inf"), float("nan")):
         with pytest.raises(ConfigError, match="timeout_s must be a finite number > 0"):
             SandboxConfig(timeout_s=t)
+
+
+def test_the_viewer_names_a_bad_scene_or_reader_before_serving(capsys, tmp_path):
+    pytest.importorskip("viser", reason="the viewer extra is not installed")
+    from tabletop.cli import main
+
+    missing = str(tmp_path / "none.npz")  # the flags are checked before the map is read
+    assert main(["view", missing, "--scene", "nowhere"]) == 2
+    assert "no shipped scene 'nowhere'; shipped: ['default'" in capsys.readouterr().err
+    assert main(["view", missing, "--reader", "psychic"]) == 2
+    err = capsys.readouterr().err
+    assert "--reader 'psychic': valid rules+learned, learned" in err

@@ -30,6 +30,15 @@ def cmd_view(args: argparse.Namespace) -> int:
     require_viewer()  # before the map is read: the message names the extra
     if not 0 <= args.port <= 65535:
         raise ConfigError(f"--port {args.port}: valid 0 (any free port) to 65535")
+    if args.reader is not None:
+        from tabletop.reader.reading import READERS
+
+        if args.reader not in READERS:
+            raise ConfigError(f"--reader {args.reader!r}: valid {', '.join(READERS)}")
+    if args.scene is not None:  # a shipped scene's name or a scene file, read before serving
+        from tabletop.sim.scene import load_scene_spec
+
+        load_scene_spec(args.scene)
     from tabletop.paths import input_file_problem
 
     problem = input_file_problem(args.map)
