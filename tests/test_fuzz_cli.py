@@ -297,6 +297,8 @@ CHECKED_BEFORE_WORK = [
      ("--height", "100000000", "at most 1920x1440")),
     (["bench", "--arm-targets", "-1"], ("--arm-targets", "-1", ">= 1")),
     (["bench", "--arm-targets", "0"], ("--arm-targets", "0", ">= 1")),
+    (["bench", "--arm-targets", "1000000000000"],
+     ("--arm-targets", "1000000000000", "at most 10000")),
     (["train", "vision", "--max-minutes", "-1"], ("--max-minutes", "-1", "> 0")),
     (["train", "vision", "--max-minutes", "0"], ("--max-minutes", "0", "> 0")),
     (["train", "vision", "--max-minutes", "nan"], ("--max-minutes", "nan", "> 0")),

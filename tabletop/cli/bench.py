@@ -16,6 +16,10 @@ from tabletop.cli.output import stdout_to_stderr
 __all__ = ["add_commands", "cmd_bench"]
 
 
+#: Most reach targets of ``--arm-targets`` (50 times the default).
+MAX_ARM_TARGETS = 10_000
+
+
 def _machine() -> dict:
     return {
         "python": platform.python_version(),
@@ -34,9 +38,10 @@ def cmd_bench(args: argparse.Namespace) -> int:
         else:
             _print_viewer(results)
         return 0
-    if args.arm_targets < 1:  # before the scan and the map, not after them
+    if not 1 <= args.arm_targets <= MAX_ARM_TARGETS:  # before the scan and the map
         print(
-            f"tabletop bench: --arm-targets {args.arm_targets}: valid an integer >= 1",
+            f"tabletop bench: --arm-targets {args.arm_targets}: valid an integer >= 1 and at "
+            f"most {MAX_ARM_TARGETS} (default 200)",
             file=sys.stderr,
         )
         return 2
@@ -196,7 +201,12 @@ def add_commands(sub) -> None:
     """Register ``bench`` on the ``tabletop`` sub-command parser."""
     p = sub.add_parser("bench", help="performance figures of every part, in one run")
     p.add_argument("--json", action="store_true", help="machine-readable output")
-    p.add_argument("--arm-targets", type=int, default=200, help="reach targets, >= 1 (default 200)")
+    p.add_argument(
+        "--arm-targets",
+        type=int,
+        default=200,
+        help=f"reach targets, 1 to {MAX_ARM_TARGETS} (default 200)",
+    )
     p.add_argument(
         "--viewer",
         action="store_true",
