@@ -151,3 +151,24 @@ def test_the_viewer_names_a_bad_scene_or_reader_before_serving(capsys, tmp_path)
     assert main(["view", missing, "--reader", "psychic"]) == 2
     err = capsys.readouterr().err
     assert "--reader 'psychic': valid rules+learned, learned" in err
+
+
+@pytest.mark.parametrize(("out", "why"), [("", "is empty"), ("DIR/", "is a directory")])
+def test_a_query_picture_prefix_that_names_no_file_is_refused(tmp_path, capsys, out, why):
+    from tabletop.cli import main
+
+    out = out.replace("DIR", str(tmp_path))
+    code = main(["query", str(tmp_path / "none.npz"), "--obj", "mug", "--out", out])
+    err = capsys.readouterr().err
+    assert code == 2 and f"--out {out!r} {why}" in err and "_top.png and " in err
+    assert list(tmp_path.iterdir()) == []  # refused before the map is read; nothing written
+
+
+def test_the_pictures_of_a_prefix_are_next_to_it_and_an_existing_directory_is_no_prefix(
+    tmp_path,
+):
+    from tabletop.mapping.render import heatmap_view_paths
+
+    assert heatmap_view_paths(tmp_path / "q") == [tmp_path / "q_top.png", tmp_path / "q_side.png"]
+    with pytest.raises(ConfigError, match="is a directory: a prefix ends in the name"):
+        heatmap_view_paths(tmp_path)

@@ -86,13 +86,12 @@ def cmd_build_map(args: argparse.Namespace) -> int:
 
 def cmd_query(args: argparse.Namespace) -> int:
     from tabletop.mapping import AVLMap, fuse
-    from tabletop.mapping.render import write_heatmap_views
+    from tabletop.mapping.render import heatmap_view_paths, write_heatmap_views
     from tabletop.reader.reading import get_reader
     from tabletop.robot.api import RobotAPI
 
     if args.out is not None:  # before the map is loaded and queried
-        for view in ("top", "side"):
-            check_output_flag("--out", f"{args.out}_{view}.png")
+        heatmap_view_paths(args.out, what="--out")
     if args.encoders is not None:  # before the map is loaded
         from tabletop.mapping.persistence import check_map_encoders
 
@@ -144,7 +143,7 @@ def cmd_query(args: argparse.Namespace) -> int:
         f"target:   x={target[0]:.3f} y={target[1]:.3f} z={target[2]:.3f} m (world frame)"
         f"   fusion+argmax {dt * 1000:.1f} ms"
     )
-    if args.out:
+    if args.out is not None:
         for p in write_heatmap_views(m, fused.values, args.out, target):
             print(f"picture:  {p}")
     return 0

@@ -3,6 +3,7 @@ the map's voxel colours with the heatmap over them in the JET colour scheme (red
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import cv2
@@ -11,7 +12,10 @@ import numpy as np
 from tabletop.atomic import atomic_path, check_writable
 from tabletop.errors import ConfigError
 
-__all__ = ["heatmap_views", "write_heatmap_views"]
+__all__ = ["VIEW_NAMES", "heatmap_view_paths", "heatmap_views", "write_heatmap_views"]
+
+#: The views :func:`heatmap_views` draws, in order.
+VIEW_NAMES = ("top", "side")
 
 
 def _top_colors(m, axis: int) -> tuple[np.ndarray, np.ndarray]:
@@ -40,7 +44,7 @@ def heatmap_views(
     Side view: x to the right, z up.
     """
     out = {}
-    for name, axis in (("top", 2), ("side", 1)):
+    for name, axis in zip(VIEW_NAMES, (2, 1), strict=True):
         base, mask = _top_colors(m, axis)
         heat = heatmap.max(axis=axis)
         jet = cv2.applyColorMap(np.clip(heat * 255, 0, 255).astype(np.uint8), cv2.COLORMAP_JET)
@@ -59,15 +63,39 @@ def heatmap_views(
     return out
 
 
+def heatmap_view_paths(path_prefix: str | Path, what: str = "picture prefix") -> list[Path]:
+    """The pictures :func:`write_heatmap_views` writes for ``path_prefix``:
+    ``<prefix>_top.png`` and ``<prefix>_side.png``, each checked writable
+    (:func:`tabletop.atomic.check_writable`).
+
+    Raises:
+        ConfigError: ``path_prefix`` is empty, ends in a separator or is a directory (a prefix
+            ends in a name the pictures' names start with), or a picture cannot be written.
+    """
+    text = str(path_prefix)
+    if not text.strip():
+        why = "is empty"
+    elif text.endswith(("/", os.sep)) or Path(text).is_dir():
+        why = "is a directory"
+    else:
+        prefix = Path(text)
+        paths = [prefix.with_name(f"{prefix.name}_{name}.png") for name in VIEW_NAMES]
+        for p in paths:
+            check_writable(p, what=what)
+        return paths
+    example = str(Path(text.strip() or ".") / "query")
+    raise ConfigError(
+        f"{what} {text!r} {why}: a prefix ends in the name the pictures' names start with, "
+        f"e.g. {example!r} writes {example}_top.png and {example}_side.png"
+    )
+
+
 def write_heatmap_views(
     m, heatmap: np.ndarray, path_prefix: str | Path, target: np.ndarray | None = None
 ) -> list[Path]:
     """Write ``<prefix>_top.png`` and ``<prefix>_side.png``; return their paths."""
-    prefix = Path(path_prefix)
+    paths = heatmap_view_paths(path_prefix)  # every picture's path before the first is written
     views = heatmap_views(m, heatmap, target)
-    paths = [prefix.with_name(f"{prefix.name}_{name}.png") for name in views]
-    for p in paths:  # every picture's path before the first is written
-        check_writable(p, what="picture")
     for p, img in zip(paths, views.values(), strict=True):
         with atomic_path(p) as tmp:
             ok, data = cv2.imencode(".png", img)
