@@ -13,6 +13,9 @@ other word is corrected, in this order:
    still tied: left alone);
 3. else left as it is (the reader then refuses what it cannot read).
 
+A letter typed three times or more in a row ("balll") is a slip in any English word: it is
+made one or two letters first, whichever is a known word, then corrected as above.
+
 A rare English word (seen fewer than :data:`RARE_COUNT` times) is corrected only to a word
 that names something (:func:`name_words`) one edit away ("blok" -> "block").
 
@@ -57,6 +60,7 @@ COMMON_COUNT = 1000
 #: Words of up to this many letters are corrected only to a word that names something.
 SHORT_WORD = 4
 _WORD = re.compile(r"[a-z]+(?:'[a-z]+)?")
+_TRIPLE = re.compile(r"([a-z])\1\1+")
 #: Files whose string values hold the map's vocabulary (kinds, descriptions, colours, sounds).
 _VOCAB_FILES = (
     "descriptions.toml",
@@ -326,6 +330,13 @@ class Speller:
     def _fix(self, word: str) -> tuple[str | None, str]:
         if "'" in word or word in self.vocabulary:
             return None, ""
+        if _TRIPLE.search(word):  # no English word holds a letter three times in a row
+            for n in (2, 1):
+                once = _TRIPLE.sub(r"\1" * n, word)
+                if len(once) >= 3 and self.known(once):
+                    return once, "a letter typed three times"
+            new, why = self._fix(_TRIPLE.sub(r"\1\1", word))
+            return (new, why) if new is not None else (None, "")
         count = self.english.get(word, 0)
         if count >= RARE_COUNT:
             return None, ""
