@@ -172,3 +172,20 @@ def test_the_pictures_of_a_prefix_are_next_to_it_and_an_existing_directory_is_no
     assert heatmap_view_paths(tmp_path / "q") == [tmp_path / "q_top.png", tmp_path / "q_side.png"]
     with pytest.raises(ConfigError, match="is a directory: a prefix ends in the name"):
         heatmap_view_paths(tmp_path)
+
+
+def test_an_arm_reset_names_a_bad_configuration_and_refuses_after_close(oracle_map):
+    from tabletop.robot.api import PrimitiveArgumentError, RobotClosed
+    from tabletop.robot.arm import SimArm
+
+    arm = SimArm(oracle_map, "default")
+    q0 = arm.world.arm_q()
+    for bad in ("home", [0.0] * 6, [float("nan")] * 7, [10.0] * 7, [True] * 7):
+        with pytest.raises(PrimitiveArgumentError, match=r"reset\(q=...\): q must be 7 finite"):
+            arm.reset(q=bad)
+    np.testing.assert_array_equal(arm.world.arm_q(), q0)  # nothing moved
+    arm.reset(q0 + 0.1)
+    np.testing.assert_allclose(arm.world.arm_q(), q0 + 0.1)
+    arm.close()
+    with pytest.raises(RobotClosed, match="reset: this SimArm was closed"):
+        arm.reset()

@@ -31,7 +31,14 @@ from tabletop.arm.model import HOME_Q, PandaModel
 from tabletop.arm.reach import GoalChoice, ReachConfig, ReachController, ReachResult
 from tabletop.arm.success import SUCCESS_RADIUS_M
 from tabletop.mapping.targets import APPROACH_RADIUS_M, approach_point, surface_z
-from tabletop.robot.api import RobotAPI, SpatialConfig, _point
+from tabletop.robot.api import (
+    PrimitiveArgumentError,
+    RobotAPI,
+    RobotClosed,
+    SpatialConfig,
+    _point,
+    _shown,
+)
 from tabletop.robot.obstacles import ARM, Embodiment, arm_obstacles
 
 __all__ = ["ArmReachResult", "ArmRobot", "SimArm"]
@@ -260,8 +267,34 @@ class SimArm(ArmRobot):
         return result
 
     def reset(self, q=HOME_Q) -> None:
-        """Put the arm at ``q`` (7,) [rad] kinematically (home by default)."""
-        self.world.set_arm(np.asarray(q, np.float64), self.model.finger_opening)
+        """Put the arm at ``q`` (7,) [rad] kinematically (home by default).
+
+        Raises:
+            RobotClosed: the arm was closed.
+            PrimitiveArgumentError: ``q`` is not 7 finite joint angles within the joint limits.
+        """
+        if self.closed:
+            raise RobotClosed("reset: this SimArm was closed; make a new one")
+        try:
+            arr = np.array(q, dtype=np.float64)
+        except (TypeError, ValueError):
+            arr = None
+        if (
+            arr is None
+            or np.asarray(q).dtype.kind == "b"
+            or arr.shape != (7,)
+            or not np.all(np.isfinite(arr))
+            or not self.model.within_limits(arr)
+        ):
+            lo, hi = (
+                np.round(self.model.q_lower, 2).tolist(),
+                np.round(self.model.q_upper, 2).tolist(),
+            )
+            raise PrimitiveArgumentError(
+                f"reset(q=...): q must be 7 finite joint angles [rad] within the joint limits "
+                f"{lo} .. {hi} (default: home, {np.round(HOME_Q, 2).tolist()}); got {_shown(q)}"
+            )
+        self.world.set_arm(arr, self.model.finger_opening)
 
     def close(self) -> None:
         """Close the simulator; primitives called after it raise
