@@ -189,3 +189,17 @@ def test_an_arm_reset_names_a_bad_configuration_and_refuses_after_close(oracle_m
     arm.close()
     with pytest.raises(RobotClosed, match="reset: this SimArm was closed"):
         arm.reset()
+
+
+@pytest.mark.parametrize(
+    ("name", "text"), [("e.toml", ""), ("c.toml", "# a comment\n"), ("e.json", "{}")]
+)
+def test_an_empty_scene_or_room_file_is_no_scene(tmp_path, name, text):
+    from tabletop.sim.room import load_room_spec
+
+    path = tmp_path / name
+    path.write_text(text)
+    with pytest.raises(SceneError, match=r"scene spec .* is empty \(no fields\).*\['default'"):
+        load_scene_spec(path)
+    with pytest.raises(SceneError, match=r"room spec .* is empty \(no fields\)"):
+        load_room_spec(path)

@@ -404,6 +404,11 @@ def read_spec_file(path: str | Path, folder: str, what: str) -> tuple[dict, Path
         raise SceneError(
             f"{what} spec {path} holds a {type(data).__name__}, not a table of a {what}'s fields"
         )
+    if not data:  # an empty file is no spec, not a spec of nothing
+        raise SceneError(
+            f"{what} spec {path} is empty (no fields); a {what} spec is written like the "
+            f"shipped {folder} in {DATA_DIR / folder}: {shipped_specs(folder)}"
+        )
     return data, path
 
 
