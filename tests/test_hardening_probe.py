@@ -203,3 +203,16 @@ def test_an_empty_scene_or_room_file_is_no_scene(tmp_path, name, text):
         load_scene_spec(path)
     with pytest.raises(SceneError, match=r"room spec .* is empty \(no fields\)"):
         load_room_spec(path)
+
+
+def test_a_base_sent_under_the_table_is_not_reported_as_reached(oracle_map):
+    from tabletop.robot import MobileBase
+
+    base = MobileBase(oracle_map)
+    start = base.current_position()
+    r = base.move_to([0.4, 0.0, -0.5])
+    assert not r.reached and r.reason == "below_table" and len(r.path) == 0
+    assert "0.50 m below the table's top" in r.note and "nothing moved" in r.note
+    np.testing.assert_array_equal(base.current_position(), start)
+    r = base.move_to([0.4, 0.0, -0.05])  # within the success radius of the top: driven to
+    assert r.reached and r.note == "" and r.error_m <= 0.10 and r.final_position[2] == 0.0

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
+from tabletop.arm.success import SUCCESS_RADIUS_M
 from tabletop.base.planner import grid_path
 from tabletop.errors import ConfigError
 from tabletop.robot.api import RobotAPI, SpatialConfig, _point
@@ -42,7 +43,7 @@ class BaseMoveResult:
     """The outcome of :meth:`MobileBase.move_to` (a value)."""
 
     reached: bool
-    reason: str  # "reached" | "outside_map" | "no_path" | "start_blocked"
+    reason: str  # "reached" | "below_table" | "outside_map" | "no_path" | "start_blocked"
     target: np.ndarray  # (3,) [m] as asked
     goal: np.ndarray  # (3,) [m] where the base was sent (target moved out of an obstacle)
     goal_shifted: bool  # the target was in an (inflated) obstacle
@@ -50,6 +51,7 @@ class BaseMoveResult:
     path: np.ndarray  # (K, 3) [m] waypoints from start to goal; (0, 3) when no path
     length_m: float  # path length [m]
     error_m: float  # |final - target| in x, y [m]
+    note: str = ""  # why the base did not go to the target, when a rule refused it
 
 
 class MobileBase(RobotAPI):
@@ -109,7 +111,9 @@ class MobileBase(RobotAPI):
             return None
         return tuple(int(v) for v in cells[k])
 
-    def _result(self, reached, reason, target, goal, shifted, path_xy) -> BaseMoveResult:
+    def _result(
+        self, reached, reason, target, goal, shifted, path_xy, note: str = ""
+    ) -> BaseMoveResult:
         path = np.zeros((0, 3))
         length = 0.0
         if path_xy is not None and len(path_xy):
@@ -127,13 +131,25 @@ class MobileBase(RobotAPI):
             path=path,
             length_m=length,
             error_m=float(np.hypot(*(self._pos[:2] - target[:2]))),
+            note=note,
         )
         self.history.append(r)
         return r
 
     def move_to(self, pos) -> BaseMoveResult:
-        """Plan a collision-free path to ``pos`` (x, y used; z ignored) and follow it."""
+        """Plan a collision-free path to ``pos`` (x, y used) and follow it.
+
+        The base drives on the table's top (z = 0): a point more than the success radius below
+        it is refused (``below_table``, nothing moves), as the base on the top above it would
+        not be within that radius of it."""
         target = _point(pos)
+        if target[2] < -SUCCESS_RADIUS_M:
+            note = (
+                f"the target lies {-target[2]:.2f} m below the table's top (z = 0), where the "
+                f"base drives: beyond the {SUCCESS_RADIUS_M * 100:.0f} cm success radius of any "
+                "point it can reach, so nothing moved"
+            )
+            return self._result(False, "below_table", target, target, False, None, note)
         occ = self.blocked
         sc, s_in = occ.to_cell(self._pos)
         gc, g_in = occ.to_cell(target)
