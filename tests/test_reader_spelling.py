@@ -20,6 +20,8 @@ def speller():
         ("reach the yelow duk", "reach the yellow duck"),
         ("go to thered cube", "go to the red cube"),  # a space left out
         ("gotothe mug", "go to the mug"),  # two spaces left out
+        ("the lefft side of the table", "the left side of the table"),  # the reader's words
+        ("go behnid the duck", "go behind the duck"),
         ("the red balll", "the red ball"),  # a letter typed three times
         ("the greeeen mug", "the green mug"),
     ],

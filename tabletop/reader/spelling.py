@@ -2,8 +2,10 @@
 
 A person types "the gren mug", "teddy bera" or "thered cube". A word is left as typed when it
 is a word of the map's vocabulary (the catalog's kind names and descriptions, the other
-objects, the colour survey, the sound captions and phrasings: :func:`domain_words`) or a
-common English word (:func:`english_words`, counts of an English word-frequency list). Any
+objects, the colour survey, the sound captions and phrasings: :func:`domain_words`), one of the
+reader's own words (its grammars' words, the relations' wordings, its templates:
+:func:`reader_words`) or a common English word (:func:`english_words`, counts of an English
+word-frequency list). Any
 other word is corrected, in this order:
 
 1. split into common or vocabulary words where spaces were left out ("thered" -> "the red");
@@ -42,6 +44,7 @@ __all__ = [
     "domain_words",
     "english_words",
     "name_words",
+    "reader_words",
 ]
 
 #: Regular differences of British and American spelling (British, American).
@@ -162,6 +165,35 @@ def name_words() -> frozenset[str]:
     return frozenset(words)
 
 
+def _pattern_words(module) -> set[str]:
+    """The words (three letters or more) a module's regular expressions and string constants
+    spell out (not its docstring), escapes such as ``\\s`` and ``\\b`` taken out first."""
+    words: set[str] = set()
+    for name, value in vars(module).items():
+        text = value.pattern if isinstance(value, re.Pattern) else value
+        if isinstance(text, str) and not name.startswith("__"):
+            words.update(re.findall(r"[a-z]{3,}", re.sub(r"\\[a-zA-Z]", " ", text.lower())))
+    return words
+
+
+@functools.cache
+def reader_words() -> frozenset[str]:
+    """The reader's own words: those of its grammars' expressions (the instruction grammar
+    and the place words), the relations' wordings and the learned reader's templates
+    ("left", "right", "behind", "middle", "move"). A slip of one of them is corrected to it
+    ("lefft" -> "left")."""
+    from tabletop.reader import place_words, rules
+    from tabletop.relations import RELATIONS
+
+    words = _pattern_words(place_words) | _pattern_words(rules)
+    texts = [r.wording for r in RELATIONS] + list(_strings(data_toml("reader/templates.toml")))
+    for t in texts:
+        words.update(w for w in _WORD.findall(t.lower()) if len(w) >= 3)
+    # whole words only: an expression's pieces ("centimet(?:re|er)") are no words
+    english, vocabulary = english_words(), domain_words()
+    return frozenset(w for w in words if english.get(w, 0) >= RARE_COUNT or w in vocabulary)
+
+
 @functools.cache
 def _domain_counts() -> dict[str, int]:
     """How often each vocabulary word occurs in the vocabulary files (ties go to the commoner)."""
@@ -209,11 +241,15 @@ class Speller:
         english: Iterable[str] | None = None,
     ) -> None:
         self.config = config or SpellingConfig()
-        self.vocabulary = frozenset(vocabulary) if vocabulary is not None else domain_words()
+        #: words a split may make without doubt: the map's (the reader's own hold pieces of
+        #: words, "cent", "ing", that would split "centre" and "woofing")
+        self._parts = frozenset(vocabulary) if vocabulary is not None else domain_words()
+        self.vocabulary = self._parts if vocabulary is not None else self._parts | reader_words()
         self.english = (
             dict.fromkeys(english, RARE_COUNT) if english is not None else english_words()
         )
-        self._names = name_words() if vocabulary is None else self.vocabulary
+        # short words are corrected only to these: names, and the reader's own words
+        self._names = name_words() | reader_words() if vocabulary is None else self.vocabulary
         self._choices = sorted(self.vocabulary)
         self._counts = _domain_counts() if vocabulary is None else {}
         self._common = _common_words() if english is None else frozenset()
@@ -226,7 +262,7 @@ class Speller:
         common) or a vocabulary word of ``m`` letters or more."""
         if len(part) < m:
             return part in self._common
-        return self.english.get(part, 0) >= COMMON_COUNT or part in self.vocabulary
+        return self.english.get(part, 0) >= COMMON_COUNT or part in self._parts
 
     def _regular(self, word: str) -> bool:
         """A word made regularly from a known one: a British spelling of an American one
@@ -295,7 +331,7 @@ class Speller:
                 shortest = min(-prev[3], len(part)) if prev[4] else len(part)
                 cand = (
                     prev[0] + 1,
-                    prev[1] - (part in self.vocabulary),
+                    prev[1] - (part in self._parts),
                     prev[2] + (part not in self._common),
                     -shortest,
                     (*prev[4], part),
@@ -342,7 +378,7 @@ class Speller:
             return None, ""
         parts = self.split(word)  # words run together ("thered", "gotothe")
         sure = parts is not None and all(
-            (len(p) >= 3 and p in self.vocabulary) or p in self._common for p in parts
+            (len(p) >= 3 and p in self._parts) or p in self._common for p in parts
         )
         if sure or (parts is not None and count == 0 and not self._regular(word)):
             return " ".join(parts), "words run together"
