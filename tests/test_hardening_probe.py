@@ -216,3 +216,19 @@ def test_a_base_sent_under_the_table_is_not_reported_as_reached(oracle_map):
     np.testing.assert_array_equal(base.current_position(), start)
     r = base.move_to([0.4, 0.0, -0.05])  # within the success radius of the top: driven to
     assert r.reached and r.note == "" and r.error_m <= 0.10 and r.final_position[2] == 0.0
+
+
+def test_a_dry_run_refuses_a_target_off_the_map(oracle_map):
+    from tabletop.language.run import TracingRobot
+    from tabletop.language.suite import PointRobot
+
+    t = TracingRobot(PointRobot(oracle_map), execute=False, start=(0.3, 0.0, 0.1))
+    for call, arg in (("move_to", [1e9, 0.0, 0.0]), ("move_to", [0.3, 0.0, -0.5])):
+        with pytest.raises(ConfigError, match=r"move_to: the target .* lies outside the map"):
+            getattr(t, call)(arg)
+    with pytest.raises(ConfigError, match=r"move_north: .* outside the map \(x -0.2 .. 0.8"):
+        t.move_north(1e6)
+    assert t.motions == []  # nothing recorded
+    t.move_to([0.79, -0.59, -0.05])  # the map's corner, a little under the table's top
+    t.move_south(0.5)
+    np.testing.assert_allclose(t.targets, [[0.79, -0.59, -0.05], [0.29, -0.59, -0.05]])

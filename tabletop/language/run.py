@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from tabletop.arm.success import SUCCESS_RADIUS_M
 from tabletop.errors import ConfigError
 from tabletop.language.sandbox import SandboxConfig, SandboxRun, check_code, run_code
 from tabletop.reader.reading import DEFAULT_READER
@@ -50,7 +51,8 @@ class TracingRobot:
     a query or target primitive goes to the wrapped robot; a motion primitive computes its
     target through its target primitive (``move_to_left(x)`` -> ``left_of(x)``, ``move_north(d)``
     -> ``offset(d, 0)``, ``move_to(p)`` -> ``p``), records it, then sends it to the wrapped
-    robot's ``move_to`` (or not, in a dry run). Three primitives are the tracer's own
+    robot's ``move_to`` (or not, in a dry run, which refuses a target off the map instead of
+    recording it: :meth:`_check_on_map`). Three primitives are the tracer's own
     (:data:`OWN`): ``current_position`` and ``offset`` answer from the traced position (in a dry
     run the robot never moves), ``load_image`` reads images from ``image_dir`` only (as does
     ``img=`` given a path): code cannot read any other file, nor learn whether one exists.
@@ -98,6 +100,8 @@ class TracingRobot:
         if p is None or p.shape != (3,) or not np.all(np.isfinite(p)):
             raise ConfigError(f"{method} needs a finite 3-vector [m], got {target!r}")
         target = p
+        if not self.execute:  # nothing moves to say it: the tracer refuses what robots refuse
+            self._check_on_map(method, target)
         if self.on_motion is not None:
             self.on_motion(Motion(method, target.copy()))
         result = None
@@ -111,6 +115,25 @@ class TracingRobot:
         if self.execute and self.on_motion is not None:
             self.on_motion(motion)
         return result
+
+    def _check_on_map(self, method: str, target: np.ndarray) -> None:
+        """In a dry run, refuse a target every robot on the map refuses without moving: x, y
+        outside the map (a base's ``outside_map``; a table map spans the arm's workspace), or
+        more than the success radius below the map's floor (under the table or the floor).
+        A mapless robot's targets are not checked."""
+        grid = getattr(getattr(self.robot, "map", None), "grid", None)
+        if grid is None:
+            return
+        lo, hi = np.asarray(grid.lower, np.float64), np.asarray(grid.upper, np.float64)
+        if np.all((target[:2] >= lo[:2]) & (target[:2] <= hi[:2])) and (
+            target[2] >= lo[2] - SUCCESS_RADIUS_M
+        ):
+            return
+        raise ConfigError(
+            f"{method}: the target ({target[0]:.3g}, {target[1]:.3g}, {target[2]:.3g}) m lies "
+            f"outside the map (x {lo[0]:g} .. {hi[0]:g}, y {lo[1]:g} .. {hi[1]:g} m, z at least "
+            f"{lo[2] - SUCCESS_RADIUS_M:g} m): no robot on this map goes there"
+        )
 
     # ---------------------------------------------------------------- the tracer's own
     def current_position(self) -> np.ndarray:
