@@ -232,3 +232,19 @@ def test_a_dry_run_refuses_a_target_off_the_map(oracle_map):
     t.move_to([0.79, -0.59, -0.05])  # the map's corner, a little under the table's top
     t.move_south(0.5)
     np.testing.assert_allclose(t.targets, [[0.79, -0.59, -0.05], [0.29, -0.59, -0.05]])
+
+
+def test_a_heatmap_the_same_everywhere_names_no_place(oracle_map):
+    from tabletop.errors import GoalNotFound
+    from tabletop.language.suite import PointRobot
+    from tabletop.mapping.heatmaps import Heatmap
+
+    grid, robot = oracle_map.grid, PointRobot(oracle_map)
+    flat = Heatmap(grid, np.full(grid.shape, 0.5, np.float32), "flat", "object", 10.0, 0.9, True)
+    for ask in (robot.get_max_pos_3d, robot.left_of, oracle_map.get_max_pos_3d):
+        with pytest.raises(GoalNotFound, match="0.5 everywhere: it singles out no place"):
+            ask(flat)
+    values = np.full(grid.shape, 0.5, np.float32)
+    values[30, 60, 10] = 0.6  # one voxel stands out: it is the target
+    peak = flat.with_values(values)
+    np.testing.assert_allclose(robot.get_max_pos_3d(peak), grid.centers([30, 60, 10]))

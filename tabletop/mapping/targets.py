@@ -15,9 +15,11 @@ these functions, so what the benchmark measures is what a user can call.
   ``radius`` of it, so a top-down gripper approaches a goal on or in an object (a mug's cavity,
   the table beside a tall object) from above instead of being driven into it.
 
-A heatmap that found nothing, or is zero everywhere, raises :class:`~tabletop.errors.GoalNotFound`:
-the robot is never sent to the argmax of nothing. ``occupancy`` arguments are the map's dense
-boolean occupancy (grid-shaped); points are (3,) float64 [m] in the world (= robot base) frame.
+A heatmap that found nothing, or is zero everywhere, or the same everywhere (every voxel ties for
+the maximum) raises :class:`~tabletop.errors.GoalNotFound`: the robot is never sent to the argmax
+of nothing, nor to the middle of a grid no place of which stands out. ``occupancy`` arguments
+are the map's dense boolean occupancy (grid-shaped); points are (3,) float64 [m] in the world
+(= robot base) frame.
 """
 
 from __future__ import annotations
@@ -53,6 +55,10 @@ def _check(heatmap: Heatmap) -> Heatmap:
         raise GoalNotFound(heatmap.query, heatmap.reason or "the query found nothing")
     if not heatmap.peak > 0:
         raise GoalNotFound(heatmap.query, "the heatmap is zero everywhere")
+    if float(heatmap.values.min()) >= heatmap.peak - _TIE:  # every voxel ties for the maximum
+        raise GoalNotFound(
+            heatmap.query, f"the heatmap is {heatmap.peak:.3g} everywhere: it singles out no place"
+        )
     return heatmap
 
 
