@@ -31,7 +31,8 @@ see :class:`RegistrationConfig`), a third pass registers them on what stands on 
    table of the *other* frames (the scan split into even and odd frames, each half aligned to
    the other, so a frame never pulls towards its own points): nearest neighbours within
    ``planar_match_m`` in 3D, a closed-form rigid fit in the horizontal plane, repeated
-   ``planar_icp_iterations`` times; the two halves' references are rebuilt from the corrected
+   ``planar_icp_iterations`` times or until a step moves less than a tenth of the
+   deadband; the two halves' references are rebuilt from the corrected
    frames ``planar_rounds`` times. The same deadband and bounds apply
    (``planar_deadband_m``/``planar_deadband_rad``, ``planar_max_m``/``planar_max_rad``), and
    a correction is applied only where it brings the frame's points ``planar_min_gain_m``
@@ -184,9 +185,10 @@ def _fit_plane(p: np.ndarray, cfg: RegistrationConfig, rng) -> tuple | None:
     if not ok.any():
         return None
     normals, a = normals[ok] / norm[ok, None], a[ok]
-    dist = np.abs((p[None] - a[:, None]) @ normals[..., None])[..., 0]  # (H, n)
-    best = int(np.argmax((dist < cfg.inlier_m).sum(axis=1)))
-    inl = dist[best] < cfg.inlier_m
+    # (n, H) point-to-plane distances in one product (no (H, n, 3) differences)
+    dist = np.abs(p @ normals.T - (a * normals).sum(axis=1))
+    best = int(np.argmax((dist < cfg.inlier_m).sum(axis=0)))
+    inl = dist[:, best] < cfg.inlier_m
     if inl.sum() < cfg.min_inlier_fraction * n or inl.sum() < 20:
         return None
     frac = float(inl.mean())
@@ -332,9 +334,14 @@ def _voxel_means(p: np.ndarray, size: float) -> np.ndarray:
     into one estimate of it (nearest neighbours in the raw union of views find some noisy
     copy of a point close by whatever the frame's error, and pull it nowhere)."""
     key = np.floor(p / size).astype(np.int64)
-    _, inv, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+    key -= key.min(axis=0)
+    span = key.max(axis=0) + 1
+    # one integer per voxel, x most significant: the order of np.unique(key, axis=0), faster
+    flat = (key[:, 0] * span[1] + key[:, 1]) * span[2] + key[:, 2]
+    _, inv, counts = np.unique(flat, return_inverse=True, return_counts=True)
     out = np.zeros((len(counts), 3))
-    np.add.at(out, inv.ravel(), p)
+    for d in range(3):
+        out[:, d] = np.bincount(inv, weights=p[:, d], minlength=len(counts))
     return out / counts[:, None]
 
 
@@ -383,17 +390,24 @@ def _planar_corrections(
             centre = np.array([*a[:, :2].mean(axis=0), 0.0])
             local = a - centre
             theta, t = 0.0, np.zeros(2)
+            lost = False
             for _ in range(cfg.planar_icp_iterations):
                 cur = local @ _yaw_transform(theta, t)[:3, :3].T + [*t, 0.0] + centre
                 d, j = tree.query(cur, distance_upper_bound=cfg.planar_match_m)
                 ok = np.isfinite(d)
                 if ok.sum() < cfg.planar_min_points:
+                    lost = True
                     break
                 dth, dt = _step_yaw(cur[ok] - centre, tree.data[j[ok]] - centre, normals[j[ok]])
                 c, s = math.cos(dth), math.sin(dth)
                 t = np.array([[c, -s], [s, c]]) @ t + dt
                 theta += dth
-            else:
+                # settled: a step a tenth of the deadband changes nothing that is applied
+                if np.hypot(*dt) < 0.1 * cfg.planar_deadband_m and (
+                    abs(dth) < 0.1 * cfg.planar_deadband_rad
+                ):
+                    break
+            if not lost:
                 shift = float(np.linalg.norm(t))
                 if shift > cfg.planar_max_m or abs(theta) > cfg.planar_max_rad:
                     continue
