@@ -83,3 +83,20 @@ def test_default_map_builds_saves_and_loads(rec, tmp_path):
     np.testing.assert_array_equal(
         m2.object_heatmap(duck["label"]).values, m.object_heatmap(duck["label"]).values
     )
+
+
+def test_the_oracle_gives_the_fused_pixels_features_as_its_whole_image_does(rec):
+    enc = make_encoders("oracle", recording=rec)
+    frame = rec.frame(len(rec) // 2)
+    context = {"segmentation": frame.segmentation}
+    whole = enc.dense.encode_dense(frame.rgb, context)
+    h, w = frame.rgb.shape[:2]
+    rng = np.random.default_rng(0)
+    px = np.stack([rng.integers(0, h, 500), rng.integers(0, w, 500)], axis=1)
+    px = np.concatenate([px, [[h - 1, w - 1], [0, 0], [h - 1, 0]]])
+    s = enc.dense.stride
+    expect = whole[
+        np.minimum(px[:, 0] // s, whole.shape[0] - 1), np.minimum(px[:, 1] // s, whole.shape[1] - 1)
+    ]
+    np.testing.assert_array_equal(enc.dense.encode_dense_at(frame.rgb, context, px), expect)
+    assert (np.abs(expect).sum(axis=1) > 0).any()  # some pixels see a labelled thing

@@ -233,7 +233,9 @@ class AVLMap:
         if not fuse_frame:
             self.encoder_s += time.perf_counter() - t0
             return
-        if feats is None:
+        # an encoder that can give the fused pixels' features alone does (the oracle's)
+        at = getattr(self.dense, "encode_dense_at", None) if feats is None else None
+        if feats is None and at is None:
             feats = self.dense.encode_dense(rgb, context)
         t1 = time.perf_counter()
         pts, px = frame_points(depth, K, T_world_cam, self.config.pixel_step)
@@ -244,11 +246,16 @@ class AVLMap:
         ):
             keep = ~self.self_filter.mask(pts, joint_positions, T_world_hand)
             pts, px = pts[keep], px[keep]
-        s = self.dense.stride
-        cell = feats[
-            np.minimum(px[:, 0] // s, feats.shape[0] - 1),
-            np.minimum(px[:, 1] // s, feats.shape[1] - 1),
-        ]
+        if at is not None:
+            t = time.perf_counter()
+            cell = at(rgb, context, px)
+            t1 += time.perf_counter() - t  # encoder time, not fusion time
+        else:
+            s = self.dense.stride
+            cell = feats[
+                np.minimum(px[:, 0] // s, feats.shape[0] - 1),
+                np.minimum(px[:, 1] // s, feats.shape[1] - 1),
+            ]
         self.voxels.integrate(pts, cell, rgb[px[:, 0], px[:, 1]])
         t2 = time.perf_counter()
         self.encoder_s += t1 - t0
