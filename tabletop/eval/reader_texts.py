@@ -9,8 +9,12 @@ places, verbs, near words) come from those pools and the catalog. The held-out p
 (:data:`~tabletop.eval.paraphrase.HELDOUT_POOLS`) are never read: asking for one raises.
 
 Noise that people add is drawn seeded: lead-ins and tails around a request, apposition of a
-colour, several steps joined, repetitions, capitals and end punctuation, and typing slips in a
-few words (letters dropped, doubled, swapped or replaced) which keep their labels.
+colour, several steps joined, repetitions, capitals and end punctuation, typing slips in a few
+words (letters dropped, doubled, swapped or replaced) and slips that sound like the word meant
+(another common English word with the same Metaphone key: "rite" for "right", "there" for
+"their"), all keeping their labels. A side's template is sometimes recast the way people recast
+any of them: its landmark made a possessive ("the left side of {a}" -> "{a}'s left side") or
+put first and pointed back to ("{a} - go to the left of it", "{a}: go to its left side").
 """
 
 from __future__ import annotations
@@ -37,6 +41,10 @@ REFUSALS = 0.1
 TEMPLATES_PATH = DATA_DIR / "reader" / "templates.toml"
 _SLOT = re.compile(r"\{(\w)\}")
 _SIDE_KEYS = {r.name: r.side for r in RELATIONS if r.side is not None}
+#: "the <part> of {a}" at the end of a side's template: the part a possessive takes.
+_OF_A = re.compile(r"\bthe ([a-z-]+|[a-z-]+ (?:[a-z]+ )?side) of \{a\}")
+#: How a landmark put first is joined to the rest ("{t}": the template pointing back to it).
+_FRONTED = ("{a} - {t}", "{a}, {t}", "{a}: {t}", "{a}... {t}", "see {a}? {t}", "{a} - {t} please")
 _AREA_NAMES = {"left": "the left side of the table", "right": "the right side of the table",
                "front": "the far side of the table", "back": "the near side of the table",
                "center": "the middle of the table"}  # fmt: skip
@@ -162,7 +170,7 @@ class _Maker:
         if r < 0.74:
             key = self.pick(sorted(_SIDE_KEYS))
             tpl = self.pick(list(ins.get(key, ())) or ["go to the {key} of {a}"])
-            return self.fill(tpl, {"a": self.goal(kinds=("obj",))}), _SIDE_KEYS[key]
+            return self.fill(self.recast(tpl), {"a": self.goal(kinds=("obj",))}), _SIDE_KEYS[key]
         if r < 0.80:
             return self.fill(self.pick(t["above"]), {"a": self.goal(kinds=("obj",))}), "above"
         if r < 0.86:
@@ -176,6 +184,24 @@ class _Maker:
             return [(text, None)], "motion"
         tpl = self.pick(t["image"])
         return self.fill(tpl, {"i": [(self.pick(t["image_paths"]), "IMG")]}), "goto"
+
+    def recast(self, tpl: str) -> str:
+        """A one-landmark template as people recast it: the landmark made a possessive, or
+        put first and pointed back to (see the module docstring); else as it is."""
+        r = self.rng.random()
+        if r < 0.15:
+            m = _OF_A.search(tpl)
+            if m:
+                return tpl[: m.start()] + "{a}'s " + m.group(1) + tpl[m.end() :]
+        elif r < 0.3 and tpl.count("{a}") == 1:
+            m = _OF_A.search(tpl)
+            back = tpl[: m.start()] + "its " + m.group(1) + tpl[m.end() :] if m else None
+            if back is None or self.chance(0.4):
+                back = tpl.replace("{a}'s", "its").replace("{a}", "it")
+            lead = tpl.split("{a}")[0].strip()
+            if not lead or lead.endswith(("of", "to", "by", "behind", "past", "beyond")):
+                return self.pick(_FRONTED).replace("{t}", back)
+        return tpl
 
     # ------------------------------------------------------------------ refusals
     def refusal(self) -> list:
@@ -208,6 +234,40 @@ def _typo(word: str, rng: np.random.Generator) -> str:
     if op == 2:
         return word[: i - 1] + word[i] + word[i - 1] + word[i + 1 :]
     return word[:i] + "abcdefghijklmnopqrstuvwxyz"[int(rng.integers(26))] + word[i + 1 :]
+
+
+@functools.cache
+def _metaphone_index() -> dict[str, tuple[str, ...]]:
+    """Common English words (seen at least ``COMMON_COUNT`` times) by their Metaphone key."""
+    import jellyfish
+
+    from tabletop.reader.spelling import COMMON_COUNT, english_words
+
+    index: dict[str, list[str]] = {}
+    for w, n in english_words().items():
+        if n >= COMMON_COUNT and w.isalpha() and len(w) >= 2:
+            index.setdefault(jellyfish.metaphone(w), []).append(w)
+    return {k: tuple(sorted(v)) for k, v in index.items()}
+
+
+def _sound_alike(word: str, rng: np.random.Generator) -> str:
+    """Another common word that sounds like ``word`` (the same Metaphone key and first letter,
+    at most three edits away), or ``word`` when there is none."""
+    import jellyfish
+    from rapidfuzz.distance import DamerauLevenshtein
+
+    low = word.lower()
+    if not low.isalpha() or len(low) < 2:
+        return word
+    options = [
+        w
+        for w in _metaphone_index().get(jellyfish.metaphone(low), ())
+        if w != low
+        and w[0] == low[0]
+        and DamerauLevenshtein.distance(w, low) <= 3
+        and abs(len(w) - len(low)) <= 2
+    ]
+    return options[int(rng.integers(len(options)))] if options else word
 
 
 def _label(pieces: list, relation: str, out: tuple[list, list, list]) -> None:
@@ -256,8 +316,11 @@ def _one(maker: _Maker, rng: np.random.Generator, pool: str) -> ReaderText:
     if rng.random() < 0.2:
         _label([(maker.pick(t["tails"]), None)], rels[-1], out)
     for i, w in enumerate(words):
-        if rng.random() < 0.03:
+        r = rng.random()
+        if r < 0.03:
             words[i] = _typo(w, rng)
+        elif r < 0.045:
+            words[i] = _sound_alike(w, rng)
     if words and rng.random() < 0.3:
         words[0] = words[0][:1].upper() + words[0][1:]
     if words and rng.random() < 0.3:
