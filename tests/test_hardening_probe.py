@@ -248,3 +248,35 @@ def test_a_heatmap_the_same_everywhere_names_no_place(oracle_map):
     values[30, 60, 10] = 0.6  # one voxel stands out: it is the target
     peak = flat.with_values(values)
     np.testing.assert_allclose(robot.get_max_pos_3d(peak), grid.centers([30, 60, 10]))
+
+
+@pytest.mark.parametrize(
+    ("text", "robot", "needle"),
+    [
+        ("go to the mug 21 times", "arm", "repeat a step 1 to 20 times"),
+        ("please go to the mug 0 times", "arm", "repeat a step 1 to 20 times"),
+        ("move -5 cm north", "arm", "more than 0 and at most 1.0 m"),
+        ("move 3 m west", "arm", "more than 0 and at most 1.0 m"),
+        ("turn 400 degrees left", "mobile", "at most 360 degrees"),
+    ],
+)
+@pytest.mark.parametrize("reader", ["rules", "rules+spelling", "rules+learned"])
+def test_a_number_beyond_the_robots_range_is_named_by_every_reader(text, robot, needle, reader):
+    from tabletop.reader import ParseError
+    from tabletop.reader.reading import get_reader
+
+    with pytest.raises(ParseError, match="out of range") as e:
+        get_reader(reader).understand(text, robot)
+    assert needle in str(e.value) and e.value.out_of_range
+
+
+def test_an_llm_config_naming_a_key_variable_that_is_not_set_is_refused(tmp_path):
+    path = tmp_path / "llm.toml"
+    path.write_text('[llm]\nbase_url = "http://127.0.0.1:9/v1"\nmodel = "m"\napi_key_env = "K"\n')
+    with pytest.raises(ConfigError, match="'K', which is not set"):
+        LLMConfig.from_file(path, env={})
+    with pytest.raises(ConfigError, match="not set"):
+        LLMConfig.from_file(path, env={"K": ""})
+    assert LLMConfig.from_file(path, env={"K": "secret"}).api_key == "secret"
+    path.write_text('[llm]\nbase_url = "http://127.0.0.1:9/v1"\nmodel = "m"\n')
+    assert LLMConfig.from_file(path, env={}).api_key is None  # a local endpoint: no key

@@ -15,13 +15,19 @@ class ParseError(LanguageError, ValueError):
     """The offline parser did not understand (part of) an instruction; nothing was generated.
 
     ``fragment`` is the part it did not understand, ``instruction`` the whole sentence.
+    ``out_of_range``: the words were read, but a number in them is beyond what the robot does
+    ("21 times", "-5 cm"); no other reading is tried, and the message names the valid range.
     """
 
-    def __init__(self, instruction: str, fragment: str, why: str) -> None:
-        super().__init__(f"did not understand {fragment!r} in {instruction!r}: {why}")
+    def __init__(
+        self, instruction: str, fragment: str, why: str, out_of_range: bool = False
+    ) -> None:
+        head = "out of range:" if out_of_range else "did not understand"
+        super().__init__(f"{head} {fragment!r} in {instruction!r}: {why}")
         self.instruction = instruction
         self.fragment = fragment
         self.why = why
+        self.out_of_range = bool(out_of_range)
 
 
 class LLMError(LanguageError, RuntimeError):

@@ -464,7 +464,9 @@ def _check(text: str, clause: str, relation: str, goals: list[Goal], times: int)
             text, clause, f"'{relation}' is taken of a thing, not a {goals[0].primary.kind}"
         )
     if not 1 <= times <= MAX_REPEAT:
-        raise ParseError(text, clause, f"repeat 1 to {MAX_REPEAT} times, not {times}")
+        raise ParseError(
+            text, clause, f"repeat 1 to {MAX_REPEAT} times, not {times}", out_of_range=True
+        )
 
 
 #: Goals each relation takes (a ``motion`` step is read by the grammar; ``none`` is refused).

@@ -156,6 +156,12 @@ class LLMConfig:
                 f"variable (a string), got {key_env!r:.40}"
             )
         values["api_key"] = env.get(key_env)
+        if "api_key_env" in table and not values["api_key"]:  # named, so the endpoint wants one
+            raise ConfigError(
+                f"LLM config {str(p)!r}: api_key_env names {key_env!r}, which is not set (or "
+                f"empty): set it to the endpoint's key, or leave api_key_env out for an "
+                "endpoint that takes no key"
+            )
         try:
             return cls(**values)
         except TypeError as e:

@@ -108,7 +108,7 @@ class RulesReader:
             steps = parse_instruction(read, robot)
             return Reading(text, read, steps, fixes, (), self.name)
         except ParseError as first:
-            if not self.wrappers:
+            if not self.wrappers or first.out_of_range:
                 raise
             err = first
         # a request after a lead-in the grammar does not read: the fewest dropped words that
@@ -161,8 +161,9 @@ class LearnedReader:
         if self.fallback:
             try:
                 return self._rules.understand(text, robot)
-            except ParseError:
-                pass
+            except ParseError as e:
+                if e.out_of_range:  # read, and refused by name: no other reading
+                    raise
         read, fixes = self._rules.speller.correct(text)
         words = words_of(read)
         if not words:

@@ -98,7 +98,7 @@ _UNITS = {
     "metre": 1.0,
 }
 _UNIT = r"(?:mm|cm|m|millimet(?:er|re)s?|centimet(?:er|re)s?|met(?:er|re)s?)"
-_DIST = rf"({_NUM})\s*({_UNIT})"
+_DIST = rf"(-?{_NUM})\s*({_UNIT})"  # a sign is read, to be refused by name
 _DIRECTIONS = {
     "north": "north",
     "forward": "north",
@@ -491,6 +491,10 @@ class _Parser:
     def fail(self, fragment: str, why: str):
         raise ParseError(self.instruction, self._restore(fragment), why)
 
+    def out_of_range(self, fragment: str, why: str):
+        """Read, but a number beyond what the robot does: final (no other reading is tried)."""
+        raise ParseError(self.instruction, self._restore(fragment), why, out_of_range=True)
+
     def _restore(self, text: str) -> str:
         text = _AREA_PLACEHOLDER.sub(lambda m: self.areas[int(m.group(1))][0], text)
         return _PLACEHOLDER.sub(lambda m: self.paths[int(m.group(1))], text)
@@ -602,7 +606,7 @@ class _Parser:
                 self.fail(clause, "say which way to turn: left, right, around, or N degrees")
             deg = 90.0 if num is None else self.number(num, clause)
             if not 0 < deg <= 360:
-                self.fail(clause, "a turn is more than 0 and at most 360 degrees")
+                self.out_of_range(clause, "a turn is more than 0 and at most 360 degrees")
             return Turn(_TURN_SIGN.get(way, 1.0) * deg)
         g = m_drive.groups()
         if m_drive.re is _DRIVE_LEAD:
@@ -613,7 +617,9 @@ class _Parser:
             self.fail(clause, "say how far, e.g. 'move forward 1 m' or 'back up 50 cm'")
         d = self.number(num, clause) * _UNITS[unit.rstrip("s")]
         if not 0 < d <= MAX_DRIVE_M:
-            self.fail(clause, f"a base drives more than 0 and at most {MAX_DRIVE_M:g} m at once")
+            self.out_of_range(
+                clause, f"a base drives more than 0 and at most {MAX_DRIVE_M:g} m at once"
+            )
         back = way is None or way.startswith(("back", "in"))
         return Forward(round(-d if back else d, 6))
 
@@ -621,7 +627,7 @@ class _Parser:
         word = m.group(1) or m.group(2)
         n = {"once": 1, "twice": 2, "thrice": 3}.get(word) or self.number(word, clause)
         if n != int(n) or not 1 <= n <= MAX_REPEAT:
-            self.fail(m.group(0).strip(" ,"), f"repeat a step 1 to {MAX_REPEAT} times")
+            self.out_of_range(m.group(0).strip(" ,"), f"repeat a step 1 to {MAX_REPEAT} times")
         return int(n)
 
     def action(self, rest: str, clause: str):
@@ -636,7 +642,9 @@ class _Parser:
                 d = self.number(num, clause) * _UNITS[unit.rstrip("s")]
                 limit = MAX_DRIVE_M if self.robot == "mobile" else MAX_DISTANCE_M
                 if not 0 < d <= limit:
-                    self.fail(rest, f"a compass move goes more than 0 and at most {limit} m")
+                    self.out_of_range(
+                        rest, f"a compass move goes more than 0 and at most {limit} m"
+                    )
                 if self.robot == "mobile" and direction in ("left", "right"):
                     self.fail(
                         rest,
@@ -823,6 +831,8 @@ class _Parser:
         return " ".join(words)
 
     def number(self, word: str, clause: str) -> float:
+        if word.startswith("-"):
+            return -self.number(word[1:], clause)
         if word in _NUMBERS:
             return float(_NUMBERS[word])
         try:
