@@ -246,17 +246,17 @@ class AVLMap:
         ):
             keep = ~self.self_filter.mask(pts, joint_positions, T_world_hand)
             pts, px = pts[keep], px[keep]
+        # the features as a table and each point's row in it: never a feature row per point
         if at is not None:
             t = time.perf_counter()
-            cell = at(rgb, context, px)
+            table, row = at(rgb, context, px)
             t1 += time.perf_counter() - t  # encoder time, not fusion time
         else:
             s = self.dense.stride
-            cell = feats[
-                np.minimum(px[:, 0] // s, feats.shape[0] - 1),
-                np.minimum(px[:, 1] // s, feats.shape[1] - 1),
-            ]
-        self.voxels.integrate(pts, cell, rgb[px[:, 0], px[:, 1]])
+            h, w = feats.shape[:2]
+            table = feats.reshape(h * w, -1)
+            row = np.minimum(px[:, 0] // s, h - 1) * w + np.minimum(px[:, 1] // s, w - 1)
+        self.voxels.integrate(pts, table, rgb[px[:, 0], px[:, 1]], feature_index=row)
         t2 = time.perf_counter()
         self.encoder_s += t1 - t0
         self.fusion_s += t2 - t1

@@ -75,16 +75,19 @@ class OracleDenseEncoder:
         seg = np.where(seg < len(self._table), seg, 0)
         return self._table[seg]
 
-    def encode_dense_at(self, rgb: np.ndarray, context: dict | None, px: np.ndarray) -> np.ndarray:
-        """(n, D): what :meth:`encode_dense` gives at the cells of the pixels ``px`` (n, 2:
-        row, column), without the rest of the image (a map fuses a few thousand pixels of a
-        frame; the whole image's features are 30 MB a frame)."""
+    def encode_dense_at(
+        self, rgb: np.ndarray, context: dict | None, px: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """What :meth:`encode_dense` gives at the cells of the pixels ``px`` (n, 2: row,
+        column), as a table (L, D) of the labels' embeddings and each pixel's row (n,) in it:
+        without the rest of the image (a map fuses a few thousand pixels of a frame; the whole
+        image's features are 30 MB a frame) and without a row per pixel."""
         seg = np.asarray(_need_context(context, "segmentation", type(self).__name__))
         if seg.shape != np.asarray(rgb).shape[:2]:
             raise ConfigError(f"segmentation {seg.shape} does not match the image {rgb.shape[:2]}")
         s = self.stride
         ids = seg[(px[:, 0] // s) * s, (px[:, 1] // s) * s]
-        return self._table[np.where(ids < len(self._table), ids, 0)]
+        return self._table, np.where(ids < len(self._table), ids, 0)
 
 
 class OracleGlobalImageEncoder:
