@@ -163,3 +163,28 @@ def test_the_joint_reading_cuts_references_as_the_relation_takes():
     rels[:, RELATIONS.index("none")] = np.log(0.9)
     with pytest.raises(ParseError, match="asks something else"):
         decode(" ".join(words), words, roles, rels, "arm", parse_instruction, role_logp)
+
+
+def test_a_reading_never_drops_a_named_thing_nor_merges_two_relations():
+    # the tagger reads two things; a side takes one: the re-cut that drops "mug" is refused
+    words = "go to the mug in front of the duck".split()
+    role_logp = _logp([
+        {"O": 0.95}, {"O": 0.95}, {"B-OBJ": 0.8, "O": 0.2}, {"I-OBJ": 0.8, "O": 0.2},
+        {"O": 0.95}, {"O": 0.95}, {"O": 0.95}, {"B-OBJ": 0.9, "O": 0.1}, {"I-OBJ": 0.9, "O": 0.1},
+    ])  # fmt: skip
+    rels = np.log(np.full((len(words), len(RELATIONS)), 0.01))
+    rels[:, RELATIONS.index("front")] = np.log(0.9)
+    args = (" ".join(words), words, best_roles(role_logp), rels, "arm", parse_instruction)
+    with pytest.raises(ParseError, match="leave out 'mug'"):
+        decode(*args, role_logp)
+    # words sure of two sides in one step: two requests without a joining word
+    words = "move in front of the duck to the right of it".split()
+    roles = ["O"] * 4 + ["B-OBJ", "I-OBJ"] + ["O"] * 5
+    rels = np.log(np.full((len(words), len(RELATIONS)), 0.001))
+    rels[:6, RELATIONS.index("front")] = np.log(0.99)
+    rels[6:, RELATIONS.index("right")] = np.log(0.99)
+    with pytest.raises(ParseError, match="front and right at once"):
+        decode(" ".join(words), words, roles, rels, "arm", parse_instruction)
+    rels[6:, RELATIONS.index("right")] = np.log(0.6)  # unsure words: one relation is read
+    (step,) = decode(" ".join(words), words, roles, rels, "arm", parse_instruction)
+    assert step.action == Side("front", "duck")

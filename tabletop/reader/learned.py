@@ -478,6 +478,44 @@ _NEEDS = {"between": 2, "backforth": 2, "motion": None, "none": None}
 #: Picked on generated requests of the validation pools (``tabletop train reader`` prints
 #: plans right at each), never on an evaluation suite.
 JOINT_MARGIN = 6.0
+#: A word is sure of its relation at this probability; two relations each sure on this many
+#: words of one step are two requests run together (:func:`_one_relation`).
+SURE_RELATION, SURE_WORDS = 0.9, 2
+
+
+def _keeps_what_it_names(text: str, words: list[str], own: list[str], chosen: list[str]) -> None:
+    """Refuse a re-cut of a step's roles (:func:`_joint`) that leaves out a word naming a
+    thing, a colour or a sound the tagger's own reading put inside a reference ("go to the
+    mug in front of the duck" is no request to go in front of the duck): what a person names
+    is never dropped silently."""
+    from tabletop.reader.spelling import name_words
+
+    names = name_words()
+    lost = [
+        w
+        for w, a, b in zip(words, own, chosen, strict=True)
+        if a != "O" and b == "O" and w.strip(",.;:!?\"'").lower() in names
+    ]
+    if lost:
+        raise ParseError(
+            text, " ".join(words), f"reading it as one request would leave out {lost[0]!r}"
+        )
+
+
+def _one_relation(text: str, clause: str, rel_logp: np.ndarray) -> None:
+    """Refuse a step whose words are sure of two different relations (:data:`SURE_RELATION`
+    on :data:`SURE_WORDS` words each): two requests run together without a joining word the
+    tagger read ("move in front of the duck, then to the right of it")."""
+    sure = np.exp(rel_logp.max(axis=1)) >= SURE_RELATION
+    best = rel_logp.argmax(axis=1)
+    held = {RELATIONS[r] for r in np.unique(best[sure]) if (best[sure] == r).sum() >= SURE_WORDS}
+    held -= {"none"}
+    if len(held) > 1:
+        raise ParseError(
+            text,
+            clause,
+            f"it asks for {' and '.join(sorted(held))} at once: join two requests with 'then'",
+        )
 
 
 def _joint(role_logp: np.ndarray, rel_logp: np.ndarray, margin: float = JOINT_MARGIN
@@ -531,8 +569,11 @@ def decode(text: str, words: list[str], roles: list[str], relations, robot: str,
         clause = " ".join(words[i] for i in idx)
         if role_logp is not None:
             step_roles, relation = _joint(role_logp[idx], relations[idx], margin)
+            _keeps_what_it_names(text, [words[i] for i in idx], [roles[i] for i in idx],
+                                 step_roles)  # fmt: skip
         else:
             step_roles, relation = [roles[i] for i in idx], _relation(relations[idx])
+        _one_relation(text, clause, relations[idx])
         times = _count([words[i] for i, r in zip(idx, step_roles, strict=True) if r == "REP"])
         said = _said_times([words[i] for i in idx])
         if said is not None and (times == 1 or said > MAX_TIMES_SAID):
