@@ -442,6 +442,25 @@ class ObjectModule:
                 done[i] = shape_features(centers[i.rows], vs, base.z)
         return np.stack([done[i] for i in instances])
 
+    @staticmethod
+    def _query_words(query: str, reading: tuple[str, str] | None = None) -> tuple[str, str]:
+        """(colour phrase, the words :meth:`match` reads as the thing's name)."""
+        colour, words = reading if reading is not None else split_color_words(query)
+        return colour, " ".join(_DEIXIS.sub(" ", words).split()) or words  # "the cup over there"
+
+    def prefetch(self, queries: list[str]) -> None:
+        """Embed at once, in batches, the texts :meth:`match` embeds for each of ``queries``
+        (their names as read, with "the", without what they are likened to): with a text
+        encoder that keeps what it embedded (MiniLM's does), many queries then cost one batched
+        pass instead of one pass each."""
+        texts: dict[str, None] = {}
+        for q in queries:
+            words = self._query_words(q)[1]
+            if [w for w in words.split() if w not in FILLER_WORDS]:
+                texts.update(dict.fromkeys((words, _said(words), _without_likeness(words))))
+        if texts:
+            self.text.encode_text(list(texts))
+
     def match(
         self, query: str, reading: tuple[str, str] | None = None, only: str | None = None
     ) -> InstanceMatch:
@@ -450,8 +469,7 @@ class ObjectModule:
         ``only``: the vocabulary name the words mean, whatever their cosine says (the kind
         reader's fallback, see :meth:`heatmap`)."""
         cfg = self.config
-        colour, words = reading if reading is not None else split_color_words(query)
-        words = " ".join(_DEIXIS.sub(" ", words).split()) or words  # "the cup over there"
+        colour, words = self._query_words(query, reading)
         inst = self.instances.items
         n = len(inst)
         T, owner, _, _ = self._vocab_targets()
@@ -501,7 +519,7 @@ class ObjectModule:
             rank = per + cfg.text_margin * named
             # the reader learnt names as "the ...": a landmark the parser hands over bare
             # ("puck block") is read the same way
-            said = "the " + re.sub(r"^(?:the|a|an)\s+", "", words)
+            said = _said(words)
             read, read_p = self._read(e if said == words else self.text.encode_text([said])[0])
             if len(names) > 1 and read in names and read_p >= cfg.reader_prefer:
                 # the reader's name first, by the margin ("the footy ball": the soccer ball)
@@ -1063,6 +1081,12 @@ def _names_a_word_of(content: list[str], name: str, vocabulary) -> bool:
 _DEIXIS = re.compile(
     r"\b(?:(?:over|right|just|up|down)\s+)?(?:there|here)\b|\bplease\b|\bfor\s+me\b"
 )
+
+
+def _said(words: str) -> str:
+    """The words as the kind reader learnt names: after "the" ("puck block" -> "the puck
+    block")."""
+    return "the " + re.sub(r"^(?:the|a|an)\s+", "", words)
 
 
 def _without_likeness(words: str) -> str:

@@ -129,6 +129,8 @@ def train_kind_reader(
     labels = [c for _, _, c in rows]
     source = np.array([s for s, _, _ in rows])
     module = _object_module(encoder, vocabulary, descriptions) if vocabulary else None
+    if module is not None:  # every text the matches below embed, in batches
+        module.prefetch([t for _, t, _ in rows])
     per_pool, records = {}, []
     for pool in pools if cross_validate or module is not None else ():
         train, test = source != pool, np.nonzero(source == pool)[0]
