@@ -39,6 +39,7 @@ def test_slips_are_corrected_to_the_vocabulary(speller, typed, meant):
         "the teal block",
         "somebody jangling keys",  # real English words the vocabulary lacks
         "the centre of the table",  # British spelling
+        "the purple tri prism",  # a short word is no slip of a verb ("try")
         "a quacky toy",  # a known stem with a suffix
         "the kitchen",
         "move 5 cm north",

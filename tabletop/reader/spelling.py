@@ -44,6 +44,7 @@ __all__ = [
     "domain_words",
     "english_words",
     "name_words",
+    "place_words",
     "reader_words",
 ]
 
@@ -177,6 +178,21 @@ def _pattern_words(module) -> set[str]:
 
 
 @functools.cache
+def place_words() -> frozenset[str]:
+    """The reader's words that name a place or a relation: those of the place grammar's
+    expressions and of the relations' wordings ("left", "behind", "middle"). Like a name, a
+    short word is corrected to one of them ("righ" -> "right"), never to another of the
+    reader's words ("tri" is no slip of "try")."""
+    from tabletop.reader import place_words as grammar
+    from tabletop.relations import RELATIONS
+
+    words = _pattern_words(grammar)
+    for r in RELATIONS:
+        words.update(w for w in _WORD.findall(r.wording) if len(w) >= 3)
+    return frozenset(w for w in words if w in reader_words())
+
+
+@functools.cache
 def reader_words() -> frozenset[str]:
     """The reader's own words: those of its grammars' expressions (the instruction grammar
     and the place words), the relations' wordings and the learned reader's templates
@@ -248,8 +264,8 @@ class Speller:
         self.english = (
             dict.fromkeys(english, RARE_COUNT) if english is not None else english_words()
         )
-        # short words are corrected only to these: names, and the reader's own words
-        self._names = name_words() | reader_words() if vocabulary is None else self.vocabulary
+        # short words are corrected only to these: names, and the words of places and relations
+        self._names = name_words() | place_words() if vocabulary is None else self.vocabulary
         self._choices = sorted(self.vocabulary)
         self._counts = _domain_counts() if vocabulary is None else {}
         self._common = _common_words() if english is None else frozenset()
