@@ -280,3 +280,37 @@ def test_an_llm_config_naming_a_key_variable_that_is_not_set_is_refused(tmp_path
     assert LLMConfig.from_file(path, env={"K": "secret"}).api_key == "secret"
     path.write_text('[llm]\nbase_url = "http://127.0.0.1:9/v1"\nmodel = "m"\n')
     assert LLMConfig.from_file(path, env={}).api_key is None  # a local endpoint: no key
+
+
+def test_a_binary_task_file_is_named_not_a_codec_traceback(tmp_path, capsys):
+    from tabletop.cli import main
+
+    path = tmp_path / "binary.toml"
+    path.write_bytes(bytes([0xC3, 0x28, 0xFF, 0x00, 0x9F]) * 20)
+    assert main(["eval", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert "binary.toml" in err and "not UTF-8 text" in err
+
+
+@pytest.mark.parametrize(
+    ("text", "needle"),
+    [
+        ("[1,2,3]", "a JSON list, not an object"),
+        ('{"not":"results"}', "no 'rows' list (its keys: not)"),
+        ("", "the file is empty"),
+        ('{"rows": [', "not valid JSON"),
+        ('{"rows": [1]}', "rows[0] is not an object"),
+    ],
+)
+def test_eval_compare_refuses_files_that_are_not_evaluation_results(tmp_path, capsys, text, needle):
+    from tabletop.cli import main
+
+    path = tmp_path / "r.json"
+    path.write_text(text)
+    assert main(["eval-compare", str(path), str(path)]) == 2
+    err = capsys.readouterr().err
+    assert "is not an evaluation results file" in err and needle in err and "r.json" in err
+    (tmp_path / "d").mkdir()
+    (tmp_path / "d" / "results.json").write_bytes(b"\xff\xfe\x00binary")
+    assert main(["eval-compare", str(tmp_path / "d"), str(path)]) == 2
+    assert "not UTF-8 text" in capsys.readouterr().err

@@ -49,7 +49,40 @@ def load_results(path: str | Path) -> dict:
     p = Path(path)
     if p.is_dir():
         p = p / "results.json"
-    return json.loads(p.read_text())
+    what = "is not an evaluation results file (a results.json, a report directory holding one, "
+    what += "or `tabletop eval --json` output)"
+    try:
+        raw = p.read_bytes()
+    except IsADirectoryError:
+        raise ValueError(f"{p} {what}: it is a directory") from None
+    if not raw.strip():
+        raise ValueError(f"{p} {what}: the file is empty")
+    try:
+        d = json.loads(raw.decode("utf-8"))
+    except UnicodeDecodeError:
+        raise ValueError(f"{p} {what}: not UTF-8 text (a binary file?)") from None
+    except json.JSONDecodeError as e:
+        raise ValueError(f"{p} {what}: not valid JSON ({e}; truncated?)") from None
+    _check_results(d, p, what)
+    return d
+
+
+def _check_results(d, p: Path, what: str) -> None:
+    """An evaluation's JSON is an object with a ``rows`` list of objects (each with a
+    ``tasks`` list), or a robustness run's ``results`` object of such evaluations."""
+    if not isinstance(d, dict):
+        raise ValueError(f"{p} {what}: it holds a JSON {type(d).__name__}, not an object")
+    if "rows" not in d and isinstance(d.get("results"), dict) and d["results"]:
+        for name, sub in d["results"].items():
+            _check_results(sub, p, f"{what}, its results[{name!r}]")
+        return
+    rows = d.get("rows")
+    if not isinstance(rows, list):
+        keys = ", ".join(sorted(map(str, d))) or "none"
+        raise ValueError(f"{p} {what}: it has no 'rows' list (its keys: {keys})")
+    for i, r in enumerate(rows):
+        if not isinstance(r, dict) or not isinstance(r.get("tasks"), list):
+            raise ValueError(f"{p} {what}: rows[{i}] is not an object with a 'tasks' list")
 
 
 def compare_results(a: dict, b: dict, ignored: frozenset[str] = IGNORED) -> list[str]:

@@ -710,6 +710,10 @@ def load_tasks(path: str | Path) -> TaskFile:
             raise TaskFileError(f"task file {p}: unknown format {p.suffix!r}; valid: .toml, .json")
     except (tomllib.TOMLDecodeError, json.JSONDecodeError) as e:
         raise TaskFileError(f"task file {p} is not valid {p.suffix[1:].upper()}: {e}") from None
+    except UnicodeDecodeError:
+        raise TaskFileError(
+            f"task file {p} is not UTF-8 text (a binary file?); give a .toml or .json task file"
+        ) from None
     tf = parse_tasks(data, source=str(p), base_dir=p.parent)
     return TaskFile(**{**tf.__dict__, "path": p})
 
