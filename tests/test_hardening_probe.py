@@ -314,3 +314,122 @@ def test_eval_compare_refuses_files_that_are_not_evaluation_results(tmp_path, ca
     (tmp_path / "d" / "results.json").write_bytes(b"\xff\xfe\x00binary")
     assert main(["eval-compare", str(tmp_path / "d"), str(path)]) == 2
     assert "not UTF-8 text" in capsys.readouterr().err
+
+
+def _default_scene_with(**changes) -> dict:
+    """The shipped default scene's data with the first object's fields changed."""
+    import tomllib
+
+    from tabletop.sim.scene import default_scene_path
+
+    data = tomllib.loads(default_scene_path().read_text())
+    data["objects"][0].update(changes)
+    return data
+
+
+@pytest.mark.parametrize(
+    ("field", "value"),
+    [("yaw_deg", "twenty"), ("yaw_deg", True), ("position", ["0.4", 0.3]), ("position", 3)],
+)
+def test_a_scene_object_field_of_the_wrong_type_is_named(field, value):
+    from tabletop.errors import SceneError
+    from tabletop.sim.scene import SceneSpec
+
+    with pytest.raises(SceneError, match=f"object 'red_mug': {field} must be"):
+        SceneSpec.from_dict(_default_scene_with(**{field: value}), source="s.toml")
+
+
+def test_a_scene_name_too_long_for_the_file_system_is_a_scene_error(capsys):
+    from tabletop.cli import main
+
+    assert main(["scenes", "a" * 5000]) == 2
+    err = capsys.readouterr().err
+    assert "5000 characters" in err and "cannot be looked up" in err and "default" in err
+
+
+@pytest.mark.parametrize("objects", ["red mug", 5, ["red mug"]])
+def test_scene_objects_that_are_not_a_list_of_tables_are_named(objects):
+    from tabletop.errors import SceneError
+    from tabletop.sim.scene import SceneSpec
+
+    with pytest.raises(SceneError, match=r"objects.* not a table|objects must be a list of tables"):
+        SceneSpec.from_dict({"objects": objects}, source="s.json")
+
+
+def test_a_scene_object_on_the_robot_base_is_refused():
+    from tabletop.errors import SceneError
+    from tabletop.sim.scene import SceneSpec
+
+    with pytest.raises(SceneError, match="'red_mug' at \\[0.0, 0.0\\] stands on the robot's base"):
+        SceneSpec.from_dict(_default_scene_with(position=[0.0, 0.0]), source="s.toml")
+
+
+def test_an_unknown_key_of_a_scene_object_is_refused_with_the_valid_keys():
+    from tabletop.errors import SceneError
+    from tabletop.sim.scene import SceneSpec
+
+    with pytest.raises(SceneError, match=r"unknown keys \['bogus'\]; valid keys: \['name'"):
+        SceneSpec.from_dict(_default_scene_with(bogus=3), source="s.toml")
+
+
+@pytest.mark.parametrize("name", ["", "  "])
+def test_an_empty_scene_object_name_is_refused(name):
+    from tabletop.errors import SceneError
+    from tabletop.sim.scene import SceneSpec
+
+    with pytest.raises(SceneError, match="object name must be a non-empty string"):
+        SceneSpec.from_dict(_default_scene_with(name=name), source="s.toml")
+
+
+def test_sounds_refuses_an_empty_esc50_path(capsys, tmp_path, monkeypatch):
+    from tabletop.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    assert main(["sounds", "--esc50", ""]) == 2
+    assert "--esc50 '' is empty" in capsys.readouterr().err
+
+
+def test_rooms_refuses_a_room_name_together_with_generate(capsys):
+    from tabletop.cli import main
+
+    assert main(["rooms", "--generate", "3", "default"]) == 2
+    err = capsys.readouterr().err
+    assert "'default'" in err and "--generate 3" in err and "not both" in err
+
+
+@pytest.mark.parametrize("tables", ["", ",,,", " , "])
+def test_scan_room_refuses_a_tables_list_that_names_no_table(capsys, tmp_path, tables):
+    from tabletop.cli import main
+
+    out = tmp_path / "r1"
+    assert main(["scan-room", "--out", str(out), "--tables", tables]) == 2
+    err = capsys.readouterr().err
+    assert "names no table" in err and "work_table" in err
+    assert not out.exists()
+
+
+def test_heatmap_arithmetic_other_than_fusing_two_heatmaps_is_refused_by_name(oracle_map):
+    from tabletop.robot import MobileBase
+
+    h = MobileBase(oracle_map).get_major_map(obj="mug")
+    for bad in (lambda: h * 5, lambda: 5 * h, lambda: h * np.zeros((3, 3)), lambda: h + h):
+        with pytest.raises(TypeError, match=r"Heatmap . \w+.*only arithmetic on heatmaps is a \* b"):
+            bad()
+    assert (h * h).values.shape == h.values.shape  # fusing two heatmaps still works
+
+
+@pytest.mark.parametrize(
+    ("setting", "needle"),
+    [
+        ("object.instances=maybe", "object.instances='maybe': expected true or false"),
+        ("frame_step=2.5", "frame_step=2.5: expected an integer"),
+        ("no.such.field=1", "unknown field; valid map fields: area, audio"),
+        ("object.nope=1", "valid fields of object: background"),
+    ],
+)
+def test_map_set_values_and_fields_are_checked_before_any_work(tmp_path, capsys, setting, needle):
+    from tabletop.cli import main
+
+    out = tmp_path / "out"
+    assert main(["eval", "demo", "--map-set", setting, "--out", str(out), "--no-cache"]) == 2
+    assert needle in capsys.readouterr().err and not out.exists()

@@ -190,11 +190,34 @@ class Heatmap:
 
     def __mul__(self, other: object) -> Heatmap:
         if not isinstance(other, Heatmap):
-            return NotImplemented
+            raise TypeError(_arithmetic_refused("*", other))
         return fuse(self, other)
+
+    def __rmul__(self, other: object) -> Heatmap:
+        raise TypeError(_arithmetic_refused("*", other))
+
+    def _refuse(self, other: object, op: str = "") -> Heatmap:
+        raise TypeError(_arithmetic_refused(op, other))
+
+    __add__ = __radd__ = lambda self, other: self._refuse(other, "+")  # noqa: E731
+    __sub__ = __rsub__ = lambda self, other: self._refuse(other, "-")  # noqa: E731
+    __truediv__ = __rtruediv__ = lambda self, other: self._refuse(other, "/")  # noqa: E731
 
     def __array__(self, dtype=None, copy=None) -> np.ndarray:
         return np.array(self.values, dtype=dtype)
+
+
+def _arithmetic_refused(op: str, other: object) -> str:
+    """Why heatmap arithmetic other than ``Heatmap * Heatmap`` is refused."""
+    what = type(other).__name__
+    if isinstance(other, np.ndarray):
+        what += f" of shape {other.shape}"
+    return (
+        f"Heatmap {op} {what}: the only arithmetic on heatmaps is a * b between two Heatmaps "
+        "of the same grid (it fuses them, tabletop.mapping.heatmaps.fuse); to scale or mask "
+        "the heat, compute on h.values (a read-only float32 array of the grid's shape) and "
+        "make a heatmap with h.with_values(new_values)"
+    )
 
 
 #: Heat a broad part lends beyond its reach, at the distance where its linear heat ends
