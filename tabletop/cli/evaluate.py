@@ -38,6 +38,7 @@ def cmd_eval(args: argparse.Namespace) -> int:
     encoders = [e.strip() for e in args.encoders.split(",") if e.strip()]
     try:
         overrides = parse_map_settings(args.map_set)
+        check_map_settings(overrides)
         scan_overrides = parse_map_settings(args.scan_set, "--scan-set", "snr_db=5")
         _check_scan_settings(scan_overrides)
         noise = parse_map_settings(args.noise, "--noise", "pose_translation_m=0.005")
@@ -251,6 +252,70 @@ def parse_map_settings(
                 raise ConfigError(f"{flag} {item!r}: {part!r} is set twice")
         d[leaf] = value
     return out
+
+
+def check_map_settings(d: dict, flag: str = "--map-set") -> None:
+    """``--map-set`` fields and value types checked against :class:`MapConfig` (its module
+    configs field by field) before any work: an unknown field is named with the valid ones, a
+    value of the wrong type with the type its default has."""
+    from tabletop.mapping import MapConfig
+
+    _check_config_fields(d, MapConfig(), flag, "", extra={"voxel_size": 0.01})
+
+
+def _check_config_fields(d: dict, config, flag: str, prefix: str, extra=None) -> None:
+    import dataclasses
+
+    defaults = {f.name: getattr(config, f.name) for f in dataclasses.fields(config)}
+    defaults.update(extra or {})
+    for key, value in d.items():
+        name = f"{prefix}{key}"
+        if key not in defaults:
+            where = f"fields of {prefix.rstrip('.')}" if prefix else "map fields"
+            raise ConfigError(
+                f"{flag} {name}: unknown field; valid {where}: {', '.join(sorted(defaults))}"
+            )
+        default = defaults[key]
+        if dataclasses.is_dataclass(default) and not isinstance(default, type):
+            if not isinstance(value, dict):
+                sub = ", ".join(f"{name}.{f.name}" for f in dataclasses.fields(default))
+                raise ConfigError(f"{flag} {name}={value!r}: set its fields, one of {sub}")
+            _check_config_fields(value, default, flag, f"{name}.")
+            continue
+        want = _value_kind(default)
+        if want is not None and not _value_fits(value, want):
+            raise ConfigError(
+                f"{flag} {name}={value!r}: expected {want} (the default is {default!r}); "
+                "values are TOML (true/false, numbers, \"strings\", [lists])"
+            )
+
+
+def _value_kind(default) -> str | None:
+    if isinstance(default, bool):
+        return "true or false"
+    if isinstance(default, int):
+        return "an integer"
+    if isinstance(default, float):
+        return "a number"
+    if isinstance(default, str):
+        return "a string"
+    if isinstance(default, (tuple, list)):
+        return "a list"
+    return None  # None, a mapping, a grid: checked when the config is built
+
+
+def _value_fits(value, want: str) -> bool:
+    if want == "true or false":
+        return isinstance(value, bool)
+    if isinstance(value, bool):
+        return False
+    if want == "an integer":
+        return isinstance(value, int)
+    if want == "a number":
+        return isinstance(value, (int, float))
+    if want == "a string":
+        return isinstance(value, str)
+    return isinstance(value, list)
 
 
 def print_result(res, wall: float, what: str = "") -> None:
