@@ -53,6 +53,13 @@ __all__ = [
     "load_scene_spec",
 ]
 
+#: The robot base's footprint on the table top [m], world frame: the Panda's ``link0``
+#: (collision mesh bounds x -0.154..0.072, y -0.095..0.095), rounded out. No object may stand on it.
+ROBOT_BASE_FOOTPRINT = {"x": (-0.16, 0.08), "y": (-0.10, 0.10)}
+
+#: The fields of one ``[[objects]]`` entry.
+OBJECT_FIELDS = ("name", "kind", "color", "position", "yaw_deg")
+
 
 @dataclass(frozen=True)
 class TableSpec:
@@ -94,6 +101,15 @@ class ObjectSpec:
     """Rotation about the world z axis [deg]."""
 
     def __post_init__(self) -> None:
+        if not isinstance(self.name, str) or not self.name.strip():
+            raise SceneError(
+                f"object name must be a non-empty string, got {self.name!r} "
+                f"(a {self.kind!r} at {list(self.position)})"
+            )
+        if not _is_number(self.yaw_deg) or not np.isfinite(self.yaw_deg):
+            raise SceneError(
+                f"object {self.name!r}: yaw_deg must be a finite number [deg], got {self.yaw_deg!r}"
+            )
         kind = object_kind(self.kind)
         if self.color not in COLORS:
             raise SceneError(
@@ -104,7 +120,11 @@ class ObjectSpec:
                 f"object {self.name!r}: a {self.kind} may be {list(kind.colors)}, "
                 f"not {self.color!r}"
             )
-        if len(self.position) != 2 or not np.all(np.isfinite(self.position)):
+        if (
+            len(self.position) != 2
+            or not all(_is_number(v) for v in self.position)
+            or not np.all(np.isfinite(self.position))
+        ):
             raise SceneError(f"object {self.name!r}: position must be finite [x, y] in metres")
 
     @property
@@ -126,6 +146,56 @@ class ObjectSpec:
         """Axis-aligned bounding box (min, max) [m] of the mesh in the world frame."""
         v = self.vertices_world()
         return v.min(axis=0), v.max(axis=0)
+
+
+def _is_number(v: object) -> bool:
+    """Whether ``v`` is a real number (an int or float, numpy's included; not a bool)."""
+    return isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(
+        v, (bool, np.bool_)
+    )
+
+
+def _object_from_dict(o: object, i: int, source: str) -> ObjectSpec:
+    """The ``i``-th ``[[objects]]`` entry, its fields and their types checked."""
+    if not isinstance(o, dict):
+        raise SceneError(
+            f"{source}: objects[{i}] is a {type(o).__name__}, not a table of an object's "
+            f"fields {list(OBJECT_FIELDS)}"
+        )
+    label = f"object {o['name']!r}" if isinstance(o.get("name"), str) else f"objects[{i}]"
+    unknown = sorted(set(o) - set(OBJECT_FIELDS))
+    if unknown:
+        raise SceneError(
+            f"{source}: {label}: unknown keys {unknown}; valid keys: {list(OBJECT_FIELDS)}"
+        )
+    missing = [k for k in OBJECT_FIELDS[:4] if k not in o]
+    if missing:
+        raise SceneError(
+            f"{source}: {label}: missing required field {missing[0]!r}; an object has "
+            f"{list(OBJECT_FIELDS)} (yaw_deg optional)"
+        )
+    for k in ("name", "kind", "color"):
+        if not isinstance(o[k], str):
+            raise SceneError(
+                f"{source}: {label}: {k} must be a string, got {type(o[k]).__name__} {o[k]!r}"
+            )
+    pos = o["position"]
+    if not isinstance(pos, (list, tuple)) or len(pos) != 2 or not all(map(_is_number, pos)):
+        raise SceneError(
+            f"{source}: {label}: position must be [x, y], two numbers in metres, got {pos!r}"
+        )
+    yaw = o.get("yaw_deg", 0.0)
+    if not _is_number(yaw):
+        raise SceneError(
+            f"{source}: {label}: yaw_deg must be a number [deg], got {type(yaw).__name__} {yaw!r}"
+        )
+    return ObjectSpec(
+        name=o["name"],
+        kind=o["kind"],
+        color=o["color"],
+        position=(float(pos[0]), float(pos[1])),
+        yaw_deg=float(yaw),
+    )
 
 
 @dataclass(frozen=True)
@@ -252,6 +322,14 @@ class SceneSpec:
                     f"object {o.name!r} at {list(o.position)} overhangs the table "
                     f"(x {list(self.table.x)}, y {list(self.table.y)})"
                 )
+            bx, by = ROBOT_BASE_FOOTPRINT["x"], ROBOT_BASE_FOOTPRINT["y"]
+            if lo[0] < bx[1] and hi[0] > bx[0] and lo[1] < by[1] and hi[1] > by[0]:
+                raise SceneError(
+                    f"object {o.name!r} at {list(o.position)} stands on the robot's base "
+                    f"(x {list(bx)}, y {list(by)} [m]); place it on the table in front of the "
+                    f"robot (x up to {self.table.x[1]}, y {list(self.table.y)}, its footprint "
+                    f"clear of the base, e.g. x >= {bx[1] + 0.1:.2f})"
+                )
         boxes = [(o.name, *o.aabb()) for o in self.objects]
         for i, (na, la, ha) in enumerate(boxes):
             for nb, lb, hb in boxes[i + 1 :]:
@@ -289,16 +367,13 @@ class SceneSpec:
                     for k, v in data.get("table", {}).items()
                 }
             )
-            objects = tuple(
-                ObjectSpec(
-                    name=o["name"],
-                    kind=o["kind"],
-                    color=o["color"],
-                    position=tuple(o["position"]),
-                    yaw_deg=float(o.get("yaw_deg", 0.0)),
+            raw_objects = data.get("objects", [])
+            if not isinstance(raw_objects, list):
+                raise SceneError(
+                    f"{source}: objects must be a list of tables ([[objects]] entries with "
+                    f"{list(OBJECT_FIELDS)}), got {type(raw_objects).__name__} {raw_objects!r}"
                 )
-                for o in data.get("objects", [])
-            )
+            objects = tuple(_object_from_dict(o, i, source) for i, o in enumerate(raw_objects))
             if "random" in data:
                 r = data["random"]
                 rnd = RandomSpec(
@@ -378,7 +453,16 @@ def read_spec_file(path: str | Path, folder: str, what: str) -> tuple[dict, Path
     if str(path) == "":
         raise SceneError(f"{what} spec is empty: give a file or one of the shipped {folder}")
     path = Path(path)
-    if not path.exists() and path.suffix == "":
+    try:
+        found = path.exists()
+    except OSError as e:  # a name too long, a loop of links
+        raise SceneError(
+            f"{what} spec {str(path)[:80]!r}{'...' if len(str(path)) > 80 else ''} "
+            f"({len(str(path))} characters) cannot be looked "
+            f"up ({e.strerror or e}); give a file path or one of the shipped {folder}: "
+            f"{shipped_specs(folder)}"
+        ) from None
+    if not found and path.suffix == "":
         path = shipped_spec_path(folder, what, str(path))
     if not path.is_file():
         from tabletop.paths import input_file_problem
