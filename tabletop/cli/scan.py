@@ -162,7 +162,14 @@ def cmd_sounds(args: argparse.Namespace) -> int:
     from tabletop.sim.esc50 import load_esc50
     from tabletop.sim.sound_bank import SoundBank
 
-    bank = load_esc50(args.esc50) if args.esc50 else SoundBank.default()
+    if args.esc50 is not None and not args.esc50.strip():
+        from tabletop.errors import ConfigError
+
+        raise ConfigError(
+            f"--esc50 {args.esc50!r} is empty: give an ESC-50 directory (audio/*.wav and "
+            "meta/esc50.csv in it), or leave --esc50 out for the shipped sound bank"
+        )
+    bank = load_esc50(args.esc50) if args.esc50 is not None else SoundBank.default()
     if args.json:
         print(json.dumps(bank.summary(), indent=1))
     else:

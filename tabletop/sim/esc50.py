@@ -51,6 +51,11 @@ def load_esc50(
     :data:`~tabletop.sim.sound_bank.CAPTIONS`.
     Licences are recorded as "NOASSERTION": ESC-50 carries its own licence terms.
     """
+    if not str(directory).strip():
+        raise AssetError(
+            f"ESC-50 directory is empty ({str(directory)!r}): give a directory with "
+            "audio/*.wav and meta/esc50.csv in it"
+        )
     root = Path(directory)
     if not root.is_dir():
         raise AssetError(
