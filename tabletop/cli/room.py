@@ -12,11 +12,34 @@ __all__ = ["add_commands", "cmd_rooms", "cmd_scan_room"]
 
 
 def _room(args: argparse.Namespace):
+    from tabletop.errors import ConfigError
     from tabletop.sim.room import generate_room, load_room_spec
 
     if args.generate is not None:
+        if args.room is not None:
+            flag = "ROOM" if args.func is cmd_rooms else "--room"
+            raise ConfigError(
+                f"{flag} {args.room!r} and --generate {args.generate} both name a room; give "
+                f"either a room spec or shipped room's name, or --generate SEED, not both"
+            )
         return generate_room(args.generate)
-    return load_room_spec(args.room)
+    return load_room_spec("default" if args.room is None else args.room)
+
+
+def _tables(args: argparse.Namespace, spec) -> tuple[str, ...]:
+    """The furniture names of ``--tables`` (empty: every table); an empty list is refused."""
+    from tabletop.errors import ConfigError
+
+    if args.tables is None:
+        return ()
+    tables = tuple(t.strip() for t in args.tables.split(",") if t.strip())
+    if not tables:
+        raise ConfigError(
+            f"--tables {args.tables!r} names no table; give comma-separated furniture names "
+            f"of room {spec.name!r}: {[f.name for f in spec.furniture]}, or leave --tables out "
+            f"to visit every table"
+        )
+    return tables
 
 
 def cmd_rooms(args: argparse.Namespace) -> int:
@@ -42,11 +65,12 @@ def cmd_scan_room(args: argparse.Namespace) -> int:
     check_output_flag("--out", args.out, directory=True)  # before the scan, not after it
     check_output(args.out, args.overwrite)
     spec = _room(args)
+    tables = _tables(args, spec)
     config = RoomScanConfig(
         seed=args.seed,
         rate_hz=args.rate,
         episodes=args.episodes,
-        tables=tuple(t for t in (args.tables or "").split(",") if t),
+        tables=tables,
         views_per_table=args.views,
         look_around=not args.no_look_around,
         renderer=args.renderer,
@@ -93,7 +117,7 @@ def add_commands(sub) -> None:
     p = sub.add_parser("scan-room", help="record a room scan with the wheeled base")
     p.add_argument(
         "--room",
-        default="default",
+        default=None,
         help="room spec (.toml/.json) or the name of a shipped room (default: default)",
     )
     _add_room_args(p)
