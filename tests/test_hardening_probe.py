@@ -433,3 +433,26 @@ def test_map_set_values_and_fields_are_checked_before_any_work(tmp_path, capsys,
     out = tmp_path / "out"
     assert main(["eval", "demo", "--map-set", setting, "--out", str(out), "--no-cache"]) == 2
     assert needle in capsys.readouterr().err and not out.exists()
+
+
+@pytest.mark.parametrize(
+    ("text", "needle"),
+    [
+        ("", "the file is empty"),
+        ("[[instructions]]\ntext = 5\n", "no [scene] table"),
+        ('[scene]\nname = "default"\nstart = [0, 0, 0]\n', "no [[case]] tables"),
+        ('[scene]\nname = "d"\nstart = [0, 0]\n[[case]]\nid = "a"\n', "start must be [x, y, z]"),
+        ('[scene]\nname = "d"\nstart = [0, 0, 0]\n[[case]]\nid = "a"\n', "#1 lacks family"),
+    ],
+)
+def test_a_suite_file_without_what_a_suite_needs_says_what_it_needs(tmp_path, capsys, text, needle):
+    from tabletop.cli import main
+    from tabletop.language.suite import load_suite
+
+    path = tmp_path / "suite.toml"
+    path.write_text(text)
+    with pytest.raises(ConfigError, match="a suite file is TOML with \\[scene\\]") as e:
+        load_suite(path)
+    assert needle in str(e.value)
+    assert main(["parse", "--suite", "--suite-file", str(path)]) == 2
+    assert needle in capsys.readouterr().err

@@ -98,13 +98,83 @@ class Suite:
         return out
 
 
+SUITE_FORM = (
+    "a suite file is TOML with [scene] (name = \"...\", start = [x, y, z] in m) and one or more "
+    "[[case]] tables (id, family, instruction, expected: strings); optional [[sounds]] "
+    "(caption, at = [x, y]), [[images]] (path, object) and [[unparseable]] (instruction, "
+    "fragment)"
+)
+"""What :func:`load_suite` needs, quoted in its errors."""
+
+_SUITE_TABLES = {
+    "case": ("id", "family", "instruction", "expected"),
+    "sounds": ("caption", "at"),
+    "images": ("path", "object"),
+    "unparseable": ("instruction", "fragment"),
+}
+
+
+def _check_suite_shape(d: dict, where: str) -> None:
+    """The suite's tables and fields present with the right types, else a ``ConfigError``
+    naming the first that is not and :data:`SUITE_FORM`."""
+
+    def bad(what: str) -> ConfigError:
+        return ConfigError(f"suite {where} is malformed: {what}; {SUITE_FORM}")
+
+    if not d:
+        raise bad("the file is empty (no tables)")
+    scene = d.get("scene")
+    if not isinstance(scene, dict):
+        raise bad("no [scene] table")
+    if not isinstance(scene.get("name"), str) or not scene["name"]:
+        raise bad("[scene] has no name (a string)")
+    start = scene.get("start")
+    if not (
+        isinstance(start, list)
+        and len(start) == 3
+        and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in start)
+    ):
+        raise bad(f"[scene] start must be [x, y, z] in m, got {start!r}")
+    if "case" not in d:
+        raise bad("no [[case]] tables")
+    for name, keys in _SUITE_TABLES.items():
+        items = d.get(name, [])
+        if not isinstance(items, list) or (name == "case" and not items):
+            raise bad(f"'{name}' must be one or more [[{name}]] tables")
+        for i, item in enumerate(items):
+            if not isinstance(item, dict):
+                raise bad(f"[[{name}]] #{i + 1} is not a table")
+            missing = [k for k in keys if k not in item]
+            if missing:
+                raise bad(f"KeyError: [[{name}]] #{i + 1} lacks {', '.join(missing)}")
+            for k in keys:
+                v = item[k]
+                if k == "at":
+                    ok = isinstance(v, list) and len(v) == 2
+                    ok = ok and all(isinstance(x, (int, float)) for x in v)
+                    if not ok:
+                        raise bad(f"[[{name}]] #{i + 1} at must be [x, y] in m, got {v!r}")
+                elif not isinstance(v, str):
+                    raise bad(f"[[{name}]] #{i + 1} {k} must be a string, got {v!r}")
+    unknown = sorted(set(d) - {"scene", *_SUITE_TABLES})
+    if unknown:
+        raise bad(f"unknown tables {unknown}")
+
+
 def load_suite(path=None) -> Suite:
-    """Read a suite TOML (default: the shipped ``tabletop/data/instructions/suite.toml``)."""
+    """Read a suite TOML (default: the shipped ``tabletop/data/instructions/suite.toml``); a
+    file not of :data:`SUITE_FORM` is a ``ConfigError`` naming what is missing or wrong."""
     p = Path(path) if path is not None else DEFAULT_SUITE
     if not p.is_file():
         raise ConfigError(f"suite file {str(p)!r} does not exist")
     try:
         d = tomllib.loads(p.read_text())
+    except UnicodeDecodeError:
+        raise ConfigError(f"suite {str(p)!r} is not UTF-8 text; {SUITE_FORM}") from None
+    except tomllib.TOMLDecodeError as e:
+        raise ConfigError(f"suite {str(p)!r} is not valid TOML: {e}; {SUITE_FORM}") from None
+    _check_suite_shape(d, repr(str(p)))
+    try:
         cases = tuple(
             SuiteCase(c["id"], c["family"], c["instruction"], c["expected"]) for c in d["case"]
         )
@@ -118,8 +188,10 @@ def load_suite(path=None) -> Suite:
                 BadCase(b["instruction"], b["fragment"]) for b in d.get("unparseable", [])
             ),
         )
-    except (tomllib.TOMLDecodeError, KeyError, TypeError, ValueError) as e:
-        raise ConfigError(f"suite {str(p)!r} is malformed: {type(e).__name__}: {e}") from None
+    except (KeyError, TypeError, ValueError) as e:
+        raise ConfigError(
+            f"suite {str(p)!r} is malformed: {type(e).__name__}: {e}; {SUITE_FORM}"
+        ) from None
     ids = [c.id for c in cases]
     dup = sorted({i for i in ids if ids.count(i) > 1})
     if dup:
