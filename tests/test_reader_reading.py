@@ -123,3 +123,30 @@ def test_verbs_that_move_the_arm_itself_are_read_as_motions(text, action):
         assert isinstance(step.action, Between)
     else:
         assert step.action == action
+
+
+@pytest.mark.parametrize(
+    ("text", "why"),
+    [
+        ('import os; os.system("id")', "not code"),  # was a sound goal
+        ('__import__("os").system("touch /tmp/x")', "image file's path"),  # was an image goal
+        ("go to the", "name nothing"),  # was an object called "the"
+        ("go to a", "name nothing"),
+    ],
+)
+@pytest.mark.parametrize("reader", ["rules+learned", "learned"])
+def test_code_and_words_that_name_nothing_are_no_references(text, why, reader):
+    with pytest.raises(ParseError, match=why):
+        understand(text, reader=reader)
+
+
+def test_a_reference_that_negates_what_it_names_is_refused_by_every_reader():
+    from tabletop.reader.reading import get_reader
+
+    for name in ("rules", "rules+learned", "learned"):
+        reader = get_reader(name)
+        with pytest.raises(ParseError, match="what is there"):
+            reader.reference("obj", "not the red mug")
+        with pytest.raises(ParseError, match="what is there"):
+            reader.reference("sound", "anything except a dog barking")
+        assert reader.reference("obj", "the mug with no handle") == "the mug with no handle"

@@ -410,6 +410,10 @@ def _landmark(goal: Goal) -> str | Goal:
 
 #: An image reference names a file: a path with a folder or an image file's extension.
 _IMAGE_PATH = re.compile(r"[/\\~]|\.(?:png|jpe?g|bmp|webp|tiff?|gif)\b", re.IGNORECASE)
+#: An image goal's whole text: one path to an image file, no quotes or brackets around it.
+_IMAGE_FILE = re.compile(r"[^\s\"'()\[\]{};]+\.(?:png|jpe?g|bmp|webp|tiff?|gif)", re.IGNORECASE)
+#: Code, not words: a call ("system("), a dotted name ("os.system"), a dunder, a statement.
+_CODE = re.compile(r"\w\(|[A-Za-z_]\.[A-Za-z_]{2,}|__|[;={}<>\[\]\\]")
 
 #: A count said as "N times" beyond this is refused by the step check, wherever it was tagged.
 MAX_TIMES_SAID = 20
@@ -444,7 +448,7 @@ def _check(text: str, clause: str, relation: str, goals: list[Goal], times: int)
     """Refuse what the plan cannot honour, as the grammar does: a relation without the
     places it takes (or with more), a place named only by a pointing word, a side or above of
     something that is not a thing, too many repetitions."""
-    from tabletop.reader.rules import MAX_REPEAT, POINTERS
+    from tabletop.reader.rules import _ARTICLES, MAX_REPEAT, POINTERS
 
     need = 2 if relation in ("between", "backforth") else 1
     if len(goals) != need:
@@ -453,12 +457,25 @@ def _check(text: str, clause: str, relation: str, goals: list[Goal], times: int)
         )
     for g in goals:
         for part in (g.primary, *g.near):
-            if part.kind != "img" and set(part.text.split()) <= POINTERS:
-                raise ParseError(text, part.text, "a word that points back names no place")
-            if part.kind == "img" and not _IMAGE_PATH.search(part.text):
+            if _CODE.search(part.text):
                 raise ParseError(
-                    text, part.text, "an image goal needs a file path, e.g. 'the image ./goal.png'"
+                    text,
+                    part.text,
+                    "a place is named in words, not code (a call, a dotted name, a statement)",
                 )
+            if part.kind == "img":
+                if not _IMAGE_PATH.search(part.text) or not _IMAGE_FILE.fullmatch(part.text):
+                    raise ParseError(
+                        text,
+                        part.text,
+                        "an image goal needs an image file's path, e.g. "
+                        "'the image ./goal.png' (.png, .jpg, .jpeg, .bmp, .webp, .tif, .gif)",
+                    )
+                continue
+            words = _ARTICLES.sub("", part.text.lower() + " ").split()
+            if not words or set(words) <= POINTERS:
+                raise ParseError(text, part.text, "a word that points back names no place"
+                                 if words else "the words name nothing")  # fmt: skip
     if relation in (*_SIDES, "above") and goals[0].primary.kind != "obj":
         raise ParseError(
             text, clause, f"'{relation}' is taken of a thing, not a {goals[0].primary.kind}"

@@ -168,6 +168,9 @@ class LLMReader:
         if not isinstance(text, str):
             raise ConfigError(f"{kind}= must be a string, got {type(text).__name__}")
         text = default_speller().correct(text)[0]
+        from tabletop.reader.reading import refuse_negated
+
+        refuse_negated(text)
         if kind == "area":
             from tabletop.reader.places import PlaceReader
 

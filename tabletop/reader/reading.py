@@ -74,6 +74,20 @@ def _leads(text: str) -> list[tuple[str, str]]:
     ]
 
 
+def refuse_negated(text: str) -> None:
+    """Refuse a reference that negates what it names ("not the red mug"): ParseError naming
+    the word. ("no" and "without" also describe, and pass: "the mug with no handle".)"""
+    negated = [
+        w for w in re.findall(r"[a-z']+", text.lower()) if w in NEGATIONS - {"no", "without"}
+    ]
+    if negated:
+        raise ParseError(
+            text,
+            negated[0],
+            "a reference names what to find; ask for what is there instead of what is not",
+        )
+
+
 class RulesReader:
     """The grammar of :mod:`tabletop.reader.rules`, with or without the spelling pass and the
     wrapper pass."""
@@ -96,6 +110,7 @@ class RulesReader:
             raise ConfigError(f"{kind}= must be a string, got {type(text).__name__}")
         if self.spelling:
             text = self.speller.correct(text)[0]
+        refuse_negated(text)
         if kind == "area":
             return (places or _GRAMMAR_PLACES).read(text)
         return text

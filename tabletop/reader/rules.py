@@ -806,7 +806,7 @@ class _Parser:
         return Part("img", self.paths[int(found[0])])
 
     def description(self, text: str, kind: str) -> str:
-        words = _ARTICLES.sub("", text.strip()).split()
+        words = _ARTICLES.sub("", text.strip() + " ").split()  # "the" alone is no description
         if not words:
             self.fail(text, f"the {kind} description is empty")
         bad = [w for w in words if w in _RESERVED or not re.fullmatch(r"[a-z][a-z0-9'-]*", w)]
