@@ -456,3 +456,98 @@ def test_a_suite_file_without_what_a_suite_needs_says_what_it_needs(tmp_path, ca
     assert needle in str(e.value)
     assert main(["parse", "--suite", "--suite-file", str(path)]) == 2
     assert needle in capsys.readouterr().err
+
+
+def test_a_compass_move_of_no_or_negative_distance_is_refused_by_every_embodiment(oracle_map):
+    from tabletop.language.run import TracingRobot
+    from tabletop.language.suite import PointRobot
+    from tabletop.robot import MobileBase
+    from tabletop.robot.api import PrimitiveArgumentError
+
+    want = r"move_north\(distance_m=...\): distance_m must be a number of metres in \(0, 1\]"
+    base, point = MobileBase(oracle_map), PointRobot(oracle_map)
+    tracer = TracingRobot(PointRobot(oracle_map), execute=True, start=(0.3, 0.0, 0.1))
+    for robot in (base, point, tracer):
+        start = robot.current_position()
+        for bad in (-0.3, 0.0):
+            with pytest.raises(PrimitiveArgumentError, match=want):
+                robot.move_north(bad)
+        np.testing.assert_array_equal(robot.current_position(), start)  # nothing moved
+    for robot in (base, point):
+        with pytest.raises(PrimitiveArgumentError, match=want):
+            robot.move_north(1.5)
+    assert base.move_north(0.1).reached
+
+
+def test_the_point_robot_refuses_a_target_off_the_map(oracle_map):
+    from tabletop.language.run import TracingRobot
+    from tabletop.language.suite import PointRobot
+    from tabletop.robot.api import TargetOffMap
+
+    p = PointRobot(oracle_map)
+    with pytest.raises(TargetOffMap, match=r"move_to: the target .* lies outside the map \(x -0.2"):
+        p.move_to((1e6, 1e6, 1e6))
+    t = TracingRobot(PointRobot(oracle_map), execute=True, start=(0.3, 0.0, 0.3))
+    with pytest.raises(TargetOffMap, match=r"outside the map"):
+        t.move_north(0.9)  # x = 1.2 m, off the table
+    np.testing.assert_allclose(t.current_position(), [0.3, 0.0, 0.3])
+    p.move_to((0.5, 0.1, 0.1))
+    np.testing.assert_allclose(p.current_position(), [0.5, 0.1, 0.1])
+
+
+def test_an_arm_target_inside_its_own_base_is_refused(oracle_map):
+    from tabletop.robot.api import PrimitiveArgumentError
+    from tabletop.robot.arm import SimArm
+
+    arm = SimArm(oracle_map, "default")
+    try:
+        q0 = arm.world.arm_q()
+        with pytest.raises(PrimitiveArgumentError, match=r"inside the robot's own base"):
+            arm.move_to([0.0, 0.0, 0.05])
+        np.testing.assert_array_equal(arm.world.arm_q(), q0)
+    finally:
+        arm.close()
+
+
+def test_a_base_starting_off_the_map_is_refused_naming_its_bounds(oracle_map):
+    from tabletop.robot import MobileBase
+
+    with pytest.raises(ConfigError, match=r"start \(50, 50\) m lies off the map.*x -0.2 .. 0.8"):
+        MobileBase(oracle_map, start=(50, 50))
+    MobileBase(oracle_map, start=(0.15, 0.0))
+
+
+def test_between_a_landmark_and_itself_is_refused(oracle_map):
+    from tabletop.language.run import TracingRobot
+    from tabletop.language.suite import PointRobot
+    from tabletop.robot import MobileBase
+    from tabletop.robot.api import PrimitiveArgumentError
+
+    tracer = TracingRobot(PointRobot(oracle_map), execute=True, start=(0.3, 0.0, 0.1))
+    for robot in (MobileBase(oracle_map), PointRobot(oracle_map), tracer):
+        with pytest.raises(PrimitiveArgumentError, match=r"'red mug' .* are the same thing"):
+            robot.move_in_between("red mug", "red mug")
+
+
+def test_a_sim_arm_in_another_scene_than_the_maps_is_refused_or_warned(oracle_map):
+    from tabletop.robot.arm import SimArm
+
+    assert (oracle_map.source or {}).get("scene_fingerprint")
+    with pytest.raises(ConfigError, match=r"built from scene 'default'.*not from scene 'random'"):
+        SimArm(oracle_map, "random")
+    with pytest.warns(UserWarning, match="other_scene=True"):
+        arm = SimArm(oracle_map, "random", other_scene=True)
+    try:
+        assert "WARNING (other_scene)" in arm.move_to([0.4, 0.0, 0.2]).note
+    finally:
+        arm.close()
+
+
+def test_empty_vision_weights_name_the_reason(tmp_path, capsys):
+    from tabletop.cli import main
+
+    path = tmp_path / "empty.pt"
+    path.write_bytes(b"")
+    assert main(["check-encoders", "--vision-weights", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert "empty.pt are unreadable: the file is empty (0 bytes)" in err

@@ -38,6 +38,21 @@ _SHIPPED = {
 }
 
 
+def _check_vision_weights_file(path) -> None:
+    """``--vision-weights`` checked before any work: a file, not empty (an empty one made
+    ``torch.load`` fail with no reason to show)."""
+    from tabletop.errors import ConfigError
+
+    p = Path(path)
+    what = "give a vision checkpoint (.pt) written by `tabletop train vision`"
+    if p.is_dir():
+        raise ConfigError(f"--vision-weights {p} is a directory; {what}")
+    if p.is_file() and p.stat().st_size == 0:
+        raise ConfigError(
+            f"vision encoder weights at {p} are unreadable: the file is empty (0 bytes); {what}"
+        )
+
+
 def cmd_check_encoders(args: argparse.Namespace) -> int:
     """Measure the committed weights on held-out data."""
     from tabletop.eval.instance_eval import evaluate_instances
@@ -50,6 +65,8 @@ def cmd_check_encoders(args: argparse.Namespace) -> int:
 
     if args.vision_weights is None:  # the per-instance measure writes scans and maps there
         check_output_flag("--cache-dir", args.cache_dir, directory=True)
+    else:
+        _check_vision_weights_file(args.vision_weights)
     out = {}
     with stdout_to_stderr() if args.json else contextlib.nullcontext():
         vis = evaluate_vision(weights=args.vision_weights or EFFNET_WEIGHTS_PATH)
