@@ -413,7 +413,7 @@ def test_heatmap_arithmetic_other_than_fusing_two_heatmaps_is_refused_by_name(or
 
     h = MobileBase(oracle_map).get_major_map(obj="mug")
     for bad in (lambda: h * 5, lambda: 5 * h, lambda: h * np.zeros((3, 3)), lambda: h + h):
-        with pytest.raises(TypeError, match=r"Heatmap . \w+.*only arithmetic on heatmaps is a \* b"):
+        with pytest.raises(TypeError, match=r"Heatmap . \w+.*only arithmetic on heatmaps"):
             bad()
     assert (h * h).values.shape == h.values.shape  # fusing two heatmaps still works
 

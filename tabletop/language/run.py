@@ -16,10 +16,10 @@ from pathlib import Path
 
 import numpy as np
 
-from tabletop.arm.success import SUCCESS_RADIUS_M
 from tabletop.errors import ConfigError
 from tabletop.language.sandbox import SandboxConfig, SandboxRun, check_code, run_code
 from tabletop.reader.reading import DEFAULT_READER
+from tabletop.robot.api import check_compass_distance, check_on_map
 from tabletop.robot.primitives import PRIMITIVES, Primitive
 
 __all__ = [
@@ -124,16 +124,11 @@ class TracingRobot:
         grid = getattr(getattr(self.robot, "map", None), "grid", None)
         if grid is None:
             return
-        lo, hi = np.asarray(grid.lower, np.float64), np.asarray(grid.upper, np.float64)
-        if np.all((target[:2] >= lo[:2]) & (target[:2] <= hi[:2])) and (
-            target[2] >= lo[2] - SUCCESS_RADIUS_M
-        ):
-            return
-        raise ConfigError(
-            f"{method}: the target ({target[0]:.3g}, {target[1]:.3g}, {target[2]:.3g}) m lies "
-            f"outside the map (x {lo[0]:g} .. {hi[0]:g}, y {lo[1]:g} .. {hi[1]:g} m, z at least "
-            f"{lo[2] - SUCCESS_RADIUS_M:g} m): no robot on this map goes there"
-        )
+        check_on_map(grid, method, target)
+
+    def _robot_kind(self) -> str:
+        """The wrapped robot's kind ("arm", "mobile"): its compass moves' longest distance."""
+        return getattr(self.robot, "robot_kind", "arm")
 
     # ---------------------------------------------------------------- the tracer's own
     def current_position(self) -> np.ndarray:
@@ -222,6 +217,7 @@ def _traced(p: Primitive):
             if p.target is None:  # move_to: the argument is the point
                 target = values[0]
             elif p.direction is not None:  # a compass move: the offset along its axis
+                check_compass_distance(p.name, values[0], self._robot_kind(), limit=False)
                 d = _distance(values[0])
                 target = getattr(self, p.target)(d * p.direction[0], d * p.direction[1])
             else:

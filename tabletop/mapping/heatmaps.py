@@ -199,9 +199,9 @@ class Heatmap:
     def _refuse(self, other: object, op: str = "") -> Heatmap:
         raise TypeError(_arithmetic_refused(op, other))
 
-    __add__ = __radd__ = lambda self, other: self._refuse(other, "+")  # noqa: E731
-    __sub__ = __rsub__ = lambda self, other: self._refuse(other, "-")  # noqa: E731
-    __truediv__ = __rtruediv__ = lambda self, other: self._refuse(other, "/")  # noqa: E731
+    __add__ = __radd__ = lambda self, other: self._refuse(other, "+")
+    __sub__ = __rsub__ = lambda self, other: self._refuse(other, "-")
+    __truediv__ = __rtruediv__ = lambda self, other: self._refuse(other, "/")
 
     def __array__(self, dtype=None, copy=None) -> np.ndarray:
         return np.array(self.values, dtype=dtype)

@@ -41,6 +41,9 @@ __all__ = [
     "RobotClosed",
     "RobotError",
     "SpatialConfig",
+    "TargetOffMap",
+    "check_compass_distance",
+    "check_on_map",
     "check_primitive_args",
 ]
 
@@ -61,6 +64,52 @@ class PrimitiveArgumentError(RobotError, ConfigError, TypeError):
 
 class RobotClosed(RobotError, RuntimeError):
     """A primitive was called on a robot after its ``close()``."""
+
+
+class TargetOffMap(RobotError, ConfigError):
+    """A motion's target lies off the map: x, y outside its grid, or more than the success
+    radius below its floor; no robot on the map goes there (:func:`check_on_map`)."""
+
+
+def check_on_map(grid, method: str, target) -> None:
+    """The one check of a target against a map's grid: :class:`TargetOffMap` naming the point
+    and the map's bounds when ``target`` (3,) [m] lies outside the grid in x or y, or more
+    than the success radius below its floor. Dry runs (the tracer) and robots without their
+    own honest result for such a point (``PointRobot``) refuse with it."""
+    from tabletop.arm.success import SUCCESS_RADIUS_M
+
+    t = np.asarray(target, np.float64)
+    lo, hi = np.asarray(grid.lower, np.float64), np.asarray(grid.upper, np.float64)
+    if np.all((t[:2] >= lo[:2]) & (t[:2] <= hi[:2])) and t[2] >= lo[2] - SUCCESS_RADIUS_M:
+        return
+    raise TargetOffMap(
+        f"{method}: the target ({t[0]:.3g}, {t[1]:.3g}, {t[2]:.3g}) m lies "
+        f"outside the map (x {lo[0]:g} .. {hi[0]:g}, y {lo[1]:g} .. {hi[1]:g} m, z at least "
+        f"{lo[2] - SUCCESS_RADIUS_M:g} m): no robot on this map goes there"
+    )
+
+
+def compass_limit_m(robot_kind: str) -> float:
+    """The longest compass move [m] of a robot kind: the reader's limits (a table about a
+    metre across for the arm and the table's base, a room for a mobile base)."""
+    from tabletop.reader.rules import MAX_DISTANCE_M, MAX_DRIVE_M
+
+    return MAX_DRIVE_M if robot_kind == "mobile" else MAX_DISTANCE_M
+
+
+def check_compass_distance(name: str, distance_m, robot_kind: str, *, limit: bool = True) -> None:
+    """A compass move's distance must be a number of metres in (0, limit]: the direction is
+    the call's (``move_south``, not ``move_north`` of a negative distance).
+    :class:`PrimitiveArgumentError` names the call, the argument and the valid range."""
+    bad = _number(distance_m)
+    top = compass_limit_m(robot_kind)
+    d = None if bad else float(distance_m)
+    if bad or d <= 0 or (limit and d > top):
+        raise PrimitiveArgumentError(
+            f"{name}(distance_m=...): distance_m must be a number of metres in (0, {top:g}] "
+            f"(greater than 0; the direction is the call's: move_south, not move_north of a "
+            f"negative distance); got {_shown(distance_m)}"
+        )
 
 
 def _is_real(v) -> bool:
@@ -157,7 +206,7 @@ def check_primitive_args(name: str, params: tuple[str, ...], arguments: dict) ->
             )
 
 
-def _checked(fn, params: tuple[str, ...]):
+def _checked(fn, params: tuple[str, ...], compass: bool = False):
     """``fn`` (a primitive's method) behind :func:`check_primitive_args` and the closed
     check; its signature unchanged."""
     sig = inspect.signature(fn)
@@ -175,6 +224,17 @@ def _checked(fn, params: tuple[str, ...]):
         except TypeError as e:
             raise TypeError(f"{fn.__name__}({', '.join(params)}): {e}") from None
         check_primitive_args(fn.__name__, params, given.arguments)
+        if compass and "distance_m" in given.arguments:
+            check_compass_distance(
+                fn.__name__, given.arguments["distance_m"], getattr(self, "robot_kind", "arm")
+            )
+        if (
+            fn.__name__ == "move_to"
+            and getattr(self, "refuses_off_map", False)
+            and getattr(self, "map", None) is not None
+            and "pos" in given.arguments
+        ):
+            check_on_map(self.map.grid, "move_to", _point(given.arguments["pos"]))
         try:
             sig.bind(self, *args, **kwargs)
         except TypeError as e:
@@ -204,7 +264,7 @@ def _check_primitives_of(cls: type) -> None:
                 static._checked_static = True
                 setattr(cls, p.name, staticmethod(static))
         elif inspect.isfunction(attr) and not getattr(attr, "_checked_primitive", False):
-            setattr(cls, p.name, _checked(attr, p.params))
+            setattr(cls, p.name, _checked(attr, p.params, compass=p.direction is not None))
 
 
 @dataclass(frozen=True)
@@ -254,6 +314,13 @@ class RobotAPI(abc.ABC):
     reader = DEFAULT_READER
     """The reader (:data:`tabletop.reader.READERS`) that reads each ``obj=``/``sound=``/
     ``area=`` reference before the map scores it; set it on an instance to compare readers."""
+
+    refuses_off_map = True
+    """Whether ``move_to`` refuses a target off the map's grid with :class:`TargetOffMap`
+    (:func:`check_on_map`) before the embodiment's own ``move_to`` runs: an embodiment that
+    answers such a target with an honest result of its own (the arm's ``outside_workspace``,
+    the base's ``outside_map``) sets it False; any other (``PointRobot``, which would jump
+    anywhere) keeps the check."""
 
     closed = False
     """True once :meth:`close` ran: every primitive then raises :class:`RobotClosed`."""
@@ -446,7 +513,14 @@ class RobotAPI(abc.ABC):
         Not the mean of the two centres in 3D: a place where a sound was heard lies on top of
         what stood there, so the mean of it and an object's centre floats above the table, and
         an arm approaching that point from above would stop a gripper's gap over it."""
-        p = (self.get_pos(a) + self.get_pos(b)) / 2
+        pa, pb = self.get_pos(a), self.get_pos(b)
+        if np.allclose(pa, pb, atol=1e-6):
+            raise PrimitiveArgumentError(
+                f"between(a=..., b=...): a {_shown(a)} and b {_shown(b)} are the same thing "
+                f"(both at ({pa[0]:.3f}, {pa[1]:.3f}, {pa[2]:.3f}) m): there is no place between "
+                "a thing and itself; give two different landmarks"
+            )
+        p = (pa + pb) / 2
         p[2] = surface_z(self.map.grid, self.map.voxels.occupancy(), p[:2])
         return p
 

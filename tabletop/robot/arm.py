@@ -22,6 +22,7 @@ or objects are counted after every physics step (the planner's trajectories incl
 from __future__ import annotations
 
 import dataclasses
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -30,6 +31,7 @@ from tabletop.arm.driver import ArmDriver, PyBulletDriver, touching_points
 from tabletop.arm.model import HOME_Q, PandaModel
 from tabletop.arm.reach import GoalChoice, ReachConfig, ReachController, ReachResult
 from tabletop.arm.success import SUCCESS_RADIUS_M
+from tabletop.errors import ConfigError
 from tabletop.mapping.targets import APPROACH_RADIUS_M, approach_point, surface_z
 from tabletop.robot.api import (
     PrimitiveArgumentError,
@@ -58,6 +60,27 @@ class ArmReachResult(ReachResult):
     """Why the commanded goal differs from ``requested`` (empty when it does not): the
     approach from above raised it, the goal selection moved it, or it lies outside the
     workspace and nothing moved."""
+
+
+#: The robot's own base, which no target may lie in: a cylinder about the base's axis (x = y = 0)
+#: [m] from the table top up to the shoulder joint (the Panda's link0 and link1).
+BASE_RADIUS_M = 0.12
+BASE_TOP_M = 0.333
+
+
+def check_outside_base(p: np.ndarray) -> None:
+    """:class:`PrimitiveArgumentError` when ``p`` (3,) [m] lies inside the robot's own base
+    (within :data:`BASE_RADIUS_M` of its axis, below :data:`BASE_TOP_M`): the arm cannot
+    reach into itself, and a TCP there would not be "reached" but a collision."""
+    r = float(np.hypot(p[0], p[1]))
+    if r < BASE_RADIUS_M and p[2] < BASE_TOP_M:
+        raise PrimitiveArgumentError(
+            f"move_to(pos=...): the point {_xyz(p)} lies inside the robot's own base (within "
+            f"{BASE_RADIUS_M:g} m of its axis at x = y = 0, below z = {BASE_TOP_M:g} m, its "
+            f"shoulder; this point is {r:.3f} m from the axis): the arm cannot reach into "
+            f"itself; give a point at least {BASE_RADIUS_M:g} m from the axis or above "
+            f"{BASE_TOP_M:g} m"
+        )
 
 
 def _xyz(p) -> str:
@@ -96,6 +119,8 @@ class ArmRobot(RobotAPI):
         max_boxes: at most this many obstacle boxes (the voxels are coarsened to fit).
         approach_radius: horizontal radius [m] of the surface ``move_to`` clears.
     """
+
+    refuses_off_map = False  # a point off the workspace: outside_workspace, nothing moves
 
     needs_map = True
 
@@ -170,6 +195,7 @@ class ArmRobot(RobotAPI):
         beyond the success radius from it is refused: nothing moves, the reason is
         ``outside_workspace`` (raising it onto the table would reach another place)."""
         p = _point(pos)
+        check_outside_base(p)
         goal, ref = self.approach_goal(p)
         ws = self.controller.workspace
         far = float(np.linalg.norm(goal - p))
@@ -228,22 +254,50 @@ class ArmRobot(RobotAPI):
         return self.model.fk(self.driver.read_state().q)[:3, 3].copy()
 
 
+def _scene_mismatch(avlmap, spec) -> str:
+    """Why ``avlmap`` was not built from scene ``spec`` (its header's scene fingerprint
+    differs), or empty (the same scene, or a map that does not record its scene)."""
+    from tabletop.mapping.persistence import scene_fingerprint
+
+    source = getattr(avlmap, "source", None) or {}
+    built = source.get("scene_fingerprint") if isinstance(source, dict) else None
+    if built is None:
+        return ""
+    here = scene_fingerprint(spec.to_dict())
+    if built == here:
+        return ""
+    return (
+        f"the map was built from scene {source.get('scene')!r} (fingerprint {built}), not from "
+        f"scene {spec.name!r} (fingerprint {here}): the arm would reach the map's places in "
+        "another world; give the scene the map was built from"
+    )
+
+
 class SimArm(ArmRobot):
     """The simulated Panda (an :class:`ArmRobot` on a PyBullet driver that counts contacts).
 
     Args:
         avlmap: the map (queries and obstacles).
         spec: the scene to simulate (a :class:`~tabletop.sim.scene.SceneSpec` or a scene name);
-            it should be the scene the map was built from.
+            it must be the scene the map was built from (when the map records it):
+            :class:`~tabletop.errors.ConfigError` naming both scenes, as ``tabletop run``.
+        other_scene: run in another scene anyway (``--other-scene``): a warning now, and in
+            the ``note`` of every result (``scene_mismatch`` holds it).
         **kwargs: the :class:`ArmRobot` options (embodiment, keep_out, reach_config, ...).
     """
 
-    def __init__(self, avlmap, spec="default", **kwargs) -> None:
+    def __init__(self, avlmap, spec="default", *, other_scene: bool = False, **kwargs) -> None:
         from tabletop.sim.scene import SceneSpec, load_scene_spec
         from tabletop.sim.world import SimWorld
 
         if not isinstance(spec, SceneSpec):
             spec = load_scene_spec(spec)
+        self.scene_mismatch = _scene_mismatch(avlmap, spec)
+        """Why the map was built in another scene (``other_scene=True``), else empty."""
+        if self.scene_mismatch and not other_scene:
+            raise ConfigError(f"{self.scene_mismatch} (or pass other_scene=True to run it anyway)")
+        if self.scene_mismatch:
+            warnings.warn(f"SimArm(other_scene=True): {self.scene_mismatch}", stacklevel=2)
         self.world = SimWorld(spec, renderer="tiny")
         model = PandaModel()
         driver = _ContactCountingDriver(
@@ -264,6 +318,12 @@ class SimArm(ArmRobot):
         before = self.driver.contacts
         result = super().move_to(pos)
         self.contacts.append(self.driver.contacts - before)
+        if self.scene_mismatch:  # said in every result, as the CLI's summary does
+            warn = f"WARNING (other_scene): {self.scene_mismatch}"
+            result = dataclasses.replace(
+                result, note=f"{warn}; {result.note}" if result.note else warn
+            )
+            self.history[-1] = result
         return result
 
     def reset(self, q=HOME_Q) -> None:

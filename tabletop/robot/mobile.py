@@ -66,6 +66,8 @@ class MobileBase(RobotAPI):
         spatial: offsets of the spatial primitives.
     """
 
+    refuses_off_map = False  # a target off the grid: outside_map, nothing moves
+
     needs_map = True
 
     def __init__(
@@ -92,6 +94,12 @@ class MobileBase(RobotAPI):
             raise ConfigError(why) from None
         if s.shape not in ((2,), (3,)) or not np.all(np.isfinite(s)):
             raise ConfigError(f"start must be a finite (2,) or (3,) point [m], got {s.tolist()}")
+        lo, hi = avlmap.grid.lower, avlmap.grid.upper
+        if not (lo[0] <= s[0] <= hi[0] and lo[1] <= s[1] <= hi[1]):
+            raise ConfigError(
+                f"start ({s[0]:g}, {s[1]:g}) m lies off the map: it must be within x "
+                f"{lo[0]:g} .. {hi[0]:g}, y {lo[1]:g} .. {hi[1]:g} m (the map's bounds)"
+            )
         self._pos = np.array([s[0], s[1], 0.0])
         self.history: list[BaseMoveResult] = []
 

@@ -201,6 +201,8 @@ class MobileRobot(RobotAPI):
             gripper: 0.6 m beside by default).
     """
 
+    refuses_off_map = False  # its own honest results
+
     robot_kind = "mobile"
 
     needs_map = True
