@@ -150,3 +150,9 @@ def test_a_reference_that_negates_what_it_names_is_refused_by_every_reader():
         with pytest.raises(ParseError, match="what is there"):
             reader.reference("sound", "anything except a dog barking")
         assert reader.reference("obj", "the mug with no handle") == "the mug with no handle"
+
+
+@pytest.mark.parametrize("text", ["move north by nan meters", "move nan cm north"])
+def test_a_compass_distance_that_is_no_number_is_named(text):
+    with pytest.raises(ParseError, match="'nan'.*a number of m, cm or mm"):
+        understand(text, reader="rules")

@@ -260,6 +260,13 @@ _BACK_FORTH = re.compile(
     r"^(?:please\s+)?(?:go|move|travel|shuttle|head)(?:\s+(?:the\s+)?(?:arm|gripper|hand))?"
     r"\s+back\s+and\s+forth\s+(?:between|to|from)\s+(.+)$"
 )
+#: A compass move's shape with any word where the distance goes (to name a word that is none).
+_COMPASS_ANY = [
+    re.compile(rf"^(?P<d>\S+)\s*{_UNIT}\s+(?:to(?:wards)?\s+(?:the\s+)?)?{_DIR}(?:wards?)?$"),
+    re.compile(
+        rf"^(?:to(?:wards)?\s+(?:the\s+)?)?{_DIR}(?:wards?)?\s+(?:by\s+|for\s+)?(?P<d>\S+)\s*{_UNIT}$"
+    ),
+]
 _COMPASS = [
     re.compile(rf"^{_DIST}\s+(?:to(?:wards)?\s+(?:the\s+)?)?{_DIR}(?:wards?)?$"),
     re.compile(rf"^(?:to(?:wards)?\s+(?:the\s+)?)?{_DIR}(?:wards?)?\s+(?:by\s+|for\s+)?{_DIST}$"),
@@ -654,6 +661,13 @@ class _Parser:
                 return Compass(_DIRECTIONS[direction], round(d, 6))
         if re.match(rf"^(?:to(?:wards)?\s+(?:the\s+)?)?{_DIR}(?:wards?)?$", rest):
             self.fail(rest, "a compass move needs a distance, e.g. 'move 10 cm north'")
+        for rx in _COMPASS_ANY:  # a compass move whose distance is no number ("by nan m")
+            m = rx.match(rest)
+            if m:
+                self.fail(
+                    m.group("d"),
+                    "a compass move's distance is a number of m, cm or mm, e.g. 'move 10 cm north'",
+                )
         rest = _HEDGE.sub("", _PLACE_OF.sub("", _BE_AT.sub("", rest)))
         m = _FROM_TO.match(rest)
         if m:
