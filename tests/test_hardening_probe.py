@@ -551,3 +551,27 @@ def test_empty_vision_weights_name_the_reason(tmp_path, capsys):
     assert main(["check-encoders", "--vision-weights", str(path)]) == 2
     err = capsys.readouterr().err
     assert "empty.pt are unreadable: the file is empty (0 bytes)" in err
+
+
+@pytest.mark.parametrize(
+    ("flags", "needle"),
+    [
+        (["--hand-cam", "bad.txt"], "--hand-cam: BAD must hold 4x4 numbers"),
+        (["--hand-cam", "nan.json"], "holds non-finite numbers"),
+        (["--hand-cam", "scaled.json"], "is not a rigid transform"),
+        (["--intrinsics", "0", "1", "2", "3"], "--intrinsics FX FY CX CY"),
+        (["--max-pair-dt", "-1"], "--max-pair-dt must be a finite number of seconds > 0"),
+        (["--pose-time-offset", "nan"], "--pose-time-offset must be a finite number"),
+    ],
+)
+def test_import_flags_are_checked_before_anything_is_read(tmp_path, capsys, flags, needle):
+    from tabletop.cli import main
+
+    (tmp_path / "bad.txt").write_text("4x4 matrix nope\n")
+    (tmp_path / "nan.json").write_text("[[NaN,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]]")
+    (tmp_path / "scaled.json").write_text("[[2,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]]")
+    flags = [str(tmp_path / f) if f.endswith((".txt", ".json")) else f for f in flags]
+    out = tmp_path / "rec"
+    assert main(["import", str(tmp_path / "src"), "--out", str(out), *flags]) == 2
+    err = capsys.readouterr().err
+    assert needle.replace("BAD", str(tmp_path / "bad.txt")) in err and not out.exists()

@@ -286,7 +286,7 @@ def _check_config_fields(d: dict, config, flag: str, prefix: str, extra=None) ->
         if want is not None and not _value_fits(value, want):
             raise ConfigError(
                 f"{flag} {name}={value!r}: expected {want} (the default is {default!r}); "
-                "values are TOML (true/false, numbers, \"strings\", [lists])"
+                'values are TOML (true/false, numbers, "strings", [lists])'
             )
 
 

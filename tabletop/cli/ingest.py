@@ -15,8 +15,14 @@ __all__ = ["add_commands", "cmd_import"]
 def _matrix(path: str, shape: tuple[int, int], what: str) -> np.ndarray:
     from tabletop.errors import ConfigError
 
+    form = (
+        f'{shape[0]}x{shape[1]} numbers, as JSON ([[...], ...] or {{"T_hand_cam": [[...]]}}) '
+        f"or whitespace text, one row a line"
+    )
     try:
         text = Path(path).read_text()
+    except UnicodeDecodeError:
+        raise ConfigError(f"{what}: {path} is not text; it must hold {form}") from None
     except OSError as e:
         raise ConfigError(f"{what}: cannot read {path}: {e.strerror or e}") from None
     try:
@@ -25,10 +31,60 @@ def _matrix(path: str, shape: tuple[int, int], what: str) -> np.ndarray:
             v = next(iter(v.values())) if len(v) == 1 else v.get("T_hand_cam", v)
         a = np.array(v, np.float64)
     except (ValueError, TypeError):
-        a = np.array([[float(x) for x in ln.split()] for ln in text.splitlines() if ln.strip()])
+        try:
+            a = np.array(
+                [[float(x) for x in ln.split()] for ln in text.splitlines() if ln.strip()],
+                np.float64,
+            )
+        except ValueError as e:
+            raise ConfigError(f"{what}: {path} must hold {form}; {e}") from None
     if a.shape != shape:
         raise ConfigError(f"{what}: {path} must hold a {shape[0]}x{shape[1]} matrix, got {a.shape}")
+    if not np.isfinite(a).all():
+        raise ConfigError(
+            f"{what}: {path} holds non-finite numbers (NaN or inf); it must hold {form}"
+        )
     return a
+
+
+def _check_rigid(T: np.ndarray, path: str, what: str) -> np.ndarray:
+    """A 4x4 rigid transform: a rotation (orthonormal, det +1) and a last row [0, 0, 0, 1]."""
+    from tabletop.errors import ConfigError
+
+    R = T[:3, :3]
+    if not (
+        np.allclose(T[3], [0.0, 0.0, 0.0, 1.0], atol=1e-6)
+        and np.allclose(R @ R.T, np.eye(3), atol=1e-4)
+        and np.linalg.det(R) > 0
+    ):
+        raise ConfigError(
+            f"{what}: {path} is not a rigid transform: it must be [[R, t], [0, 0, 0, 1]] with R "
+            f"a rotation (orthonormal, determinant +1), got last row {T[3].tolist()} and "
+            f"det(R) = {np.linalg.det(R):.4g}"
+        )
+    return T
+
+
+def _check_import_flags(args: argparse.Namespace) -> None:
+    """The numeric flags and ``--out`` checked before anything is read."""
+    from tabletop.cli.output import check_output_flag
+    from tabletop.errors import ConfigError
+
+    if args.intrinsics is not None:
+        fx, fy = args.intrinsics[:2]
+        if not (np.isfinite(args.intrinsics).all() and fx > 0 and fy > 0):
+            raise ConfigError(
+                f"--intrinsics FX FY CX CY: finite pixels with FX, FY > 0, got {args.intrinsics}"
+            )
+    if not (np.isfinite(args.max_pair_dt) and args.max_pair_dt > 0):
+        raise ConfigError(
+            f"--max-pair-dt must be a finite number of seconds > 0, got {args.max_pair_dt}"
+        )
+    if not np.isfinite(args.pose_time_offset):
+        raise ConfigError(
+            f"--pose-time-offset must be a finite number of seconds, got {args.pose_time_offset}"
+        )
+    check_output_flag("--out", args.out, directory=True)
 
 
 def cmd_import(args: argparse.Namespace) -> int:
@@ -36,6 +92,12 @@ def cmd_import(args: argparse.Namespace) -> int:
     from tabletop.errors import ConfigError
     from tabletop.ingest import BagTopics, ImportOptions, import_recording
 
+    _check_import_flags(args)
+    T_hand_cam = None
+    if args.hand_cam is not None:
+        T_hand_cam = _check_rigid(
+            _matrix(args.hand_cam, (4, 4), "--hand-cam"), args.hand_cam, "--hand-cam"
+        )
     K = None
     if args.intrinsics is not None:
         fx, fy, cx, cy = args.intrinsics
@@ -48,7 +110,7 @@ def cmd_import(args: argparse.Namespace) -> int:
         depth_scale=args.depth_scale,
         pose_time_offset=args.pose_time_offset,
         max_pair_dt=args.max_pair_dt,
-        T_hand_cam=None if args.hand_cam is None else _matrix(args.hand_cam, (4, 4), "--hand-cam"),
+        T_hand_cam=T_hand_cam,
         K=K,
     )
     topics = BagTopics(

@@ -99,7 +99,7 @@ class Suite:
 
 
 SUITE_FORM = (
-    "a suite file is TOML with [scene] (name = \"...\", start = [x, y, z] in m) and one or more "
+    'a suite file is TOML with [scene] (name = "...", start = [x, y, z] in m) and one or more '
     "[[case]] tables (id, family, instruction, expected: strings); optional [[sounds]] "
     "(caption, at = [x, y]), [[images]] (path, object) and [[unparseable]] (instruction, "
     "fragment)"
