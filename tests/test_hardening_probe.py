@@ -575,3 +575,13 @@ def test_import_flags_are_checked_before_anything_is_read(tmp_path, capsys, flag
     assert main(["import", str(tmp_path / "src"), "--out", str(out), *flags]) == 2
     err = capsys.readouterr().err
     assert needle.replace("BAD", str(tmp_path / "bad.txt")) in err and not out.exists()
+
+
+@pytest.mark.parametrize("host", ["not a host", "", "1.2.3", "bad-.example", "a_b"])
+def test_view_refuses_a_host_that_is_no_address_or_hostname_before_serving(tmp_path, capsys, host):
+    from tabletop.cli import main
+
+    # checked before the map is even looked at (the map here does not exist)
+    assert main(["view", str(tmp_path / "none.npz"), "--host", host]) == 2
+    err = capsys.readouterr().err
+    assert f"--host {host!r} is neither an IP address nor a hostname" in err and "0.0.0.0" in err

@@ -24,12 +24,35 @@ def view_command(map_path, recording=None, eval_dir=None) -> str:
     return " ".join(shlex.quote(p) for p in parts)
 
 
+def check_host(host: str) -> str:
+    """``--host``: an IP address (``127.0.0.1``, ``0.0.0.0``, ``::1``) or a hostname (labels of
+    letters, digits and '-', dot-separated), checked before anything is served."""
+    import ipaddress
+    import re
+
+    try:
+        ipaddress.ip_address(host)
+        return host
+    except ValueError:
+        pass
+    label = re.compile(r"(?!-)[A-Za-z0-9-]{1,63}(?<!-)")
+    name = host[:-1] if host.endswith(".") else host
+    if 0 < len(name) <= 253 and all(label.fullmatch(p) for p in name.split(".")):
+        if not name.replace(".", "").isdigit():  # "1.2.3" is a malformed address, not a name
+            return host
+    raise ConfigError(
+        f"--host {host!r} is neither an IP address nor a hostname; give e.g. 127.0.0.1 (this "
+        "machine only, the default), 0.0.0.0 (every interface), ::1, or a name like localhost"
+    )
+
+
 def cmd_view(args: argparse.Namespace) -> int:
     from tabletop.viewer import require_viewer
 
     require_viewer()  # before the map is read: the message names the extra
     if not 0 <= args.port <= 65535:
         raise ConfigError(f"--port {args.port}: valid 0 (any free port) to 65535")
+    check_host(args.host)
     if args.reader is not None:
         from tabletop.reader.reading import READERS
 
