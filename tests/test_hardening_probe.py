@@ -585,3 +585,22 @@ def test_view_refuses_a_host_that_is_no_address_or_hostname_before_serving(tmp_p
     assert main(["view", str(tmp_path / "none.npz"), "--host", host]) == 2
     err = capsys.readouterr().err
     assert f"--host {host!r} is neither an IP address nor a hostname" in err and "0.0.0.0" in err
+
+
+def test_query_with_the_llm_reader_takes_the_endpoint_flags_its_message_names(
+    tmp_path, capsys, monkeypatch
+):
+    from tabletop.cli import main
+
+    for var in ("TABLETOP_LLM_BASE_URL", "TABLETOP_LLM_MODEL", "TABLETOP_LLM_API_KEY"):
+        monkeypatch.delenv(var, raising=False)
+    q = ["query", str(tmp_path / "none.npz"), "--obj", "red mug"]
+    assert main([*q, "--reader", "llm", "--llm-model", "m"]) == 2
+    err = capsys.readouterr().err
+    assert "needs base_url" in err and "TABLETOP_LLM_BASE_URL" in err and "--llm-url" in err
+    assert main([*q, "--llm-url", "http://127.0.0.1:9/v1"]) == 2
+    assert "--llm-url: only with --reader llm" in capsys.readouterr().err
+    # given both, the reader is made and the map is what is refused next
+    llm = ["--reader", "llm", "--llm-url", "http://127.0.0.1:9/v1", "--llm-model", "m"]
+    assert main([*q, *llm]) == 2
+    assert "none.npz" in capsys.readouterr().err

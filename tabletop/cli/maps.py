@@ -84,6 +84,29 @@ def cmd_build_map(args: argparse.Namespace) -> int:
     return 0
 
 
+def _query_reader(args: argparse.Namespace, get_reader):
+    """``--reader``; the llm reader's endpoint from ``--llm-config``, ``--llm-url`` and
+    ``--llm-model`` or the ``TABLETOP_LLM_*`` environment variables."""
+    from tabletop.errors import ConfigError
+
+    given = [f for f, v in (("--llm-url", args.llm_url), ("--llm-model", args.llm_model),
+                            ("--llm-config", args.llm_config)) if v is not None]  # fmt: skip
+    if args.reader != "llm":
+        if given:
+            raise ConfigError(f"{', '.join(given)}: only with --reader llm")
+        return get_reader(args.reader)  # an unknown name is refused
+    from tabletop.reader.llm import LLMReader
+    from tabletop.reader.llm_client import LLMConfig
+
+    if args.llm_config:
+        config = LLMConfig.from_file(args.llm_config).with_overrides(
+            base_url=args.llm_url, model=args.llm_model
+        )
+    else:
+        config = LLMConfig.from_env(base_url=args.llm_url, model=args.llm_model)
+    return LLMReader(config)
+
+
 def cmd_query(args: argparse.Namespace) -> int:
     from tabletop.mapping import AVLMap, fuse
     from tabletop.mapping.render import heatmap_view_paths, write_heatmap_views
@@ -96,7 +119,7 @@ def cmd_query(args: argparse.Namespace) -> int:
         from tabletop.mapping.persistence import check_map_encoders
 
         check_map_encoders(args.map, args.encoders)
-    reader = get_reader(args.reader)  # an unknown name is refused before the map is loaded
+    reader = _query_reader(args, get_reader)  # refused before the map is loaded
     m = AVLMap.load(args.map)
     parts = []
     for kind, major in (
@@ -186,5 +209,15 @@ def add_commands(sub) -> None:
         "--reader",
         default=DEFAULT_READER,
         help=f"the reader of the words: {', '.join(READERS)} (default: {DEFAULT_READER})",
+    )
+    p.add_argument("--llm-url", help="with --reader llm: chat endpoint root (or env var "
+                   "TABLETOP_LLM_BASE_URL), e.g. http://127.0.0.1:8000/v1")  # fmt: skip
+    p.add_argument("--llm-model", help="with --reader llm: model name the endpoint serves (or "
+                   "env var TABLETOP_LLM_MODEL)")  # fmt: skip
+    p.add_argument(
+        "--llm-config",
+        metavar="FILE",
+        help="with --reader llm: TOML file with an [llm] table (base_url, model, api_key_env, "
+        "timeout_s)",
     )
     p.set_defaults(func=cmd_query)
