@@ -514,7 +514,9 @@ class RobotAPI(abc.ABC):
         what stood there, so the mean of it and an object's centre floats above the table, and
         an arm approaching that point from above would stop a gripper's gap over it."""
         pa, pb = self.get_pos(a), self.get_pos(b)
-        if np.allclose(pa, pb, atol=1e-6):
+        # two names (or two heatmaps) that find the same place are one thing; a heatmap and
+        # a name may well be (a sound heard on the object is a place beside it, not it)
+        if type(a) is type(b) and np.allclose(pa, pb, rtol=0.0, atol=1e-6):
             raise PrimitiveArgumentError(
                 f"between(a=..., b=...): a {_shown(a)} and b {_shown(b)} are the same thing "
                 f"(both at ({pa[0]:.3f}, {pa[1]:.3f}, {pa[2]:.3f}) m): there is no place between "
