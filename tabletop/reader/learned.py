@@ -457,12 +457,6 @@ def _check(text: str, clause: str, relation: str, goals: list[Goal], times: int)
         )
     for g in goals:
         for part in (g.primary, *g.near):
-            if _CODE.search(part.text):
-                raise ParseError(
-                    text,
-                    part.text,
-                    "a place is named in words, not code (a call, a dotted name, a statement)",
-                )
             if part.kind == "img":
                 if not _IMAGE_PATH.search(part.text) or not _IMAGE_FILE.fullmatch(part.text):
                     raise ParseError(
@@ -472,6 +466,12 @@ def _check(text: str, clause: str, relation: str, goals: list[Goal], times: int)
                         "'the image ./goal.png' (.png, .jpg, .jpeg, .bmp, .webp, .tif, .gif)",
                     )
                 continue
+            if _CODE.search(part.text):
+                raise ParseError(
+                    text,
+                    part.text,
+                    "a place is named in words, not code (a call, a dotted name, a statement)",
+                )
             words = _ARTICLES.sub("", part.text.lower() + " ").split()
             if not words or set(words) <= POINTERS:
                 raise ParseError(text, part.text, "a word that points back names no place"

@@ -30,7 +30,7 @@ from tabletop.reader.plan import (
     Side,
     Step,
 )
-from tabletop.reader.rules import MAX_DISTANCE_M, MAX_REPEAT
+from tabletop.reader.rules import MAX_DISTANCE_M, MAX_REPEAT, refuse_negated
 from tabletop.reader.spelling import default_speller
 
 __all__ = ["PLAN_SCHEMA", "LLMReader", "plan_from_json"]
@@ -168,8 +168,6 @@ class LLMReader:
         if not isinstance(text, str):
             raise ConfigError(f"{kind}= must be a string, got {type(text).__name__}")
         text = default_speller().correct(text)[0]
-        from tabletop.reader.reading import refuse_negated
-
         refuse_negated(text)
         if kind == "area":
             from tabletop.reader.places import PlaceReader

@@ -32,7 +32,7 @@ from tabletop.reader.errors import ParseError
 from tabletop.reader.llm import LLMReader
 from tabletop.reader.places import PlaceReader
 from tabletop.reader.plan import Reading, Step
-from tabletop.reader.rules import MANNER, NEGATIONS, QUALIFIERS, parse_instruction
+from tabletop.reader.rules import MANNER, NEGATIONS, QUALIFIERS, parse_instruction, refuse_negated
 from tabletop.reader.spelling import Speller, default_speller, name_words
 
 __all__ = [
@@ -72,20 +72,6 @@ def _leads(text: str) -> list[tuple[str, str]]:
         (" ".join(words[:i]), " ".join(words[i:]))
         for i in range(1, min(len(words), MAX_WRAPPER_WORDS + 1))
     ]
-
-
-def refuse_negated(text: str) -> None:
-    """Refuse a reference that negates what it names ("not the red mug"): ParseError naming
-    the word. ("no" and "without" also describe, and pass: "the mug with no handle".)"""
-    negated = [
-        w for w in re.findall(r"[a-z']+", text.lower()) if w in NEGATIONS - {"no", "without"}
-    ]
-    if negated:
-        raise ParseError(
-            text,
-            negated[0],
-            "a reference names what to find; ask for what is there instead of what is not",
-        )
 
 
 class RulesReader:

@@ -54,6 +54,7 @@ __all__ = [
     "NEGATIONS",
     "QUALIFIERS",
     "parse_instruction",
+    "refuse_negated",
 ]
 
 MAX_REPEAT = 20
@@ -144,6 +145,21 @@ _RESERVED = (
     | QUALIFIERS
 )
 _ARTICLES = re.compile(r"^(?:(?:the|a|an|some|any|that|this)\s+)+")
+
+
+def refuse_negated(text: str) -> None:
+    """Refuse a reference that negates what it names ("not the red mug"): ParseError naming
+    the word. ("no" and "without" also describe, and pass: "the mug with no handle".)"""
+    negated = [
+        w for w in re.findall(r"[a-z']+", text.lower()) if w in NEGATIONS - {"no", "without"}
+    ]
+    if negated:
+        raise ParseError(
+            text,
+            negated[0],
+            "a reference names what to find; ask for what is there instead of what is not",
+        )
+
 
 _VERB = re.compile(
     r"^(?:please\s+)?(?:now\s+)?(?:let's\s+|(?:it's\s+)?time\s+to\s+)?(?:"
