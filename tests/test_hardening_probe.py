@@ -604,3 +604,11 @@ def test_query_with_the_llm_reader_takes_the_endpoint_flags_its_message_names(
     llm = ["--reader", "llm", "--llm-url", "http://127.0.0.1:9/v1", "--llm-model", "m"]
     assert main([*q, *llm]) == 2
     assert "none.npz" in capsys.readouterr().err
+
+
+def test_parse_refuses_endpoint_flags_it_would_ignore(capsys):
+    from tabletop.cli import main
+
+    assert main(["parse", "go to the mug", "--llm-url", "http://127.0.0.1:9/v1"]) == 2
+    assert "--llm-url: only with --backend llm" in capsys.readouterr().err
+    assert main(["parse", "go to the mug"]) == 0

@@ -44,6 +44,13 @@ def _add_backend_args(p: argparse.ArgumentParser) -> None:
 
 def _llm_config(args: argparse.Namespace):
     if args.backend != "llm":
+        given = [f for f, v in (("--llm-url", args.llm_url), ("--llm-model", args.llm_model),
+                                ("--llm-config", args.llm_config)) if v is not None]  # fmt: skip
+        if given:  # not silently ignored
+            raise ConfigError(
+                f"{', '.join(given)}: only with --backend llm (--reader llm reads its endpoint "
+                "from TABLETOP_LLM_BASE_URL and TABLETOP_LLM_MODEL)"
+            )
         return None
     from tabletop.language.llm import LLMConfig
 
