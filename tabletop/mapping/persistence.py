@@ -306,12 +306,7 @@ def read_map_preview(path: str | Path) -> MapPreview:
     disagree with its header; the full checks are :func:`read_map_file`'s."""
     from tabletop.grid import VoxelGrid
 
-    if not isinstance(path, (str, Path)):
-        raise MapFormatError(f"a map file is a path, got {type(path).__name__}")
-    problem = input_file_problem(path)
-    if problem:
-        raise MapFormatError(f"map file {str(path)!r} {problem}")
-    path = Path(path)
+    path = _map_path(path)
     names = ("voxel_linear", "voxel_counts", "voxel_color_sums", "frame_poses",
              "segment_positions")  # fmt: skip
     try:
@@ -408,14 +403,19 @@ def save_map(m, path: str | Path, *, rebuild: dict | None = None) -> Path:
     return path
 
 
-def read_map_file(path: str | Path) -> tuple[dict, dict[str, np.ndarray]]:
-    """The header and arrays of a map file, validated."""
+def _map_path(path: str | Path) -> Path:
+    """``path`` as a map file that can be read: MapFormatError for no path or no such file."""
     if not isinstance(path, (str, Path)):
         raise MapFormatError(f"a map file is a path, got {type(path).__name__}")
     problem = input_file_problem(path)
     if problem:
         raise MapFormatError(f"map file {str(path)!r} {problem}")
-    path = Path(path)
+    return Path(path)
+
+
+def read_map_file(path: str | Path) -> tuple[dict, dict[str, np.ndarray]]:
+    """The header and arrays of a map file, validated."""
+    path = _map_path(path)
     try:
         z = np.load(path, allow_pickle=False)
         if not isinstance(z, np.lib.npyio.NpzFile):  # one array (.npy), not an archive
