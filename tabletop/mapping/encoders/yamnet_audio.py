@@ -49,11 +49,12 @@ HEAD_VERSION = 1
 POOLED_DIM = 2 * YAMNET_DIM
 
 
-def pool_patches(embeddings: np.ndarray) -> np.ndarray:
-    """(2048,) float32: the mean and the max over patches of (P, 1024) patch embeddings."""
+def pool_patches(embeddings: np.ndarray, dim: int = YAMNET_DIM) -> np.ndarray:
+    """(2048,) float32: the mean and the max over patches of (P, 1024) patch embeddings
+    (``dim``: the size of another backbone's patch embeddings; the result is twice that)."""
     e = np.asarray(embeddings, np.float32)
-    if e.ndim != 2 or e.shape[1] != YAMNET_DIM or not len(e):
-        raise ConfigError(f"patch embeddings must be (P >= 1, {YAMNET_DIM}), got {e.shape}")
+    if e.ndim != 2 or e.shape[1] != dim or not len(e):
+        raise ConfigError(f"patch embeddings must be (P >= 1, {dim}), got {e.shape}")
     return np.concatenate([e.mean(axis=0), e.max(axis=0)])
 
 
@@ -62,7 +63,9 @@ class HeadWeights:
     """The head: ``normalize(relu(((x - mean) / std) @ w1 + b1) @ w2 + b2)``.
 
     ``mean``, ``std`` (2048,); ``w1`` (2048, H); ``b1`` (H,); ``w2`` (H, 384); ``b2`` (384,);
-    all float32. ``meta`` is JSON-like (the vocabulary, the training config and figures).
+    all float32 (2048: YAMNet's pooled features; a head on another backbone, such as aiSFX's
+    1024, has that input size instead). ``meta`` is JSON-like (the vocabulary, the training
+    config and figures).
     """
 
     mean: np.ndarray
@@ -76,16 +79,17 @@ class HeadWeights:
     def __post_init__(self) -> None:
         arrays = {k: np.asarray(getattr(self, k), np.float32) for k in _ARRAYS}
         h = arrays["w1"].shape[1] if arrays["w1"].ndim == 2 else -1
+        d = arrays["mean"].shape[0] if arrays["mean"].ndim == 1 else -1
         want = {
-            "mean": (POOLED_DIM,),
-            "std": (POOLED_DIM,),
-            "w1": (POOLED_DIM, h),
+            "mean": (d,),
+            "std": (d,),
+            "w1": (d, h),
             "b1": (h,),
             "w2": (h, 384),
             "b2": (384,),
         }
         for k, a in arrays.items():
-            if a.shape != want[k] or h < 1:
+            if a.shape != want[k] or h < 1 or d < 1:
                 raise AssetError(f"audio head: {k} has shape {a.shape}, expected {want[k]}")
             if not np.all(np.isfinite(a)):
                 raise AssetError(f"audio head: {k} holds NaN or inf")
@@ -93,6 +97,11 @@ class HeadWeights:
             object.__setattr__(self, k, a)
         if np.any(arrays["std"] <= 0):
             raise AssetError("audio head: std must be > 0")
+
+    @property
+    def input_dim(self) -> int:
+        """Size of the pooled features the head reads (2048 for YAMNet's)."""
+        return int(self.mean.shape[0])
 
     def __call__(self, pooled: np.ndarray) -> np.ndarray:
         """(N, 384) unit vectors of (N, 2048) pooled features."""
@@ -173,6 +182,11 @@ class YamnetAudioEncoder:
         path = self.weights.resolve()
         mtime = path.stat().st_mtime_ns if path.is_file() else -1
         self.head = _cached_head(str(path), mtime)
+        if self.head.input_dim != POOLED_DIM:
+            raise AssetError(
+                f"{self.weights} reads {self.head.input_dim} pooled features, not YAMNet's "
+                f"{POOLED_DIM}: a head of another backbone ({self.head.meta.get('backbone')!r})"
+            )
         self.meta = self.head.meta
         self.backbone = (
             backbone if backbone is not None else YamnetBackbone(num_threads=num_threads)
