@@ -93,3 +93,17 @@ def test_bad_checkpoint(tmp_path) -> None:
     bad.write_bytes(b"not a checkpoint")
     with pytest.raises(AssetError, match="cannot read"):
         AisfxBackbone(bad)
+
+
+def test_head_config_and_encoder_refusals(backbone: AisfxBackbone, tmp_path) -> None:
+    from tabletop.mapping.encoders.aisfx_audio import AisfxAudioEncoder
+    from tabletop.mapping.encoders.yamnet_audio import DEFAULT_HEAD_WEIGHTS
+    from tabletop.train.audio_head import HeadTrainConfig
+
+    with pytest.raises(ConfigError, match="must not replace the shipped YAMNet head"):
+        HeadTrainConfig(backbone="aisfx")
+    with pytest.raises(ConfigError, match="backbone must be one of"):
+        HeadTrainConfig(backbone="vggish", out=tmp_path / "h.npz")
+    assert HeadTrainConfig(backbone="aisfx", out=tmp_path / "h.npz").backbone == "aisfx"
+    with pytest.raises(AssetError, match="another backbone"):
+        AisfxAudioEncoder(DEFAULT_HEAD_WEIGHTS, backbone=backbone)
