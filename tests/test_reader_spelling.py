@@ -66,3 +66,23 @@ def test_bad_input_and_config_are_refused():
         Speller(vocabulary=["cat"], english=[]).correct(3)
     with pytest.raises(ConfigError, match="lengths must increase"):
         SpellingConfig(max_edits=((4, 1), (3, 2)))
+
+
+@pytest.mark.parametrize(
+    "text",
+    [
+        "tik tik tik went the clock",  # alone, "tik" would be taken for "tick"
+        "the phone going brrring-brrring",  # alone, "brrring" would be "bring"
+        "a bok-bok bok-bok",  # alone, "bok" would be "book"
+    ],
+)
+def test_a_word_typed_twice_in_a_row_is_an_imitation_and_kept(speller, text):
+    assert speller.correct(text) == (text, ())
+    # the same words alone are slips
+    assert speller.correct("the bok")[0] == "the book"
+    assert speller.correct("tik")[0] == "tick"
+
+
+def test_a_british_stem_with_a_suffix_is_a_real_word_not_a_run_together(speller):
+    assert speller.correct("the centremost square") == ("the centremost square", ())
+    assert speller.correct("the colourful mug") == ("the colourful mug", ())

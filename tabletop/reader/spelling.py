@@ -27,6 +27,7 @@ No list of slips is kept: every correction comes from the distance to the vocabu
 from __future__ import annotations
 
 import functools
+import itertools
 import re
 import tomllib
 from collections.abc import Iterable
@@ -241,6 +242,16 @@ def _common_words(n: int = 300) -> frozenset[str]:
     return frozenset(words[:n]) | {"a", "i"}
 
 
+def _imitations(tokens: list[str]) -> frozenset[str]:
+    """Words typed twice or more in a row ("bok bok", "tick-tock tick-tock"): people write a
+    sound they imitate so, and a slip is not repeated letter for letter; such words are kept
+    as typed."""
+    words = [t.lower().strip('.,;:!?"()') for t in tokens if t.strip()]
+    pieces = [p for w in words for p in (w.split("-") if "-" in w else [w])]
+    out = {a for a, b in itertools.pairwise(pieces) if a == b and a}
+    return frozenset(out | {w for w in words if set(w.split("-")) & out})
+
+
 @functools.cache
 def default_speller() -> Speller:
     """The speller of the shipped vocabulary, built once and shared by every reader."""
@@ -284,17 +295,23 @@ class Speller:
         """A word made regularly from a known one: a British spelling of an American one
         ("centre", "colour", "realise") or a known stem with a common English suffix ("quacky",
         "roundish", "stackable", "trombonist", "cowbells")."""
-        common = lambda w: self.english.get(w, 0) >= RARE_COUNT or w in self.vocabulary  # noqa: E731
-        for a, b in _SPELLING_VARIANTS:
-            if a in word and common(word.replace(a, b)):
-                return True
+
+        def common(w: str) -> bool:
+            return self.english.get(w, 0) >= RARE_COUNT or w in self.vocabulary
+
+        def british(w: str) -> bool:
+            return any(a in w and common(w.replace(a, b)) for a, b in _SPELLING_VARIANTS)
+
+        if british(word):
+            return True
         for suffix in _SUFFIXES:
             stem = word[: -len(suffix)]
             if word.endswith(suffix) and len(stem) >= 3:
                 stems = {stem, stem + "e", stem[:-1] if stem[-1:] == stem[-2:-1] else stem}
                 if stem.endswith("i"):
                     stems.add(stem[:-1] + "y")
-                if any(common(t) for t in stems):
+                # the stem may be spelt the British way itself ("centremost")
+                if any(common(t) or british(t) for t in stems):
                     return True
         return False
 
@@ -364,12 +381,14 @@ class Speller:
             raise ConfigError(f"text must be a string, got {type(text).__name__}")
         out: list[str] = []
         fixes: list[Correction] = []
-        for token in re.split(r"(\s+)", text):
+        tokens = re.split(r"(\s+)", text)
+        imitations = _imitations(tokens)
+        for token in tokens:
             word = token.lower().strip('.,;:!?"()')
             if not token.strip() or "/" in token or not _WORD.fullmatch(word):
                 out.append(token)
                 continue
-            new, why = self._fix(word)
+            new, why = (None, "") if word in imitations else self._fix(word)
             if new is None:
                 out.append(token)
             else:
