@@ -35,6 +35,11 @@ def test_lab_of_reference_colours():
         # compounds ending in a colour name are one colour phrase
         ("the round toy pillar in grass-green", "grass-green", "the round toy pillar"),
         ("the sage-green block", "sage-green", "the block"),
+        # a compound before a colour name names the shade by a thing of that colour: its
+        # words are not the thing's
+        ("the pillar-box red ball", "pillar-box red", "the ball"),
+        ("the ball, fire-truck-red red", "fire-truck-red red", "the ball"),
+        ("the tin-can toy", "", "the tin can toy"),  # no colour after it: the thing's words
         # ... or the lexicon's own two-word name, hyphenated
         ("the jet-black domino", "jet black", "the domino"),
         ("the little snow-white duck", "snow white", "the little duck"),

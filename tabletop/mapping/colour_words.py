@@ -350,7 +350,8 @@ def _colour_positions(text: str, extra: frozenset[str]) -> tuple[list[str], list
     positions of its colour words (lexicon names and ``extra``)."""
     raw = _WORD.findall(str(text).lower().replace("-ish", "ish"))
     words: list[str] = []
-    for w in raw:
+    shades: set[int] = set()
+    for j, w in enumerate(raw):
         parts = w.split("-")
         if w in COLOR_NAMES or len(parts) == 1:
             words.append(w)
@@ -358,6 +359,11 @@ def _colour_positions(text: str, extra: frozenset[str]) -> tuple[list[str], list
             words += parts  # "light-grey" is "light grey"
         elif _ish(parts[-1]) in COLOR_NAMES or "-".join(parts[-2:]) in COLOR_NAMES:
             words.append(w)  # "grass-green", "sky-blue", "jet-black": one colour word
+        elif j + 1 < len(raw) and _ish(raw[j + 1]) in COLOR_NAMES and raw[j + 1] not in _THING:
+            # a compound before a colour name names its shade by a thing of that colour
+            # ("pillar-box red", "egg-yolk yellow"): its words are no words of the thing
+            shades.add(len(words))
+            words.append(w)
         else:
             words += parts
     names = set(COLOR_NAMES) | extra | {_ish(w) for w in extra}
@@ -377,8 +383,10 @@ def _colour_positions(text: str, extra: frozenset[str]) -> tuple[list[str], list
             i += 2
             continue
         w = words[i]
-        if is_colour(w) or (
-            w in COLOR_MODIFIERS and i + 1 < len(words) and is_colour(words[i + 1])
+        if (
+            i in shades
+            or is_colour(w)
+            or (w in COLOR_MODIFIERS and i + 1 < len(words) and is_colour(words[i + 1]))
         ):
             where.append(i)
         i += 1
