@@ -302,3 +302,19 @@ def test_sound_words_file_errors_name_the_file(tmp_path):
     p.write_text('[words]\ndog = ["a pooch"]\n[others]\nhumming = "someone humming"\n')
     with pytest.raises(AssetError, match=r"\[others\].humming must be a non-empty list"):
         load_other_sounds(p)
+
+
+def test_a_query_for_sound_in_general_is_refused_naming_why(module):
+    from tabletop.mapping.sound_vocabulary import GENERAL
+
+    for query in ("a noise", "some sound", "the sound of nothing at all"):
+        h = module.heatmap(query, 10.0, text_encoder(), judge_at(0.5))
+        assert not h.found, query
+        assert "names no particular sound" in h.reason, h.reason
+    # a known sound said with "noise" is still that sound
+    assert module.heatmap("that barking noise", 10.0, text_encoder(), judge_at(0.5)).found
+    # the refusal is the margin's: with none, the vague words ask for known sounds
+    m = SoundMatcher(VOCAB, text_encoder())
+    assert m.match("a noise", np.zeros((1, 384))).other == GENERAL
+    loose = SoundMatcher(VOCAB, text_encoder(), others={}, general_margin=10.0)
+    assert loose.match("a noise", np.zeros((1, 384))).known

@@ -31,7 +31,7 @@ from tabletop.grid import VoxelGrid
 from tabletop.mapping.area_module import normalize_scores
 from tabletop.mapping.audio_segments import AudioSegment, NoiseGateConfig, segment_audio
 from tabletop.mapping.heatmaps import Heatmap, Judge, scored_points_heatmap_xy
-from tabletop.mapping.sound_vocabulary import SoundMatcher, SoundVocabulary
+from tabletop.mapping.sound_vocabulary import GENERAL, SoundMatcher, SoundVocabulary
 
 __all__ = ["REFERENCE_SOUNDS", "AudioConfig", "AudioModule"]
 
@@ -264,6 +264,18 @@ class AudioModule:
 
     def _vocabulary_heatmap(self, query: str, decay: float, text, judge: Judge) -> Heatmap:
         m = self.match(query, text)
+        if not m.known and m.other == GENERAL:
+            nearest = self.vocabulary.caption(m.nearest)
+            return Heatmap.not_found(
+                self.grid,
+                query,
+                "sound",
+                decay,
+                f"{query!r} names no particular sound: it reads as sound in general "
+                f"(similarity {m.other_score:.2f}) more than as any sound the audio encoder "
+                f"knows (nearest: {nearest!r}, {m.text_score:.2f}); say what made it or how it "
+                "sounds",
+            )
         if not m.known and m.other:
             return Heatmap.not_found(
                 self.grid,
