@@ -412,7 +412,17 @@ def test_heatmap_arithmetic_other_than_fusing_two_heatmaps_is_refused_by_name(or
     from tabletop.robot import MobileBase
 
     h = MobileBase(oracle_map).get_major_map(obj="mug")
-    for bad in (lambda: h * 5, lambda: 5 * h, lambda: h * np.zeros((3, 3)), lambda: h + h):
+    bad_ones = (
+        lambda: h * 5,
+        lambda: 5 * h,
+        lambda: h * np.zeros((3, 3)),
+        lambda: h + h,
+        # numpy's operators defer to the heatmap's: no bare array comes back
+        lambda: np.zeros((3, 3)) * h,
+        lambda: np.float64(2.0) * h,
+        lambda: np.ones(h.values.shape) - h,
+    )
+    for bad in bad_ones:
         with pytest.raises(TypeError, match=r"Heatmap . \w+.*only arithmetic on heatmaps"):
             bad()
     assert (h * h).values.shape == h.values.shape  # fusing two heatmaps still works

@@ -206,6 +206,10 @@ class Heatmap:
     def __array__(self, dtype=None, copy=None) -> np.ndarray:
         return np.array(self.values, dtype=dtype)
 
+    # numpy's operators defer to the heatmap's own (an array or numpy scalar times a heatmap is
+    # refused by name, not turned into a bare array that has lost what the heatmap says)
+    __array_ufunc__ = None
+
 
 def _arithmetic_refused(op: str, other: object) -> str:
     """Why heatmap arithmetic other than ``Heatmap * Heatmap`` is refused."""
