@@ -10,9 +10,6 @@ durations here are robot time and the motions are short.
 """
 
 import importlib.util
-import random
-import socket
-import subprocess
 import sys
 import threading
 import time
@@ -28,6 +25,7 @@ from tabletop.arm.errors import (
     MotionStoppedShort,
     SafetyError,
 )
+from tabletop.arm.franky_sim import FrankySimServer, free_loopback
 from tabletop.arm.model import HOME_Q, PandaModel
 from tabletop.arm.trajectory import PANDA_LIMITS, TrajectoryConfig, time_parametrize
 from tabletop.errors import ConfigError
@@ -40,64 +38,22 @@ pytestmark = pytest.mark.skipif(
 )
 
 REFLEX_SERVER = "franky_sim_reflex_server.py"
-FCI_PORT = 1337  # libfranka's command port (fixed by the protocol)
 
 
-def _listening(host: str) -> bool:
-    with socket.socket() as s:
-        s.settimeout(0.2)
-        return s.connect_ex((host, FCI_PORT)) == 0
-
-
-def _free_loopback() -> str:
-    rng = random.Random()
-    for _ in range(50):
-        host = f"127.{rng.randrange(1, 250)}.{rng.randrange(0, 250)}.{rng.randrange(2, 250)}"
-        if _listening(host):
-            continue
-        try:
-            with socket.socket() as s:
-                s.bind((host, FCI_PORT))
-        except OSError:
-            continue
-        return host
-    pytest.skip("no free loopback address for franky-sim (tried 50)")
-
-
-class SimServer:
-    """A franky-sim server process on its own loopback address."""
+class SimServer(FrankySimServer):
+    """A franky-sim server on its own loopback address; the test skips, saying why, when it
+    does not start."""
 
     def __init__(self, timeout: float = 60.0, reflexes: bool = False) -> None:
-        self.host = _free_loopback()
-        cmd = [sys.executable, "-u", "-m", "franky_sim.run_server", "-s", "mujoco"]
-        if reflexes:  # franky-sim plus the real robot's joint position limit reflex
-            cmd = [sys.executable, "-u", str(Path(__file__).with_name(REFLEX_SERVER))]
-        self.proc = subprocess.Popen(
-            [*cmd, "--hostname", self.host],
-            stdout=subprocess.PIPE,
-            stderr=subprocess.STDOUT,
-            text=True,
-        )
-        self.output: list[str] = []
-        ready = threading.Event()
-
-        def pump() -> None:  # keep reading so the server never blocks on a full pipe
-            for line in self.proc.stdout:
-                self.output.append(line)
-                if "Connect to the server" in line:
-                    ready.set()
-
-        threading.Thread(target=pump, daemon=True).start()
-        t_end = time.monotonic() + timeout
-        while not ready.wait(0.2):
-            if self.proc.poll() is not None or time.monotonic() > t_end:
-                self.kill()
-                pytest.skip("franky-sim did not start: " + "".join(self.output)[-800:])
+        # with reflexes: franky-sim plus the real robot's joint position limit reflex
+        cmd = [sys.executable, "-u", str(Path(__file__).with_name(REFLEX_SERVER))]
+        try:
+            super().__init__(timeout, cmd if reflexes else None)
+        except DriverError as exc:
+            pytest.skip(str(exc))
 
     def kill(self) -> None:
-        if self.proc.poll() is None:
-            self.proc.kill()
-        self.proc.wait(timeout=10)
+        self.close()
 
 
 @pytest.fixture(scope="module")
@@ -249,7 +205,7 @@ def test_the_gripper_moves_and_reports_its_width(driver):
 def test_nothing_listening_is_a_refused_connection():
     from tabletop.arm.franky_driver import FrankyDriver
 
-    host = _free_loopback()
+    host = free_loopback()
     t = time.monotonic()
     with pytest.raises(ConnectionRefused, match=f"could not connect to a Franka robot at {host}"):
         FrankyDriver(host, realtime=False)
@@ -326,17 +282,24 @@ def test_a_limit_reflex_is_a_typed_error_and_the_driver_recovers(model):
         srv.kill()
 
 
-def test_the_goal_reaching_loop_runs_through_franky_as_in_the_simulator(driver, model):
+@pytest.fixture(scope="module")
+def scanned():
+    from robot_helpers import scan_and_map
+
+    return scan_and_map()
+
+
+def test_the_goal_reaching_loop_runs_through_franky_as_in_the_simulator(driver, model, scanned):
     """A map from a PyBullet scan, ``ArmRobot(map, FrankyDriver)``: a goal is reached through
     libfranka's protocol (the local path sent as whole trajectories), the MuJoCo arm ends where
     the map's target says, and where the PyBullet arm ends. (One goal: each goal kind reaches
     the same controller, and a motion here runs in the simulator's real time.)"""
-    from robot_helpers import box_distance, scan_and_map
+    from robot_helpers import box_distance
 
     from tabletop.robot import SimArm
     from tabletop.robot.arm import ArmRobot
 
-    rec, m = scan_and_map()
+    rec, m = scanned
     gt = {o["name"]: o for o in rec.ground_truth["objects"]}
     goals = [("obj", dict(obj="red mug"), gt["red_mug"])]
     robots = {"franky": ArmRobot(m, driver, model), "pybullet": SimArm(m, "default")}
@@ -358,3 +321,33 @@ def test_the_goal_reaching_loop_runs_through_franky_as_in_the_simulator(driver, 
         assert driver.last_tracking is not None and driver.last_tracking.final_error < 0.01
     finally:
         robots["pybullet"].close()
+
+
+def test_the_demo_arm_runs_its_own_franky_sim_and_counts_contacts_in_a_mirror(scanned):
+    """``FrankySimArm`` (``tabletop demo --driver franky-sim``): it starts its own server, moves
+    home through franky, reaches a goal, replays the measured joints in a PyBullet copy of the
+    scene to count contacts, and kills the server when closed."""
+    from robot_helpers import box_distance
+
+    from tabletop.robot.franky_arm import FrankySimArm
+
+    rec, m = scanned
+    gt = {o["name"]: o for o in rec.ground_truth["objects"]}
+    arm = FrankySimArm(m, "default")
+    try:
+        assert arm.server.running and arm.driver.robot_model == "fr3"
+        assert np.abs(arm.driver.read_state().q - HOME_Q).max() < arm.driver.goal_tolerance
+        res = arm.move_to(arm.get_max_pos_3d(arm.get_major_map(obj="red mug")))
+        assert res.reached, res.reason
+        assert box_distance(res.final_tcp, gt["red_mug"]) <= 0.10
+        assert arm.contacts == [0] and arm.reflexes == 0
+        reps = arm.tracking_reports
+        assert reps and reps[-1].final_error < 0.01 and reps[-1].max_error > 0
+        # the mirror counts what it should: the arm pitched down into the table touches it
+        into_table = HOME_Q.copy()
+        into_table[1] = 1.6
+        assert arm._count_contacts([np.array([into_table])]) > 0
+        assert arm._count_contacts([np.array([HOME_Q])]) == 0
+    finally:
+        arm.close()
+    assert not arm.server.running and arm.driver.closed

@@ -67,6 +67,8 @@ class EvalResult:
                     "figures": t.figures,
                     "map_file": t.map_path,
                     "recording_dir": t.recording_path,
+                    "driver": t.driver,
+                    **({"tracking": t.tracking} if t.tracking else {}),
                     "goals": [g.to_json() for g in t.goals],
                 }
                 for t in r.tasks

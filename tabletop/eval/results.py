@@ -110,6 +110,8 @@ class TaskRun:
     success_radius: float = SUCCESS_RADIUS_M  # [m]
     map_path: str = ""  # the map file the goals ran on (in the cache; "" without one)
     recording_path: str = ""  # its (clean) recording's directory in the cache ("" without one)
+    driver: str = "sim"  # what moved the arm: "sim" (PyBullet) or "franky-sim" (see DRIVERS)
+    tracking: dict = field(default_factory=dict)  # franky-sim: tracking errors and reflexes
 
 
 @dataclass

@@ -384,6 +384,7 @@ def evaluate_task_file(
     scan_overrides: dict | None = None,
     noise: dict | None = None,
     reader: str = DEFAULT_READER,
+    driver: str = "sim",
 ) -> TaskRun:
     """Scan (or reuse), map (or reuse), run every goal of ``tf`` with the encoder set ``encoders``,
     its words read by the reader called ``reader``; write the figures into ``figures_dir`` when
@@ -392,7 +393,12 @@ def evaluate_task_file(
     replace the task file's ``[scan]`` ones (e.g. ``{"snr_db": 5.0}``: the same scan, sounds 10
     dB quieter); ``noise``: :class:`~tabletop.sim.noise.NoiseConfig` fields that replace the
     task file's ``[noise]`` ones (the clean scan is taken from the cache and the noise applied
-    to it, so a noisy run costs a map, not a scan)."""
+    to it, so a noisy run costs a map, not a scan). ``driver``: what moves the arm
+    (:data:`DRIVERS`): the PyBullet simulator, or an FR3 on franky-sim through libfranka's
+    protocol (:class:`~tabletop.robot.franky_arm.FrankySimArm`; its contacts are counted in a
+    PyBullet mirror of the scene, and the run's ``tracking`` holds franky's tracking errors
+    and the reflexes)."""
+    _check_driver(driver, tf.robot.kind)
     if tf.robot.kind == "mobile":
         return evaluate_room_task_file(
             tf,
@@ -427,7 +433,12 @@ def evaluate_task_file(
     # Resolve every truth before anything moves: a wrong reference is a task-file error.
     truth = GroundTruth.of(rec)
     regions = _resolve_goals(tf, truth)
-    robot = SimArm(m, spec)
+    if driver == "franky-sim":
+        from tabletop.robot.franky_arm import FrankySimArm
+
+        robot = FrankySimArm(m, spec)
+    else:
+        robot = SimArm(m, spec)
     robot.reader = reader  # every goal's words, instructions and queries alike
     ctx = _Context(robot, m, spec, rec)
     if figures_dir is not None:
@@ -455,6 +466,8 @@ def evaluate_task_file(
             noise=sensor.to_dict() if sensor.any else {},
             map_path=_path_str(map_path),
             recording_path=_path_str(rec_path),
+            driver=driver,
+            tracking=_tracking(robot) if driver == "franky-sim" else {},
         )
         if figures_dir is not None:
             from tabletop.eval.report import write_task_figures
@@ -466,6 +479,33 @@ def evaluate_task_file(
         ctx.close()
         robot.close()
     return run
+
+
+#: What can move the arm in an evaluation: the PyBullet simulator, or franky-sim's FR3.
+DRIVERS = ("sim", "franky-sim")
+
+
+def _check_driver(driver: str, robot: str) -> None:
+    if driver not in DRIVERS:
+        raise ConfigError(f"driver must be one of {list(DRIVERS)}, got {driver!r}")
+    if driver != "sim" and robot != "arm":
+        raise ConfigError(f"driver {driver!r} moves the arm; the {robot} suites run on 'sim'")
+
+
+def _tracking(robot) -> dict:
+    """franky's tracking of the run's executed trajectories: the worst and mean of their
+    largest joint errors (measured against franky's command), their final errors [rad], and
+    the reflexes."""
+    reps = robot.tracking_reports
+    worst = [r.max_error for r in reps]
+    final = [r.final_error for r in reps]
+    return {
+        "trajectories": len(reps),
+        "max_error_rad": float(max(worst, default=0.0)),
+        "mean_max_error_rad": float(np.mean(worst)) if worst else 0.0,
+        "max_final_error_rad": float(max(final, default=0.0)),
+        "reflexes": int(robot.reflexes),
+    }
 
 
 def _path_str(p) -> str:
@@ -605,6 +645,7 @@ def run_eval(
     reader: str = DEFAULT_READER,
     workers: int | None = None,
     ray: str | None = None,
+    driver: str = "sim",
 ):
     """Evaluate task files (paths, directories, shipped names or :class:`TaskFile`s) with one
     or more encoder sets, their words read by ``reader``; write the report into ``out_dir``
@@ -637,6 +678,7 @@ def run_eval(
     if not names:
         raise ConfigError("give at least one encoder set")
     get_reader(reader)  # an unknown reader is refused before anything runs
+    _check_driver(driver, kinds[0] if kinds else "arm")
     cb: Progress | None = progress or None
     out = Path(out_dir) if out_dir is not None else None
     if not backend.serial:
@@ -644,7 +686,7 @@ def run_eval(
             files, names, backend, out, cb,
             dict(
                 cache_dir=cache_dir, map_overrides=map_overrides, scan_overrides=scan_overrides,
-                noise=noise, reader=reader,
+                noise=noise, reader=reader, driver=driver,
             ),
         )  # fmt: skip
         result = EvalResult([str(f.path or f.name) for f in files], runs, out, reader)
@@ -671,6 +713,7 @@ def run_eval(
                 scan_overrides=scan_overrides,
                 noise=noise,
                 reader=reader,
+                driver=driver,
             )
             er.tasks.append(tr)
         er.encoder_names = dict(er.tasks[0].encoder_names)
