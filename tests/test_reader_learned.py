@@ -188,3 +188,23 @@ def test_a_reading_never_drops_a_named_thing_nor_merges_two_relations():
     rels[6:, RELATIONS.index("right")] = np.log(0.6)  # unsure words: one relation is read
     (step,) = decode(" ".join(words), words, roles, rels, "arm", parse_instruction)
     assert step.action == Side("front", "duck")
+
+
+def test_words_sure_of_a_motion_the_grammar_cannot_read_are_no_second_request():
+    # the tagger is sure of a motion on the words before a side: a second request only when
+    # the grammar reads those words as a motion
+    def sure(words, motion_words, side="front"):
+        rels = np.log(np.full((len(words), len(RELATIONS)), 0.001))
+        rels[:, RELATIONS.index(side)] = np.log(0.99)
+        rels[:motion_words, :] = np.log(0.001)
+        rels[:motion_words, RELATIONS.index("motion")] = np.log(0.99)
+        return rels
+
+    words = "move 10 cm left in front of the duck".split()
+    roles = ["O"] * 7 + ["B-OBJ", "I-OBJ"]
+    with pytest.raises(ParseError, match="front and motion at once"):
+        decode(" ".join(words), words, roles, sure(words, 4), "arm", parse_instruction)
+    words = "wander yonder sideways in front of the duck".split()
+    roles = ["O"] * 6 + ["B-OBJ", "I-OBJ"]
+    (step,) = decode(" ".join(words), words, roles, sure(words, 3), "arm", parse_instruction)
+    assert step.action == Side("front", "duck")

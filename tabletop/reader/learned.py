@@ -38,11 +38,15 @@ from tabletop.reader.plan import (
     Above,
     BackAndForth,
     Between,
+    Compass,
+    Face,
+    Forward,
     Goal,
     GoTo,
     Part,
     Side,
     Step,
+    Turn,
 )
 from tabletop.relations import SIDES
 
@@ -519,14 +523,33 @@ def _keeps_what_it_names(text: str, words: list[str], own: list[str], chosen: li
         )
 
 
-def _one_relation(text: str, clause: str, rel_logp: np.ndarray) -> None:
+#: The steps a ``motion`` is read as (by the grammar): moves by a distance, a base's own.
+_MOTIONS = (Compass, Forward, Turn, Face)
+
+
+def _one_relation(
+    text: str, clause: str, rel_logp: np.ndarray, words=None, rules=None, robot: str = "arm"
+) -> None:
     """Refuse a step whose words are sure of two different relations (:data:`SURE_RELATION`
     on :data:`SURE_WORDS` words each): two requests run together without a joining word the
-    tagger read ("move in front of the duck, then to the right of it")."""
+    tagger read ("move in front of the duck, then to the right of it").
+
+    A ``motion`` is read by the grammar (``rules(clause, robot)``): words sure of it that the
+    grammar does not read as a motion ask for none, and are no second request (a way of
+    saying "go" that the tagger took for a motion)."""
     sure = np.exp(rel_logp.max(axis=1)) >= SURE_RELATION
     best = rel_logp.argmax(axis=1)
     held = {RELATIONS[r] for r in np.unique(best[sure]) if (best[sure] == r).sum() >= SURE_WORDS}
     held -= {"none"}
+    if len(held) > 1 and "motion" in held and words is not None and rules is not None:
+        m = RELATIONS.index("motion")
+        span = " ".join(w for w, b, s in zip(words, best, sure, strict=True) if s and b == m)
+        try:
+            read = rules(span, robot)
+        except ParseError:
+            read = ()
+        if not any(isinstance(st.action, _MOTIONS) for st in read):
+            held.discard("motion")
     if len(held) > 1:
         raise ParseError(
             text,
@@ -590,7 +613,7 @@ def decode(text: str, words: list[str], roles: list[str], relations, robot: str,
                                  step_roles)  # fmt: skip
         else:
             step_roles, relation = [roles[i] for i in idx], _relation(relations[idx])
-        _one_relation(text, clause, relations[idx])
+        _one_relation(text, clause, relations[idx], [words[i] for i in idx], rules, robot)
         times = _count([words[i] for i, r in zip(idx, step_roles, strict=True) if r == "REP"])
         said = _said_times([words[i] for i in idx])
         if said is not None and (times == 1 or said > MAX_TIMES_SAID):
