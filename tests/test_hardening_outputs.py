@@ -162,3 +162,37 @@ def test_a_second_process_waits_for_the_first_to_leave_an_exclusive_block(tmp_pa
     second = subprocess.Popen([sys.executable, "-c", code, *args, "second", "0"])
     assert first.wait(60) == 0 and second.wait(60) == 0
     assert log.read_text().split("\n")[:4] == ["first in", "first out", "second in", "second out"]
+
+
+def test_ctrl_c_during_a_command_ends_it_with_a_line_not_a_traceback(tmp_path):
+    """Ctrl-C while ``tabletop scan`` runs: exit status 130, one line saying it was interrupted,
+    no traceback, and no recording left behind."""
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    out = tmp_path / "rec"
+    code = (
+        "import signal, sys; signal.signal(signal.SIGINT, signal.default_int_handler); "
+        "from tabletop.cli import main; sys.exit(main(['scan', '--out', sys.argv[1]]))"
+    )
+    proc = subprocess.Popen(
+        [sys.executable, "-c", code, str(out)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    deadline = time.monotonic() + 120
+    seen = []
+    for line in proc.stderr:  # the simulator loaded or the scan's progress: it is under way
+        seen.append(line)
+        if "pybullet" in line or "frames" in line:
+            break
+        assert time.monotonic() < deadline, "the scan never started"
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=60)
+    err = "".join(seen) + err
+    assert proc.returncode == 130, err[-500:]
+    assert "tabletop scan: interrupted" in err and "Traceback" not in err
+    assert not out.exists()

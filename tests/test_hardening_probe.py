@@ -62,6 +62,20 @@ def test_a_map_path_of_the_wrong_type_or_a_single_array_is_named(tmp_path):
         AVLMap.load(None)
 
 
+def test_a_map_whose_header_member_is_not_an_array_is_named(tmp_path):
+    import zipfile
+
+    from tabletop.mapping.persistence import read_map_preview
+
+    p = tmp_path / "junk.npz"
+    with zipfile.ZipFile(p, "w") as z:  # numpy hands back a non-.npy member as raw bytes
+        z.writestr("header.npy", b"not an array at all")
+        z.writestr("voxel_linear.npy", b"nor this")
+    for read in (AVLMap.load, read_map_preview):
+        with pytest.raises(MapFormatError, match="junk.npz"):
+            read(p)
+
+
 @pytest.mark.parametrize(
     ("url", "why"),
     [

@@ -48,3 +48,6 @@ def main(argv: list[str] | None = None) -> int:
     except TabletopError as e:
         print(f"tabletop {args.command}: error: {e}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:  # Ctrl-C (or a kill): the work's partial outputs are removed
+        print(f"tabletop {args.command}: interrupted", file=sys.stderr)
+        return 130

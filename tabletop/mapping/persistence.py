@@ -208,6 +208,14 @@ def check_map_scene(path: str | Path, source: dict | None, spec_dict: dict, name
         )
 
 
+def _header_bytes(member) -> bytes:
+    """The bytes of a map file's ``header`` member; ``ValueError`` when it is no array (numpy
+    hands back the raw bytes of a member that is no ``.npy`` file)."""
+    if not isinstance(member, np.ndarray):
+        raise ValueError("its header member is not an array")
+    return member.tobytes()
+
+
 def _read_header(path: Path) -> dict:
     """The JSON header of a map file, read without its arrays (:class:`MapFormatError` when
     there is none)."""
@@ -216,7 +224,7 @@ def _read_header(path: Path) -> dict:
         raise MapFormatError(f"map file {str(path)!r} {problem}")
     try:
         with np.load(path, allow_pickle=False) as z:
-            header = json.loads(z["header"].tobytes().decode())
+            header = json.loads(_header_bytes(z["header"]).decode())
     except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile, UnicodeDecodeError):
         raise MapFormatError(f"{path} is not a readable {MAP_FORMAT} file") from None
     if not isinstance(header, dict) or header.get("format") != MAP_FORMAT:
@@ -311,7 +319,7 @@ def read_map_preview(path: str | Path) -> MapPreview:
              "segment_positions")  # fmt: skip
     try:
         with np.load(path, allow_pickle=False) as z:
-            h = json.loads(z["header"].tobytes().decode())
+            h = json.loads(_header_bytes(z["header"]).decode())
             a = {k: z[k] for k in names}
             inst = z["voxel_instance"] if "voxel_instance" in z.files else None
     except (ValueError, KeyError, OSError, EOFError, zipfile.BadZipFile, UnicodeDecodeError) as e:
@@ -432,8 +440,8 @@ def read_map_file(path: str | Path) -> tuple[dict, dict[str, np.ndarray]]:
     if "header" not in arrays:
         raise MapFormatError(f"{path} has no header: not a {MAP_FORMAT} file")
     try:
-        h = json.loads(arrays.pop("header").tobytes().decode())
-    except (UnicodeDecodeError, json.JSONDecodeError) as e:
+        h = json.loads(_header_bytes(arrays.pop("header")).decode())
+    except (UnicodeDecodeError, json.JSONDecodeError, ValueError) as e:
         raise MapFormatError(f"{path}: header is not valid JSON: {e}") from None
     if not isinstance(h, dict) or h.get("format") != MAP_FORMAT:
         got = h.get("format") if isinstance(h, dict) else h
