@@ -50,6 +50,8 @@ def cmd_eval(args: argparse.Namespace) -> int:
         if not args.no_cache:
             _check_directory_flag("--cache-dir", args.cache_dir)
         _check_backend_flags(args)
+        if args.goals and not args.json:
+            raise ConfigError("--goals adds every goal to --json's output: give --json too")
     except ConfigError as e:
         print(f"tabletop eval: {e}", file=sys.stderr)
         return 2

@@ -6,6 +6,7 @@ import argparse
 import json
 import sys
 import tempfile
+from pathlib import Path
 
 import numpy as np
 
@@ -187,6 +188,11 @@ def cmd_run(args: argparse.Namespace) -> int:
     from tabletop.language.sandbox import SandboxConfig
     from tabletop.language.suite import PointRobot, load_suite, write_suite_images
 
+    if args.json and not args.suite:
+        raise ConfigError("--json is the suite's report: give --suite too (or leave --json out)")
+    if args.image_dir is not None and not Path(args.image_dir).is_dir():
+        what = "is not a directory" if Path(args.image_dir).exists() else "does not exist"
+        raise ConfigError(f"--image-dir {str(args.image_dir)!r} {what}")
     suite = load_suite(args.suite_file) if (args.suite or args.map == REFERENCE) else None
     m = _load_map(args.map, suite)
     if args.suite:

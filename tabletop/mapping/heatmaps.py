@@ -202,6 +202,14 @@ class Heatmap:
     __add__ = __radd__ = lambda self, other: self._refuse(other, "+")
     __sub__ = __rsub__ = lambda self, other: self._refuse(other, "-")
     __truediv__ = __rtruediv__ = lambda self, other: self._refuse(other, "/")
+    __floordiv__ = __rfloordiv__ = lambda self, other: self._refuse(other, "//")
+    __pow__ = __rpow__ = lambda self, other: self._refuse(other, "**")
+    __matmul__ = __rmatmul__ = lambda self, other: self._refuse(other, "@")
+    __lt__ = lambda self, other: self._refuse(other, "<")  # noqa: E731
+    __le__ = lambda self, other: self._refuse(other, "<=")  # noqa: E731
+    __gt__ = lambda self, other: self._refuse(other, ">")  # noqa: E731
+    __ge__ = lambda self, other: self._refuse(other, ">=")  # noqa: E731
+    __neg__ = __pos__ = __abs__ = lambda self: self._refuse(None, "(unary)")
 
     def __array__(self, dtype=None, copy=None) -> np.ndarray:
         return np.array(self.values, dtype=dtype)
@@ -213,7 +221,7 @@ class Heatmap:
 
 def _arithmetic_refused(op: str, other: object) -> str:
     """Why heatmap arithmetic other than ``Heatmap * Heatmap`` is refused."""
-    what = type(other).__name__
+    what = "" if other is None else type(other).__name__
     if isinstance(other, np.ndarray):
         what += f" of shape {other.shape}"
     return (
