@@ -435,9 +435,13 @@ def test_heatmap_arithmetic_other_than_fusing_two_heatmaps_is_refused_by_name(or
         lambda: np.zeros((3, 3)) * h,
         lambda: np.float64(2.0) * h,
         lambda: np.ones(h.values.shape) - h,
+        lambda: h**2,
+        lambda: -h,
+        lambda: h @ h,
+        lambda: h > 0.5,
     )
     for bad in bad_ones:
-        with pytest.raises(TypeError, match=r"Heatmap . \w+.*only arithmetic on heatmaps"):
+        with pytest.raises(TypeError, match=r"Heatmap \S+ ?\w*.*only arithmetic on heatmaps"):
             bad()
     assert (h * h).values.shape == h.values.shape  # fusing two heatmaps still works
 
@@ -466,6 +470,7 @@ def test_map_set_values_and_fields_are_checked_before_any_work(tmp_path, capsys,
         ("[[instructions]]\ntext = 5\n", "no [scene] table"),
         ('[scene]\nname = "default"\nstart = [0, 0, 0]\n', "no [[case]] tables"),
         ('[scene]\nname = "d"\nstart = [0, 0]\n[[case]]\nid = "a"\n', "start must be [x, y, z]"),
+        ('[scene]\nname = "d"\nstart = [nan, 0, 0.3]\n[[case]]\nid = "a"\n', "three finite"),
         ('[scene]\nname = "d"\nstart = [0, 0, 0]\n[[case]]\nid = "a"\n', "#1 lacks family"),
     ],
 )
@@ -636,3 +641,43 @@ def test_parse_refuses_endpoint_flags_it_would_ignore(capsys):
     assert main(["parse", "go to the mug", "--llm-url", "http://127.0.0.1:9/v1"]) == 2
     assert "--llm-url: only with --backend llm" in capsys.readouterr().err
     assert main(["parse", "go to the mug"]) == 0
+
+
+def test_a_place_beneath_the_table_or_the_floor_is_not_found_on_its_top(oracle_map):
+    from tabletop.mapping.object_module import BACKGROUND
+    from tabletop.reader.places import SURFACES
+    from tabletop.reader.reading import get_reader
+
+    assert set(SURFACES) <= set(BACKGROUND)  # the map's own surfaces, not a list of places
+    reader = get_reader()
+    for words in ("under the table", "below the floor", "somewhere beneath the tabletop"):
+        h = oracle_map.area_heatmap(reader.reference("area", words))
+        assert not h.found, words
+        assert "beneath the table's top is off it" in h.reason, h.reason
+    # beneath a thing on the table is where that thing stands: read on, as before
+    ref = reader.reference("area", "the bit of table under the tray")
+    assert ref.subject is not None and "tray" in ref.subject
+    # the plain regions still read
+    assert reader.reference("area", "the left side of the table").region is not None
+
+
+@pytest.mark.parametrize(
+    ("argv", "needle"),
+    [
+        (["eval", "demo", "--goals"], "--goals adds every goal to --json's output"),
+        (["run", "m.npz", "go to the mug", "--json"], "--json is the suite's report"),
+        (["run", "m.npz", "go to the mug", "--image-dir", "/no/such/dir"], "does not exist"),
+        (["run", "m.npz", "go to the mug", "--image-dir", "FILE"], "is not a directory"),
+    ],
+)
+def test_flags_that_would_be_ignored_are_refused_before_any_work(tmp_path, capsys, argv, needle):
+    from tabletop.cli import main
+
+    f = tmp_path / "f.txt"
+    f.write_text("x")
+    argv = [str(f) if a == "FILE" else a for a in argv]
+    if argv[0] == "eval":
+        argv += ["--out", str(tmp_path / "out")]
+    assert main(argv) == 2
+    assert needle in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()

@@ -556,7 +556,8 @@ class AVLMap:
             return region_heatmap(self.grid, self.table(), q, query.region, decay)
         subject = query.subject
         if subject is None:
-            why = f"{q!r} names no region of this table and nothing on it (words for a place only)"
+            how = query.how if query.how.startswith("'") else "words for a place only"
+            why = f"{q!r} names no region of this table and nothing on it ({how})"
             return Heatmap.not_found(self.grid, q, "area", decay, why)
         refusals = []
         h = self.objects.heatmap(subject, decay, self.judge)

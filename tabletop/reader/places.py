@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import functools
 import json
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -149,6 +150,23 @@ def load_place_classifier(path: str | Path = DEFAULT_PLACE_WEIGHTS) -> PlaceClas
         raise AssetError(f"{str(path)!r}: a malformed place classifier ({e!r})") from None
 
 
+#: Words that put a place beneath something.
+_BENEATH = re.compile(r"\b(?:under(?:neath)?|beneath|below)\b", re.IGNORECASE)
+#: The surfaces of a table-top map's background (``object_module.BACKGROUND``): a place
+#: beneath one of them is off the table's top.
+SURFACES = ("table", "floor")
+
+
+def _beneath_surface(words: str) -> str:
+    """The surface (of :data:`SURFACES`) that ``words`` (what follows "under") name first,
+    "" when they name none ("the tray")."""
+    for w in re.findall(r"[a-z]+", words.lower()):
+        for s in SURFACES:
+            if w == s or (w.startswith(s) and w[len(s) :] in ("s", "top", "tops")):
+                return s
+    return ""
+
+
 class PlaceReader:
     """Reads an area query's words (see the module docstring); ``learned``: with the
     classifier after the grammar."""
@@ -163,6 +181,11 @@ class PlaceReader:
     def read(self, text: str) -> AreaRef:
         if not isinstance(text, str):
             raise ConfigError(f"an area must be a string, got {type(text).__name__}")
+        if (m := _BENEATH.search(text)) and (below := _beneath_surface(text[m.end() :])):
+            # the map holds the table's top and what stands on it: a place beneath the table
+            # or the floor is none of it (beneath a tray is where the tray stands: read on)
+            return AreaRef(text, how=f"{m.group(0)!r} the {below}: a place beneath the "
+                           "table's top is off it, and the top is all this map holds")  # fmt: skip
         region = parse_region(text)
         if region is not None:
             return AreaRef(text, region=region, how="grammar")
