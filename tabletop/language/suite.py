@@ -15,6 +15,7 @@ module that knows the suite's goal images. Any other map (a scanned one) works t
 from __future__ import annotations
 
 import functools
+import math
 import tomllib
 import zlib
 from collections.abc import Callable
@@ -133,8 +134,9 @@ def _check_suite_shape(d: dict, where: str) -> None:
         isinstance(start, list)
         and len(start) == 3
         and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in start)
+        and all(math.isfinite(v) for v in start)
     ):
-        raise bad(f"[scene] start must be [x, y, z] in m, got {start!r}")
+        raise bad(f"[scene] start must be [x, y, z] in m, three finite numbers, got {start!r}")
     if "case" not in d:
         raise bad("no [[case]] tables")
     for name, keys in _SUITE_TABLES.items():
