@@ -24,6 +24,7 @@ def speller():
         ("go behnid the duck", "go behind the duck"),
         ("the red balll", "the red ball"),  # a letter typed three times
         ("the greeeen mug", "the green mug"),
+        ("go to the rde mug", "go to the red mug"),  # a swap, not "de" with a letter more
     ],
 )
 def test_slips_are_corrected_to_the_vocabulary(speller, typed, meant):

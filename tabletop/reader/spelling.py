@@ -315,8 +315,11 @@ class Speller:
                     return True
         return False
 
-    def nearest(self, word: str, max_edits: int | None = None) -> str | None:
-        """The one vocabulary word within the allowed edits of ``word``, or None."""
+    def nearest(
+        self, word: str, max_edits: int | None = None, swaps_first: bool = False
+    ) -> str | None:
+        """The one vocabulary word within the allowed edits of ``word``, or None; with
+        ``swaps_first``, of words equally near, one that is ``word`` with letters swapped."""
         from rapidfuzz.distance import DamerauLevenshtein
 
         k = self.config.edits_for(len(word)) if max_edits is None else max_edits
@@ -333,7 +336,13 @@ class Speller:
                 best, best_d = [cand], d
             elif d == best_d:
                 best.append(cand)
-        if len(best) > 1:  # ties: fewest insertions/deletions, then the same first letter
+        # ties: (for a word no list knows) two letters swapped first, the commonest slip
+        # ("rde" is "red", not "de"), then fewest insertions/deletions, then the same first
+        # letter
+        swapped = [c for c in best if len(c) == len(word) and sorted(c) == sorted(word)]
+        if swaps_first and len(best) > 1 and swapped:
+            best = swapped
+        if len(best) > 1:
             from rapidfuzz.distance import Indel
 
             indel = {c: Indel.distance(word, c) for c in best}
@@ -424,7 +433,7 @@ class Speller:
             if near is not None and near in self._names:
                 return near, "a rare word one edit from a name in the vocabulary"
             return None, ""
-        near = self.nearest(word)
+        near = self.nearest(word, swaps_first=True)
         if near is not None and (len(word) > SHORT_WORD or near in self._names):
             return near, "nearest vocabulary word"
         return None, ""
