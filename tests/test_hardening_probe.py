@@ -681,3 +681,16 @@ def test_flags_that_would_be_ignored_are_refused_before_any_work(tmp_path, capsy
     assert main(argv) == 2
     assert needle in capsys.readouterr().err
     assert not (tmp_path / "out").exists()
+
+
+def test_a_colour_name_alone_asks_for_something_of_that_colour_unless_it_names_a_thing(
+    oracle_map,
+):
+    om = oracle_map.objects
+    # "purple" names nothing: something purple (found only where a purple thing stands)
+    assert om.readings("purple") == [("purple", "something")]
+    assert om.readings("the purple") == [("purple", "something")]
+    # "the orange" names a fruit: read as the thing first, as before
+    assert om.readings("the orange")[0] == ("", "the orange")
+    # a colour with a thing is unchanged
+    assert om.readings("the purple mug")[0] == ("purple", "the mug")

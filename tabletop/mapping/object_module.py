@@ -905,6 +905,13 @@ class ObjectModule:
         lexicon = color_parses(query)
         if lexicon[0][0]:  # the lexicon's colour words are the colour
             return lexicon
+        content = [w for w in lexicon[0][1].split() if w not in FILLER_WORDS]
+        if len(content) == 1 and content[0] in COLOR_NAMES:
+            # a colour name alone names the thing where it names one ("the orange", a
+            # fruit); where it names none ("purple") it asks for something of that colour
+            _, thing, other = self._cosines(content[0])
+            if max(thing, other) < self.config.text_min:
+                return [(content[0], "something")]
         framed = framed_colours(query)  # "tomato-coloured", "colour heliotrope": colours
         colourish, unsure, plain_first = [], False, False
         for w in survey_words(query):
