@@ -498,3 +498,14 @@ def test_a_recording_that_puts_nothing_in_the_grid_builds_no_map(rec):
     kw.update(T_world_hand=far, T_world_hand_true=None, segments=(), audio=None)
     with pytest.raises(RecordingError, match="no depth point of the recording's 20 frames fell"):
         build_map(Recording(**kw), "oracle")
+
+
+def test_a_sound_query_that_names_a_thing_and_no_sound_is_not_found(avlmap):
+    assert len(avlmap.sounds) and "mug" in avlmap.objects.vocabulary
+    for words in ("the red mug", "a teddy bear"):
+        h = avlmap.sound_heatmap(words)
+        assert not h.found and "names a thing rather than a sound" in h.reason, h.reason
+    # a thing that sounds is asked for as a sound still
+    assert "names a thing" not in avlmap.sound_heatmap("the duck").reason
+    # the margin decides: without one, "the duck" (a toy here) would be a thing too
+    assert avlmap._rather_a_thing("the duck", 0.0)

@@ -506,6 +506,10 @@ class AVLMap:
         q = _text(query, "sound")
         if (h := self._wordless(q, "sound", major)) is not None:
             return h
+        # words that name a thing on the table far better than any sound ask for no sound
+        # ("the red mug"); a thing that sounds ("the duck") is near a sound too
+        if len(self.sounds) and (thing := self._rather_a_thing(q, THING_NOT_SOUND_MARGIN)):
+            return Heatmap.not_found(self.grid, q, "sound", self.decay(major), thing)
         return self.sounds.heatmap(q, self.decay(major), self.audio_text, self.judge)
 
     def _wordless(self, query: str, modality: str, major: bool) -> Heatmap | None:
@@ -593,14 +597,14 @@ class AVLMap:
             m.words, m.text_score, m.nearest, m.described, m.other, m.other_score
         )
 
-    def _rather_a_thing(self, words: str) -> str:
+    def _rather_a_thing(self, words: str, margin: float = 0.0) -> str:
         """Why ``words`` name a thing rather than a sound ("" where they name a sound): they
         lie nearer a vocabulary name, description or other thing of the object module than
         any phrasing of the sound vocabulary ("the kitchen" is nearer an oven than the sound
         of a washing machine, "the sofa" a couch; "where the dog barked" is nearer a dog
         barking than a dog). Decided by rank in the one text space both share; a sound
         encoder with its own text space, or without a vocabulary, leaves it to the audio
-        module's own decision."""
+        module's own decision. ``margin``: how much nearer the thing must be."""
         if self.sounds.vocabulary is None or self.audio_text is not self.text:
             return ""
         if not self._reads_names():
@@ -610,7 +614,7 @@ class AVLMap:
         thing, score = (m.nearest, m.text_score)
         if m.other_score > score:
             thing, score = m.other, m.other_score
-        if score < sound.text_score:
+        if score < sound.text_score + margin:
             return ""
         heard = self.sounds.vocabulary.caption(sound.nearest)
         return (
@@ -684,6 +688,12 @@ _LETTER = re.compile(r"[^\W\d_]")
 _LATIN = re.compile(r"[A-Za-z\u00c0-\u024f]")
 #: Half of a UTF-16 pair on its own: no character, not text.
 _SURROGATE = re.compile("[\ud800-\udfff]")
+
+
+#: How much nearer [cosine] a sound query's words must lie to a thing than to every sound for
+#: the query to name a thing, not a sound: on the tune pools' 4464 sound phrasings the largest
+#: such lead is 0.18 ("...drinking through a straw"); "the red mug" leads by 0.47.
+THING_NOT_SOUND_MARGIN = 0.25
 
 
 def _text(query, what: str) -> str:
