@@ -225,6 +225,11 @@ class Recording:
                 raise RecordingError(
                     f"segments must be Segment(name, kind, start, stop), got {s!r}"
                 )
+            if s.start >= s.stop:
+                raise RecordingError(
+                    f"segment {s.name!r} [{s.start}, {s.stop}) is empty or reversed: its start "
+                    "must come before its stop (frame indices, the stop excluded)"
+                )
             if not 0 <= s.start < s.stop <= n:
                 raise RecordingError(f"segment {s.name!r} [{s.start}, {s.stop}) outside 0..{n}")
 

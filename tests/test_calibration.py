@@ -89,6 +89,13 @@ def test_file_round_trip_and_errors(tmp_path):
         load_calibration("x", bad)
     with pytest.raises(AssetError, match="does not exist"):
         load_calibration("x", tmp_path / "missing.json")
+    d = {"format": "tabletop-calibration", "version": 1, "encoder_set": "x"}
+    for field, value, needle in (
+        ("models", {"object": {"a": float("nan"), "b": 0}}, "models.object: a and b must be"),
+        ("thresholds", {"object": float("inf")}, "thresholds.object must be a finite"),
+    ):
+        with pytest.raises(AssetError, match=needle):
+            Calibration.from_json({**d, "models": {}, field: value}, "the map's calibration")
 
 
 def test_operating_point_keeps_most_right_answers(tmp_path):

@@ -257,6 +257,7 @@ def _rewrite_header(path, fn):
         (lambda h: h.update(meta=[1]), "meta is [1]; valid: an object or null"),
         (lambda h: h.update(has_segmentation="yes"), "has_segmentation is 'yes'"),
         (lambda h: h["segments"][0].update(stop=99), "segment 'mapping' [0, 99) outside 0..5"),
+        (lambda h: h["segments"][0].update(start=4, stop=2), "[4, 2) is empty or reversed"),
     ],
 )
 def test_malformed_headers_are_named_before_any_file_is_read(tmp_path, fn, needle):

@@ -18,6 +18,7 @@ set has no calibration file uses :data:`UNCALIBRATED` and says so in its reports
 from __future__ import annotations
 
 import json
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -128,7 +129,12 @@ class Calibration:
                 if k not in MODALITIES:
                     raise ValueError(f"unknown modality {k!r} (valid: {list(MODALITIES)})")
                 models[k] = Platt(float(v["a"]), float(v["b"]))
+                if not (math.isfinite(models[k].a) and math.isfinite(models[k].b)):
+                    raise ValueError(f"models.{k}: a and b must be finite numbers, got {v!r}")
             thresholds = {str(k): float(v) for k, v in d.get("thresholds", {}).items()}
+            for k, v in thresholds.items():
+                if not math.isfinite(v):
+                    raise ValueError(f"thresholds.{k} must be a finite number, got {v!r}")
             bad = sorted(set(thresholds) - set(MODALITIES))
             if bad:
                 raise ValueError(f"thresholds for unknown modalities {bad}")
