@@ -439,6 +439,12 @@ def test_step_and_time_limits_stop_a_run():
     with pytest.raises(SandboxLimit, match="longer than"):
         run_code(code, slow, SandboxConfig(timeout_s=0.01))
     assert 1 <= len(slow.moves) < 10  # stopped between motions
+    # one motion that outlasts the limit on its own: the run is stopped after it, not reported
+    # as done
+    one = CountingRobot(delay_s=0.05)
+    with pytest.raises(SandboxLimit, match="ended after the limit"):
+        run_code("robot.move_north(0.001)\n", one, SandboxConfig(timeout_s=0.01))
+    assert len(one.moves) == 1
 
 
 def test_config_is_checked():

@@ -715,6 +715,12 @@ class _Interpreter:
         self.calls.append(rec)
         if self.on_call is not None:
             self.on_call(rec)
+        # a call may outlast the limit on its own (a motion): the run stops after it
+        if time.monotonic() - self.t0 > self.config.timeout_s:
+            raise SandboxLimit(
+                f"line {c.lineno}: the run took longer than {self.config.timeout_s} s "
+                f"(robot.{method} ended after the limit; nothing after it ran)"
+            )
         return result
 
 
