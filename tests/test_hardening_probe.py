@@ -694,3 +694,11 @@ def test_a_colour_name_alone_asks_for_something_of_that_colour_unless_it_names_a
     assert om.readings("the orange")[0] == ("", "the orange")
     # a colour with a thing is unchanged
     assert om.readings("the purple mug")[0] == ("purple", "the mug")
+
+
+def test_the_maps_background_asked_as_an_object_is_named_as_the_background(oracle_map):
+    for words in ("the table", "floor", "the robot arm"):
+        h = oracle_map.object_heatmap(words)
+        assert not h.found and "is the map's background" in h.reason, h.reason
+    # anything else still says what it is nearest
+    assert "like nothing in this map's vocabulary" in oracle_map.object_heatmap("tablecloth").reason

@@ -674,6 +674,14 @@ class ObjectModule:
         config's ``others`` than the nearest name by more than ``other_margin``."""
         cfg = self.config
         if text_score < cfg.text_min and not described:
+            said = " ".join(w for w in words.split() if w not in FILLER_WORDS)
+            background = self.config.background
+            if said in background:  # "the table", "the floor": what holds the things
+                return (
+                    f"{words!r} is the map's background ({', '.join(background)}), not a thing "
+                    "on the table: ask for a thing on it, or for a place as an area ('the "
+                    "middle of the table')"
+                )
             return (
                 f"{words!r} is like nothing in this map's vocabulary (nearest: "
                 f"{nearest!r}, cosine {text_score:.2f} < {cfg.text_min})"
