@@ -28,13 +28,13 @@ declared requirements pin an old numpy and librosa); the front end needs librosa
 from __future__ import annotations
 
 import functools
-import math
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from tabletop.errors import AssetError, ConfigError
+from tabletop.mapping.encoders.base import mono_at
 
 __all__ = [
     "AISFX_DIM",
@@ -87,20 +87,7 @@ def _mel_matrix() -> np.ndarray:
 
 def prepare_wave(audio: np.ndarray, sample_rate: int) -> np.ndarray:
     """Validate one mono segment, bring it to 44.1 kHz and a peak of 1 (silence stays 0)."""
-    if isinstance(sample_rate, bool) or int(sample_rate) != sample_rate or sample_rate <= 0:
-        raise ConfigError(f"sample_rate must be a positive integer [Hz], got {sample_rate!r}")
-    x = np.asarray(audio, dtype=np.float32)
-    if x.ndim != 1:
-        raise ConfigError(f"audio must be mono (S,), got shape {x.shape}")
-    if len(x) == 0:
-        raise ConfigError("audio is empty")
-    if not np.all(np.isfinite(x)):
-        raise ConfigError("audio contains NaN or inf")
-    if sample_rate != AISFX_RATE:
-        from scipy.signal import resample_poly
-
-        g = math.gcd(int(sample_rate), AISFX_RATE)
-        x = resample_poly(x, AISFX_RATE // g, int(sample_rate) // g).astype(np.float32)
+    x = mono_at(audio, sample_rate, AISFX_RATE)
     peak = float(np.max(np.abs(x)))
     return x / peak if peak > 0 else x
 

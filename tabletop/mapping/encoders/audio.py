@@ -23,7 +23,7 @@ from torch import nn
 
 from tabletop.atomic import atomic_path
 from tabletop.errors import AssetError, ConfigError
-from tabletop.mapping.encoders.base import l2_normalize, torch_threads
+from tabletop.mapping.encoders.base import l2_normalize, mono_at, torch_threads
 from tabletop.mapping.encoders.minilm import MINILM_SPACE
 from tabletop.mapping.sound_vocabulary import SoundVocabulary
 from tabletop.paths import DATA_DIR
@@ -302,21 +302,7 @@ def _cached_net(path: str, mtime_ns: int) -> tuple[_Net, dict]:
 
 def _prepare(audio: np.ndarray, sample_rate: int) -> np.ndarray:
     """Validate one segment and bring it to 16 kHz, at least :data:`MIN_SEGMENT_S` long."""
-
-    if isinstance(sample_rate, bool) or int(sample_rate) != sample_rate or sample_rate <= 0:
-        raise ConfigError(f"sample_rate must be a positive integer [Hz], got {sample_rate!r}")
-    x = np.asarray(audio, dtype=np.float32)
-    if x.ndim != 1:
-        raise ConfigError(f"audio must be mono (S,), got shape {x.shape}")
-    if len(x) == 0:
-        raise ConfigError("audio is empty")
-    if not np.all(np.isfinite(x)):
-        raise ConfigError("audio contains NaN or inf")
-    if sample_rate != AUDIO_SAMPLE_RATE:  # polyphase FIR (Kaiser window), milliseconds
-        from scipy.signal import resample_poly
-
-        g = math.gcd(int(sample_rate), AUDIO_SAMPLE_RATE)
-        x = resample_poly(x, AUDIO_SAMPLE_RATE // g, int(sample_rate) // g).astype(np.float32)
+    x = mono_at(audio, sample_rate, AUDIO_SAMPLE_RATE)
     n_min = round(MIN_SEGMENT_S * AUDIO_SAMPLE_RATE)
     if len(x) < n_min:
         reps = math.ceil(n_min / len(x))

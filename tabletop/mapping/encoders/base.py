@@ -9,6 +9,7 @@ similarity is a dot product. Two encoders can be compared only when they share a
 from __future__ import annotations
 
 import contextlib
+import math
 from typing import Protocol, runtime_checkable
 
 import numpy as np
@@ -47,6 +48,27 @@ def torch_threads(n: int | None):
             yield
     finally:
         torch.set_num_threads(before)
+
+
+def mono_at(audio: np.ndarray, sample_rate: int, rate: int) -> np.ndarray:
+    """One mono segment (S,) validated and resampled to ``rate`` [Hz] (polyphase FIR): what
+    every audio encoder's front end starts from. :class:`ConfigError` for a bad rate, audio
+    that is not mono, empty audio, or NaN / inf."""
+    if isinstance(sample_rate, bool) or int(sample_rate) != sample_rate or sample_rate <= 0:
+        raise ConfigError(f"sample_rate must be a positive integer [Hz], got {sample_rate!r}")
+    x = np.asarray(audio, dtype=np.float32)
+    if x.ndim != 1:
+        raise ConfigError(f"audio must be mono (S,), got shape {x.shape}")
+    if len(x) == 0:
+        raise ConfigError("audio is empty")
+    if not np.all(np.isfinite(x)):
+        raise ConfigError("audio contains NaN or inf")
+    if sample_rate != rate:
+        from scipy.signal import resample_poly
+
+        g = math.gcd(int(sample_rate), rate)
+        x = resample_poly(x, rate // g, int(sample_rate) // g).astype(np.float32)
+    return x
 
 
 def l2_normalize(x: np.ndarray, axis: int = -1, eps: float = 1e-12) -> np.ndarray:

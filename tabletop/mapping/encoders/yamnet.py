@@ -32,6 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from tabletop.errors import AssetError, ConfigError
+from tabletop.mapping.encoders.base import mono_at
 
 __all__ = [
     "YAMNET_CLASSES",
@@ -240,20 +241,7 @@ class YamnetBackbone:
 
 def prepare_wave(audio: np.ndarray, sample_rate: int) -> np.ndarray:
     """Validate one mono segment and bring it to 16 kHz, at least one patch long (tiled)."""
-    if isinstance(sample_rate, bool) or int(sample_rate) != sample_rate or sample_rate <= 0:
-        raise ConfigError(f"sample_rate must be a positive integer [Hz], got {sample_rate!r}")
-    x = np.asarray(audio, dtype=np.float32)
-    if x.ndim != 1:
-        raise ConfigError(f"audio must be mono (S,), got shape {x.shape}")
-    if len(x) == 0:
-        raise ConfigError("audio is empty")
-    if not np.all(np.isfinite(x)):
-        raise ConfigError("audio contains NaN or inf")
-    if sample_rate != YAMNET_RATE:
-        from scipy.signal import resample_poly
-
-        g = math.gcd(int(sample_rate), YAMNET_RATE)
-        x = resample_poly(x, YAMNET_RATE // g, int(sample_rate) // g).astype(np.float32)
+    x = mono_at(audio, sample_rate, YAMNET_RATE)
     if len(x) < PATCH_SAMPLES:
         x = np.tile(x, math.ceil(PATCH_SAMPLES / len(x)))[:PATCH_SAMPLES]
     return x
