@@ -264,38 +264,27 @@ class AudioModule:
 
     def _vocabulary_heatmap(self, query: str, decay: float, text, judge: Judge) -> Heatmap:
         m = self.match(query, text)
-        if not m.known and m.other == GENERAL:
-            nearest = self.vocabulary.caption(m.nearest)
-            return Heatmap.not_found(
-                self.grid,
-                query,
-                "sound",
-                decay,
-                f"{query!r} names no particular sound: it reads as sound in general "
-                f"(similarity {m.other_score:.2f}) more than as any sound the audio encoder "
-                f"knows (nearest: {nearest!r}, {m.text_score:.2f}); say what made it or how it "
-                "sounds",
-            )
-        if not m.known and m.other:
-            return Heatmap.not_found(
-                self.grid,
-                query,
-                "sound",
-                decay,
-                f"{query!r} reads as {m.other.replace('_', ' ')!r} (similarity "
-                f"{m.other_score:.2f}), a sound the audio encoder was not trained to hear "
-                f"(nearest it knows: {self.vocabulary.caption(m.nearest)!r}, {m.text_score:.2f})",
-            )
         if not m.known:
             nearest = self.vocabulary.caption(m.nearest)
-            return Heatmap.not_found(
-                self.grid,
-                query,
-                "sound",
-                decay,
-                f"{query!r} names no sound the audio encoder knows (nearest: {nearest!r}, "
-                f"similarity {m.text_score:.2f} < {self.config.text_min})",
-            )
+            if m.other == GENERAL:
+                why = (
+                    f"{query!r} names no particular sound: it reads as sound in general "
+                    f"(similarity {m.other_score:.2f}) more than as any sound the audio encoder "
+                    f"knows (nearest: {nearest!r}, {m.text_score:.2f}); say what made it or how "
+                    "it sounds"
+                )
+            elif m.other:
+                why = (
+                    f"{query!r} reads as {m.other.replace('_', ' ')!r} (similarity "
+                    f"{m.other_score:.2f}), a sound the audio encoder was not trained to hear "
+                    f"(nearest it knows: {nearest!r}, {m.text_score:.2f})"
+                )
+            else:
+                why = (
+                    f"{query!r} names no sound the audio encoder knows (nearest: {nearest!r}, "
+                    f"similarity {m.text_score:.2f} < {self.config.text_min})"
+                )
+            return Heatmap.not_found(self.grid, query, "sound", decay, why)
         s = m.scores
         best = float(s.max())
         lo = np.nan_to_num(m.log_odds, nan=-np.inf, posinf=np.finfo(float).max)
