@@ -74,13 +74,13 @@ def test_bad_input_and_config_are_refused():
     [
         "tik tik tik went the clock",  # alone, "tik" would be taken for "tick"
         "the phone going brrring-brrring",  # alone, "brrring" would be "bring"
-        "a bok-bok bok-bok",  # alone, "bok" would be "book"
+        "a dingg-dingg dingg-dingg",  # alone, "dingg" would be "ding"
     ],
 )
 def test_a_word_typed_twice_in_a_row_is_an_imitation_and_kept(speller, text):
     assert speller.correct(text) == (text, ())
     # the same words alone are slips
-    assert speller.correct("the bok")[0] == "the book"
+    assert speller.correct("the dingg")[0] == "the ding"
     assert speller.correct("tik")[0] == "tick"
 
 

@@ -243,7 +243,7 @@ def _common_words(n: int = 300) -> frozenset[str]:
 
 
 def _imitations(tokens: list[str]) -> frozenset[str]:
-    """Words typed twice or more in a row ("bok bok", "tick-tock tick-tock"): people write a
+    """Words typed twice or more in a row ("tik tik", "tick-tock tick-tock"): people write a
     sound they imitate so, and a slip is not repeated letter for letter; such words are kept
     as typed."""
     words = [t.lower().strip('.,;:!?"()') for t in tokens if t.strip()]
