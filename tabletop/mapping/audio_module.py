@@ -211,14 +211,15 @@ class AudioModule:
                 i += 1
         return segs, embs
 
-    def heatmap(self, query: str, decay: float, text, judge: Judge) -> Heatmap:
-        """Heat around where the sound best matching ``query`` was heard."""
+    def heatmap(self, query: str, decay: float, text, judge: Judge, match=None) -> Heatmap:
+        """Heat around where the sound best matching ``query`` was heard; ``match``: the
+        query's :meth:`match` where the caller has it already."""
         if not self.embeddings:
             return Heatmap.not_found(
                 self.grid, query, "sound", decay, "the map has no audio segments"
             )
         if self.vocabulary is not None:
-            return self._vocabulary_heatmap(query, decay, text, judge)
+            return self._vocabulary_heatmap(query, decay, text, judge, match)
         q = text.encode_text([query])[0]
         s = np.stack(self.embeddings) @ q
         pos = np.stack(self.positions)[:, :2]
@@ -262,8 +263,10 @@ class AudioModule:
         logits = np.stack(self.class_logits) if len(self.class_logits) == n else None
         return self.matcher(text).match(query, np.stack(self.embeddings), logits)
 
-    def _vocabulary_heatmap(self, query: str, decay: float, text, judge: Judge) -> Heatmap:
-        m = self.match(query, text)
+    def _vocabulary_heatmap(
+        self, query: str, decay: float, text, judge: Judge, match=None
+    ) -> Heatmap:
+        m = match if match is not None else self.match(query, text)
         if not m.known:
             nearest = self.vocabulary.caption(m.nearest)
             if m.other == GENERAL:

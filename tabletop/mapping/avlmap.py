@@ -507,10 +507,14 @@ class AVLMap:
         if (h := self._wordless(q, "sound", major)) is not None:
             return h
         # words that name a thing on the table far better than any sound ask for no sound
-        # ("the red mug"); a thing that sounds ("the duck") is near a sound too
-        if len(self.sounds) and (thing := self._rather_a_thing(q, THING_NOT_SOUND_MARGIN)):
-            return Heatmap.not_found(self.grid, q, "sound", self.decay(major), thing)
-        return self.sounds.heatmap(q, self.decay(major), self.audio_text, self.judge)
+        # ("the red mug"); a thing that sounds ("the duck") is near a sound too. The query's
+        # sound reading is made once, for this check and for the heat.
+        sound = None
+        if len(self.sounds) and self.sounds.vocabulary is not None:
+            sound = self.sounds.match(q, self.audio_text)
+            if thing := self._rather_a_thing(q, THING_NOT_SOUND_MARGIN, sound):
+                return Heatmap.not_found(self.grid, q, "sound", self.decay(major), thing)
+        return self.sounds.heatmap(q, self.decay(major), self.audio_text, self.judge, sound)
 
     def _wordless(self, query: str, modality: str, major: bool) -> Heatmap | None:
         """Not found for a query that holds no word (not one letter: "🦒🦒", "...", "123"), or
@@ -597,19 +601,23 @@ class AVLMap:
             m.words, m.text_score, m.nearest, m.described, m.other, m.other_score
         )
 
-    def _rather_a_thing(self, words: str, margin: float = 0.0) -> str:
+    def _rather_a_thing(self, words: str, margin: float = 0.0, sound=None) -> str:
         """Why ``words`` name a thing rather than a sound ("" where they name a sound): they
         lie nearer a vocabulary name, description or other thing of the object module than
         any phrasing of the sound vocabulary ("the kitchen" is nearer an oven than the sound
         of a washing machine, "the sofa" a couch; "where the dog barked" is nearer a dog
         barking than a dog). Decided by rank in the one text space both share; a sound
         encoder with its own text space, or without a vocabulary, leaves it to the audio
-        module's own decision. ``margin``: how much nearer the thing must be."""
+        module's own decision. ``margin``: how much nearer the thing must be; ``sound``:
+        the words' reading by the audio module, where the caller has it."""
         if self.sounds.vocabulary is None or self.audio_text is not self.text:
             return ""
         if not self._reads_names():
             return ""
-        sound = self.sounds.match(words, self.audio_text)
+        if sound is None:
+            sound = self.sounds.match(words, self.audio_text)
+        if sound.text_score + margin > 1.0:
+            return ""  # no cosine with a thing can lead by the margin: no object match needed
         m = self.objects.match(words)
         thing, score = (m.nearest, m.text_score)
         if m.other_score > score:
