@@ -156,3 +156,37 @@ def test_a_reference_that_negates_what_it_names_is_refused_by_every_reader():
 def test_a_compass_distance_that_is_no_number_is_named(text):
     with pytest.raises(ParseError, match="'nan'.*a number of m, cm or mm"):
         understand(text, reader="rules")
+
+
+def _nested_requests():
+    """Every pair of relations of :data:`tabletop.relations.RELATIONS`, the inner one as the
+    outer one's reference ("go to the left of the right of the mug")."""
+    from tabletop.relations import RELATIONS
+
+    def said(r, ref: str) -> str:
+        return f"{r.wording} {ref} and the cup" if r.landmarks == 2 else f"{r.wording} {ref}"
+
+    for outer in RELATIONS:
+        for inner in RELATIONS:
+            ref = said(inner, "the mug").removeprefix("to ")  # "the right of the mug"
+            yield outer.name, inner.name, f"go {said(outer, ref)}"
+
+
+@pytest.mark.parametrize("reader", ["rules", "rules+spelling", "learned", "rules+learned"])
+def test_a_relation_taken_of_another_relation_is_refused_by_every_reader(reader):
+    # the plan takes a relation of a thing: reading both is impossible, and readers used to
+    # keep one of the two ("left of the right of the mug" went left of the mug)
+    for outer, inner, text in _nested_requests():
+        with pytest.raises(ParseError, match="taken of a thing, not of another relation") as e:
+            understand(text, reader=reader)
+        assert f"'{outer}' is taken here of" in str(e.value), text
+        assert f"(relation '{inner}')" in str(e.value), text
+    # one relation of a thing, and "over" as a way of going, are read
+    for text in ["go to the left of the mug", "move over to the left of the mug",
+                 "go between the mug and the duck"]:  # fmt: skip
+        assert understand(text, reader=reader).steps
+    # a table area is a place, not a relation (refused, if at all, for what it is)
+    try:
+        understand("go behind the left side of the table", reader=reader)
+    except ParseError as e:
+        assert "another relation" not in str(e)

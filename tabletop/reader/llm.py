@@ -30,7 +30,12 @@ from tabletop.reader.plan import (
     Side,
     Step,
 )
-from tabletop.reader.rules import MAX_DISTANCE_M, MAX_REPEAT, refuse_negated
+from tabletop.reader.rules import (
+    MAX_DISTANCE_M,
+    MAX_REPEAT,
+    refuse_negated,
+    refuse_nested_relation,
+)
 from tabletop.reader.spelling import default_speller
 
 __all__ = ["PLAN_SCHEMA", "LLMReader", "plan_from_json"]
@@ -180,6 +185,7 @@ class LLMReader:
             raise ConfigError("an instruction must be a non-empty string")
         if robot != "arm":
             raise ConfigError(f"the llm reader reads the arm's requests only, not {robot!r}")
+        refuse_nested_relation(text)  # the plan's relations are taken of things only
         messages = [{"role": "system", "content": SYSTEM}, {"role": "user", "content": text}]
         fmt = {"type": "json_schema", "json_schema": {"name": "plan", "schema": PLAN_SCHEMA}}
         steps = plan_from_json(chat(messages, self.config, response_format=fmt), text)

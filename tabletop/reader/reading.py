@@ -32,7 +32,14 @@ from tabletop.reader.errors import ParseError
 from tabletop.reader.llm import LLMReader
 from tabletop.reader.places import PlaceReader
 from tabletop.reader.plan import Reading, Step
-from tabletop.reader.rules import MANNER, NEGATIONS, QUALIFIERS, parse_instruction, refuse_negated
+from tabletop.reader.rules import (
+    MANNER,
+    NEGATIONS,
+    QUALIFIERS,
+    parse_instruction,
+    refuse_negated,
+    refuse_nested_relation,
+)
 from tabletop.reader.spelling import Speller, default_speller, name_words
 
 __all__ = [
@@ -105,6 +112,7 @@ class RulesReader:
         if not isinstance(text, str):
             raise ConfigError(f"an instruction must be a string, got {type(text).__name__}")
         read, fixes = self.speller.correct(text) if self.spelling else (text, ())
+        refuse_nested_relation(read)  # no reading may drop one of two relations
         try:
             steps = parse_instruction(read, robot)
             return Reading(text, read, steps, fixes, (), self.name)
@@ -159,6 +167,7 @@ class LearnedReader:
 
         if not isinstance(text, str):
             raise ConfigError(f"an instruction must be a string, got {type(text).__name__}")
+        refuse_nested_relation(text)  # the tagger would keep one relation of the two
         if self.fallback:
             try:
                 return self._rules.understand(text, robot)
@@ -166,6 +175,7 @@ class LearnedReader:
                 if e.out_of_range:  # read, and refused by name: no other reading
                     raise
         read, fixes = self._rules.speller.correct(text)
+        refuse_nested_relation(read)
         words = words_of(read)
         if not words:
             raise ParseError(text, text, "the instruction is empty")

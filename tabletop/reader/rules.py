@@ -45,6 +45,7 @@ from tabletop.reader.plan import (
     Step,
     Turn,
 )
+from tabletop.relations import relation, relation_by_side
 
 __all__ = [
     "MANNER",
@@ -55,6 +56,7 @@ __all__ = [
     "QUALIFIERS",
     "parse_instruction",
     "refuse_negated",
+    "refuse_nested_relation",
 ]
 
 MAX_REPEAT = 20
@@ -159,6 +161,56 @@ def refuse_negated(text: str) -> None:
             negated[0],
             "a reference names what to find; ask for what is there instead of what is not",
         )
+
+
+def _relations_at(text: str):
+    """(relation name, its reference's words) for each way the grammar reads ``text`` as
+    starting with a spatial relation (:data:`tabletop.relations.RELATIONS`)."""
+    text = _HEDGE.sub("", _PLACE_OF.sub("", text))
+    for side, rx in _SIDES:
+        m = rx.match(text)
+        if m:
+            yield relation_by_side(side).name, next(g for g in m.groups() if g is not None)
+    for name, rx in (("above", _ABOVE), ("between", _BETWEEN), ("between", _FROM_TO)):
+        m = rx.match(text)
+        if m and not (name == "above" and re.match(r"(?:right\s+|just\s+)?over\b", text)):
+            yield name, m.group(1)  # "over" may be a way of going ("over to", "over behind")
+    m = _POSSESSIVE_SIDE.match(_POLITE_TAIL.sub("", text).strip(" ,"))
+    if m:
+        side = {"back": "behind", "rear": "behind"}.get(m.group(2), m.group(2))
+        yield relation_by_side(side).name, m.group(1)
+
+
+def refuse_nested_relation(text: str) -> None:
+    """Refuse a spatial relation whose reference is itself a relation ("the left of the right
+    of X", "above the left of X", "between the front of A and B"): a plan's relation is taken
+    of a thing, so no reader can honour both, and none may drop one. ParseError naming the
+    part; table areas ("the left side of the table") are places, not relations, and pass."""
+    if not isinstance(text, str):
+        return
+    low = re.sub(r"\s+", " ", text.lower()).strip()
+    low = _TABLE_AREA.sub(" @area@ ", _TABLE_CORNER.sub(" @area@ ", low))
+    for clause in _STEP_SPLIT.split(low):
+        clause = re.sub(r"[.!?]+$", "", clause.strip(" ,"))
+        for start in [0, *(m.end() for m in re.finditer(r"\s+", clause))]:
+            for outer, said in _relations_at(clause[start:]):
+                said = said.strip(" ,")
+                # the reference, and for two references each one after an "and"
+                refs = [said]
+                if outer == "between":
+                    refs += [said[m.end() :] for m in re.finditer(r"\s+(?:and|to)\s+", said)]
+                for ref in refs:
+                    inner = next(iter(_relations_at(ref)), None)
+                    if inner is not None:
+                        wording = relation(outer).wording
+                        raise ParseError(
+                            text,
+                            clause[start:],
+                            "a spatial relation is taken of a thing, not of another relation: "
+                            f"'{outer}' is taken here of {ref!r} (relation '{inner[0]}'); name "
+                            f"the thing (e.g. '{wording} the mug'), or make two steps joined "
+                            "by 'then'",
+                        )
 
 
 _VERB = re.compile(
