@@ -129,7 +129,7 @@ def test_verbs_that_move_the_arm_itself_are_read_as_motions(text, action):
     ("text", "why"),
     [
         ('import os; os.system("id")', "not code"),  # was a sound goal
-        ('__import__("os").system("touch /tmp/x")', "image file's path"),  # was an image goal
+        ('__import__("os").system("touch /tmp/x")', "not code"),  # was an image goal
         ("go to the", "name nothing"),  # was an object called "the"
         ("go to a", "name nothing"),
     ],
@@ -190,3 +190,35 @@ def test_a_relation_taken_of_another_relation_is_refused_by_every_reader(reader)
         understand("go behind the left side of the table", reader=reader)
     except ParseError as e:
         assert "another relation" not in str(e)
+
+
+@pytest.mark.parametrize("reader", ["rules", "rules+spelling", "learned", "rules+learned"])
+def test_a_request_that_is_not_one_line_of_words_is_refused_by_every_reader(reader):
+    # these were read as a thing's words (the learned readers: an object called "`mug`",
+    # "mug$(rm"), or their junk dropped (a line break read as a space)
+    cases = {
+        "go to the red\nmug": "holds a line break",
+        "go to the mug\tnow": "holds a tab",
+        "go to the \x1b[31mmug": "holds an escape",
+        "go to the \u202emug": r"control character \(U\+202E\)",
+        "go to the `mug`": "'`' is code punctuation",
+        'go to the mug"); import os; ("': "'\"\\)' is code punctuation",
+        "go to the mug$(rm -rf x)": "'\\$' is code punctuation",
+        "go to the mug | cat": "'\\|' is code punctuation",
+        "go to the mug = 1": "'=' is code punctuation",
+        "go to the tray[0]": "'\\[' is code punctuation",
+        "go to the mug(x)": "'g\\(' is code punctuation",
+    }
+    for text, why in cases.items():
+        with pytest.raises(ParseError, match=why) as e:
+            understand(text, reader=reader)
+        assert "A request looks like 'go to the red mug'" in str(e.value)
+    # a line's own end and an image path are read; a remark in parentheses and an apostrophe
+    # are words (a reader may not read them, but not for this)
+    for text in ["go to the mug\n", "go to the image ./goal.png"]:
+        assert understand(text, reader=reader).steps, text
+    for text in ["go to the mug (the red one)", "go to the duck's left"]:
+        try:
+            understand(text, reader=reader)
+        except ParseError as e:
+            assert "one line of words" not in str(e) and "not code" not in str(e), text

@@ -35,6 +35,7 @@ from tabletop.reader.rules import (
     MAX_REPEAT,
     refuse_negated,
     refuse_nested_relation,
+    refuse_non_words,
 )
 from tabletop.reader.spelling import default_speller
 
@@ -185,6 +186,7 @@ class LLMReader:
             raise ConfigError("an instruction must be a non-empty string")
         if robot != "arm":
             raise ConfigError(f"the llm reader reads the arm's requests only, not {robot!r}")
+        refuse_non_words(text)
         refuse_nested_relation(text)  # the plan's relations are taken of things only
         messages = [{"role": "system", "content": SYSTEM}, {"role": "user", "content": text}]
         fmt = {"type": "json_schema", "json_schema": {"name": "plan", "schema": PLAN_SCHEMA}}

@@ -39,6 +39,7 @@ from tabletop.reader.rules import (
     parse_instruction,
     refuse_negated,
     refuse_nested_relation,
+    refuse_non_words,
 )
 from tabletop.reader.spelling import Speller, default_speller, name_words
 
@@ -111,6 +112,7 @@ class RulesReader:
     def understand(self, text: str, robot: str = "arm") -> Reading:
         if not isinstance(text, str):
             raise ConfigError(f"an instruction must be a string, got {type(text).__name__}")
+        refuse_non_words(text)
         read, fixes = self.speller.correct(text) if self.spelling else (text, ())
         refuse_nested_relation(read)  # no reading may drop one of two relations
         try:
@@ -167,6 +169,7 @@ class LearnedReader:
 
         if not isinstance(text, str):
             raise ConfigError(f"an instruction must be a string, got {type(text).__name__}")
+        refuse_non_words(text)
         refuse_nested_relation(text)  # the tagger would keep one relation of the two
         if self.fallback:
             try:

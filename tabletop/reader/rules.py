@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import functools
 import re
+import unicodedata
 
 from tabletop.errors import ConfigError
 from tabletop.reader.errors import ParseError
@@ -54,9 +55,11 @@ __all__ = [
     "MAX_REPEAT",
     "NEGATIONS",
     "QUALIFIERS",
+    "REQUEST_EXAMPLES",
     "parse_instruction",
     "refuse_negated",
     "refuse_nested_relation",
+    "refuse_non_words",
 ]
 
 MAX_REPEAT = 20
@@ -160,6 +163,46 @@ def refuse_negated(text: str) -> None:
             text,
             negated[0],
             "a reference names what to find; ask for what is there instead of what is not",
+        )
+
+
+#: What a request looks like, for messages that refuse one.
+REQUEST_EXAMPLES = (
+    "'go to the red mug', 'move 10 cm north, then to the duck', 'go to the image ./goal.png'"
+)
+#: Code, not words, in a request: punctuation no request needs, a call ("f(", ")(") and a
+#: quote closed into a bracket ('")', '("'). A parenthesis after a space is a remark ("the
+#: ball (the soccer kind)") and passes; an image path is not looked at.
+_CODE_PUNCT = re.compile(r"[`{}\[\]<>=\\|$]|\w\(|\)\(|[\"']\)|\([\"']|\);")
+_CONTROL_NAMES = {"\n": "a line break", "\r": "a line break", "\t": "a tab", "\x1b": "an escape"}
+
+
+def refuse_non_words(text: str) -> None:
+    """Refuse a request that is not one line of words: a control or format character (a line
+    break, a tab, a terminal escape, a bidi override) or code punctuation (a backtick, a
+    bracket, a call, a quote closed into a parenthesis, ``= | $ \\ < >``); nothing is read
+    from such a request, and no reader takes the junk as a thing's words. ParseError naming
+    the character and what a request looks like."""
+    if not isinstance(text, str):
+        return
+    for ch in text.strip():  # a line's own end is no line break inside it
+        if unicodedata.category(ch) == "Cc" or (
+            unicodedata.category(ch) == "Cf" and ch != "\u200d"
+        ):
+            what = _CONTROL_NAMES.get(ch, f"a control character (U+{ord(ch):04X})")
+            raise ParseError(
+                text,
+                ch,
+                f"a request is one line of words; this one holds {what}. A request looks "
+                f"like {REQUEST_EXAMPLES}",
+            )
+    m = _CODE_PUNCT.search(_PATH.sub(" ", text))
+    if m:
+        raise ParseError(
+            text,
+            m.group(0),
+            f"a request is words, not code: {m.group(0)!r} is code punctuation, in no thing's "
+            f"name. A request looks like {REQUEST_EXAMPLES}",
         )
 
 
