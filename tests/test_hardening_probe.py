@@ -142,6 +142,24 @@ def test_a_table_map_is_refused_for_the_room_base(oracle_map, tmp_path, capsys):
     assert code == 2 and "no shipped room 'nowhere'" in capsys.readouterr().err
 
 
+def test_a_room_given_to_a_robot_without_one_is_refused(oracle_map, tmp_path, capsys):
+    from tabletop.cli import main
+
+    # --room was ignored by every embodiment but the room's base (and by --suite)
+    path = oracle_map.save(tmp_path / "table.npz")
+    for extra in (["--embodiment", "point"], ["--dry-run"], ["--embodiment", "base"]):
+        code = main(["run", str(path), "go to the mug", "--room", "kitchen", *extra])
+        err = capsys.readouterr().err
+        assert code == 2, extra
+        assert "--room 'kitchen' names the room of the wheeled base" in err
+        assert "give --room with --embodiment room only" in err
+    code = main(["run", str(path), "--suite", "--room", "kitchen"])
+    assert code == 2 and "--suite has no room" in capsys.readouterr().err
+    # the point robot without --room runs as before
+    assert main(["run", str(path), "go to the red mug", "--embodiment", "point"]) in (0, 1)
+    assert "--room" not in capsys.readouterr().err
+
+
 @pytest.mark.parametrize(
     ("field", "value"), [("max_steps", "many"), ("max_loop", 2.5), ("max_calls", True)]
 )

@@ -190,6 +190,14 @@ def cmd_run(args: argparse.Namespace) -> int:
 
     if args.json and not args.suite:
         raise ConfigError("--json is the suite's report: give --suite too (or leave --json out)")
+    if args.room is not None and (args.embodiment != "room" or args.suite):
+        with_what = "--suite" if args.suite else f"--embodiment {args.embodiment}"
+        raise ConfigError(
+            f"--room {args.room!r} names the room of the wheeled base, and {with_what} has no "
+            "room: give --room with --embodiment room only (without --suite), or leave it out"
+        )
+    if args.embodiment == "room" and args.room is None:
+        args.room = "default"
     if args.image_dir is not None and not Path(args.image_dir).is_dir():
         what = "is not a directory" if Path(args.image_dir).exists() else "does not exist"
         raise ConfigError(f"--image-dir {str(args.image_dir)!r} {what}")
@@ -378,7 +386,10 @@ def add_commands(sub) -> None:
         help="run the arm in --scene although the map was not built from it (or does not say "
         "what it was built from): warned, not refused",
     )
-    p.add_argument("--room", default="default", help="with --embodiment room: the room")
+    p.add_argument(
+        "--room",
+        help="with --embodiment room (and only with it): the room (default: default)",
+    )
     p.add_argument(
         "--image-dir",
         help="the directory images in instructions are read from (relative paths from here; "
