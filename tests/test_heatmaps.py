@@ -136,3 +136,26 @@ def test_heatmap_values_are_checked_and_read_only():
 def test_decay_must_be_positive():
     with pytest.raises(ConfigError, match="decay must be a positive rate in 1/m"):
         point_heatmap_3d(GRID, np.zeros(GRID.shape, bool), -1.0)
+
+
+def test_two_heatmaps_compare_by_what_they_say_and_hash_alike():
+    # == compared identity: two heatmaps of the same values and query were unequal
+    v = np.zeros(GRID.shape, np.float32)
+    v[3, 4, 5] = 0.75
+    a, b = _h(v), _h(v.copy())
+    assert a == b and not (a != b) and hash(a) == hash(b) and len({a, b}) == 1
+    w = v.copy()
+    w[0, 0, 0] = 0.5
+    assert a != _h(w)  # other values
+    assert a != _h(v, query="other") and a != _h(v, confidence=0.5) and a != _h(v, found=False)
+    assert a.with_values(v, target=(0.1, 0.0, 0.05)) != a  # a target
+    assert fuse(a, b) == fuse(b.with_values(v), a) and fuse(a, b) != a  # parts compared too
+    # a number or an array is refused by name, with what to compare instead
+    for other in (0.75, 1, np.float32(0.0), v):
+        with pytest.raises(TypeError, match=r"use h.values .* numpy.allclose"):
+            a == other  # noqa: B015
+        with pytest.raises(TypeError, match="a heatmap equals only another Heatmap"):
+            a != other  # noqa: B015
+    with pytest.raises(TypeError, match="a heatmap equals only another Heatmap"):
+        v == a  # noqa: B015  (numpy defers to the heatmap)
+    assert a != None and a != "q" and a in [None, b]  # noqa: E711

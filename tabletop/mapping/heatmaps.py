@@ -108,7 +108,9 @@ class Heatmap:
     """A query's heatmap over a grid, with what produced it (a value; its array is read-only).
 
     ``found`` is the query's verdict: False means the map holds nothing that matches (``reason``
-    says why) and the values carry no target. ``a * b`` fuses two heatmaps (:func:`fuse`).
+    says why) and the values carry no target. ``a * b`` fuses two heatmaps (:func:`fuse`);
+    ``a == b`` compares what they say, values included (:meth:`__eq__`), and equal heatmaps
+    hash alike.
     """
 
     grid: VoxelGrid
@@ -211,12 +213,56 @@ class Heatmap:
     __ge__ = lambda self, other: self._refuse(other, ">=")  # noqa: E731
     __neg__ = __pos__ = __abs__ = lambda self: self._refuse(None, "(unary)")
 
+    def __eq__(self, other: object) -> bool:
+        """Two heatmaps are equal when all they say is: grid, values (exactly: compare heat
+        within a tolerance with ``numpy.allclose(a.values, b.values)``), query, modality,
+        decay, confidence, verdict, reason, evidence, target and parts. A heatmap is never
+        compared with a number or an array (refused by name: compare ``h.values``)."""
+        if isinstance(other, Heatmap):
+            return self is other or (
+                self.grid == other.grid
+                and all(getattr(self, f) == getattr(other, f) for f in _SAID)
+                and np.array_equal(self.values, other.values)
+                and (
+                    (self.target is None and other.target is None)
+                    or (
+                        self.target is not None
+                        and other.target is not None
+                        and np.array_equal(self.target, other.target)
+                    )
+                )
+                and self.parts == other.parts
+            )
+        if isinstance(other, (np.ndarray, np.generic, int, float)) and not isinstance(other, bool):
+            raise TypeError(_compare_refused(other))
+        return NotImplemented
+
+    def __hash__(self) -> int:
+        # of fields equal heatmaps share (a heatmap is a value: its arrays are read-only)
+        return hash((self.grid, self.query, self.modality, self.found, self.values.shape))
+
     def __array__(self, dtype=None, copy=None) -> np.ndarray:
         return np.array(self.values, dtype=dtype)
 
     # numpy's operators defer to the heatmap's own (an array or numpy scalar times a heatmap is
     # refused by name, not turned into a bare array that has lost what the heatmap says)
     __array_ufunc__ = None
+
+
+#: The fields besides the arrays that :meth:`Heatmap.__eq__` compares.
+_SAID = ("query", "modality", "decay", "confidence", "found", "reason", "evidence")
+
+
+def _compare_refused(other: object) -> str:
+    """Why a heatmap is not compared with a number or an array."""
+    what = type(other).__name__
+    if isinstance(other, np.ndarray):
+        what += f" of shape {other.shape}"
+    return (
+        f"Heatmap == {what}: a heatmap equals only another Heatmap (grid, values and what "
+        "produced them); to compare its heat, use h.values (a float32 array of the grid's "
+        "shape): h.values == x, or numpy.allclose(a.values, b.values) for two heatmaps"
+    )
 
 
 def _arithmetic_refused(op: str, other: object) -> str:
