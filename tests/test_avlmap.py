@@ -395,13 +395,16 @@ def test_query_dispatches_by_kind_and_names_the_valid_ones(avlmap):
         avlmap.query("smell", "roses")
 
 
-def _rewrite(path, out, drop=(), **header):
-    """A copy of map file ``path`` with arrays dropped and header fields replaced."""
+def _rewrite(path, out, drop=(), remove=(), **header):
+    """A copy of map file ``path`` with arrays dropped, header fields ``remove``d and header
+    fields replaced."""
     import json
 
     with np.load(path) as z:
         arrays = {k: z[k] for k in z.files if k not in drop}
     h = json.loads(arrays["header"].tobytes().decode())
+    for k in remove:
+        del h[k]
     h.update(header)
     arrays["header"] = np.frombuffer(json.dumps(h).encode(), dtype=np.uint8)
     np.savez(out, **arrays)
@@ -481,6 +484,32 @@ def test_a_map_with_bad_arrays_or_another_encoder_set_is_refused_by_name(avlmap,
         with pytest.raises(MapFormatError) as e:
             AVLMap.load(bad)
         assert needle in str(e.value)
+
+
+def test_a_map_whose_calibration_was_removed_or_edited_is_refused(avlmap, tmp_path):
+    import json
+
+    from tabletop.mapping.persistence import MapFormatError
+
+    # it loaded with the uncalibrated prior and no word
+    m = _empty_like(avlmap, calibration=replace(avlmap.calibration, thresholds={"object": 0.5}))
+    path = m.save(tmp_path / "map.npz")
+    assert AVLMap.load(path).calibration.thresholds == {"object": 0.5}
+    removed = _rewrite(path, tmp_path / "removed.npz", remove=("calibration",))
+    nulled = _rewrite(path, tmp_path / "null.npz", calibration=None)
+    for bad in (removed, nulled):
+        with pytest.raises(MapFormatError, match="header field 'calibration' is missing") as e:
+            AVLMap.load(bad)
+        assert "uncalibrated prior" in str(e.value) and "build the map again" in str(e.value)
+    with np.load(path) as z:
+        cal = json.loads(z["header"].tobytes().decode())["calibration"]
+    edited = _rewrite(path, tmp_path / "edited.npz", calibration={**cal, "thresholds": {}})
+    with pytest.raises(MapFormatError, match="'calibration' does not match the fingerprint"):
+        AVLMap.load(edited)
+    # a map of version 2 was saved without one: it loads, and says so
+    old = AVLMap.load(_rewrite(path, tmp_path / "v2.npz", remove=("calibration",), version=2))
+    assert "a saved calibration (the uncalibrated prior is used)" in old.lacks
+    assert old.calibration.models == {} and old.calibration.thresholds == {}
 
 
 def test_a_recording_that_puts_nothing_in_the_grid_builds_no_map(rec):

@@ -63,6 +63,8 @@ MAP_VERSION = 5
 #: Versions this code reads: 1 (no visual module), 2 (no saved calibration), 3 (no saved
 #: object instances), 4 (no point heights) and 5.
 READABLE_VERSIONS = (1, 2, 3, 4, 5)
+#: The first version saved with its calibration: from it on, a map without one was edited.
+FIRST_CALIBRATED_VERSION = 3
 
 
 def _digest(obj) -> str:
@@ -153,8 +155,10 @@ def encoder_fingerprint(encoder_set: str, encoders: dict, rebuild: dict) -> str:
 def check_map_fingerprints(path: str | Path, h: dict) -> None:
     """Check a map header's encoder fields against what the map was written with: the set its
     names say (``encoders.set``) is its ``encoder_set``; the fields match the fingerprint
-    written with them; the weights files the set loads are the ones it was built with.
-    :class:`MapFormatError` names the file, the field and what differs."""
+    written with them; the weights files the set loads are the ones it was built with; the
+    calibration is there (versions from :data:`FIRST_CALIBRATED_VERSION` on are saved with
+    it) and matches its fingerprint. :class:`MapFormatError` names the file, the field and
+    what differs."""
     names = h.get("encoders") or {}
     said = str(names.get("set", "")).split(" ", 1)[0]
     if said and said != h["encoder_set"]:
@@ -162,6 +166,13 @@ def check_map_fingerprints(path: str | Path, h: dict) -> None:
             f"{path}: header field 'encoder_set' is {h['encoder_set']!r} but its encoders are "
             f"{names.get('set')!r}: the header was edited; build the map again with "
             f"--encoders {h['encoder_set']}"
+        )
+    if h["version"] >= FIRST_CALIBRATED_VERSION and h.get("calibration") is None:
+        raise MapFormatError(
+            f"{path}: header field 'calibration' is missing: a map of version "
+            f"{h['version']} is saved with the confidence calibration it was built with, so it "
+            "was removed after the build (its answers would use the uncalibrated prior); "
+            "build the map again (tabletop build-map)"
         )
     prints = h.get("fingerprints")
     if prints is None:
@@ -174,6 +185,13 @@ def check_map_fingerprints(path: str | Path, h: dict) -> None:
             f"{path}: its encoder fields (encoder_set {h['encoder_set']!r}, encoders, rebuild) "
             "do not match the fingerprint written with the map: they were edited after it "
             "was built; build the map again"
+        )
+    cal = prints.get("calibration")
+    if cal is not None and h.get("calibration") is not None and cal != _digest(h["calibration"]):
+        raise MapFormatError(
+            f"{path}: header field 'calibration' does not match the fingerprint written with "
+            "the map: it was edited after the build (its confidences and found decisions would "
+            "not be the ones it was built with); build the map again (tabletop build-map)"
         )
     saved = prints.get("weights") or {}
     now = weights_fingerprints(h["encoder_set"], h["rebuild"])
@@ -383,6 +401,7 @@ def save_map(m, path: str | Path, *, rebuild: dict | None = None) -> Path:
     header["fingerprints"] = {
         "encoders": encoder_fingerprint(m.encoder_set, m.encoder_names, rebuild_info),
         "weights": weights_fingerprints(m.encoder_set, rebuild_info),
+        "calibration": _digest(header["calibration"]),
     }
     st = m.voxels.state()
     d = m.voxels.dim
