@@ -59,6 +59,40 @@ def test_an_unknown_command_names_the_valid_ones(capsys):
     assert "invalid choice: 'scna'" in err and "'scan'" in err
 
 
+def test_a_misspelt_option_is_named_with_the_nearest_valid_one(capsys):
+    # "tabletop --hlep" said only that a COMMAND is required
+    cases = [
+        (["--hlep"], "'--hlep' (did you mean --help?)", "'tabletop'"),
+        (["--verbsoe", "scenes"], "'--verbsoe' (did you mean --verbose?)", "'tabletop'"),
+        (["run", "--hlep"], "'--hlep' (did you mean --help?)", "'tabletop run'"),
+        (
+            ["run", "map.npz", "--dyr-run"],
+            "'--dyr-run' (did you mean --dry-run?)",
+            "'tabletop run'",
+        ),
+        (
+            ["query", "m.npz", "mug", "--ouput=x"],
+            "'--ouput' (did you mean --out?)",
+            "'tabletop query'",
+        ),
+    ]
+    for argv, needle, where in cases:
+        with pytest.raises(SystemExit) as e:
+            main(argv)
+        err = capsys.readouterr().err
+        assert e.value.code == 2, argv
+        assert f"unknown option {needle}" in err and f"the options of {where}" in err, err
+    # abbreviations, negative numbers and "--" still parse
+    parser = build_parser()
+    assert parser.parse_args(["--verb", "scenes"]).verbose
+    assert parser.parse_args(["-v", "scenes"]).verbose
+    args = parser.parse_args(["run", "m.npz", "go to the mug", "--dry", "--timeout", "-1"])
+    assert args.dry_run and args.timeout == -1.0
+    assert (
+        parser.parse_args(["run", "m.npz", "--", "-go to the mug"]).instruction == "-go to the mug"
+    )
+
+
 def test_nothing_in_the_library_imports_the_cli():
     pattern = re.compile(r"^\s*(from|import)\s+tabletop\.cli\b|from tabletop import cli", re.M)
     offenders = [

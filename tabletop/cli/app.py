@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import difflib
 import logging
+import re
 import sys
 
 from tabletop.atomic import exit_on_signals
@@ -22,9 +24,48 @@ DESCRIPTION = (
 GROUPS = (scan, ingest, room, maps, evaluate, language, encoders, bench, view)
 
 
+#: A negative number is a value, not an option (argparse's own rule).
+_NEGATIVE_NUMBER = re.compile(r"^-\d+$|^-\d*\.\d+$")
+
+
+class Parser(argparse.ArgumentParser):
+    """An argument parser that names an option it does not know, with the nearest valid one
+    ("unknown option '--hlep' (did you mean --help?)"), before any other complaint: argparse
+    reports a missing command or argument first ("the following arguments are required"),
+    which hides the misspelt option. Each command's parser checks the options given to it."""
+
+    def parse_known_args(self, args=None, namespace=None):
+        args = list(sys.argv[1:] if args is None else args)
+        self._refuse_unknown_options(args)
+        return super().parse_known_args(args, namespace)
+
+    def _refuse_unknown_options(self, args: list[str]) -> None:
+        known = [o for a in self._actions for o in a.option_strings]
+        commands = set()  # the names of this parser's commands, if it has any
+        for a in self._actions:
+            if isinstance(a, argparse._SubParsersAction):
+                commands.update(a.choices)
+        for token in args:
+            if token == "--" or token in commands:
+                return  # what follows is a value, or the command's own
+            if not token.startswith("-") or token == "-" or _NEGATIVE_NUMBER.match(token):
+                continue
+            name = token.split("=", 1)[0]
+            if any(o.startswith(name) for o in known if o.startswith("--") and len(name) > 2):
+                continue  # an option, or argparse's abbreviation of one
+            if name in known or (not name.startswith("--") and name[:2] in known):
+                continue  # "-vh": short options together
+            near = difflib.get_close_matches(name, known, n=1, cutoff=0.5)
+            hint = f" (did you mean {near[0]}?)" if near else ""
+            self.error(
+                f"unknown option {name!r}{hint}; the options of {self.prog!r} are: "
+                f"{', '.join(known)} (see {self.prog} --help)"
+            )
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The ``tabletop`` argument parser with every command of :data:`GROUPS`."""
-    parser = argparse.ArgumentParser(prog="tabletop", description=DESCRIPTION)
+    parser = Parser(prog="tabletop", description=DESCRIPTION)
     parser.add_argument("-v", "--verbose", action="store_true", help="log more")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for group in GROUPS:
