@@ -222,3 +222,23 @@ def test_a_request_that_is_not_one_line_of_words_is_refused_by_every_reader(read
             understand(text, reader=reader)
         except ParseError as e:
             assert "one line of words" not in str(e) and "not code" not in str(e), text
+
+
+@pytest.mark.parametrize("reader", ["rules", "rules+spelling", "learned", "rules+learned"])
+def test_a_request_in_another_language_is_named_as_not_english(reader):
+    # these were "a step starts with a motion verb" or "this step asks something else"
+    for text, why in [
+        ("Geh zur Tasse", "2 of its 3 words are no English words"),
+        ("Fahr bitte zum roten Becher", "words are no English words"),
+        ("去杯子那里", "5 of its 5 letters are not of the Latin script"),
+        ("Иди к кружке", "letters are not of the Latin script"),
+    ]:
+        with pytest.raises(ParseError, match="the request is not in English") as e:
+            understand(text, reader=reader)
+        assert why in str(e.value) and "only English requests are read" in str(e.value)
+    # an English request naming a thing in another language, imitating a sound or with slips
+    # is English
+    for text in ["go to the Tasse", "go to where the clock went tick tock tick tock"]:
+        assert understand(text, reader=reader).steps, text
+    if reader != "rules":  # the others correct slips first
+        assert understand("go to teh bleu mgu", reader=reader).steps

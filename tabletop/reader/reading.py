@@ -41,7 +41,7 @@ from tabletop.reader.rules import (
     refuse_nested_relation,
     refuse_non_words,
 )
-from tabletop.reader.spelling import Speller, default_speller, name_words
+from tabletop.reader.spelling import Speller, default_speller, name_words, not_english
 
 __all__ = [
     "DEFAULT_READER",
@@ -82,6 +82,20 @@ def _leads(text: str) -> list[tuple[str, str]]:
     ]
 
 
+def refuse_not_english(text: str, read: str) -> None:
+    """Refuse a request in another language (:func:`~tabletop.reader.spelling.not_english`
+    of its words after spelling, ``read``): the grammar and the tagger read English only, and
+    would name a foreign request as asking something else, or read its words as a thing's."""
+    why = not_english(read)
+    if why is not None:
+        raise ParseError(
+            text,
+            text,
+            f"the request is not in English ({why}); only English requests are read, "
+            "e.g. 'go to the red mug'",
+        )
+
+
 class RulesReader:
     """The grammar of :mod:`tabletop.reader.rules`, with or without the spelling pass and the
     wrapper pass."""
@@ -114,6 +128,7 @@ class RulesReader:
             raise ConfigError(f"an instruction must be a string, got {type(text).__name__}")
         refuse_non_words(text)
         read, fixes = self.speller.correct(text) if self.spelling else (text, ())
+        refuse_not_english(text, read)
         refuse_nested_relation(read)  # no reading may drop one of two relations
         try:
             steps = parse_instruction(read, robot)
@@ -178,6 +193,7 @@ class LearnedReader:
                 if e.out_of_range:  # read, and refused by name: no other reading
                     raise
         read, fixes = self._rules.speller.correct(text)
+        refuse_not_english(text, read)
         refuse_nested_relation(read)
         words = words_of(read)
         if not words:

@@ -45,6 +45,7 @@ __all__ = [
     "domain_words",
     "english_words",
     "name_words",
+    "not_english",
     "place_words",
     "reader_words",
 ]
@@ -256,6 +257,37 @@ def _imitations(tokens: list[str]) -> frozenset[str]:
 def default_speller() -> Speller:
     """The speller of the shipped vocabulary, built once and shared by every reader."""
     return Speller()
+
+
+#: A letter of the Latin script (ASCII and its accented forms): English is written in it.
+_LATIN_LETTER = re.compile(r"[A-Za-z\u00c0-\u024f]")
+#: Share of a request's letters outside the Latin script, and of its words that are no English
+#: word, from which it is taken for another language (two such words at least).
+FOREIGN_SHARE = 0.5
+
+
+def not_english(text: str, speller: Speller | None = None) -> str | None:
+    """Why ``text`` is not an English request, or None: most of its letters are of another
+    script (Chinese, Cyrillic, Arabic, ...), or more than half its distinct words, and two at
+    least, are neither English words (of the word list, or made regularly from one) nor words
+    of the map's or the reader's vocabulary. Pass the words after spelling correction:
+    a slip of an English word is then English again. Words only are judged (no list of any
+    other language's words is kept)."""
+    words = re.findall(r"[^\W\d_]+(?:'[^\W\d_]+)*", text)
+    letters = "".join(words)
+    if not letters:
+        return None
+    other = sum(1 for c in letters if not _LATIN_LETTER.match(c))
+    if other / len(letters) >= FOREIGN_SHARE:
+        return f"{other} of its {len(letters)} letters are not of the Latin script"
+    sp = speller or default_speller()
+    # each word once ("bok bok bok" is a sound imitated, one word), a possessive as its noun
+    distinct = dict.fromkeys(re.sub(r"'s$", "", w.lower()) for w in words)
+    unknown = [w for w in distinct if not (sp.known(w) or sp._regular(w))]
+    if len(unknown) >= 2 and len(unknown) / len(distinct) > FOREIGN_SHARE:
+        shown = ", ".join(repr(w) for w in unknown[:4])
+        return f"{len(unknown)} of its {len(distinct)} words are no English words ({shown})"
+    return None
 
 
 class Speller:
