@@ -148,3 +148,12 @@ def test_cli_run_dry_run_shows_code_and_targets(capsys, ref_map):
     lines = [ln for ln in out.splitlines() if "target (" in ln]
     assert len(lines) == 2 and "move_south" in lines[1]
     assert "2 target(s)" in out
+
+
+def test_words_read_as_an_image_that_is_no_file_are_named_for_both(ref_map, tmp_path):
+    # "image 'nothing.png' is not found": the request's words were blamed on an image path
+    robot = PointRobot(ref_map, (0.3, 0.0, 0.3))
+    with pytest.raises(ConfigError, match="read neither as a thing nor as an existing image") as e:
+        run_instruction("go to ./nothing.png", robot, dry_run=True, image_dir=tmp_path)
+    assert "'./nothing.png'" in str(e.value) and "is not found" in str(e.value)
+    assert str(tmp_path) in str(e.value)

@@ -242,3 +242,10 @@ def test_a_request_in_another_language_is_named_as_not_english(reader):
         assert understand(text, reader=reader).steps, text
     if reader != "rules":  # the others correct slips first
         assert understand("go to teh bleu mgu", reader=reader).steps
+
+
+@pytest.mark.parametrize("reader", ["learned", "rules+learned"])
+def test_code_like_words_are_read_neither_as_a_thing_nor_as_an_image_file(reader):
+    # they were blamed on an image path: "an image goal needs an image file's path"
+    with pytest.raises(ParseError, match="read neither as a thing .* nor as an image file"):
+        understand("go to rm -rf /", reader=reader)

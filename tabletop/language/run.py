@@ -18,6 +18,7 @@ import numpy as np
 
 from tabletop.errors import ConfigError
 from tabletop.language.sandbox import SandboxConfig, SandboxRun, check_code, run_code
+from tabletop.paths import input_file_problem
 from tabletop.reader.reading import DEFAULT_READER
 from tabletop.robot.api import check_compass_distance, check_on_map
 from tabletop.robot.primitives import PRIMITIVES, Primitive
@@ -150,6 +151,14 @@ class TracingRobot:
             raise ConfigError(
                 f"image path {str(path)!r} is outside the image directory {str(self.image_dir)!r}"
                 "; give a path inside it (relative paths are read from it)"
+            )
+        problem = input_file_problem(p)
+        if problem:  # the words looked like a path: say what they were not
+            raise ConfigError(
+                f"{str(path)!r} was read neither as a thing nor as an existing image file (in "
+                f"the image directory {str(self.image_dir)!r}, it {problem}); name a thing in "
+                "words (e.g. 'the red mug'), or give the path of an image file inside the "
+                "image directory"
             )
         return self.robot.load_image(p)
 

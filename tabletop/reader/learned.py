@@ -466,8 +466,10 @@ def _check(text: str, clause: str, relation: str, goals: list[Goal], times: int)
                     raise ParseError(
                         text,
                         part.text,
-                        "an image goal needs an image file's path, e.g. "
-                        "'the image ./goal.png' (.png, .jpg, .jpeg, .bmp, .webp, .tif, .gif)",
+                        "these words were read neither as a thing (a thing is named in words, "
+                        "e.g. 'the red mug') nor as an image file (an image goal is an image "
+                        "file's path, e.g. 'the image ./goal.png'; .png, .jpg, .jpeg, .bmp, "
+                        ".webp, .tif, .gif)",
                     )
                 continue
             if _CODE.search(part.text):
