@@ -249,3 +249,21 @@ def test_code_like_words_are_read_neither_as_a_thing_nor_as_an_image_file(reader
     # they were blamed on an image path: "an image goal needs an image file's path"
     with pytest.raises(ParseError, match="read neither as a thing .* nor as an image file"):
         understand("go to rm -rf /", reader=reader)
+
+
+@pytest.mark.parametrize("reader", ["rules", "rules+spelling", "learned", "rules+learned"])
+def test_a_goal_narrowed_by_a_relation_is_refused_by_every_reader(reader):
+    # the learned readers read "near the left of the duck" as near the table's left side and
+    # near the duck
+    from tabletop.relations import RELATIONS
+
+    for r in RELATIONS:
+        ref = r.wording.removeprefix("to ") + (
+            " the duck and the cup" if r.landmarks == 2 else " the duck"
+        )
+        with pytest.raises(ParseError, match="narrowed by a thing, a sound or a place") as e:
+            understand(f"go to the mug near {ref}", reader=reader)
+        assert f"(relation '{r.name}')" in str(e.value)
+    # "go near X" is a way of going to X, and a thing or a table area narrows a goal
+    assert understand("go near the left of the duck", reader=reader).steps
+    assert understand("go to the mug next to the tray", reader=reader).steps

@@ -254,6 +254,22 @@ def refuse_nested_relation(text: str) -> None:
                             f"the thing (e.g. '{wording} the mug'), or make two steps joined "
                             "by 'then'",
                         )
+        # "the mug near the left of the duck": what narrows a goal is a thing, a sound or a
+        # place, not a relation ("in", "on", "by" also start relations; "go near" is a verb)
+        for m in _CONNECT.finditer(clause):
+            before = _POLITE_HEAD.sub("", clause[: m.start()], count=1).strip(" ,")
+            verb = _VERB.match(before)
+            if m.group(1) in ("in", "on", "by", "around") or (verb and verb.end() >= len(before)):
+                continue
+            inner = next(iter(_relations_at(clause[m.end() :])), None)
+            if inner is not None:
+                raise ParseError(
+                    text,
+                    clause[m.start() :].strip(),
+                    f"a goal is narrowed by a thing, a sound or a place, not by a relation: "
+                    f"{m.group(1)!r} is taken here of {clause[m.end() :]!r} (relation "
+                    f"'{inner[0]}'); name the thing (e.g. '{m.group(1)} the duck')",
+                )
 
 
 _VERB = re.compile(
