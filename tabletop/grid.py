@@ -72,7 +72,10 @@ class VoxelGrid:
     def world_to_index(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(N, 3) int voxel indices of (N, 3) points [m], and a mask of those inside the grid."""
         idx = np.floor((np.asarray(points, float) - self.lower) / self.voxel_size).astype(np.int64)
-        inside = np.all((idx >= 0) & (idx < self.shape), axis=1)
+        # one comparison per axis: a negative index read as unsigned is larger than any shape
+        u = idx.view(np.uint64)
+        nx, ny, nz = self.shape
+        inside = (u[:, 0] < nx) & (u[:, 1] < ny) & (u[:, 2] < nz)
         return idx, inside
 
     def linear(self, idx: np.ndarray) -> np.ndarray:

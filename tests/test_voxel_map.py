@@ -69,6 +69,41 @@ def test_online_and_batch_give_the_same_map():
     )
 
 
+@pytest.mark.parametrize("pending_points", [1, 700, 1 << 30])
+def test_feature_tables_summed_a_few_frames_at_a_time_equal_the_per_point_loop(
+    pending_points, monkeypatch
+):
+    """Frames give their features as a table and each point's row in it (one table shared by
+    several frames, or a new one each frame); the map sums them a few frames at a time, and a
+    read in between sees every frame given so far."""
+    import tabletop.mapping.voxel_map as vm
+
+    monkeypatch.setattr(vm, "PENDING_POINTS", pending_points)
+    rng = np.random.default_rng(4)
+    shared = rng.normal(size=(5, 6)).astype(np.float32)
+    m = VoxelMap(GRID, 6, capacity=4)
+    all_pts, all_feats = [], []
+    for k in range(9):
+        pts = rng.uniform(-0.02, 0.22, size=(300, 3)) * [1, 1, 0.5]
+        table = shared if k % 3 else rng.normal(size=(7, 6)).astype(np.float32)
+        index = rng.integers(0, len(table), len(pts))
+        m.integrate(pts, table, feature_index=index)
+        all_pts.append(pts)
+        all_feats.append(table[index])
+        if k == 4:  # a read mid-way: what has been given so far
+            ref, _ = reference_means(np.concatenate(all_pts), np.concatenate(all_feats))
+            got = m.mean_features(normalize=False)
+            assert m.n == len(ref)
+            for row, idx in enumerate(map(tuple, m.indices)):
+                np.testing.assert_allclose(got[row], ref[idx], rtol=1e-5, atol=1e-6)
+    ref, counts = reference_means(np.concatenate(all_pts), np.concatenate(all_feats))
+    got, state = m.mean_features(normalize=False), m.state()
+    assert m.n == len(ref) and len(state["feature_sums"]) == m.n
+    for row, idx in enumerate(map(tuple, m.indices)):
+        np.testing.assert_allclose(got[row], ref[idx], rtol=1e-5, atol=1e-6)
+        assert m.counts[row] == counts[idx]
+
+
 def test_state_round_trip_and_validation():
     rng = np.random.default_rng(3)
     m = VoxelMap(GRID, 4)

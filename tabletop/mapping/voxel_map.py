@@ -1,10 +1,13 @@
 """Sparse voxel fusion of pixel features: scatter-mean into the occupied voxels of a grid.
 
 Only occupied voxels store a feature row, so a 1 m x 1.2 m table at 1 cm with 384-d features
-takes a few tens of MB. Fusion is vectorised: the points of a frame are grouped by voxel with
-one sort and summed with one sparse-matrix product; there is no per-point Python loop. Frames
-can be added one at a time (online) or in any batches: the sums, and so the means, do not depend
-on how the frames were grouped.
+takes a few tens of MB. Fusion is vectorised: each point finds its voxel's row through one
+grid-sized lookup (only voxels seen for the first time are sorted), counts, colours and heights
+are summed with ``bincount``, and the features of a few frames at a time with one sparse-matrix
+product; there is no per-point Python loop. Frames can be added one at a time (online) or in any
+batches: the sums, and so the means, do not depend on how the frames were grouped (up to float32
+rounding). The arrays given to :meth:`VoxelMap.integrate` are read until the next flush: a
+caller must not change them in place afterwards.
 """
 
 from __future__ import annotations
@@ -14,19 +17,28 @@ import scipy.sparse as sp
 
 from tabletop.errors import ConfigError
 from tabletop.grid import VoxelGrid
-from tabletop.transforms import backproject, transform_points
+from tabletop.transforms import transform_points
 
 __all__ = ["VoxelMap", "frame_points"]
+
+#: Feature sums are added to the map every this many points (about eight frames at 320x240 and
+#: a pixel step of 3), or once the pending frames' feature tables reach this many bytes, and
+#: before anything reads them.
+PENDING_POINTS = 1 << 16
+PENDING_BYTES = 32 << 20
 
 
 def frame_points(depth: np.ndarray, K: np.ndarray, T_world_cam: np.ndarray, step: int = 1):
     """World points (P, 3) [m] of the valid depth pixels on every ``step``-th row and column,
     and their pixel coordinates (P, 2) as (row, column)."""
-    mask = np.zeros(depth.shape, bool)
-    mask[::step, ::step] = True
-    mask &= depth > 0
-    rows, cols = np.nonzero(mask)
-    pts_cam = backproject(depth, K, mask)
+    sub = np.asarray(depth)[::step, ::step]  # a view: only the fused pixels are read
+    v, u = np.nonzero(sub > 0)
+    z = sub[v, u].astype(np.float64)
+    rows, cols = v * step, u * step
+    pts_cam = np.empty((len(z), 3))
+    pts_cam[:, 0] = (cols - K[0, 2]) * z / K[0, 0]
+    pts_cam[:, 1] = (rows - K[1, 2]) * z / K[1, 1]
+    pts_cam[:, 2] = z
     return transform_points(T_world_cam, pts_cam), np.stack([rows, cols], axis=1)
 
 
@@ -49,6 +61,12 @@ class VoxelMap:
         self.has_heights = True
         """Whether the point heights are known (a map restored from a file that lacks them
         is not)."""
+        self._pending: list[tuple] = []
+        """Frames integrated but not yet in the sums: (rows, heights, colours or None,
+        feature rows or None, feature table or None) each (:meth:`_flush`)."""
+        self._pending_points = 0
+        self._pending_bytes = 0
+        self._pending_tables: set[int] = set()
         self.n = 0
         self.version = 0
         """Counts the integrations: a cache of anything derived from the voxels keys on it."""
@@ -97,36 +115,85 @@ class VoxelMap:
             elif len(feature_index) != len(points):
                 raise ConfigError("feature_index must have one entry per point")
         idx, inside = self.grid.world_to_index(points)
-        if not inside.any():
-            return 0
-        lin = self.grid.linear(idx[inside])
-        uniq, inv = np.unique(lin, return_inverse=True)
-        rows = self._row_of[uniq]
+        every = bool(inside.all())
+        if not every:
+            if not inside.any():
+                return 0
+            idx, points = idx[inside], points[inside]
+        lin = self.grid.linear(idx)
+        # each point's row through the grid-sized lookup: no sort of the frame's points; only
+        # the voxels seen for the first time are sorted (to give them rows in voxel order)
+        rows = self._row_of[lin]
         new = rows < 0
-        n_new = int(new.sum())
-        if n_new:
-            self._grow(self.n + n_new)
-            rows[new] = np.arange(self.n, self.n + n_new, dtype=np.int32)
-            self._row_of[uniq[new]] = rows[new]
-            self._lin[self.n : self.n + n_new] = uniq[new]
-            self.n += n_new
+        if new.any():
+            fresh = np.unique(lin[new])
+            k = len(fresh)
+            self._grow(self.n + k)
+            self._row_of[fresh] = np.arange(self.n, self.n + k, dtype=np.int32)
+            self._lin[self.n : self.n + k] = fresh
+            self.n += k
+            rows = self._row_of[lin]
         self.version += 1
-        P = len(inv)
-        ones = np.ones(P, np.float32)
-        if features is not None:
-            # (voxel, feature row) pair counts; duplicates are summed by the sparse format.
-            F = sp.csr_matrix(
-                (ones, (inv, np.asarray(feature_index)[inside])), shape=(len(uniq), len(features))
-            )
-            self._feat[rows] += F @ np.asarray(features, np.float32)
-        self._count[rows] += np.bincount(inv, minlength=len(uniq))
-        self._z[rows] += np.bincount(inv, weights=points[inside, 2], minlength=len(uniq))
         if colors is not None:
-            c = np.asarray(colors, np.float64)[inside]
-            self._rgb[rows] += np.stack(
-                [np.bincount(inv, weights=c[:, k], minlength=len(uniq)) for k in range(3)], 1
-            )
-        return P
+            colors = np.asarray(colors)
+            colors = colors.copy() if every else colors[inside]
+        fi = table = None
+        if features is not None:
+            fi = np.asarray(feature_index)
+            fi, table = (fi.copy() if every else fi[inside]), features
+            if id(table) not in self._pending_tables:
+                self._pending_tables.add(id(table))
+                self._pending_bytes += table.nbytes
+        self._pending.append((rows, points[:, 2].copy(), colors, fi, table))
+        self._pending_points += len(rows)
+        if self._pending_points >= PENDING_POINTS or self._pending_bytes >= PENDING_BYTES:
+            self._flush()
+        return len(rows)
+
+    def _flush(self) -> None:
+        """Add the frames integrated since the last flush to the sums, in one pass over the
+        voxels they touched: counts, heights and colours by ``bincount``, features by one
+        sparse product of every (voxel, feature row) pair with the frames' tables stacked (a
+        frame's voxels are mostly the last frame's: adding each frame's sums on its own moved
+        every touched voxel's whole feature row each time)."""
+        if not self._pending:
+            return
+        pending, self._pending = self._pending, []
+        self._pending_points = self._pending_bytes = 0
+        self._pending_tables = set()
+        rows = np.concatenate([p[0] for p in pending])
+        counts = np.bincount(rows, minlength=self.n)
+        touched = np.flatnonzero(counts)
+        local = np.empty(self.n, np.int32)
+        local[touched] = np.arange(len(touched), dtype=np.int32)
+        inv = local[rows]
+        m = len(touched)
+        self._count[touched] += counts[touched]
+        self._z[touched] += np.bincount(inv, weights=np.concatenate([p[1] for p in pending]),
+                                        minlength=m)  # fmt: skip
+        coloured = [p for p in pending if p[2] is not None]
+        if coloured:
+            at = inv if len(coloured) == len(pending) else local[
+                np.concatenate([p[0] for p in coloured])]  # fmt: skip
+            c = np.concatenate([p[2] for p in coloured]).astype(np.float64)
+            for k in range(3):
+                self._rgb[touched, k] += np.bincount(at, weights=c[:, k], minlength=m)
+        with_features = [p for p in pending if p[4] is not None]
+        if not with_features:
+            return
+        offset: dict[int, int] = {}
+        tables = []
+        for p in with_features:
+            if id(p[4]) not in offset:
+                offset[id(p[4])] = sum(len(t) for t in tables)
+                tables.append(p[4])
+        at = inv if len(with_features) == len(pending) else local[
+            np.concatenate([p[0] for p in with_features])]  # fmt: skip
+        cols = np.concatenate([p[3].astype(np.int64) + offset[id(p[4])] for p in with_features])
+        table = tables[0] if len(tables) == 1 else np.concatenate(tables)
+        # (voxel, feature row) pair counts; duplicates are summed by the sparse format
+        F = sp.csr_matrix((np.ones(len(at), np.float32), (at, cols)), shape=(m, len(table)))
+        self._feat[touched] += F @ np.asarray(table, np.float32)
 
     # ------------------------------------------------------------------ reading
     @property
@@ -146,10 +213,12 @@ class VoxelMap:
 
     @property
     def counts(self) -> np.ndarray:
+        self._flush()
         return self._count[: self.n].copy()
 
     def mean_features(self, normalize: bool = True) -> np.ndarray:
         """(n, dim) float32 mean feature per occupied voxel (L2-normalised by default)."""
+        self._flush()
         f = self._feat[: self.n] / np.maximum(self._count[: self.n, None], 1)
         if normalize:
             f /= np.maximum(np.linalg.norm(f, axis=1, keepdims=True), 1e-12)
@@ -157,6 +226,7 @@ class VoxelMap:
 
     def mean_colors(self) -> np.ndarray:
         """(n, 3) uint8 mean colour per occupied voxel."""
+        self._flush()
         c = self._rgb[: self.n] / np.maximum(self._count[: self.n, None], 1)
         return np.clip(np.round(c), 0, 255).astype(np.uint8)
 
@@ -165,6 +235,7 @@ class VoxelMap:
         they are not known (:attr:`has_heights`)."""
         if not self.has_heights:
             return None
+        self._flush()
         return self._z[: self.n] / np.maximum(self._count[: self.n], 1)
 
     def occupancy(self) -> np.ndarray:
@@ -176,6 +247,7 @@ class VoxelMap:
     def state(self) -> dict[str, np.ndarray]:
         """Arrays that fully describe the map (for saving); copies trimmed to ``n``
         (``height_sums`` only where the heights are known)."""
+        self._flush()
         st = {
             "linear": self._lin[: self.n].copy(),
             "feature_sums": self._feat[: self.n].copy(),
