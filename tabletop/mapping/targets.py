@@ -74,10 +74,15 @@ def hottest_region(heatmap: Heatmap) -> np.ndarray:
     regions, the one with the largest total heat."""
     values = _check(heatmap).values
     tied = values >= heatmap.peak - _TIE
-    labels, n = ndimage.label(tied, structure=np.ones((3, 3, 3)))
+    # the components of the tied voxels lie in their bounding box: label that box alone (a
+    # peak is usually a few hundred voxels of a grid of a million), numbered in the same order
+    where = [np.flatnonzero(tied.any(axis=tuple(b for b in range(3) if b != a))) for a in range(3)]
+    box = tuple(slice(int(w[0]), int(w[-1]) + 1) for w in where)
+    labels, n = ndimage.label(tied[box], structure=np.ones((3, 3, 3)))
     if n > 1:
-        weights = ndimage.sum(values, labels, index=np.arange(1, n + 1))
-        tied = labels == (int(np.argmax(weights)) + 1)
+        weights = ndimage.sum(values[box], labels, index=np.arange(1, n + 1))
+        tied = np.zeros_like(tied)
+        tied[box] = labels == (int(np.argmax(weights)) + 1)
     return tied
 
 
