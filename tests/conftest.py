@@ -14,7 +14,7 @@ import pytest
 #: files that share a cached scan or map: they run on one worker, one after another
 FAMILIES = {
     "fast_scan": ("test_scan.py", "test_ground_truth.py", "test_eval_parallel.py"),
-    "robot_scan": ("test_robot_api.py", "test_robot_obstacles.py"),
+    "robot_scan": ("test_robot_api.py", "test_robot_obstacles.py", "test_franky_driver.py"),
     "visual_scene": (
         "test_visual_database.py",
         "test_visual_localize.py",
@@ -30,9 +30,9 @@ COSTS = {
     "test_kind_reader.py": 146,
     "test_encoders_registry.py": 105,
     "test_instance_eval.py": 90,
-    "test_franky_driver.py": 90,  # franky-sim in real time; a scan, a map and a reach
+    "test_franky_driver.py": 40,  # franky-sim in real time and a reach; robot_scan's map
     "test_scan.py": 77,  # with test_ground_truth.py: one scan for both
-    "test_robot_api.py": 76,  # with test_robot_obstacles.py
+    "test_robot_api.py": 76,  # with test_robot_obstacles.py, test_franky_driver.py
     "test_visual_localize.py": 61,  # with test_visual_database.py, test_visual_photometric.py
     "test_robot_mobile_room.py": 62,
     "test_viewer.py": 60,  # a map, a headless browser drawing it in software
