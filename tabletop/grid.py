@@ -15,6 +15,10 @@ MAX_CELLS = 50_000_000
 """The most cells a grid may have (its index table takes 4 bytes a cell)."""
 
 
+#: Steps of every ray still going that :meth:`VoxelGrid.march` samples at a time.
+MARCH_CHUNK = 24
+
+
 @dataclass(frozen=True)
 class VoxelGrid:
     """Voxels of ``voxel_size`` [m] filling ``[lower, upper)`` [m], world frame.
@@ -106,16 +110,34 @@ class VoxelGrid:
         Returns ``hit`` (R,) bool and ``point`` (R, 3) [m], the first occupied sample of each
         ray (meaningless where not ``hit``)."""
         rays = np.asarray(rays, np.float64)
+        origin = np.asarray(origin, np.float64)
         max_dist = np.broadcast_to(np.asarray(max_dist, np.float64), (len(rays),))
         steps = np.arange(0.0, float(max_dist.max(initial=0.0)), self.voxel_size / 2)
+        hit = np.zeros(len(rays), bool)
+        point = np.broadcast_to(origin, (len(rays), 3)).copy()  # the first sample: the origin
         if not len(steps):
-            return np.zeros(len(rays), bool), np.zeros((len(rays), 3))
-        pts = np.asarray(origin, np.float64) + steps[None, :, None] * rays[:, None, :]
-        idx, inside = self.world_to_index(pts.reshape(-1, 3))
-        occ = np.zeros(len(idx), bool)
-        occ[inside] = occupied[tuple(idx[inside].T)]
-        occ = occ.reshape(len(rays), len(steps)) & (steps[None, :] <= max_dist[:, None])
-        return occ.any(axis=1), pts[np.arange(len(rays)), occ.argmax(axis=1)]
+            return hit, np.zeros((len(rays), 3))
+        flat = np.asarray(occupied, bool).reshape(-1)
+        # a few steps of the rays still going at a time: a ray stops at its first occupied
+        # sample (most hit within a fraction of their length) or its length
+        live = np.arange(len(rays))
+        for start in range(0, len(steps), MARCH_CHUNK):
+            st = steps[start : start + MARCH_CHUNK]
+            pts = origin + st[None, :, None] * rays[live][:, None, :]
+            idx, inside = self.world_to_index(pts.reshape(-1, 3))
+            occ = np.zeros(len(idx), bool)
+            occ[inside] = flat[self.linear(idx[inside])]
+            occ = occ.reshape(len(live), len(st)) & (st[None, :] <= max_dist[live, None])
+            got = occ.any(axis=1)
+            rows = np.flatnonzero(got)
+            hit[live[rows]] = True
+            point[live[rows]] = pts[rows, occ[rows].argmax(axis=1)]
+            live = live[~got]
+            if start + MARCH_CHUNK < len(steps):
+                live = live[max_dist[live] >= steps[start + MARCH_CHUNK]]
+            if not len(live):
+                break
+        return hit, point
 
     def to_dict(self) -> dict:
         return {"lower": list(self.lower), "upper": list(self.upper), "voxel_size": self.voxel_size}

@@ -135,3 +135,32 @@ def test_march_stops_at_the_first_occupied_voxel_within_reach():
     assert point[0, 2] > 0.02 + GRID.voxel_size / 4  # the first such sample: from above
     hit, _ = GRID.march(origin, down, occ, [0.05, 0.2])  # per-ray reach: stops short
     assert not hit.any()
+
+
+def test_march_finds_each_rays_first_occupied_sample_as_a_step_by_step_walk():
+    """Rays of many lengths (several of the march's chunks of steps), some hitting, some not:
+    the first occupied half-voxel sample of each, as a ray walked one sample at a time finds
+    it."""
+    rng = np.random.default_rng(7)
+    occ = rng.random(GRID.shape) < 0.01
+    origin = np.array([0.1, 0.1, 0.05])
+    rays = rng.normal(size=(300, 3))
+    rays /= np.linalg.norm(rays, axis=1, keepdims=True)
+    reach = rng.uniform(0.0, 0.4, len(rays))
+    hit, point = GRID.march(origin, rays, occ, reach)
+    step = GRID.voxel_size / 2
+    assert 0 < hit.sum() < len(rays)
+    for r, d, h, p in zip(rays, reach, hit, point, strict=True):
+        first = None
+        for k in range(int(np.ceil(0.4 / step)) + 1):
+            t = k * step
+            if t >= 0.4 or t > d:
+                break
+            q = origin + t * r
+            idx, inside = GRID.world_to_index(q[None])
+            if inside[0] and occ[tuple(idx[0])]:
+                first = q
+                break
+        assert h == (first is not None)
+        if h:
+            np.testing.assert_array_equal(p, first)
