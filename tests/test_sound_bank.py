@@ -208,31 +208,46 @@ def test_loaded_clips_are_float32_peak_normalised(bank, audio):
         assert float(np.sqrt(np.mean(x.astype(np.float64) ** 2))) > 0.01, clip.id
 
 
-def _max_ncc(a: np.ndarray, b: np.ndarray, min_overlap: int = 2000) -> float:
+def _max_ncc(
+    a: np.ndarray, b: np.ndarray, min_overlap: int = 2000, spectra: dict | None = None
+) -> float:
     """Largest normalised cross-correlation over shifts where both overlap parts are loud and
-    overlap by at least ``min_overlap`` samples (0.25 s at 8 kHz)."""
-    a = a.astype(np.float64)
-    b = b.astype(np.float64)
+    overlap by at least ``min_overlap`` samples (0.25 s at 8 kHz). ``spectra``: a dict that
+    keeps each signal's spectrum and energies per FFT length between calls (keyed by the
+    array's id: the caller keeps the arrays alive)."""
     la, lb = len(a), len(b)
     n = 1 << int(np.ceil(np.log2(la + lb)))
-    c = np.fft.irfft(np.fft.rfft(a, n) * np.conj(np.fft.rfft(b, n)), n)
+    fa, ea = _spectrum(a, n, spectra)
+    fb, eb = _spectrum(b, n, spectra)
+    c = np.fft.irfft(fa * np.conj(fb), n)
     lags = np.arange(-(lb - 1), la)
     cc = np.concatenate([c[n - (lb - 1) :], c[:la]])
-    ea = np.concatenate([[0.0], np.cumsum(a**2)])
-    eb = np.concatenate([[0.0], np.cumsum(b**2)])
     a0, a1 = np.maximum(lags, 0), np.minimum(la, lags + lb)
     e_a, e_b = ea[a1] - ea[a0], eb[a1 - lags] - eb[a0 - lags]
     ok = (a1 - a0 >= min_overlap) & (e_a >= 0.1 * ea[-1]) & (e_b >= 0.1 * eb[-1])
     return float(np.max(np.abs(cc[ok]) / np.sqrt(e_a[ok] * e_b[ok]))) if ok.any() else 0.0
 
 
+def _spectrum(x: np.ndarray, n: int, spectra: dict | None):
+    """(rfft of ``x`` at length ``n``, its cumulative energies from 0), kept in ``spectra``."""
+    key = (id(x), n)
+    if spectra is not None and key in spectra:
+        return spectra[key]
+    x = x.astype(np.float64)
+    out = np.fft.rfft(x, n), np.concatenate([[0.0], np.cumsum(x**2)])
+    if spectra is not None:
+        spectra[key] = out
+    return out
+
+
 def test_clips_in_a_category_are_distinct_recordings(bank, audio):
     low = {i: resample(x, 16000, 8000) for i, x in audio.items()}
+    spectra: dict = {}
     for cat in bank.categories:
         ids = [c.id for c in bank.clips(category=cat)]
         for i, a in enumerate(ids):
             for b in ids[i + 1 :]:
-                assert _max_ncc(low[a], low[b]) < 0.8, (a, b)
+                assert _max_ncc(low[a], low[b], spectra=spectra) < 0.8, (a, b)
 
 
 def test_a_copy_is_caught_by_the_distinctness_check(audio):
@@ -407,9 +422,10 @@ def test_out_of_bank_clips_are_no_bank_recordings(audio):
     (the duplicate check of the bank, at 4 kHz)."""
     oob = {c.id: resample(c.load(), 16000, 4000) for c in SoundBank.out_of_bank()}
     bank = {i: resample(x, 16000, 4000) for i, x in audio.items()}
+    spectra: dict = {}
     for i, (a, x) in enumerate(oob.items()):
         for b, y in [*bank.items(), *list(oob.items())[i + 1 :]]:
-            assert _max_ncc(x, y, min_overlap=1000) < 0.8, (a, b)
+            assert _max_ncc(x, y, min_overlap=1000, spectra=spectra) < 0.8, (a, b)
 
 
 def test_out_of_bank_audioset_names_are_yamnet_classes(oob_manifest):
