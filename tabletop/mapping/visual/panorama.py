@@ -77,6 +77,13 @@ class PanoramaSearch:
         self._el_lo, self._el_hi = np.radians(-70.0), np.radians(20.0)
         self.positions = self._places(indices)
         self.panoramas = self._render(grid.centers(indices), colours.astype(np.int16))
+        # each panorama pixel as its colour's row in the palette of the colours shown (-1: no
+        # voxel shows): a query tests each palette colour against its sample pixels once
+        shown = self.panoramas[..., 0] >= 0
+        self._palette, ids = np.unique(self.panoramas[shown], axis=0, return_inverse=True)
+        self._palette = self._palette.astype(np.int32)
+        self._ids = np.full(self.panoramas.shape[:3], -1, np.int32)
+        self._ids[shown] = ids.reshape(-1)
         self.build_s = time.perf_counter() - t0
 
     def __len__(self) -> int:
@@ -163,7 +170,19 @@ class PanoramaSearch:
         c = self.config
         tol2 = c.colour_tolerance**2
         step = 2 * np.pi / self.azimuths
-        pans = self.panoramas[places]
+        ids = self._ids[places]  # (P, E, A) palette rows, -1 where nothing shows
+        # (palette colours + 1, S): which colours agree with each sample pixel; the last row
+        # (index -1) is nothing shown, agreeing with none
+        agrees = np.zeros((len(self._palette) + 1, len(seen)), bool)
+        seen = np.asarray(seen, np.int32)
+        for lo in range(0, len(self._palette), 4096):  # bounded temporaries
+            pal = self._palette[lo : lo + 4096]
+            d2 = np.zeros((len(pal), len(seen)), np.int32)
+            for ch in range(3):
+                d2 += (pal[:, ch, None] - seen[None, :, ch]) ** 2
+            agrees[lo : lo + len(pal)] = d2 <= tol2
+        n_samples = agrees.shape[1]
+        agrees = agrees.reshape(-1)
         best = np.full(len(places), -1.0)
         best_pose = np.zeros((len(places), 2))
         pitches = np.arange(
@@ -175,15 +194,15 @@ class PanoramaSearch:
             ai0, ei, ok = self._bins(d)
             if ok.mean() < 0.5:
                 continue
-            ai0, ei, s = ai0[ok], ei[ok], seen[ok]
+            ai0, ei, cols = ai0[ok], ei[ok], np.flatnonzero(ok)
             for chunk in np.array_split(shifts, max(len(shifts) // 30, 1)):
                 ai = (ai0[None, :] + chunk[:, None]) % self.azimuths  # (Y, S)
-                vals = pans[:, ei[None, :], ai].astype(np.int32)  # (P, Y, S, 3)
-                hit = vals[..., 0] >= 0
-                agree = (((vals - s) ** 2).sum(axis=3) <= tol2) & hit
+                v = ids[:, ei[None, :], ai]  # (P, Y, S)
+                hit = v >= 0
+                agree = agrees[v * n_samples + cols]  # row -1: the last, no colour
                 n_hit = hit.sum(axis=2)
                 score = agree.sum(axis=2) / np.maximum(n_hit, 1)
-                score[n_hit < 0.5 * len(s)] = 0.0
+                score[n_hit < 0.5 * len(cols)] = 0.0
                 j = score.argmax(axis=1)  # the chunk's best yaw per place
                 sc = score[np.arange(len(j)), j]
                 better = sc > best
