@@ -16,7 +16,7 @@ MAX_CELLS = 50_000_000
 
 
 #: Steps of every ray still going that :meth:`VoxelGrid.march` samples at a time.
-MARCH_CHUNK = 24
+MARCH_CHUNK = 32
 
 
 @dataclass(frozen=True)
@@ -113,6 +113,8 @@ class VoxelGrid:
         origin = np.asarray(origin, np.float64)
         max_dist = np.broadcast_to(np.asarray(max_dist, np.float64), (len(rays),))
         steps = np.arange(0.0, float(max_dist.max(initial=0.0)), self.voxel_size / 2)
+        # a ray that has left the grid's box never comes back: it stops a voxel past its exit
+        reach = np.minimum(max_dist, self._exit(origin, rays) + self.voxel_size)
         hit = np.zeros(len(rays), bool)
         point = np.broadcast_to(origin, (len(rays), 3)).copy()  # the first sample: the origin
         if not len(steps):
@@ -134,10 +136,25 @@ class VoxelGrid:
             point[live[rows]] = pts[rows, occ[rows].argmax(axis=1)]
             live = live[~got]
             if start + MARCH_CHUNK < len(steps):
-                live = live[max_dist[live] >= steps[start + MARCH_CHUNK]]
+                live = live[reach[live] >= steps[start + MARCH_CHUNK]]
             if not len(live):
                 break
         return hit, point
+
+    def _exit(self, origin: np.ndarray, rays: np.ndarray) -> np.ndarray:
+        """(R,) [m] how far along each ray from ``origin`` it leaves the grid's box for good
+        (-inf: it never enters; the slab test)."""
+        lo = np.asarray(self.lower, np.float64) - origin
+        hi = np.asarray(self.upper, np.float64) - origin
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t1, t2 = lo / rays, hi / rays
+        far = np.where(np.isnan(t1), np.inf, np.maximum(t1, t2))  # nan: 0/0, on a face
+        parallel = rays == 0
+        outside = parallel & ((lo > 0) | (hi < 0))  # parallel to a slab it is not in
+        far = np.where(parallel & ~outside, np.inf, far)
+        t = far.min(axis=1)
+        t[outside.any(axis=1)] = -np.inf
+        return t
 
     def to_dict(self) -> dict:
         return {"lower": list(self.lower), "upper": list(self.upper), "voxel_size": self.voxel_size}

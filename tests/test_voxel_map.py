@@ -137,14 +137,16 @@ def test_march_stops_at_the_first_occupied_voxel_within_reach():
     assert not hit.any()
 
 
-def test_march_finds_each_rays_first_occupied_sample_as_a_step_by_step_walk():
-    """Rays of many lengths (several of the march's chunks of steps), some hitting, some not:
-    the first occupied half-voxel sample of each, as a ray walked one sample at a time finds
-    it."""
+@pytest.mark.parametrize("origin", [(0.1, 0.1, 0.05), (-0.05, 0.1, 0.12), (0.1, 0.0, 0.05)])
+def test_march_finds_each_rays_first_occupied_sample_as_a_step_by_step_walk(origin):
+    """Rays of many lengths (several of the march's chunks of steps), some hitting, some not,
+    some along the grid's axes, from inside the grid, outside it and on its face: the first
+    occupied half-voxel sample of each, as a ray walked one sample at a time finds it."""
     rng = np.random.default_rng(7)
     occ = rng.random(GRID.shape) < 0.01
-    origin = np.array([0.1, 0.1, 0.05])
+    origin = np.array(origin)
     rays = rng.normal(size=(300, 3))
+    rays[:24] = np.repeat(np.vstack([np.eye(3), -np.eye(3)]), 4, axis=0)  # along the axes
     rays /= np.linalg.norm(rays, axis=1, keepdims=True)
     reach = rng.uniform(0.0, 0.4, len(rays))
     hit, point = GRID.march(origin, rays, occ, reach)
