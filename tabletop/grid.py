@@ -123,17 +123,28 @@ class VoxelGrid:
         # a few steps of the rays still going at a time: a ray stops at its first occupied
         # sample (most hit within a fraction of their length) or its length
         live = np.arange(len(rays))
+        lower, size = np.asarray(self.lower, np.float64), self.voxel_size
+        nx, ny, nz = self.shape
         for start in range(0, len(steps), MARCH_CHUNK):
             st = steps[start : start + MARCH_CHUNK]
-            pts = origin + st[None, :, None] * rays[live][:, None, :]
-            idx, inside = self.world_to_index(pts.reshape(-1, 3))
-            occ = np.zeros(len(idx), bool)
-            occ[inside] = flat[self.linear(idx[inside])]
-            occ = occ.reshape(len(live), len(st)) & (st[None, :] <= max_dist[live, None])
+            r = rays[live]
+            # the samples' voxel indices axis by axis, as world_to_index computes them
+            ix, iy, iz = (
+                np.floor((origin[a] + st[None, :] * r[:, a, None] - lower[a]) / size).astype(
+                    np.int64
+                )
+                for a in range(3)
+            )
+            inside = (ix.view(np.uint64) < nx) & (iy.view(np.uint64) < ny)
+            inside &= iz.view(np.uint64) < nz
+            inside &= st[None, :] <= max_dist[live, None]
+            occ = np.zeros(inside.shape, bool)
+            occ[inside] = flat[((ix[inside] * ny + iy[inside]) * nz + iz[inside])]
             got = occ.any(axis=1)
             rows = np.flatnonzero(got)
             hit[live[rows]] = True
-            point[live[rows]] = pts[rows, occ[rows].argmax(axis=1)]
+            first = st[occ[rows].argmax(axis=1)]
+            point[live[rows]] = origin + first[:, None] * r[rows]
             live = live[~got]
             if start + MARCH_CHUNK < len(steps):
                 live = live[reach[live] >= steps[start + MARCH_CHUNK]]
