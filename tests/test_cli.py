@@ -93,6 +93,27 @@ def test_a_misspelt_option_is_named_with_the_nearest_valid_one(capsys):
     )
 
 
+def test_an_option_of_one_value_given_twice_is_refused(capsys):
+    # "scan --scene A --scene B" scanned B without a word about A
+    cases = [
+        (["scan", "--scene", "aa", "--scene", "bb"], "--scene", "'tabletop scan'"),
+        (["query", "m.npz", "--obj", "x", "--obj=y"], "--obj", "'tabletop query'"),
+        (["query", "m.npz", "--ob", "x", "--obj", "y"], "--obj", "'tabletop query'"),
+        (["run", "m.npz", "go", "--dry-run", "--dry"], "--dry-run", "'tabletop run'"),
+        (["-v", "--verbose", "scenes"], "--verbose", "'tabletop'"),
+    ]
+    for argv, option, _where in cases:
+        with pytest.raises(SystemExit) as e:
+            main(argv)
+        err = capsys.readouterr().err
+        assert e.value.code == 2, argv
+        assert f"option {option} is given more than once" in err and "give it once" in err, err
+    # a value that looks like the option's name is a value, and a command's options are its own
+    parser = build_parser()
+    args = parser.parse_args(["-v", "run", "m.npz", "go", "--timeout", "-1", "--dry-run"])
+    assert args.verbose and args.timeout == -1.0 and args.dry_run
+
+
 def test_nothing_in_the_library_imports_the_cli():
     pattern = re.compile(r"^\s*(from|import)\s+tabletop\.cli\b|from tabletop import cli", re.M)
     offenders = [

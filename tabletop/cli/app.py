@@ -27,6 +27,14 @@ GROUPS = (scan, ingest, room, maps, evaluate, language, encoders, bench, view)
 #: A negative number is a value, not an option (argparse's own rule).
 _NEGATIVE_NUMBER = re.compile(r"^-\d+$|^-\d*\.\d+$")
 
+#: The actions that keep one value (the last, when given twice): store, store_const,
+#: store_true/false and type-converted stores; append, count and extend collect instead.
+_SINGLE_VALUE_ACTIONS = (
+    argparse._StoreAction,
+    argparse._StoreConstAction,
+    argparse.BooleanOptionalAction,
+)
+
 
 class Parser(argparse.ArgumentParser):
     """An argument parser that names an option it does not know, with the nearest valid one
@@ -37,7 +45,48 @@ class Parser(argparse.ArgumentParser):
     def parse_known_args(self, args=None, namespace=None):
         args = list(sys.argv[1:] if args is None else args)
         self._refuse_unknown_options(args)
+        self._refuse_repeated_options(args)
         return super().parse_known_args(args, namespace)
+
+    def _refuse_repeated_options(self, args: list[str]) -> None:
+        """Refuse an option that stores one value given more than once: argparse keeps the last
+        and drops the others without a word. Options that collect (append, count, extend) may
+        repeat. ``--opt=value`` and argparse's abbreviations count as the option they name."""
+        commands = set()
+        for a in self._actions:
+            if isinstance(a, argparse._SubParsersAction):
+                commands.update(a.choices)
+        by_string = {o: a for a in self._actions for o in a.option_strings}
+        seen: dict[int, str] = {}
+        skip = False
+        for token in args:
+            if skip:
+                skip = False
+                continue
+            if token == "--" or token in commands:
+                return
+            if not token.startswith("-") or token == "-" or _NEGATIVE_NUMBER.match(token):
+                continue
+            name = token.split("=", 1)[0]
+            action = by_string.get(name)
+            if action is None and name.startswith("--"):
+                matches = {id(a): a for o, a in by_string.items() if o.startswith(name)}
+                if len(matches) == 1:
+                    action = next(iter(matches.values()))
+            if action is None:
+                continue
+            if action.nargs is None and "=" not in token and isinstance(
+                action, argparse._StoreAction
+            ):
+                skip = True  # the next token is its value
+            if not isinstance(action, _SINGLE_VALUE_ACTIONS):
+                continue
+            if id(action) in seen:
+                self.error(
+                    f"option {action.option_strings[-1]} is given more than once "
+                    f"({seen[id(action)]!r}, then {token!r}): it takes one value; give it once"
+                )
+            seen[id(action)] = token
 
     def _refuse_unknown_options(self, args: list[str]) -> None:
         known = [o for a in self._actions for o in a.option_strings]
