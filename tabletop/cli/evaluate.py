@@ -556,16 +556,17 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     if args.encoders not in ENCODER_SETS:
         raise ConfigError(f"--encoders {args.encoders!r}: unknown set; valid: {list(ENCODER_SETS)}")
     n = len(CALIBRATION_SEEDS)
-    if not 0 <= args.scenes <= n:
+    if args.scenes is not None and not 1 <= args.scenes <= n:
         raise ConfigError(
-            f"--scenes {args.scenes}: valid 0 (all {n} calibration scenes) or 1..{n} (the first N)"
+            f"--scenes {args.scenes}: a count of calibration scenes, valid 1..{n} (the first N); "
+            f"leave it out for all {n}"
         )
     if not args.no_cache:
         _check_directory_flag("--cache-dir", args.cache_dir)
     out = args.out if args.out is not None else CALIBRATION_OUT_DIR / f"{args.encoders}.json"
     check_output_flag("--out", out)
     _check_calibration_output(Path(out))
-    seeds = list(CALIBRATION_SEEDS)[: args.scenes] if args.scenes else list(CALIBRATION_SEEDS)
+    seeds = list(CALIBRATION_SEEDS)[: args.scenes or n]
     print(f"calibrating {args.encoders!r} on scenes {seeds} ...", file=sys.stderr)
     cal = run_calibration(
         args.encoders,
@@ -708,7 +709,9 @@ def add_commands(sub) -> None:
 
     p = sub.add_parser("calibrate", help="fit query confidence of an encoder set on seeded scenes")
     p.add_argument("--encoders", default="default", help="encoder set (default: default)")
-    p.add_argument("--scenes", type=int, default=0, help="use the first N calibration scenes")
+    p.add_argument(
+        "--scenes", type=int, default=None, help="use the first N calibration scenes (default all)"
+    )
     p.add_argument(
         "--out",
         default=None,
