@@ -684,6 +684,7 @@ def test_a_place_beneath_the_table_or_the_floor_is_not_found_on_its_top(oracle_m
     [
         (["eval", "demo", "--goals"], "--goals adds every goal to --json's output"),
         (["run", "m.npz", "go to the mug", "--json"], "--json is the suite's report"),
+        (["parse", "go to the mug", "--json"], "--json is the suite's report"),
         (["run", "m.npz", "go to the mug", "--image-dir", "/no/such/dir"], "does not exist"),
         (["run", "m.npz", "go to the mug", "--image-dir", "FILE"], "is not a directory"),
     ],

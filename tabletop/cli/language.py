@@ -80,6 +80,8 @@ def cmd_parse(args: argparse.Namespace) -> int:
         raise ConfigError(
             f"give an instruction or --suite, not both (got {args.instruction!r} and --suite)"
         )
+    if args.json and not args.suite:
+        raise ConfigError("--json is the suite's report: give --suite too (or leave --json out)")
     if args.suite:
         return _suite_on_reference(args)
     if not args.instruction:
