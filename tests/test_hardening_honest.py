@@ -280,6 +280,19 @@ def test_a_map_is_refused_in_a_scene_it_was_not_built_from(built, capsys):
         check_map_scene(built[1], {}, other, "random")
 
 
+def test_a_dry_run_checks_the_scene_against_the_map_as_a_run_does(built, capsys):
+    # the dry run used to exit 0 without a word about a map built from another scene
+    rc, out = run(capsys, "run", built[1], "go to the red mug", "--dry-run", "--scene", "random")
+    assert rc == 2 and "was built from scene 'default'" in out and "--other-scene" in out
+    rc, out = run(
+        capsys, "run", built[1], "go to the red mug", "--dry-run", "--scene", "random",
+        "--other-scene",
+    )
+    assert rc == 0 and "WARNING" in out
+    rc, out = run(capsys, "run", built[1], "go to the red mug", "--dry-run")
+    assert rc == 0 and "WARNING" not in out
+
+
 def _with_header(src: Path, dst: Path, change) -> Path:
     with np.load(src, allow_pickle=False) as z:
         arrays = {k: z[k] for k in z.files}

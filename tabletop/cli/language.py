@@ -225,6 +225,10 @@ def cmd_run(args: argparse.Namespace) -> int:
 
         load_room_spec(args.room)  # an unknown room is named, with the shipped ones
         _check_map_room(args, m)
+    if args.dry_run and args.embodiment == "arm" and args.map != REFERENCE:
+        # the arm's run checks --scene against the map: its dry run too (the suite's reference
+        # map is a try-out map of no shipped scene)
+        _scene_of_map(args, m)
     if args.dry_run or args.embodiment == "point":
         robot = PointRobot(m, (0.3, 0.0, 0.3))
     elif args.embodiment == "base":
