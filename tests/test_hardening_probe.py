@@ -348,6 +348,26 @@ def test_eval_compare_refuses_files_that_are_not_evaluation_results(tmp_path, ca
     assert "not UTF-8 text" in capsys.readouterr().err
 
 
+def test_eval_compare_names_a_path_that_is_no_evaluation_output(tmp_path, capsys):
+    # a bare "[Errno 2] No such file or directory" for each
+    from tabletop.cli import main
+
+    (tmp_path / "empty").mkdir()
+    (tmp_path / "odd").mkdir()
+    (tmp_path / "odd" / "results.json").mkdir()
+    cases = [
+        (tmp_path / "missing", "does not exist"),
+        (tmp_path / "empty", "is a directory without results.json"),
+        (tmp_path / "odd", "is a directory, not a file"),
+    ]
+    for path, needle in cases:
+        assert main(["eval-compare", str(path), str(path)]) == 2
+        err = capsys.readouterr().err
+        assert err.startswith("tabletop eval-compare: error: "), err
+        assert needle in err and str(path) in err and "Errno" not in err, err
+        assert "an evaluation output directory holding results.json" in err, err
+
+
 def _default_scene_with(**changes) -> dict:
     """The shipped default scene's data with the first object's fields changed."""
     import tomllib

@@ -351,8 +351,7 @@ def cmd_eval_compare(args: argparse.Namespace) -> int:
         try:
             docs.append(load_results(path))
         except (OSError, ValueError) as e:
-            print(f"tabletop eval-compare: {e}", file=sys.stderr)
-            return 2
+            raise ConfigError(str(e)) from None
     a, b = docs
     diffs = compare_results(a, b)
     if diffs:

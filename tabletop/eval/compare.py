@@ -46,9 +46,22 @@ IGNORED = TIMING_FIELDS | {"cached", "report", "map_file", "recording_dir"}
 def load_results(path: str | Path) -> dict:
     """An evaluation's JSON: a ``results.json``, a directory holding one (a report directory),
     or the output of ``tabletop eval --json --goals``."""
+    from tabletop.paths import input_file_problem
+
+    expected = (
+        "give an evaluation output directory holding results.json, or the results.json file "
+        "(or `tabletop eval --json` output)"
+    )
     p = Path(path)
-    if p.is_dir():
+    if str(path) != "" and p.is_dir():
         p = p / "results.json"
+        if not p.exists():
+            raise ValueError(
+                f"{path} is a directory without results.json, not an evaluation output: {expected}"
+            )
+    problem = input_file_problem(p)
+    if problem is not None:
+        raise ValueError(f"{str(p) if str(path) else ''!r} {problem}: {expected}")
     what = "is not an evaluation results file (a results.json, a report directory holding one, "
     what += "or `tabletop eval --json` output)"
     try:
