@@ -368,6 +368,30 @@ def test_eval_compare_names_a_path_that_is_no_evaluation_output(tmp_path, capsys
         assert "an evaluation output directory holding results.json" in err, err
 
 
+def test_a_file_that_is_not_weights_is_named_without_unsafe_loading_advice(tmp_path, capsys):
+    # torch's refusal suggested weights_only=False, which would run the file's code
+    import argparse
+
+    import torch
+
+    from tabletop.cli import main
+    from tabletop.errors import AssetError
+    from tabletop.reader.learned import load_tagger
+
+    pickled = tmp_path / "pickled.pt"
+    torch.save(argparse.Namespace(a=1), pickled)  # a pickle of a class: no weights file
+    text = tmp_path / "text.pt"
+    text.write_text("not weights at all")
+    for path in (pickled, text):
+        assert main(["check-encoders", "--vision-weights", str(path)]) == 2
+        err = capsys.readouterr().err
+        assert "is not a weights file of the expected format" in err and str(path) in err, err
+        assert "weights_only" not in err and "--vision-weights" in err, err
+        with pytest.raises(AssetError) as e:
+            load_tagger(path)
+        assert "is not a weights file" in str(e.value) and "weights_only" not in str(e.value)
+
+
 def _default_scene_with(**changes) -> dict:
     """The shipped default scene's data with the first object's fields changed."""
     import tomllib

@@ -51,6 +51,10 @@ def _check_vision_weights_file(path) -> None:
         raise ConfigError(
             f"vision encoder weights at {p} are unreadable: the file is empty (0 bytes); {what}"
         )
+    if p.is_file():
+        from tabletop.torch_weights import load_torch_weights
+
+        load_torch_weights(p, ConfigError, f"--vision-weights: {what}")
 
 
 def cmd_check_encoders(args: argparse.Namespace) -> int:

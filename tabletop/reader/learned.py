@@ -347,17 +347,14 @@ def save_tagger(path: str | Path, config: TaggerConfig, net, meta: dict) -> Path
 @functools.cache
 def load_tagger(path: str | Path = DEFAULT_READER_WEIGHTS) -> LearnedTagger:
     """The tagger stored at ``path`` (:class:`AssetError` naming the problem otherwise)."""
-    import torch
+    from tabletop.torch_weights import load_torch_weights
 
     p = Path(path)
     if not p.is_file():
         raise AssetError(
             f"reader weights {str(p)!r} do not exist; train them with `tabletop train reader`"
         )
-    try:
-        doc = torch.load(p, map_location="cpu", weights_only=True)
-    except Exception as e:  # torch raises many types for a damaged file
-        raise AssetError(f"reader weights {str(p)!r} are unreadable: {e}") from None
+    doc = load_torch_weights(p, AssetError, "reader weights are written by `tabletop train reader`")
     if not isinstance(doc, dict) or doc.get("format") != READER_WEIGHTS_FORMAT:
         raise AssetError(f"{str(p)!r} is not a reader tagger (format {READER_WEIGHTS_FORMAT!r})")
     return LearnedTagger(TaggerConfig(**doc["config"]), doc["state"], doc.get("meta"))
