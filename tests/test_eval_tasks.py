@@ -255,8 +255,10 @@ def test_an_absent_goal_naming_what_the_scene_has_is_refused(part, needle):
 
 
 def test_load_errors_name_the_file(tmp_path):
-    with pytest.raises(TaskFileError, match="not found; shipped suites"):
+    with pytest.raises(TaskFileError, match="does not exist; give a .toml or .json task file"):
         load_tasks(tmp_path / "nope.toml")
+    with pytest.raises(TaskFileError, match="is a directory, not a file; give a .toml"):
+        load_tasks(tmp_path)
     p = tmp_path / "broken.toml"
     p.write_text("format = ")
     with pytest.raises(TaskFileError, match="broken.toml is not valid TOML"):

@@ -392,6 +392,16 @@ def test_a_file_that_is_not_weights_is_named_without_unsafe_loading_advice(tmp_p
         assert "is not a weights file" in str(e.value) and "weights_only" not in str(e.value)
 
 
+def test_a_suite_file_that_is_a_directory_is_named_a_directory(tmp_path, capsys):
+    # "suite file ... does not exist" for a directory that does
+    from tabletop.cli import main
+
+    for cmd in (["parse", "--suite"], ["run", "reference", "--suite"]):
+        assert main([*cmd, "--suite-file", str(tmp_path)]) == 2
+        err = capsys.readouterr().err
+        assert "is a directory, not a file" in err and "does not exist" not in err, err
+
+
 def _default_scene_with(**changes) -> dict:
     """The shipped default scene's data with the first object's fields changed."""
     import tomllib

@@ -700,7 +700,13 @@ def load_tasks(path: str | Path) -> TaskFile:
         if shipped is not None:
             p = shipped
     if not p.is_file():
-        raise TaskFileError(f"task file {p} not found; shipped suites: {list_shipped_tasks()}")
+        from tabletop.paths import input_file_problem
+
+        problem = input_file_problem(p) or "is not a regular file"
+        raise TaskFileError(
+            f"task file {str(p)!r} {problem}; give a .toml or .json task file, or a shipped "
+            f"suite: {list_shipped_tasks()}"
+        )
     try:
         if p.suffix == ".toml":
             data = tomllib.loads(p.read_text())

@@ -167,8 +167,11 @@ def load_suite(path=None) -> Suite:
     """Read a suite TOML (default: the shipped ``tabletop/data/instructions/suite.toml``); a
     file not of :data:`SUITE_FORM` is a ``ConfigError`` naming what is missing or wrong."""
     p = Path(path) if path is not None else DEFAULT_SUITE
-    if not p.is_file():
-        raise ConfigError(f"suite file {str(p)!r} does not exist")
+    from tabletop.paths import input_file_problem
+
+    problem = input_file_problem(p)
+    if problem is not None:
+        raise ConfigError(f"suite file {str(p)!r} {problem}; give a suite TOML file")
     try:
         d = tomllib.loads(p.read_text())
     except UnicodeDecodeError:
