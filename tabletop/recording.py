@@ -218,6 +218,11 @@ class Recording:
                 )
             if not np.all(np.isfinite(self.audio)):
                 raise RecordingError("audio must be finite samples in [-1, 1]")
+            peak = float(np.max(np.abs(self.audio))) if len(self.audio) else 0.0
+            if peak > 1.0:
+                raise RecordingError(
+                    f"audio must be float samples in [-1, 1], its peak is {peak:g}"
+                )
         for s in self.segments:
             if not isinstance(s, Segment) or not all(
                 isinstance(v, int) and not isinstance(v, bool) for v in (s.start, s.stop)
@@ -540,6 +545,41 @@ def _read_png(path: Path, flags: int) -> np.ndarray:
     return img
 
 
+_NPY_MAGIC = {".npy": b"\x93NUMPY", ".npz": b"PK"}
+
+# A scan's audio track runs one frame period past its last frame (sim/sound_insertion.py:
+# ceil((t_last + dt) * rate) samples); an import pads the audio to start with the frames and
+# lets its first sample lie up to 5 s from the frames' span (ingest/common.py, check_clock's
+# slack_s=5.0), and the track may end a few seconds before or after the last frame. A larger
+# gap between the audio's duration (samples / sample_rate) and the frames' time span means the
+# header's sample rate is not the audio's (16 kHz audio declared as 8 kHz lasts twice as long).
+AUDIO_SPAN_TOLERANCE_S = 5.0
+
+
+def _load_array_file(path: Path, what: str):
+    """``np.load`` of a .npy or .npz file without pickles; a file that is not one (text,
+    garbage, a pickle) is named as not a NumPy array file, never numpy's allow_pickle advice."""
+    magic = _NPY_MAGIC[path.suffix]
+    kind = f"a NumPy {path.suffix} file"
+    try:
+        with open(path, "rb") as f:
+            head = f.read(len(magic))
+    except OSError as e:
+        raise RecordingError(f"{path} cannot be read: {e.strerror or e}") from None
+    if head != magic:
+        raise RecordingError(f"{path} is not {kind} ({what} is stored as {kind})")
+    try:
+        if path.suffix == ".npz":
+            with np.load(path, allow_pickle=False) as z:
+                return {k: z[k] for k in z.files}
+        return np.load(path, allow_pickle=False)
+    except Exception as e:
+        reason = "it holds pickled Python objects" if "pickle" in str(e) else str(e)
+        raise RecordingError(
+            f"{path} is not a valid {kind} ({what}): {reason}"
+        ) from None
+
+
 def load_recording(path: str | Path, *, workers: int = 2) -> Recording:
     """Load and validate a recording directory written by :func:`save_recording`.
 
@@ -591,11 +631,7 @@ def load_recording(path: str | Path, *, workers: int = 2) -> Recording:
             raise RecordingError(f"{f} has {actual} bytes, expected {size}: truncated or changed")
 
     n = int(h["n_frames"])
-    try:
-        with np.load(path / _POSES) as z:
-            poses = {k: z[k] for k in z.files}
-    except Exception as e:
-        raise RecordingError(f"{path / _POSES} is unreadable: {e}") from None
+    poses = _load_array_file(path / _POSES, "poses and timestamps")
     for k in ("timestamps", "joint_positions", "T_world_hand"):
         if k not in poses:
             raise RecordingError(f"{path / _POSES} lacks array {k!r}")
@@ -619,12 +655,13 @@ def load_recording(path: str | Path, *, workers: int = 2) -> Recording:
     with ThreadPoolExecutor(max_workers=max(1, workers)) as pool:
         frames = list(pool.map(read_frame, range(n)))
     H, W = int(h["height"]), int(h["width"])
-    for i, (rgb, depth, _) in enumerate(frames):
-        if rgb.shape != (H, W, 3) or depth.shape != (H, W):
-            raise RecordingError(
-                f"{path / _image_name('rgb', i)}: image is {rgb.shape[1]}x{rgb.shape[0]}, "
-                f"header says {W}x{H}"
-            )
+    for i, images in enumerate(frames):
+        for kind, img in zip(("rgb", "depth", "segmentation"), images):
+            if img is not None and img.shape[:2] != (H, W):
+                raise RecordingError(
+                    f"{path / _image_name(kind, i)}: image is {img.shape[1]}x{img.shape[0]}, "
+                    f"header says {W}x{H}"
+                )
     rgb = np.stack([f[0] for f in frames]) if n else np.zeros((0, H, W, 3), np.uint8)
     depth = np.stack([f[1] for f in frames]) if n else np.zeros((0, H, W), np.float32)
     seg = np.stack([f[2] for f in frames]) if h.get("has_segmentation") and n else None
@@ -632,18 +669,23 @@ def load_recording(path: str | Path, *, workers: int = 2) -> Recording:
     audio = None
     audio_rate = 16000
     if h.get("audio"):
-        try:
-            audio = np.load(path / h["audio"]["file"], allow_pickle=False)
-        except Exception as e:
-            raise RecordingError(f"{path / h['audio']['file']} is unreadable: {e}") from None
+        audio_path = path / h["audio"]["file"]
+        if audio_path.suffix != ".npy":
+            raise RecordingError(f"{audio_path}: audio is stored as a NumPy .npy file")
+        audio = _load_array_file(audio_path, "the audio track")
         audio_rate = h["audio"]["sample_rate"]
         if getattr(audio, "ndim", 0) != 1 or len(audio) != h["audio"]["n_samples"]:
             raise RecordingError(
-                f"{path / h['audio']['file']}: must hold the header's {h['audio']['n_samples']} "
+                f"{audio_path}: must hold the header's {h['audio']['n_samples']} "
                 f"mono samples, holds an array of shape {getattr(audio, 'shape', None)}"
             )
+        if not np.issubdtype(audio.dtype, np.floating):
+            raise RecordingError(
+                f"{audio_path} holds {audio.dtype} samples; valid: float samples in [-1, 1] "
+                "(integer PCM is not scaled on load)"
+            )
     try:
-        return Recording(
+        rec = Recording(
             timestamps=poses["timestamps"],
             rgb=rgb,
             depth=depth,
@@ -667,3 +709,13 @@ def load_recording(path: str | Path, *, workers: int = 2) -> Recording:
         raise RecordingError(f"{path}: {e}") from None
     except (TypeError, ValueError) as e:  # arrays of the wrong kind (text where numbers are)
         raise RecordingError(f"{path}: a pose or header array is malformed ({e})") from None
+    if rec.audio is not None:
+        span, audio_s = rec.duration, len(rec.audio) / rec.audio_rate
+        if abs(audio_s - span) > AUDIO_SPAN_TOLERANCE_S:
+            raise RecordingError(
+                f"{path / h['audio']['file']}: {len(rec.audio)} samples at the header's "
+                f"sample_rate {rec.audio_rate} Hz last {audio_s:.3f} s, but the frames' "
+                f"timestamps span {span:.3f} s (more than {AUDIO_SPAN_TOLERANCE_S:g} s apart): "
+                "the sample rate is not the audio's"
+            )
+    return rec

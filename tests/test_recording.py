@@ -282,3 +282,54 @@ def test_a_poses_file_with_fewer_frames_than_the_header_is_named(tmp_path):
     )
     with pytest.raises(RecordingError, match=r"timestamps has shape \(3,\), the header 5 frames"):
         load_recording(path)
+
+
+def test_audio_whose_sample_rate_disagrees_with_the_frames_span_is_refused(tmp_path):
+    rec = make_recording()
+    rec = _with(rec, timestamps=np.arange(5) * 3.0, audio=np.zeros(12 * 16000, np.float32))
+    save_recording(rec, tmp_path / "r")
+    load_recording(tmp_path / "r")  # 12 s of audio, frames spanning 12 s
+    _rewrite_header(tmp_path / "r", lambda h: h["audio"].update(sample_rate=8000))
+    with pytest.raises(RecordingError, match=r"sample_rate 8000 Hz last 24.000 s.*span 12.000 s"):
+        load_recording(tmp_path / "r")
+
+
+@pytest.mark.parametrize(
+    "audio, needle",
+    [
+        (np.full(16000, 21.0, np.float32), "float samples in \\[-1, 1\\], its peak is 21"),
+        (np.full(16000, 300, np.int16), "holds int16 samples; valid: float samples in \\[-1, 1\\]"),
+    ],
+)
+def test_audio_out_of_range_or_of_integers_is_refused(tmp_path, audio, needle):
+    save_recording(make_recording(), tmp_path / "r")
+    np.save(tmp_path / "r" / "audio.npy", audio)
+    size = (tmp_path / "r" / "audio.npy").stat().st_size
+    _rewrite_header(tmp_path / "r", lambda h: h["files"].update({"audio.npy": size}))
+    with pytest.raises(RecordingError, match=needle):
+        load_recording(tmp_path / "r")
+
+
+@pytest.mark.parametrize("name", ["audio.npy", "poses.npz"])
+@pytest.mark.parametrize("content", [b"hello, not an array\n" * 3, bytes(range(256))])
+def test_an_array_file_that_is_not_one_is_named_without_pickle_advice(tmp_path, name, content):
+    save_recording(make_recording(), tmp_path / "r")
+    (tmp_path / "r" / name).write_bytes(content)
+    _rewrite_header(tmp_path / "r", lambda h: h["files"].update({name: len(content)}))
+    with pytest.raises(RecordingError) as e:
+        load_recording(tmp_path / "r")
+    assert f"{tmp_path / 'r' / name} is not a NumPy" in str(e.value)
+    assert "allow_pickle" not in str(e.value)
+
+
+@pytest.mark.parametrize("kind", ["rgb", "depth", "segmentation"])
+def test_a_frame_image_of_the_wrong_size_is_named_with_its_own_size(tmp_path, kind):
+    import cv2
+
+    save_recording(make_recording(), tmp_path / "r")
+    f = tmp_path / "r" / kind / "000003.png"
+    img = cv2.imread(str(f), cv2.IMREAD_UNCHANGED)
+    cv2.imwrite(str(f), img[:200, :300])
+    _rewrite_header(tmp_path / "r", lambda h: h["files"].update({f"{kind}/000003.png": f.stat().st_size}))
+    with pytest.raises(RecordingError, match=rf"{kind}/000003.png: image is 300x200, header says 320x240"):
+        load_recording(tmp_path / "r")
