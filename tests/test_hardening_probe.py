@@ -458,6 +458,29 @@ def test_an_unknown_key_of_a_scene_object_is_refused_with_the_valid_keys():
         SceneSpec.from_dict(_default_scene_with(bogus=3), source="s.toml")
 
 
+@pytest.mark.parametrize(
+    ("section", "where"),
+    [("random", "[random]"), ("table", "[table]"), ("scene", "[scene]"), ("areas", "[[areas]] #1")],
+)
+def test_an_unknown_key_of_a_scene_table_is_named_with_its_table_and_the_valid_keys(
+    section, where
+):
+    # a Python TypeError "unexpected keyword argument" (or nothing, for [scene])
+    from tabletop.errors import SceneError
+    from tabletop.sim.scene import SceneSpec
+
+    data = _default_scene_with()
+    data["random"] = {"seed": 1, "count": 1}
+    data["areas"] = [{"name": "corner", "x": [0.3, 0.4], "y": [0.1, 0.2]}]
+    table = data.setdefault(section, {}) if section != "areas" else data["areas"][0]
+    table["wobble"] = 2
+    with pytest.raises(SceneError) as e:
+        SceneSpec.from_dict(data, source="s.toml")
+    msg = str(e.value)
+    assert f"unknown key ['wobble'] in {where}; valid keys: [" in msg, msg
+    assert "unexpected keyword" not in msg
+
+
 @pytest.mark.parametrize("name", ["", "  "])
 def test_an_empty_scene_object_name_is_refused(name):
     from tabletop.errors import SceneError

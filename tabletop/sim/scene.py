@@ -359,6 +359,21 @@ class SceneSpec:
             raise SceneError(
                 f"{source}: unknown sections {sorted(unknown)}; valid: {sorted(known)}"
             )
+        import dataclasses
+
+        _check_table_keys(data.get("scene"), "[scene]", ("name",), source)
+        _check_table_keys(
+            data.get("table"), "[table]", [f.name for f in dataclasses.fields(TableSpec)], source
+        )
+        _check_table_keys(
+            data.get("random"), "[random]", [f.name for f in dataclasses.fields(RandomSpec)], source
+        )
+        areas_raw = data.get("areas", [])
+        if isinstance(areas_raw, list):
+            for i, a in enumerate(areas_raw):
+                _check_table_keys(
+                    a, f"[[areas]] #{i + 1}", ("name", "x", "y", "aliases"), source
+                )
         try:
             meta = data.get("scene", {})
             table = TableSpec(
@@ -510,3 +525,16 @@ def list_default_scenes() -> list[str]:
 def default_scene_path(name: str = "default") -> Path:
     """Path of a shipped scene spec by name."""
     return shipped_spec_path("scenes", "scene", name)
+
+
+def _check_table_keys(table, where: str, valid, source: str) -> None:
+    """Refuse unknown keys in one table of a spec, naming them, the table and the valid keys
+    (they reached a dataclass as "unexpected keyword argument")."""
+    if not isinstance(table, dict):
+        return  # not a table: the build below names what it is
+    unknown = sorted(set(table) - set(valid))
+    if unknown:
+        raise SceneError(
+            f"{source}: unknown key{'s' if len(unknown) > 1 else ''} {unknown} in {where}; "
+            f"valid keys: {sorted(valid)}"
+        )
