@@ -104,6 +104,30 @@ def test_no_redirect_is_followed_and_the_key_stays_with_the_endpoint(servers):
     assert Hostile.seen[0][1]["Authorization"] == "Bearer k-secret"
 
 
+def test_a_password_in_the_endpoint_url_is_never_shown(servers):
+    # "cannot reach the LLM endpoint http://user:hunter2@...": the password in the error
+    from tabletop.reader.llm_client import redact_url
+
+    assert redact_url("http://ann:pw@h:8/v1?x=a@b") == "http://ann:***@h:8/v1?x=a@b"
+    assert redact_url("https://tok3n@h/v1") == "https://***@h/v1"
+    assert redact_url("http://h/v1") == "http://h/v1"
+    unreachable = "http://ann:hunter2@127.0.0.1:9/v1"
+    with pytest.raises(LLMError) as e:
+        chat(MESSAGES, config(unreachable))
+    assert "hunter2" not in str(e.value) and "ann:***@127.0.0.1:9" in str(e.value), e.value
+    endpoint = servers[0].replace("http://", "http://ann:hunter2@")
+    Hostile.body = b"not json"
+    for mode in ("ok", "redirect"):
+        Hostile.mode, Hostile.redirect_to = mode, servers[1].replace("http://", "http://b:s3@")
+        with pytest.raises(LLMError) as e:
+            chat(MESSAGES, config(endpoint))
+        assert "hunter2" not in str(e.value) and "s3@" not in str(e.value), e.value
+        assert "ann:***@" in str(e.value), e.value
+    with pytest.raises(ConfigError) as e:
+        LLMConfig(base_url="http://ann:hunter2@h:99999/v1", model="m")
+    assert "hunter2" not in str(e.value) and "ann:***@" in str(e.value)
+
+
 def test_one_wall_clock_deadline_for_a_trickling_server(servers):
     Hostile.mode = "trickle"
     t0 = time.monotonic()

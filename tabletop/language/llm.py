@@ -14,7 +14,14 @@ import re
 from tabletop.errors import ConfigError
 from tabletop.language.errors import LLMError
 from tabletop.language.prompts import prompt_messages
-from tabletop.reader.llm_client import ENV_API_KEY, ENV_BASE_URL, ENV_MODEL, LLMConfig, chat
+from tabletop.reader.llm_client import (
+    ENV_API_KEY,
+    ENV_BASE_URL,
+    ENV_MODEL,
+    LLMConfig,
+    chat,
+    redact_url,
+)
 
 __all__ = [
     "ENV_API_KEY",
@@ -43,5 +50,5 @@ def llm_code(instruction: str, config: LLMConfig, robot: str = "arm") -> str:
         raise ConfigError("the instruction is empty")
     code = extract_code(chat(prompt_messages(instruction, robot), config))
     if not code.strip():
-        raise LLMError(f"{config.base_url}: the model replied with no code")
+        raise LLMError(f"{redact_url(config.base_url)}: the model replied with no code")
     return code

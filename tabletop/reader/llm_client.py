@@ -25,7 +25,24 @@ from pathlib import Path
 from tabletop.errors import ConfigError
 from tabletop.reader.errors import LLMError
 
-__all__ = ["ENV_API_KEY", "ENV_BASE_URL", "ENV_MODEL", "LLMConfig", "chat"]
+__all__ = ["ENV_API_KEY", "ENV_BASE_URL", "ENV_MODEL", "LLMConfig", "chat", "redact_url"]
+
+#: The userinfo of a URL (``user:password@``), up to the first ``/``, ``?`` or ``#``.
+_USERINFO = re.compile(r"^([A-Za-z][A-Za-z0-9+.-]*://)([^/?#]*)@")
+
+
+def redact_url(url) -> str:
+    """``url`` as shown in a message: its password (or a userinfo without one, which may be a
+    token) replaced by ``***`` (``http://user:***@host/v1``); anything else unchanged."""
+    text = str(url)
+
+    def hide(m: re.Match) -> str:
+        userinfo = m.group(2)
+        user, sep, _ = userinfo.partition(":")
+        return f"{m.group(1)}{user}:***@" if sep else f"{m.group(1)}***@"
+
+    return _USERINFO.sub(hide, text, count=1)
+
 
 ENV_BASE_URL = "TABLETOP_LLM_BASE_URL"
 ENV_MODEL = "TABLETOP_LLM_MODEL"
@@ -58,24 +75,28 @@ class LLMConfig:
         if not re.match(r"^https?://[^/\s]+", self.base_url or ""):
             raise ConfigError(
                 f"LLM base_url must be an http(s) URL such as http://127.0.0.1:8000/v1, "
-                f"got {self.base_url!r}"
+                f"got {redact_url(self.base_url)!r}"
             )
         if any(c.isspace() or not c.isprintable() for c in self.base_url):
             raise ConfigError(
-                f"LLM base_url {self.base_url!r} holds a space or a control character; a URL "
+                f"LLM base_url {redact_url(self.base_url)!r} holds a space or a control character; "
+                "a URL "
                 "has neither (e.g. http://127.0.0.1:8000/v1)"
             )
         try:
             parts = urllib.parse.urlsplit(self.base_url)
         except ValueError as e:  # an unclosed IPv6 bracket
-            raise ConfigError(f"LLM base_url {self.base_url!r} is not a URL: {e}") from None
+            raise ConfigError(
+                f"LLM base_url {redact_url(self.base_url)!r} is not a URL: {e}"
+            ) from None
         try:
             port = parts.port
         except ValueError:  # a port out of range, or not a number
             port = -1
         if port is not None and not 1 <= port <= 65535:
             raise ConfigError(
-                f"LLM base_url {self.base_url!r}: the port must be a number in 1-65535, e.g. "
+                f"LLM base_url {redact_url(self.base_url)!r}: the port must be a number in "
+                "1-65535, e.g. "
                 "http://127.0.0.1:8000/v1"
             )
         if not self.model or not self.model.strip():
@@ -209,6 +230,7 @@ def _shut(sock: socket.socket) -> None:
 def _post(url: str, body: bytes, headers: dict, config: LLMConfig) -> tuple[int, bytes]:
     """(status, body) of one POST, within ``config.timeout_s`` of wall-clock time in all and
     at most ``config.max_reply_bytes`` read. Redirects are not followed."""
+    shown = redact_url(url)  # what messages show: never a password
     parts = urllib.parse.urlsplit(url)
     cls = http.client.HTTPSConnection if parts.scheme == "https" else http.client.HTTPConnection
     path = parts.path + (f"?{parts.query}" if parts.query else "")
@@ -226,25 +248,27 @@ def _post(url: str, body: bytes, headers: dict, config: LLMConfig) -> tuple[int,
         if 300 <= resp.status < 400:
             where = resp.getheader("Location", "(no Location)")
             raise LLMError(
-                f"{url}: HTTP {resp.status} redirects to {where}; redirects are not followed "
-                "(the key would go with them): set base_url to the endpoint itself"
+                f"{shown}: HTTP {resp.status} redirects to {redact_url(where)}; redirects are not "
+                "followed (the key would go with them): set base_url to the endpoint itself"
             )
         cap = config.max_reply_bytes
         declared = resp.getheader("Content-Length", "")
         if declared.isdigit() and int(declared) > cap:
-            raise LLMError(f"{url}: the reply is {declared} bytes, over the cap of {cap} bytes")
+            raise LLMError(f"{shown}: the reply is {declared} bytes, over the cap of {cap} bytes")
         raw = bytearray()
         while chunk := resp.read1(65536):
             raw += chunk
             if len(raw) > cap:
-                raise LLMError(f"{url}: the reply is over the cap of {cap} bytes (max_reply_bytes)")
+                raise LLMError(
+                    f"{shown}: the reply is over the cap of {cap} bytes (max_reply_bytes)"
+                )
         if time.monotonic() >= deadline:
             raise TimeoutError
         return resp.status, bytes(raw)
     except (http.client.HTTPException, TimeoutError, OSError) as e:
         if time.monotonic() >= deadline or isinstance(e, TimeoutError):
-            raise LLMError(f"{url}: no complete reply within {config.timeout_s:g} s") from None
-        raise LLMError(f"cannot reach the LLM endpoint {url}: {e}") from None
+            raise LLMError(f"{shown}: no complete reply within {config.timeout_s:g} s") from None
+        raise LLMError(f"cannot reach the LLM endpoint {shown}: {e}") from None
     finally:
         if timer is not None:
             timer.cancel()
@@ -298,5 +322,5 @@ def chat(messages: list[dict], config: LLMConfig, response_format: dict | None =
     if not 200 <= status < 300:
         detail = raw[:300].decode("utf-8", "replace")
         reason = http.client.responses.get(status, "")
-        raise LLMError(f"{url}: HTTP {status} {reason}: {detail}")
-    return _reply_content(url, raw)
+        raise LLMError(f"{redact_url(url)}: HTTP {status} {reason}: {detail}")
+    return _reply_content(redact_url(url), raw)
