@@ -130,6 +130,17 @@ def test_compass_moves_are_relative_to_the_current_position(rec_map):
         robot.move_north(float("nan"))
 
 
+def test_a_relative_move_is_held_to_the_compass_moves_limit(rec_map):
+    from tabletop.robot.api import PrimitiveArgumentError
+
+    robot = PointRobot(rec_map[1], pos=(0.3, 0.0, 0.2))
+    np.testing.assert_allclose(robot.offset(0.6, 0.8), [0.9, 0.8, 0.2])  # 1 m: the limit
+    for dx, dy in [(100.0, 0.0), (0.0, -100.0), (0.8, 0.8)]:
+        with pytest.raises(PrimitiveArgumentError, match=r"offset\(dx=\.\.\., dy=\.\.\.\): .* at most 1 m"):
+            robot.offset(dx, dy)
+    assert robot.sent == []
+
+
 def test_a_duplicated_category_near_a_sound_picks_the_right_instance(rec_map, gt):
     rec, avlmap = rec_map
     robot = PointRobot(avlmap)

@@ -112,6 +112,20 @@ def check_compass_distance(name: str, distance_m, robot_kind: str, *, limit: boo
         )
 
 
+def check_offset_distance(name: str, dx, dy, robot_kind: str) -> None:
+    """A relative move (``offset``) is held to the compass moves' limit: its horizontal length
+    ``hypot(dx, dy)`` at most :func:`compass_limit_m` of the robot kind."""
+    if _number(dx) or _number(dy):
+        return  # named by the argument check
+    top = compass_limit_m(robot_kind)
+    length = float(np.hypot(float(dx), float(dy)))
+    if length > top:
+        raise PrimitiveArgumentError(
+            f"{name}(dx=..., dy=...): a relative move is at most {top:g} m long (as a compass "
+            f"move), got dx {_shown(dx)}, dy {_shown(dy)} ({length:g} m)"
+        )
+
+
 def _is_real(v) -> bool:
     return isinstance(v, numbers.Real) and not isinstance(v, (bool, np.bool_))
 
@@ -227,6 +241,13 @@ def _checked(fn, params: tuple[str, ...], compass: bool = False):
         if compass and "distance_m" in given.arguments:
             check_compass_distance(
                 fn.__name__, given.arguments["distance_m"], getattr(self, "robot_kind", "arm")
+            )
+        if fn.__name__ == "offset" and {"dx", "dy"} <= set(given.arguments):
+            check_offset_distance(
+                fn.__name__,
+                given.arguments["dx"],
+                given.arguments["dy"],
+                getattr(self, "robot_kind", "arm"),
             )
         if (
             fn.__name__ == "move_to"
