@@ -13,6 +13,7 @@ __all__ = [
     "SceneError",
     "SimulationError",
     "TabletopError",
+    "check_bool",
 ]
 
 
@@ -48,3 +49,14 @@ class GoalNotFound(TabletopError, LookupError):
         super().__init__(f"{query}: not found ({reason})")
         self.query = query
         self.reason = reason
+
+
+def check_bool(call: str, name: str, value: object) -> bool:
+    """``value`` of the boolean parameter ``name`` of ``call``: True or False only (numpy's
+    booleans included). ``"no"`` or ``0`` would be taken by truth, which is how a wrong value
+    goes unnoticed: :class:`ConfigError` naming the parameter instead."""
+    if isinstance(value, bool) or (
+        type(value).__module__ == "numpy" and type(value).__name__ in ("bool", "bool_")
+    ):
+        return bool(value)
+    raise ConfigError(f"{call}({name}=...): {name} takes True or False, got {value!r}")

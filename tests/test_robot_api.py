@@ -141,6 +141,29 @@ def test_a_relative_move_is_held_to_the_compass_moves_limit(rec_map):
     assert robot.sent == []
 
 
+def test_boolean_parameters_take_true_or_false_only(rec_map):
+    from tabletop.reader.reading import get_reader
+
+    avlmap = rec_map[1]
+    area = get_reader().reference("area", "the left side of the table")
+    img = np.zeros((240, 320, 3), np.uint8)
+    calls = {
+        "object_heatmap": lambda v: avlmap.object_heatmap("mug", major=v),
+        "sound_heatmap": lambda v: avlmap.sound_heatmap("a dog barking", major=v),
+        "area_heatmap": lambda v: avlmap.area_heatmap(area, major=v),
+        "image_heatmap": lambda v: avlmap.image_heatmap(img, major=v),
+        "query": lambda v: avlmap.query("obj", "mug", major=v),
+    }
+    for name, call in calls.items():
+        for bad in ("yes", "no", 1, 0, None, [True]):
+            with pytest.raises(ConfigError, match=rf"{name}\(major=...\): major takes True or False"):
+                call(bad)
+    avlmap.object_heatmap("mug", major=np.bool_(False))  # numpy's booleans are booleans
+    for bad in ("no", 0):
+        with pytest.raises(ConfigError, match=r"SimArm\(other_scene=...\): other_scene takes True or False"):
+            SimArm(avlmap, "default", other_scene=bad)
+
+
 def test_a_duplicated_category_near_a_sound_picks_the_right_instance(rec_map, gt):
     rec, avlmap = rec_map
     robot = PointRobot(avlmap)

@@ -31,7 +31,7 @@ from typing import Protocol
 
 import numpy as np
 
-from tabletop.errors import ConfigError, RecordingError, TabletopError
+from tabletop.errors import ConfigError, RecordingError, TabletopError, check_bool
 from tabletop.mapping.area_module import AreaModule
 from tabletop.mapping.audio_module import AudioModule
 from tabletop.mapping.audio_segments import AudioSegment
@@ -483,6 +483,7 @@ class AVLMap:
         """The heatmap of one query part: ``kind`` one of :data:`QUERY_KINDS` (``value`` a text,
         an :class:`AreaRef` for ``"area"``, or an (H, W, 3) uint8 image for ``"img"``), sharp
         (``major``) or broad."""
+        check_bool("query", "major", major)
         name = QUERY_KINDS.get(kind)
         if name is None:
             raise ConfigError(f"unknown query kind {kind!r}; valid: {list(QUERY_KINDS)}")
@@ -491,6 +492,7 @@ class AVLMap:
     def object_heatmap(self, query: str, major: bool = True) -> Heatmap:
         """Heat around the voxels that best match ``query`` (the object module); a query of no
         words (no letter: emoji, punctuation, digits) is not found."""
+        check_bool("object_heatmap", "major", major)
         q = _text(query, "object")
         if (h := self._wordless(q, "object", major)) is not None:
             return h
@@ -503,6 +505,7 @@ class AVLMap:
     def sound_heatmap(self, query: str, major: bool = True) -> Heatmap:
         """Heat around where the sound best matching ``query`` was heard (the audio module); a
         query of no words is not found."""
+        check_bool("sound_heatmap", "major", major)
         q = _text(query, "sound")
         if (h := self._wordless(q, "sound", major)) is not None:
             return h
@@ -548,6 +551,7 @@ class AVLMap:
         point; the sound vocabulary's and the sound operating point). A reading with neither
         ("the area"), or a subject that is neither ("the kitchen", "the top shelf"), is not
         found, and the reason names why each module refused it."""
+        check_bool("area_heatmap", "major", major)
         if isinstance(query, str):
             raise ConfigError(
                 f"an area is read by the reader before the map scores it: pass "
@@ -664,6 +668,7 @@ class AVLMap:
         """Heat around the table point an image shows (the visual localization module); ``rgb``
         (H, W, 3) uint8 as the wrist camera would take it, ``K`` its intrinsics when its size is
         not the map's camera's. A failed localisation is not found with its reason."""
+        check_bool("image_heatmap", "major", major)
         return self.images.heatmap(rgb, self.decay(major), self.judge, K)
 
     def localize(self, rgb: np.ndarray, K: np.ndarray | None = None) -> VisualLocalization:

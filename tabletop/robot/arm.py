@@ -31,7 +31,7 @@ from tabletop.arm.driver import ArmDriver, PyBulletDriver, touching_points
 from tabletop.arm.model import HOME_Q, PandaModel
 from tabletop.arm.reach import GoalChoice, ReachConfig, ReachController, ReachResult
 from tabletop.arm.success import SUCCESS_RADIUS_M
-from tabletop.errors import ConfigError
+from tabletop.errors import ConfigError, check_bool
 from tabletop.mapping.targets import APPROACH_RADIUS_M, approach_point, surface_z
 from tabletop.robot.api import (
     PrimitiveArgumentError,
@@ -290,6 +290,7 @@ class SimArm(ArmRobot):
         from tabletop.sim.scene import SceneSpec, load_scene_spec
         from tabletop.sim.world import SimWorld
 
+        check_bool("SimArm", "other_scene", other_scene)
         if not isinstance(spec, SceneSpec):
             spec = load_scene_spec(spec)
         self.scene_mismatch = _scene_mismatch(avlmap, spec)
