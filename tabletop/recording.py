@@ -575,9 +575,7 @@ def _load_array_file(path: Path, what: str):
         return np.load(path, allow_pickle=False)
     except Exception as e:
         reason = "it holds pickled Python objects" if "pickle" in str(e) else str(e)
-        raise RecordingError(
-            f"{path} is not a valid {kind} ({what}): {reason}"
-        ) from None
+        raise RecordingError(f"{path} is not a valid {kind} ({what}): {reason}") from None
 
 
 def load_recording(path: str | Path, *, workers: int = 2) -> Recording:
@@ -656,7 +654,7 @@ def load_recording(path: str | Path, *, workers: int = 2) -> Recording:
         frames = list(pool.map(read_frame, range(n)))
     H, W = int(h["height"]), int(h["width"])
     for i, images in enumerate(frames):
-        for kind, img in zip(("rgb", "depth", "segmentation"), images):
+        for kind, img in zip(("rgb", "depth", "segmentation"), images, strict=True):
             if img is not None and img.shape[:2] != (H, W):
                 raise RecordingError(
                     f"{path / _image_name(kind, i)}: image is {img.shape[1]}x{img.shape[0]}, "

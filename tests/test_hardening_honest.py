@@ -285,7 +285,13 @@ def test_a_dry_run_checks_the_scene_against_the_map_as_a_run_does(built, capsys)
     rc, out = run(capsys, "run", built[1], "go to the red mug", "--dry-run", "--scene", "random")
     assert rc == 2 and "was built from scene 'default'" in out and "--other-scene" in out
     rc, out = run(
-        capsys, "run", built[1], "go to the red mug", "--dry-run", "--scene", "random",
+        capsys,
+        "run",
+        built[1],
+        "go to the red mug",
+        "--dry-run",
+        "--scene",
+        "random",
         "--other-scene",
     )
     assert rc == 0 and "WARNING" in out

@@ -462,9 +462,7 @@ def test_an_unknown_key_of_a_scene_object_is_refused_with_the_valid_keys():
     ("section", "where"),
     [("random", "[random]"), ("table", "[table]"), ("scene", "[scene]"), ("areas", "[[areas]] #1")],
 )
-def test_an_unknown_key_of_a_scene_table_is_named_with_its_table_and_the_valid_keys(
-    section, where
-):
+def test_an_unknown_key_of_a_scene_table_is_named_with_its_table_and_the_valid_keys(section, where):
     # a Python TypeError "unexpected keyword argument" (or nothing, for [scene])
     from tabletop.errors import SceneError
     from tabletop.sim.scene import SceneSpec

@@ -330,6 +330,8 @@ def test_a_frame_image_of_the_wrong_size_is_named_with_its_own_size(tmp_path, ki
     f = tmp_path / "r" / kind / "000003.png"
     img = cv2.imread(str(f), cv2.IMREAD_UNCHANGED)
     cv2.imwrite(str(f), img[:200, :300])
-    _rewrite_header(tmp_path / "r", lambda h: h["files"].update({f"{kind}/000003.png": f.stat().st_size}))
-    with pytest.raises(RecordingError, match=rf"{kind}/000003.png: image is 300x200, header says 320x240"):
+    size = {f"{kind}/000003.png": f.stat().st_size}
+    _rewrite_header(tmp_path / "r", lambda h: h["files"].update(size))
+    wrong = rf"{kind}/000003.png: image is 300x200, header says 320x240"
+    with pytest.raises(RecordingError, match=wrong):
         load_recording(tmp_path / "r")

@@ -136,7 +136,8 @@ def test_a_relative_move_is_held_to_the_compass_moves_limit(rec_map):
     robot = PointRobot(rec_map[1], pos=(0.3, 0.0, 0.2))
     np.testing.assert_allclose(robot.offset(0.6, 0.8), [0.9, 0.8, 0.2])  # 1 m: the limit
     for dx, dy in [(100.0, 0.0), (0.0, -100.0), (0.8, 0.8)]:
-        with pytest.raises(PrimitiveArgumentError, match=r"offset\(dx=\.\.\., dy=\.\.\.\): .* at most 1 m"):
+        too_far = r"offset\(dx=\.\.\., dy=\.\.\.\): .* at most 1 m"
+        with pytest.raises(PrimitiveArgumentError, match=too_far):
             robot.offset(dx, dy)
     assert robot.sent == []
 
@@ -156,11 +157,13 @@ def test_boolean_parameters_take_true_or_false_only(rec_map):
     }
     for name, call in calls.items():
         for bad in ("yes", "no", 1, 0, None, [True]):
-            with pytest.raises(ConfigError, match=rf"{name}\(major=...\): major takes True or False"):
+            takes = rf"{name}\(major=...\): major takes True or False"
+            with pytest.raises(ConfigError, match=takes):
                 call(bad)
     avlmap.object_heatmap("mug", major=np.bool_(False))  # numpy's booleans are booleans
     for bad in ("no", 0):
-        with pytest.raises(ConfigError, match=r"SimArm\(other_scene=...\): other_scene takes True or False"):
+        takes = r"SimArm\(other_scene=...\): other_scene takes True or False"
+        with pytest.raises(ConfigError, match=takes):
             SimArm(avlmap, "default", other_scene=bad)
 
 

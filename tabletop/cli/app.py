@@ -75,8 +75,10 @@ class Parser(argparse.ArgumentParser):
                     action = next(iter(matches.values()))
             if action is None:
                 continue
-            if action.nargs is None and "=" not in token and isinstance(
-                action, argparse._StoreAction
+            if (
+                action.nargs is None
+                and "=" not in token
+                and isinstance(action, argparse._StoreAction)
             ):
                 skip = True  # the next token is its value
             if not isinstance(action, _SINGLE_VALUE_ACTIONS):

@@ -371,9 +371,7 @@ class SceneSpec:
         areas_raw = data.get("areas", [])
         if isinstance(areas_raw, list):
             for i, a in enumerate(areas_raw):
-                _check_table_keys(
-                    a, f"[[areas]] #{i + 1}", ("name", "x", "y", "aliases"), source
-                )
+                _check_table_keys(a, f"[[areas]] #{i + 1}", ("name", "x", "y", "aliases"), source)
         try:
             meta = data.get("scene", {})
             table = TableSpec(
