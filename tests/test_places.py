@@ -39,7 +39,7 @@ def test_region_wording_no_list_holds_is_read_by_the_classifier(text, region):
     assert parse_region(text) is None  # the grammar refuses it
     a = PlaceReader().read(text)
     assert a.region is not None and (a.region.lateral, a.region.depth) == region
-    assert a.how.startswith("learned: ")
+    assert a.how.startswith(("learned: ", "grammar, on "))  # the phrase's or its ground's
     assert PlaceReader(learned=False).read(text).region is None  # the rule reader alone
 
 
@@ -102,3 +102,82 @@ def test_a_broken_weights_file_is_named(tmp_path):
         load_place_classifier(bad)
     with pytest.raises(AssetError, match="cannot read the place classifier"):
         load_place_classifier(tmp_path / "missing.json")
+
+
+def test_a_region_on_a_ground_gives_the_region_and_the_ground():
+    from tabletop.reader.place_words import region_on_ground
+
+    region, ground = region_on_ground("the far left corner of the potting shed")
+    assert (region.lateral, region.depth) == ("left", "far") and ground == "potting shed"
+    assert region_on_ground("the desk's right-hand end")[1] == "desk"
+    # the grammar's own table names and a phrase without a direction are no ground
+    assert region_on_ground("the left side of the table top") is None
+    assert region_on_ground("the area around the tray") is None
+
+
+# work surfaces that neither the grounds file nor a tune pool names: read by their meaning
+@pytest.mark.parametrize(
+    ("text", "region"),
+    [
+        ("the far end of the banquet table", (None, "far")),
+        ("the left of the computer table", ("left", None)),
+        ("the right of the bedside table", ("right", None)),
+        ("the middle of the serving counter", ("middle", "middle")),
+    ],
+)
+def test_a_region_of_a_work_surface_no_list_names_is_a_region_of_the_table(text, region):
+    from tabletop.eval.paraphrase import TUNE_POOLS
+    from tabletop.eval.place_texts import ground_texts
+
+    listed = {t.text for t in ground_texts(TUNE_POOLS)}
+    assert parse_region(text) is None
+    a = PlaceReader().read(text)
+    assert "the " + a.how.split("'")[1] not in listed  # the ground is in no training list
+    assert (a.region.lateral, a.region.depth) == region and a.how.startswith("grammar, on ")
+    assert PlaceReader(learned=False).read(text).region is None  # the rule reader alone
+
+
+@pytest.mark.parametrize(
+    "text",
+    [
+        "the left of the attic room",
+        "the far end of the porch",
+        "the middle of the motorway",
+        "the right side of the stadium",
+        "the left side of the mug",
+        "the far side of the duck",
+    ],
+)
+def test_a_region_of_a_place_off_the_table_or_of_a_thing_is_no_table_region(text):
+    a = PlaceReader().read(text)
+    assert a.region is None and a.subject
+
+
+def test_the_shipped_ground_classifier_was_chosen_on_folds_left_out_of_its_fit():
+    from tabletop.train.places import MAX_ELSEWHERE_AS_SURFACE
+
+    g = load_place_classifier(DEFAULT_PLACE_WEIGHTS).ground
+    s = g.meta["held_out_folds"][str(g.threshold)]
+    assert s["elsewhere_taken_for_surface"] <= MAX_ELSEWHERE_AS_SURFACE * s["elsewhere"]
+    assert s["surfaces_taken"] >= 0.7 * s["surfaces"]
+
+
+def test_a_ground_listed_both_as_surface_and_elsewhere_is_named(tmp_path, monkeypatch):
+    from tabletop.eval import place_texts
+
+    bad = tmp_path / "grounds.toml"
+    bad.write_text('surfaces = ["desk", "the bench"]\nelsewhere = ["garden", "bench"]\n')
+    monkeypatch.setattr(place_texts, "GROUNDS_FILE", bad)
+    with pytest.raises(AssetError, match=r"surface and elsewhere: \['bench'\]"):
+        place_texts.ground_texts(TUNE_POOLS[:1])
+    with pytest.raises(ConfigError, match="held-out pools"):
+        place_texts.ground_texts([HELDOUT_POOLS[0]])
+
+
+def test_a_weights_file_with_a_broken_ground_classifier_is_named(tmp_path):
+    d = json.loads(DEFAULT_PLACE_WEIGHTS.read_text())
+    d["ground"]["w"] = d["ground"]["w"][:10]
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps(d))
+    with pytest.raises(AssetError, match="malformed place classifier"):
+        load_place_classifier(bad)

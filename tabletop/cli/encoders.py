@@ -247,10 +247,10 @@ def cmd_train(args: argparse.Namespace) -> int:
         out = Path(args.out) if args.out is not None else TRAIN_OUT["places"]
         _check_weights_output(out, str(TRAIN_OUT["places"]), "a place classifier", _is_place_reader)
         from tabletop.eval.paraphrase import TUNE_POOLS
-        from tabletop.eval.place_texts import place_texts
+        from tabletop.eval.place_texts import ground_texts, place_texts
         from tabletop.train.places import train_places
 
-        clf = train_places(place_texts(TUNE_POOLS), out, seed=0)
+        clf = train_places(place_texts(TUNE_POOLS), out, seed=0, grounds=ground_texts(TUNE_POOLS))
         m = clf.meta
         print(
             f"place classifier written: {out} ({m['phrases']} phrases of "
@@ -264,6 +264,18 @@ def cmd_train(args: argparse.Namespace) -> int:
                 f"{s['grammar_refused_regions']} (wrong region "
                 f"{s['grammar_refused_regions_wrong_region']}), other read as a region "
                 f"{s['other_read_as_region']}/{s['other']}{mark}"
+            )
+        g = clf.ground
+        print(
+            f"ground classifier ({g.meta['surfaces']} surfaces of {g.meta['grounds']} grounds), "
+            f"each fold left out once:"
+        )
+        for th, s in g.meta["held_out_folds"].items():
+            mark = "  <- threshold" if float(th) == g.threshold else ""
+            print(
+                f"  at {th}: surfaces taken {s['surfaces_taken']}/{s['surfaces']}, other "
+                f"grounds taken for a surface {s['elsewhere_taken_for_surface']}/"
+                f"{s['elsewhere']}{mark}"
             )
         return 0
     if args.what == "kind-reader":

@@ -21,13 +21,15 @@ the robot) wrote entries that the grammar reads as the opposite depth ("the near
 from __future__ import annotations
 
 import re
+import tomllib
 from dataclasses import dataclass
 
-from tabletop.errors import ConfigError
+from tabletop.errors import AssetError, ConfigError
 from tabletop.eval.paraphrase import HELDOUT_POOLS, load_bank
+from tabletop.paths import DATA_DIR
 from tabletop.reader.places import PLACE_CLASSES
 
-__all__ = ["PlaceText", "place_texts"]
+__all__ = ["GROUNDS_FILE", "PlaceText", "ground_texts", "place_texts"]
 #: Object names per kind taken from a pool as "other" (the first ones: the plainest names).
 NAMES_PER_KIND = 3
 
@@ -96,3 +98,48 @@ def place_texts(pools) -> list[PlaceText]:
                 out.append(PlaceText(n, "other", pool, f"objects.{kind}"))
         out += [PlaceText(f"the {n}", "other", pool, "absent.objects") for n in bank.absent_objects]
     return out
+
+
+#: Surfaces, and grounds that are not the arm's surface, written for the ground classifier.
+GROUNDS_FILE = DATA_DIR / "reader" / "place_grounds.toml"
+
+
+def _bare(phrase: str) -> str:
+    """``phrase`` without a leading article or possessive ("the fridge" -> "fridge")."""
+    return re.sub(r"^(?:the|a|an|my|our|your)\s+", "", " ".join(phrase.lower().split()))
+
+
+def ground_texts(pools) -> list[PlaceText]:
+    """What a region may be named on, labelled "surface" (the arm's work surface) or
+    "elsewhere": the surfaces and other grounds of :data:`GROUNDS_FILE`, the catalog's other
+    objects (``other_objects.toml``), and the tune ``pools``' names of things and places off
+    the table. Each text is a noun phrase with "the" ("the workbench"); duplicates are kept
+    once, a surface winning over nothing (the file's lists must not share an entry)."""
+    held = sorted(set(pools) & set(HELDOUT_POOLS))
+    if held:
+        raise ConfigError(f"held-out pools {held} are never trained on")
+    try:
+        doc = tomllib.loads(GROUNDS_FILE.read_text(encoding="utf-8"))
+        surfaces, elsewhere = list(doc["surfaces"]), list(doc["elsewhere"])
+        others = tomllib.loads((DATA_DIR / "other_objects.toml").read_text(encoding="utf-8"))
+        things = list(others["others"])
+    except (OSError, KeyError, tomllib.TOMLDecodeError) as e:
+        raise AssetError(f"cannot read the place grounds {str(GROUNDS_FILE)!r}: {e}") from None
+    both = sorted({_bare(s) for s in surfaces} & {_bare(e) for e in elsewhere})
+    if both:
+        raise AssetError(f"{str(GROUNDS_FILE)!r}: grounds listed as surface and elsewhere: {both}")
+    rows = [("surface", _bare(s), "surfaces") for s in surfaces]
+    rows += [("elsewhere", _bare(e), "elsewhere") for e in elsewhere]
+    rows += [("elsewhere", _bare(t), "other_objects") for t in things]
+    for pool in pools:
+        bank = load_bank(pool)
+        rows += [("elsewhere", _bare(a), f"{pool}:absent.areas") for a in bank.absent_areas]
+        rows += [("elsewhere", _bare(o), f"{pool}:absent.objects") for o in bank.absent_objects]
+        for kind, ph in bank.objects.items():
+            for name in ph.names[:NAMES_PER_KIND]:
+                rows.append(("elsewhere", _bare(name.replace("{c}", " ")), f"{pool}:{kind}"))
+    out: dict[str, PlaceText] = {}
+    for label, text, source in rows:
+        if text and text not in out:
+            out[text] = PlaceText(f"the {text}", label, source.split(":")[0], source)
+    return list(out.values())

@@ -45,7 +45,7 @@ import re
 
 from tabletop.mapping.table_regions import TableRegion
 
-__all__ = ["area_subject", "parse_region"]
+__all__ = ["area_subject", "parse_region", "region_on_ground"]
 
 _LEFT = r"left\s*hand|leftmost|left|port"
 _RIGHT = r"right\s*hand|rightmost|right|starboard"
@@ -97,9 +97,14 @@ _FILLER = (
 )
 
 
-def parse_region(text: str) -> TableRegion | None:
-    """The geometric region ``text`` names, or None when it is not (only) a place on the table
-    (see the module docstring for the phrasings)."""
+#: Filler words that name the table itself (a region "of the table top"): kept as the ground's
+#: words by :func:`region_on_ground`, which reads what a region is named on.
+_SURFACE_FILLER = frozenset({"table", "tabletop", "top", "surface"})
+
+
+def _geometry(text: str) -> tuple[dict[str, str], list[str]] | None:
+    """The geometric words ``text`` holds ({"depth": "far", ...}) and its other words in order,
+    or None when it names two opposite directions ("left ... right")."""
     t = " " + re.sub(r"[^a-z ]", " ", str(text).lower().replace("'s", " ")) + " "
     t = re.sub(r"\s+", " ", t)
     t = _JUST_AHEAD.sub(" near the robot ", t)
@@ -124,9 +129,10 @@ def parse_region(text: str) -> TableRegion | None:
                 return None  # "left ... right": not one region
             found[key] = value
             t = rx.sub(" ", t, count=1)
-    filler = set(_FILLER.split())
-    if not found or any(w not in filler for w in t.split()):
-        return None  # nothing geometric, or other words ("the tray area")
+    return found, t.split()
+
+
+def _region(found: dict[str, str], text: str) -> TableRegion:
     lateral, depth = found.get("lateral"), found.get("depth")
     if "mid" in found:
         if lateral is None and depth is None:
@@ -136,6 +142,39 @@ def parse_region(text: str) -> TableRegion | None:
         elif depth is None:
             depth = "middle"
     return TableRegion(lateral, depth, str(text))
+
+
+def parse_region(text: str) -> TableRegion | None:
+    """The geometric region ``text`` names, or None when it is not (only) a place on the table
+    (see the module docstring for the phrasings)."""
+    read = _geometry(text)
+    if read is None:
+        return None
+    found, rest = read
+    filler = set(_FILLER.split())
+    if not found or any(w not in filler for w in rest):
+        return None  # nothing geometric, or other words ("the tray area")
+    return _region(found, text)
+
+
+def region_on_ground(text: str) -> tuple[TableRegion, str] | None:
+    """A geometric region named on something the grammar does not take for the table, and
+    that something (the ground): "the far end of the workbench" -> (the far half, "workbench"),
+    "the left of the garden" -> (the left third, "garden"). None when ``text`` names no
+    direction, or names nothing besides the region (:func:`parse_region` reads those).
+
+    Whether the ground is the surface the map holds is not decided here: the place reader's
+    learned ground classifier decides it by the ground's meaning, not by a list.
+    """
+    read = _geometry(text)
+    if read is None or not read[0]:
+        return None
+    found, rest = read
+    filler = set(_FILLER.split()) - _SURFACE_FILLER
+    ground = [w for w in rest if w not in filler]
+    if not ground or all(w in _SURFACE_FILLER for w in ground):
+        return None
+    return _region(found, text), " ".join(ground)
 
 
 #: Words that wrap an object into a place: "the area around the tray", "the spot by the mug"

@@ -12,6 +12,11 @@ Three readings, in this order:
    on their names of things and of places off the table (:mod:`tabletop.eval.place_texts`), so
    it reads region wording that no list holds; a region is taken only at a probability of at
    least its ``threshold``, chosen on pools left out of its fit;
+   Before it, a region named on something the grammar does not take for the table ("the far
+   end of the workbench") is read as that region when the ground classifier, a logistic
+   regression on the ground's MiniLM embedding fitted on surfaces, places and things
+   (``tabletop/data/reader/place_grounds.toml`` and the tune pools), takes the ground for the
+   surface the arm works on, at its ``threshold``;
 3. otherwise the place's subject: what a place named after its contents is named after ("the
    area around the tray" -> "tray"), which the map looks for as a thing or a sound; a phrase of
    place words only names nothing.
@@ -30,13 +35,14 @@ import numpy as np
 from tabletop.errors import AssetError, ConfigError
 from tabletop.mapping.table_regions import AreaRef, TableRegion
 from tabletop.paths import DATA_DIR
-from tabletop.reader.place_words import area_subject, parse_region
+from tabletop.reader.place_words import area_subject, parse_region, region_on_ground
 
 __all__ = [
     "DEFAULT_PLACE_WEIGHTS",
     "PLACE_CLASSES",
     "PLACE_FORMAT",
     "REGION_OF_CLASS",
+    "GroundClassifier",
     "PlaceClassifier",
     "PlaceReader",
     "load_place_classifier",
@@ -59,6 +65,29 @@ REGION_OF_CLASS = {
 
 
 @dataclass(frozen=True)
+class GroundClassifier:
+    """P(the ground names the arm's work surface) = sigmoid(embedding @ w + b); taken at
+    ``threshold``, chosen on folds left out of the fit."""
+
+    w: np.ndarray  # (dim,)
+    b: float
+    threshold: float
+    meta: dict = field(default_factory=dict)
+
+    def probability(self, embeddings: np.ndarray) -> np.ndarray:
+        z = np.asarray(embeddings, np.float64) @ self.w + self.b
+        return 1.0 / (1.0 + np.exp(-z))
+
+    def to_json(self) -> dict:
+        return {
+            "w": np.round(self.w, 6).tolist(),
+            "b": round(float(self.b), 6),
+            "threshold": self.threshold,
+            "meta": self.meta,
+        }
+
+
+@dataclass(frozen=True)
 class PlaceClassifier:
     """Softmax over ``classes`` of ``embedding @ W + b``; ``space``: the text encoder."""
 
@@ -68,6 +97,8 @@ class PlaceClassifier:
     threshold: float
     space: str
     meta: dict = field(default_factory=dict)
+    #: whether a region's ground names the work surface (None: a classifier fitted without one)
+    ground: GroundClassifier | None = None
 
     def __post_init__(self) -> None:
         unknown = [c for c in self.classes if c != "other" and c not in REGION_OF_CLASS]
@@ -100,6 +131,7 @@ class PlaceClassifier:
             "W": np.round(self.W, 6).tolist(),
             "b": np.round(self.b, 6).tolist(),
             "meta": self.meta,
+            **({"ground": self.ground.to_json()} if self.ground is not None else {}),
         }
 
 
@@ -138,6 +170,17 @@ def load_place_classifier(path: str | Path = DEFAULT_PLACE_WEIGHTS) -> PlaceClas
     if not isinstance(d, dict) or d.get("format") != PLACE_FORMAT:
         raise AssetError(f"{str(path)!r} is not a place classifier (format {PLACE_FORMAT!r})")
     try:
+        g = d.get("ground")
+        ground = None
+        if g is not None:
+            ground = GroundClassifier(
+                np.asarray(g["w"], np.float64),
+                float(g["b"]),
+                float(g["threshold"]),
+                dict(g.get("meta", {})),
+            )
+            if ground.w.shape != (np.asarray(d["W"]).shape[0],):
+                raise ValueError(f"ground weights of shape {ground.w.shape}")
         return PlaceClassifier(
             tuple(d["classes"]),
             np.asarray(d["W"], np.float64),
@@ -145,6 +188,7 @@ def load_place_classifier(path: str | Path = DEFAULT_PLACE_WEIGHTS) -> PlaceClas
             float(d["threshold"]),
             str(d["space"]),
             dict(d.get("meta", {})),
+            ground,
         )
     except (KeyError, TypeError, ValueError) as e:
         raise AssetError(f"{str(path)!r}: a malformed place classifier ({e!r})") from None
@@ -191,6 +235,15 @@ class PlaceReader:
             return AreaRef(text, region=region, how="grammar")
         if self.learned and text.strip():
             clf = self.classifier()
+            on = region_on_ground(text)
+            if on is not None and clf.ground is not None:
+                region, ground = on
+                g = clf.ground
+                x = _text_encoder(clf.space).encode_text([f"the {ground}"])
+                pg = float(g.probability(x)[0])
+                if pg >= g.threshold:
+                    how = f"grammar, on {ground!r}: the work surface at {pg:.2f}"
+                    return AreaRef(text, region=region, how=how)
             p = clf.probabilities(_text_encoder(clf.space).encode_text([text]))[0]
             k = int(np.argmax(p))
             name = clf.classes[k]

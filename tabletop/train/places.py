@@ -23,7 +23,16 @@ import numpy as np
 from tabletop.atomic import atomic_path
 from tabletop.errors import ConfigError
 
-__all__ = ["MAX_OTHER_AS_REGION", "THRESHOLDS", "fit_classifier", "train_places"]
+__all__ = [
+    "GROUND_FOLDS",
+    "GROUND_THRESHOLDS",
+    "MAX_ELSEWHERE_AS_SURFACE",
+    "MAX_OTHER_AS_REGION",
+    "THRESHOLDS",
+    "fit_classifier",
+    "fit_ground",
+    "train_places",
+]
 
 log = logging.getLogger(__name__)
 
@@ -36,7 +45,16 @@ SCALE = 10.0
 WEIGHT_DECAY = 1e-3
 
 
-def fit_classifier(x: np.ndarray, y: np.ndarray, n_classes: int, seed: int = 0):
+#: The ground classifier's thresholds tried on folds left out of its fit, the share of grounds
+#: that are no work surface (rooms, furniture, things) it may take for one there, and the folds.
+GROUND_THRESHOLDS = (0.5, 0.6, 0.7, 0.8, 0.9, 0.95)
+MAX_ELSEWHERE_AS_SURFACE = 0.01
+GROUND_FOLDS = 5
+
+
+def fit_classifier(
+    x: np.ndarray, y: np.ndarray, n_classes: int, seed: int = 0, balanced: bool = False
+):
     """(W, b) of a softmax regression on rows ``x`` with labels ``y`` (L-BFGS, deterministic)."""
     import torch
 
@@ -49,7 +67,11 @@ def fit_classifier(x: np.ndarray, y: np.ndarray, n_classes: int, seed: int = 0):
 
     def closure():
         opt.zero_grad()
-        loss = torch.nn.functional.cross_entropy(xt @ w * SCALE + b, yt)
+        weight = None
+        if balanced:  # each class weighs as much as the others in all
+            counts = torch.bincount(yt, minlength=n_classes).clamp(min=1).float()
+            weight = counts.sum() / (n_classes * counts)
+        loss = torch.nn.functional.cross_entropy(xt @ w * SCALE + b, yt, weight=weight)
         loss = loss + WEIGHT_DECAY * (w**2).sum()
         loss.backward()
         return loss
@@ -65,9 +87,66 @@ def _probabilities(x, w, b) -> np.ndarray:
     return p / p.sum(axis=1, keepdims=True)
 
 
-def train_places(texts, out: str | Path, seed: int = 0):
-    """Fit the classifier on ``texts`` (:class:`~tabletop.eval.place_texts.PlaceText`), write
-    it to ``out`` (atomically) and return it."""
+def fit_ground(grounds, encoder, seed: int = 0):
+    """The ground classifier (:class:`~tabletop.reader.places.GroundClassifier`) on
+    ``grounds`` (:func:`~tabletop.eval.place_texts.ground_texts`): a class-balanced logistic
+    regression on their embeddings. Its threshold is the lowest of :data:`GROUND_THRESHOLDS`
+    that takes at most :data:`MAX_ELSEWHERE_AS_SURFACE` of the grounds that are no surface for
+    one, each ground predicted by a fit without its fold (:data:`GROUND_FOLDS`, seeded)."""
+    from tabletop.reader.places import GroundClassifier
+
+    grounds = list(grounds)
+    y = np.array([1 if t.label == "surface" else 0 for t in grounds])
+    if y.sum() < GROUND_FOLDS or (1 - y).sum() < GROUND_FOLDS:
+        raise ConfigError(
+            f"the ground classifier needs at least {GROUND_FOLDS} surfaces and {GROUND_FOLDS} "
+            f"other grounds, got {int(y.sum())} and {int((1 - y).sum())}"
+        )
+    x = encoder.encode_text([t.text for t in grounds]).astype(np.float64)
+    fold = np.random.default_rng(seed).permutation(len(grounds)) % GROUND_FOLDS
+    held_p = np.zeros(len(grounds))
+    for k in range(GROUND_FOLDS):
+        w, b = fit_classifier(x[fold != k], y[fold != k], 2, seed, balanced=True)
+        z = x[fold == k] @ (w[:, 1] - w[:, 0]) + (b[1] - b[0])
+        held_p[fold == k] = 1.0 / (1.0 + np.exp(-z))
+    sweep = {
+        str(th): {
+            "surfaces_taken": int((held_p[y == 1] >= th).sum()),
+            "surfaces": int(y.sum()),
+            "elsewhere_taken_for_surface": int((held_p[y == 0] >= th).sum()),
+            "elsewhere": int((1 - y).sum()),
+        }
+        for th in GROUND_THRESHOLDS
+    }
+    ok = [
+        th
+        for th in GROUND_THRESHOLDS
+        if sweep[str(th)]["elsewhere_taken_for_surface"]
+        <= MAX_ELSEWHERE_AS_SURFACE * sweep[str(th)]["elsewhere"]
+    ]
+    threshold = min(ok) if ok else max(GROUND_THRESHOLDS)
+    w, b = fit_classifier(x, y, 2, seed, balanced=True)
+    missed = [t.text for t, p in zip(grounds, held_p, strict=True) if t.label == "surface"]
+    missed = [m for m, p in zip(missed, held_p[y == 1], strict=True) if p < threshold]
+    return GroundClassifier(
+        w[:, 1] - w[:, 0],
+        float(b[1] - b[0]),
+        threshold,
+        {
+            "grounds": len(grounds),
+            "surfaces": int(y.sum()),
+            "folds": GROUND_FOLDS,
+            "seed": seed,
+            "held_out_folds": sweep,
+            "surfaces_missed_held_out": missed,
+        },
+    )
+
+
+def train_places(texts, out: str | Path, seed: int = 0, grounds=None):
+    """Fit the classifier on ``texts`` (:class:`~tabletop.eval.place_texts.PlaceText`), and
+    its ground classifier on ``grounds`` where given (:func:`fit_ground`), write it to ``out``
+    (atomically) and return it."""
     from tabletop.mapping.encoders.minilm import MINILM_SPACE, MiniLMTextEncoder
     from tabletop.reader.place_words import parse_region
     from tabletop.reader.places import PLACE_CLASSES, PlaceClassifier
@@ -77,7 +156,8 @@ def train_places(texts, out: str | Path, seed: int = 0):
     if len(pools) < 2:
         raise ConfigError(f"train places needs phrases of at least two pools, got {pools}")
     t0 = time.monotonic()
-    emb = MiniLMTextEncoder().encode_text([t.text for t in texts]).astype(np.float64)
+    encoder = MiniLMTextEncoder()
+    emb = encoder.encode_text([t.text for t in texts]).astype(np.float64)
     y = np.array([PLACE_CLASSES.index(t.label) for t in texts])
     pool_of = np.array([pools.index(t.pool) for t in texts])
     refused = np.array([parse_region(t.text) is None for t in texts])
@@ -124,6 +204,7 @@ def train_places(texts, out: str | Path, seed: int = 0):
             "leave_one_pool_out": {str(k): v for k, v in sweep.items()},
             "seconds": round(time.monotonic() - t0, 1),
         },
+        fit_ground(grounds, encoder, seed) if grounds is not None else None,
     )
     with atomic_path(out) as tmp:
         Path(tmp).write_text(json.dumps(clf.to_json()) + "\n")
