@@ -8,7 +8,7 @@ from tabletop.errors import ConfigError
 from tabletop.language import instruction_to_code
 from tabletop.reader import ParseError
 from tabletop.reader.plan import Between, Goal, GoTo, Part, Side
-from tabletop.reader.reading import READERS, understand
+from tabletop.reader.reading import READERS, get_reader, understand
 
 
 def test_the_rule_reader_refuses_what_the_default_reads():
@@ -222,6 +222,28 @@ def test_a_request_that_is_not_one_line_of_words_is_refused_by_every_reader(read
             understand(text, reader=reader)
         except ParseError as e:
             assert "one line of words" not in str(e) and "not code" not in str(e), text
+
+
+@pytest.mark.parametrize("reader", ["rules", "rules+spelling", "learned", "rules+learned"])
+def test_a_request_of_no_words_is_named_as_holding_none(reader):
+    # these were refused as "this step asks something else", after loading the tagger
+    for text, only in [
+        ("\U0001f992\U0001f992", "symbols or emoji"),
+        ("...", "punctuation"),
+        ("123", "digits"),
+        ("?! 4", "digits and punctuation"),
+    ]:
+        with pytest.raises(ParseError, match=f"a request holds no words, only {only};"):
+            understand(text, reader=reader)
+    for kind, what in [("obj", "thing"), ("sound", "sound"), ("area", "place")]:
+        with pytest.raises(ParseError, match=f"the {what} asked for holds no words"):
+            get_reader(reader).reference(kind, "\u2728 !")
+    # a word of one letter, or of another script, is a word (refused, if at all, for that)
+    for text in ["go to the 2nd mug", "\u53bb"]:
+        try:
+            understand(text, reader=reader)
+        except ParseError as e:
+            assert "holds no words" not in str(e), text
 
 
 @pytest.mark.parametrize("reader", ["rules", "rules+spelling", "learned", "rules+learned"])

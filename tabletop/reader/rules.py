@@ -59,6 +59,7 @@ __all__ = [
     "parse_instruction",
     "refuse_negated",
     "refuse_nested_relation",
+    "refuse_no_words",
     "refuse_non_words",
 ]
 
@@ -196,6 +197,7 @@ def refuse_non_words(text: str) -> None:
                 f"a request is one line of words; this one holds {what}. A request looks "
                 f"like {REQUEST_EXAMPLES}",
             )
+    refuse_no_words(text)
     m = _CODE_PUNCT.search(_PATH.sub(" ", text))
     if m:
         raise ParseError(
@@ -204,6 +206,34 @@ def refuse_non_words(text: str) -> None:
             f"a request is words, not code: {m.group(0)!r} is code punctuation, in no thing's "
             f"name. A request looks like {REQUEST_EXAMPLES}",
         )
+
+
+def refuse_no_words(text: str, what: str = "a request") -> None:
+    """Refuse text that holds no word at all: only emoji, symbols, punctuation or digits
+    ("...", "123"). A letter of any script is a word's (other languages are refused by
+    :func:`refuse_not_english`); empty text is left to the caller, which names it empty.
+    ParseError naming what it holds instead and what a request looks like."""
+    if not isinstance(text, str) or not text.strip():
+        return
+    if any(unicodedata.category(ch).startswith("L") for ch in text):
+        return
+    kinds = sorted(
+        {
+            "digits"
+            if unicodedata.category(ch).startswith("N")
+            else "punctuation"
+            if unicodedata.category(ch).startswith("P")
+            else "symbols or emoji"
+            for ch in text
+            if not ch.isspace()
+        }
+    )
+    raise ParseError(
+        text,
+        text.strip(),
+        f"{what} holds no words, only {' and '.join(kinds)}; name a thing, a sound or a "
+        f"place in words. A request looks like {REQUEST_EXAMPLES}",
+    )
 
 
 def _relations_at(text: str):
