@@ -154,7 +154,7 @@ def test_a_reference_that_negates_what_it_names_is_refused_by_every_reader():
 
 @pytest.mark.parametrize("text", ["move north by nan meters", "move nan cm north"])
 def test_a_compass_distance_that_is_no_number_is_named(text):
-    with pytest.raises(ParseError, match="'nan'.*a number of m, cm or mm"):
+    with pytest.raises(ParseError, match="'nan'.*a number of mm, cm, m or km"):
         understand(text, reader="rules")
 
 
@@ -289,3 +289,52 @@ def test_a_goal_narrowed_by_a_relation_is_refused_by_every_reader(reader):
     # "go near X" is a way of going to X, and a thing or a table area narrows a goal
     assert understand("go near the left of the duck", reader=reader).steps
     assert understand("go to the mug next to the tray", reader=reader).steps
+
+
+@pytest.mark.parametrize("reader", ["rules", "rules+spelling", "learned", "rules+learned"])
+def test_imperial_units_and_kilometres_are_distances(reader):
+    step = understand("move 5 inches to the right", reader=reader).steps[0]
+    assert step.action.direction == "east" and step.action.distance_m == pytest.approx(0.127)
+    assert understand("move 1 foot north", reader=reader).steps[0].action.distance_m == (
+        pytest.approx(0.3048)
+    )
+    # a distance past the range is refused for its range, not for its words
+    for text in ["move 3 km to the left", "move 40 feet west", "move 2 miles north"]:
+        with pytest.raises(ParseError, match="at most 1.0 m") as e:
+            understand(text, reader=reader)
+        assert e.value.out_of_range, text
+
+
+@pytest.mark.parametrize("reader", ["rules", "rules+spelling", "learned", "rules+learned"])
+def test_a_reference_negated_by_a_contraction_or_picked_by_order_is_refused(reader):
+    # these were read as a thing called "cup which isn't red" or the left of "3rd mug from"
+    for text, word in [
+        ("go to the cup which isn't red", "isn't"),
+        ("go to the mug that doesn\u2019t have a handle", "doesn\u2019t"),
+        ("go to the left of the cup that isnt blue", "isnt"),
+    ]:
+        with pytest.raises(ParseError) as e:
+            understand(text, reader=reader)
+        # refused as negated, or by the grammar alone as no part of a thing's name
+        assert re.search("cannot honour a negated goal|cannot be part of an object", e.value.why)
+        assert word in str(e.value), text
+    for text, nth in [
+        ("go to the 3rd mug from the left", "3rd"),
+        ("go to the duck near the second mug", "second"),
+        ("go to the last ball", "last"),
+    ]:
+        with pytest.raises(ParseError) as e:
+            understand(text, reader=reader)
+        assert re.search("an ordinal picks one of several|cannot be part of an object", e.value.why)
+        assert nth in str(e.value), text
+    # a negation outside every reference, and "no" that describes, are the readers' to read
+    for text in ["go to where you heard fourth of july fireworks", "first go to the duck"]:
+        assert understand(text, reader=reader).steps, text
+
+
+@pytest.mark.parametrize("reader", ["rules", "rules+spelling", "learned", "rules+learned"])
+def test_a_place_beneath_the_table_is_named_as_off_the_map(reader):
+    # this was "the words name nothing"
+    for text in ["go under the table", "move beneath the tabletop"]:
+        with pytest.raises(ParseError, match="beneath the table is off the table's top"):
+            understand(text, reader=reader)

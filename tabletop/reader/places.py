@@ -45,6 +45,7 @@ __all__ = [
     "GroundClassifier",
     "PlaceClassifier",
     "PlaceReader",
+    "beneath_surface",
     "load_place_classifier",
     "text_encoder",
 ]
@@ -211,6 +212,14 @@ def _beneath_surface(words: str) -> str:
     return ""
 
 
+def beneath_surface(text: str) -> tuple[str, str] | None:
+    """("under", "table") where ``text`` asks for a place beneath one of :data:`SURFACES`
+    ("go under the table"), None otherwise ("under the tray" is where the tray stands)."""
+    if (m := _BENEATH.search(text)) and (below := _beneath_surface(text[m.end() :])):
+        return m.group(0), below
+    return None
+
+
 class PlaceReader:
     """Reads an area query's words (see the module docstring); ``learned``: with the
     classifier after the grammar."""
@@ -225,10 +234,10 @@ class PlaceReader:
     def read(self, text: str) -> AreaRef:
         if not isinstance(text, str):
             raise ConfigError(f"an area must be a string, got {type(text).__name__}")
-        if (m := _BENEATH.search(text)) and (below := _beneath_surface(text[m.end() :])):
+        if (under := beneath_surface(text)) is not None:
             # the map holds the table's top and what stands on it: a place beneath the table
             # or the floor is none of it (beneath a tray is where the tray stands: read on)
-            return AreaRef(text, how=f"{m.group(0)!r} the {below}: a place beneath the "
+            return AreaRef(text, how=f"{under[0]!r} the {under[1]}: a place beneath the "
                            "table's top is off it, and the top is all this map holds")  # fmt: skip
         region = parse_region(text)
         if region is not None:

@@ -22,6 +22,7 @@ query`` and the evaluation.
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import re
 from typing import Protocol
@@ -30,12 +31,14 @@ from tabletop.errors import ConfigError
 from tabletop.mapping.table_regions import AreaRef
 from tabletop.reader.errors import ParseError
 from tabletop.reader.llm import LLMReader
-from tabletop.reader.places import PlaceReader
-from tabletop.reader.plan import Reading, Step
+from tabletop.reader.places import PlaceReader, beneath_surface
+from tabletop.reader.plan import Part, Reading, Step
 from tabletop.reader.rules import (
     MANNER,
-    NEGATIONS,
     QUALIFIERS,
+    is_negation,
+    negations,
+    ordinal,
     parse_instruction,
     refuse_negated,
     refuse_nested_relation,
@@ -130,16 +133,18 @@ class RulesReader:
         if not isinstance(text, str):
             raise ConfigError(f"an instruction must be a string, got {type(text).__name__}")
         refuse_non_words(text)
+        refuse_beneath_surface(text)
         read, fixes = self.speller.correct(text) if self.spelling else (text, ())
         refuse_not_english(text, read)
         refuse_nested_relation(read)  # no reading may drop one of two relations
         try:
             steps = parse_instruction(read, robot)
-            return Reading(text, read, steps, fixes, (), self.name)
         except ParseError as first:
             if not self.wrappers or first.out_of_range:
                 raise
             err = first
+        else:
+            return Reading(text, read, refuse_negated_references(text, steps), fixes, (), self.name)
         # a request after a lead-in the grammar does not read: the fewest dropped words that
         # leave a request it reads
         body = re.sub(r"[.!?]+\s*$", "", read.strip())
@@ -151,6 +156,7 @@ class RulesReader:
                 steps = parse_instruction(kept.strip(" ,;:"), robot)
             except ParseError:
                 continue
+            steps = refuse_negated_references(text, steps)
             return Reading(text, kept, steps, fixes, (before,), self.name)
         raise err
 
@@ -159,6 +165,57 @@ def read_clause(clause: str, robot: str = "arm") -> tuple[Step, ...]:
     """The grammar's reading of one clause, after a lead-in it does not read (how the learned
     reader reads a step it labels as a motion)."""
     return _CLAUSE_READER.understand(clause, robot).steps
+
+
+def _reference_texts(value) -> list[str]:
+    """The words of every reference in a plan value (a step, an action, a goal, a part)."""
+    if isinstance(value, Part):
+        return [value.text]
+    if isinstance(value, str):
+        return [value]
+    if isinstance(value, tuple):
+        return [t for v in value for t in _reference_texts(v)]
+    if dataclasses.is_dataclass(value):
+        return [
+            t
+            for f in dataclasses.fields(value)
+            if f.name not in ("text", "side", "direction")
+            for t in _reference_texts(getattr(value, f.name))
+        ]
+    return []
+
+
+def refuse_beneath_surface(text: str) -> None:
+    """Refuse a request for a place beneath the table's top or the floor ("go under the
+    table"): ParseError naming the words; the map holds the top and what stands on it."""
+    under = beneath_surface(text)
+    if under is not None:
+        raise ParseError(
+            text,
+            f"{under[0]} the {under[1]}",
+            f"a place beneath the {under[1]} is off the table's top, and the top and what "
+            "stands on it are all the map holds",
+        )
+
+
+def refuse_negated_references(text: str, steps: tuple[Step, ...]) -> tuple[Step, ...]:
+    """``steps``, unless a reference in them negates what it names ("the cup that isn't red",
+    which a reader would look for as a red cup): ParseError naming the word. "no" and
+    "without" describe and pass ("the mug with no handle"); a negation outside every
+    reference is the reader's to read ("not far from" for near). A reference that starts with
+    an ordinal ("the 3rd mug from the left") is refused the same way."""
+    for ref in _reference_texts(steps):
+        negated = negations(ref, describing=True)
+        if negated:
+            raise ParseError(text, negated[0], "the robot cannot honour a negated goal")
+        if (nth := ordinal(ref)) is not None:
+            raise ParseError(
+                text,
+                nth,
+                "an ordinal picks one of several things by their order, which the map does not "
+                "rank; name the one meant by its colour, or by a thing near it",
+            )
+    return steps
 
 
 class LearnedReader:
@@ -188,6 +245,7 @@ class LearnedReader:
         if not isinstance(text, str):
             raise ConfigError(f"an instruction must be a string, got {type(text).__name__}")
         refuse_non_words(text)
+        refuse_beneath_surface(text)
         refuse_nested_relation(text)  # the tagger would keep one relation of the two
         if self.fallback:
             try:
@@ -206,10 +264,12 @@ class LearnedReader:
         roles = best_roles(role_logp)
         plain = [w.strip(",.;:!?\"'").lower() for w, r in zip(words, roles, strict=True)
                  if r in ("O", "THEN", "REP")]  # fmt: skip
-        negations = [w for w in plain if w in NEGATIONS]
-        if negations:  # the tagger refuses these too; a word that reverses a goal never slips
-            raise ParseError(text, " ".join(negations), "the robot cannot honour a negated goal")
-        steps = decode(text, words, roles, rels, robot, read_clause, role_logp)
+        negated = [w for w in plain if is_negation(w)]
+        if negated:  # the tagger refuses these too; a word that reverses a goal never slips
+            raise ParseError(text, " ".join(negated), "the robot cannot honour a negated goal")
+        steps = refuse_negated_references(
+            text, decode(text, words, roles, rels, robot, read_clause, role_logp)
+        )
         manner = tuple(w for w in plain if w in MANNER)
         return Reading(text, read, steps, fixes, (), self.name, manner)
 

@@ -56,6 +56,9 @@ __all__ = [
     "NEGATIONS",
     "QUALIFIERS",
     "REQUEST_EXAMPLES",
+    "is_negation",
+    "negations",
+    "ordinal",
     "parse_instruction",
     "refuse_negated",
     "refuse_nested_relation",
@@ -103,8 +106,33 @@ _UNITS = {
     "m": 1.0,
     "meter": 1.0,
     "metre": 1.0,
+    "km": 1000.0,
+    "kilometer": 1000.0,
+    "kilometre": 1000.0,
+    "inch": 0.0254,
+    "ft": 0.3048,
+    "foot": 0.3048,
+    "feet": 0.3048,
+    "yd": 0.9144,
+    "yard": 0.9144,
+    "mile": 1609.344,
 }
-_UNIT = r"(?:mm|cm|m|millimet(?:er|re)s?|centimet(?:er|re)s?|met(?:er|re)s?)"
+# longer names first: the alternation takes the first that matches
+_UNIT = (
+    r"(?:kilomet(?:er|re)s?|km|millimet(?:er|re)s?|mm|centimet(?:er|re)s?|cm|met(?:er|re)s?|"
+    r"miles?|m|inch(?:es)?|ft|foot|feet|yards?|yd)"
+)
+
+
+def unit_metres(unit: str) -> float:
+    """Metres in one ``unit`` as :data:`_UNIT` reads it ("cm", "inches", "feet", "km")."""
+    u = unit.lower()
+    for name in (u, u.removesuffix("es"), u.removesuffix("s")):
+        if name in _UNITS:
+            return _UNITS[name]
+    raise KeyError(unit)
+
+
 _DIST = rf"(-?{_NUM})\s*({_UNIT})"  # a sign is read, to be refused by name
 _DIRECTIONS = {
     "north": "north",
@@ -145,20 +173,58 @@ _RESERVED = (
     closest nearest beside times twice thrice once sound sounds noise image picture photo where
     heard hear north south east west below under beneath over above to from
     with into onto towards toward after before again repeat meters metres meter metre cm mm
-    grab pick place put push get fetch bring take go move open close turn rotate face look it its
-    them there here me you everything all every""".split()
+    km inches feet grab pick place put push get fetch bring take go move open close turn rotate
+    face look it its them there here me you everything all every""".split()
     )
     | QUALIFIERS
 )
 _ARTICLES = re.compile(r"^(?:(?:the|a|an|some|any|that|this)\s+)+")
 
 
+#: Auxiliaries whose contraction with "not" may be typed without its apostrophe ("isnt").
+_AUXILIARIES = frozenset(
+    "is are was were do does did can could would should will wo has have had must need might "
+    "ai sha".split()
+)
+
+
+def is_negation(word: str) -> bool:
+    """Whether ``word`` negates: one of :data:`NEGATIONS`, or a verb contracted with "not"
+    ("isn't", "doesn't", "isnt", "won't")."""
+    w = word.lower().replace("\u2019", "'").strip(",.;:!?\"'")
+    if w in NEGATIONS or w.endswith("n't"):
+        return True
+    return w.endswith("nt") and w[:-2] in _AUXILIARIES
+
+
+def negations(text: str, describing: bool = False) -> list[str]:
+    """The negating words of ``text`` in order; ``describing``: without "no" and "without",
+    which also describe ("the mug with no handle")."""
+    words = re.findall(r"[a-z'\u2019]+", text.lower())
+    return [w for w in words if is_negation(w) and not (describing and w in ("no", "without"))]
+
+
+#: An ordinal at the start of a reference ("the 3rd mug", "the second duck from the left", "the
+#: last one"): it picks one of several things by their order, which no map scores.
+_ORDINAL = re.compile(
+    r"^(?:(?:the|a|an|your|my)\s+)?(?:very\s+)?(?P<o>\d+\s*(?:st|nd|rd|th)|first|second|third|"
+    r"fourth|fifth|sixth|seventh|eighth|ninth|tenth|last|penultimate|(?:second|next)[\s-]+to[\s-]+"
+    r"last)\b(?!\s+of\b)",  # "the fourth of July" is a date, not a pick
+    re.IGNORECASE,
+)
+
+
+def ordinal(text: str) -> str | None:
+    """The ordinal a reference starts with ("3rd", "second", "last"), or None."""
+    m = _ORDINAL.match(text.strip())
+    return m.group("o") if m else None
+
+
 def refuse_negated(text: str) -> None:
-    """Refuse a reference that negates what it names ("not the red mug"): ParseError naming
-    the word. ("no" and "without" also describe, and pass: "the mug with no handle".)"""
-    negated = [
-        w for w in re.findall(r"[a-z']+", text.lower()) if w in NEGATIONS - {"no", "without"}
-    ]
+    """Refuse a reference that negates what it names ("not the red mug", "the cup that isn't
+    red"): ParseError naming the word. ("no" and "without" also describe, and pass: "the mug
+    with no handle".)"""
+    negated = negations(text, describing=True)
     if negated:
         raise ParseError(
             text,
@@ -779,7 +845,7 @@ class _Parser:
             way, num, unit = g
         if num is None:
             self.fail(clause, "say how far, e.g. 'move forward 1 m' or 'back up 50 cm'")
-        d = self.number(num, clause) * _UNITS[unit.rstrip("s")]
+        d = self.number(num, clause) * unit_metres(unit)
         if not 0 < d <= MAX_DRIVE_M:
             self.out_of_range(
                 clause, f"a base drives more than 0 and at most {MAX_DRIVE_M:g} m at once"
@@ -803,7 +869,7 @@ class _Parser:
                     direction, num, unit = g
                 else:
                     num, unit, direction = g
-                d = self.number(num, clause) * _UNITS[unit.rstrip("s")]
+                d = self.number(num, clause) * unit_metres(unit)
                 limit = MAX_DRIVE_M if self.robot == "mobile" else MAX_DISTANCE_M
                 if not 0 < d <= limit:
                     self.out_of_range(
@@ -823,7 +889,8 @@ class _Parser:
             if m:
                 self.fail(
                     m.group("d"),
-                    "a compass move's distance is a number of m, cm or mm, e.g. 'move 10 cm north'",
+                    "a compass move's distance is a number of mm, cm, m or km (or inches, "
+                    "feet, yards, miles), e.g. 'move 10 cm north'",
                 )
         rest = _HEDGE.sub("", _PLACE_OF.sub("", _BE_AT.sub("", rest)))
         m = _FROM_TO.match(rest)
