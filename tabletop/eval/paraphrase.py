@@ -99,19 +99,23 @@ POOLS = (
     "heldout-16",
     "heldout-17",
     "heldout-18",
+    "heldout-19",
 )
 #: Held-out pools nobody on the team has read: evaluated once, for a report ("heldout-13",
-#: "heldout-14", "heldout-15", "heldout-17" and "heldout-18", written without reading the parser,
-#: the lexicons or the other pools; their suites generated unread). A held-out pool whose suites
-#: were read after its report ("heldout", "heldout-2" ... "heldout-12", "heldout-16") is tuned on
-#: from then on, like a tune pool, and every newer held-out pool must differ from it and from
-#: every training text (tests/test_paraphrase.py names the entries that do not, by index only).
+#: "heldout-14", "heldout-15", "heldout-17", "heldout-18" and "heldout-19", written without reading
+#: the parser, the lexicons or the other pools; their suites generated unread; heldout-18's area
+#: misses were read after its report, and it stays out of training so that the committed readers
+#: reproduce). A held-out pool whose suites were read after its report ("heldout", "heldout-2"
+#: ... "heldout-12", "heldout-16") is tuned on from then on, like a tune pool, and every newer
+#: held-out pool must differ from it and from every training text (tests/test_paraphrase.py names
+#: the entries that do not, by index only).
 HELDOUT_POOLS: tuple[str, ...] = (
     "heldout-13",
     "heldout-14",
     "heldout-15",
     "heldout-17",
     "heldout-18",
+    "heldout-19",
 )
 TUNE_POOLS = tuple(p for p in POOLS if p not in HELDOUT_POOLS)
 BANK_DIR = DATA_DIR / "paraphrases"
@@ -121,7 +125,7 @@ SUITE_DIRS = {p: f"paraphrase-{p}" for p in POOLS}
 #: (900-902), the clutter suites (950-953), vision training (layout seeds
 #: ``seed * 100_000 + i``: 0-219) or its held-out layouts (from 9,000,000). In use here: 750-752,
 #: 760-762, 800-803 ... 890-893 (by tens), 910-913, 920-923, 930-933, 940-943, 960-963,
-#: 970-973, 980-983 and 990, 992-994 (991 gave no multimodal goal).
+#: 970-973, 980-983, 990, 992-994 (991 gave no multimodal goal) and 995-998.
 TUNE_SEEDS = (750, 751, 752)
 HELDOUT_SEEDS = (800, 801, 802, 803)
 POOL_SEEDS = {
@@ -145,6 +149,7 @@ POOL_SEEDS = {
     "heldout-16": (970, 971, 972, 973),
     "heldout-17": (980, 981, 982, 983),
     "heldout-18": (990, 992, 993, 994),
+    "heldout-19": (995, 996, 997, 998),
 }
 
 #: Absent goals per scene: objects outside the catalog, catalog kinds the scene lacks, a colour
