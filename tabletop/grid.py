@@ -8,7 +8,7 @@ import numpy as np
 
 from tabletop.errors import ConfigError
 
-__all__ = ["VoxelGrid"]
+__all__ = ["VoxelGrid", "box_argwhere", "mask_box"]
 
 
 MAX_CELLS = 50_000_000
@@ -169,3 +169,23 @@ class VoxelGrid:
 
     def to_dict(self) -> dict:
         return {"lower": list(self.lower), "upper": list(self.upper), "voxel_size": self.voxel_size}
+
+
+def mask_box(mask: np.ndarray) -> tuple[slice, slice, slice] | None:
+    """The smallest box of index slices holding every True cell of a 3D bool ``mask``, None
+    when none is. Two passes over the mask (its projections), where ``np.argwhere`` lists
+    every cell: the callers then work in the box alone."""
+    xy = mask.any(axis=2)
+    where = (np.flatnonzero(xy.any(axis=1)), np.flatnonzero(xy.any(axis=0)))
+    if not len(where[0]):
+        return None
+    z = np.flatnonzero(mask[where[0][0] : where[0][-1] + 1].any(axis=(0, 1)))
+    return tuple(slice(int(w[0]), int(w[-1]) + 1) for w in (*where, z))
+
+
+def box_argwhere(mask: np.ndarray) -> np.ndarray:
+    """``np.argwhere(mask)`` for a 3D bool mask, found in its :func:`mask_box` (same order)."""
+    box = mask_box(mask)
+    if box is None:
+        return np.zeros((0, 3), np.intp)
+    return np.argwhere(mask[box]) + np.array([b.start for b in box])

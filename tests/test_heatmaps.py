@@ -9,6 +9,7 @@ from tabletop.mapping.heatmaps import (
     Heatmap,
     fuse,
     point_heatmap_3d,
+    point_heatmap_3d_at,
     scored_points_heatmap_xy,
 )
 from tabletop.mapping.targets import max_position
@@ -51,6 +52,11 @@ def test_object_heatmap_equals_brute_force(decay):
     assert ours.dtype == np.float32
     np.testing.assert_allclose(ours, ref, atol=1e-5)
     assert ours.min() >= 0 and ours.max() == pytest.approx(1.0)
+    # from the target voxels' indices, with no mask of the grid: the same values
+    np.testing.assert_array_equal(point_heatmap_3d_at(GRID, idx, decay), ours)
+    assert not point_heatmap_3d_at(GRID, np.zeros((0, 3), int), decay).any()
+    with pytest.raises(ConfigError, match="outside the grid"):
+        point_heatmap_3d_at(GRID, [[0, 0, GRID.shape[2]]], decay)
 
 
 @pytest.mark.parametrize("decay", [10.0, 2.5])
@@ -131,6 +137,30 @@ def test_heatmap_values_are_checked_and_read_only():
         Heatmap(GRID, np.zeros(GRID.shape, np.float32), "q", "smell", 1.0, 0.5, True)
     h = _h(np.zeros(GRID.shape, np.float32))
     assert not h.values.flags.writeable
+    with pytest.raises(ConfigError, match="non-finite"):  # one inf among finite values
+        v = np.zeros(GRID.shape, np.float32)
+        v[3, 4, 5] = np.inf
+        _h(v)
+    v = np.zeros(GRID.shape, np.float32)
+    v[1, 2, 3] = 0.7
+    assert _h(v).peak == pytest.approx(0.7) and h.peak == 0.0
+
+
+def test_the_box_of_a_mask_finds_its_cells_as_argwhere_does():
+    from tabletop.grid import box_argwhere, mask_box
+
+    rng = np.random.default_rng(4)
+    for _ in range(50):
+        mask = np.zeros(tuple(int(n) for n in rng.integers(1, 12, 3)), bool)
+        for _ in range(int(rng.integers(0, 5))):
+            mask[tuple(int(rng.integers(0, n)) for n in mask.shape)] = True
+        cells = np.argwhere(mask)
+        np.testing.assert_array_equal(box_argwhere(mask), cells)
+        box = mask_box(mask)
+        if not len(cells):
+            assert box is None
+        else:
+            assert box == tuple(slice(int(c.min()), int(c.max()) + 1) for c in cells.T)
 
 
 def test_decay_must_be_positive():

@@ -23,7 +23,7 @@ import numpy as np
 from scipy import ndimage
 
 from tabletop.errors import ConfigError
-from tabletop.grid import VoxelGrid
+from tabletop.grid import VoxelGrid, mask_box
 
 __all__ = [
     "AUX_DECAY",
@@ -33,6 +33,7 @@ __all__ = [
     "Judge",
     "fuse",
     "point_heatmap_3d",
+    "point_heatmap_3d_at",
     "scored_points_heatmap_xy",
     "sharpest_part",
 ]
@@ -57,17 +58,38 @@ def _check_decay(decay: float) -> float:
 def point_heatmap_3d(grid: VoxelGrid, target_mask: np.ndarray, decay: float) -> np.ndarray:
     """H(p) = max(1 - decay * d_min(p), 0) with d_min the distance [m] to the nearest target
     voxel centre; ``target_mask`` is a boolean array of the grid's shape."""
-    decay = _check_decay(decay)
     target_mask = np.asarray(target_mask, bool)
     if target_mask.shape != grid.shape:
         raise ConfigError(f"target mask {target_mask.shape} is not the grid's {grid.shape}")
-    if not target_mask.any():
+    box = mask_box(target_mask)
+    if box is None:
+        _check_decay(decay)
         return np.zeros(grid.shape, np.float32)
+    return _heat_around(grid, target_mask, box, decay)
+
+
+def point_heatmap_3d_at(grid: VoxelGrid, idx: np.ndarray, decay: float) -> np.ndarray:
+    """:func:`point_heatmap_3d` of the target voxels ``idx`` ((N, 3) grid indices), without a
+    pass over the whole grid to find them."""
+    idx = np.asarray(idx, np.intp).reshape(-1, 3)
+    if not len(idx):
+        _check_decay(decay)
+        return np.zeros(grid.shape, np.float32)
+    if (idx < 0).any() or (idx >= np.array(grid.shape)).any():
+        raise ConfigError(f"target voxel indices outside the grid {grid.shape}")
+    lo, hi = idx.min(axis=0), idx.max(axis=0) + 1
+    box = tuple(slice(int(a), int(b)) for a, b in zip(lo, hi, strict=True))
+    mask = np.zeros(grid.shape, bool)
+    mask[idx[:, 0], idx[:, 1], idx[:, 2]] = True
+    return _heat_around(grid, mask, box, decay)
+
+
+def _heat_around(grid: VoxelGrid, target_mask, box, decay: float) -> np.ndarray:
+    decay = _check_decay(decay)
     # Only voxels within 1/decay of a target get heat: work in that sub-box.
     r = int(np.ceil(1.0 / decay / grid.voxel_size)) + 1
-    idx = np.argwhere(target_mask)
-    lo = np.maximum(idx.min(axis=0) - r, 0)
-    hi = np.minimum(idx.max(axis=0) + r + 1, grid.shape)
+    lo = [max(b.start - r, 0) for b in box]
+    hi = [min(b.stop + r, n) for b, n in zip(box, grid.shape, strict=True)]
     sub = ~target_mask[lo[0] : hi[0], lo[1] : hi[1], lo[2] : hi[2]]
     d = ndimage.distance_transform_edt(sub, sampling=grid.voxel_size)
     out = np.zeros(grid.shape, np.float32)
@@ -140,15 +162,17 @@ class Heatmap:
             raise ConfigError(f"heatmap {v.shape} is not on the grid {self.grid.shape}")
         if v.dtype != np.float32 or v.flags.writeable:
             v = np.array(v, dtype=np.float32)
-        if not np.all(np.isfinite(v)):
+        # NaN makes the minimum and the maximum NaN, and inf is one of them: two passes
+        lo, hi = (float(v.min()), float(v.max())) if v.size else (0.0, 0.0)
+        if not (np.isfinite(lo) and np.isfinite(hi)):
             raise ConfigError(f"heatmap {self.query!r} has non-finite values (NaN or inf)")
-        if v.size and (v.min() < 0 or v.max() > 1):
+        if lo < 0 or hi > 1:
             raise ConfigError(
-                f"heatmap {self.query!r} values must be in [0, 1], got "
-                f"[{float(v.min()):.3g}, {float(v.max()):.3g}]"
+                f"heatmap {self.query!r} values must be in [0, 1], got [{lo:.3g}, {hi:.3g}]"
             )
         v.setflags(write=False)
         object.__setattr__(self, "values", v)
+        object.__setattr__(self, "_peak", max(hi, 0.0))
         if not 0.0 <= float(self.confidence) <= 1.0:
             raise ConfigError(f"confidence must be in [0, 1], got {self.confidence}")
         if self.target is not None:
@@ -183,8 +207,8 @@ class Heatmap:
 
     @property
     def peak(self) -> float:
-        """The largest value."""
-        return float(self.values.max(initial=0.0))
+        """The largest value (found when the heatmap was made: its values are read-only)."""
+        return self._peak
 
     def with_values(self, values: np.ndarray, **changes) -> Heatmap:
         """A copy with other values (and any other field changed)."""

@@ -83,7 +83,7 @@ from tabletop.mapping.colour_words import (
     survey_words,
     unlisted_modifiers,
 )
-from tabletop.mapping.heatmaps import Heatmap, Judge, point_heatmap_3d
+from tabletop.mapping.heatmaps import Heatmap, Judge, point_heatmap_3d_at
 from tabletop.mapping.instances import InstanceConfig, InstanceSet, ObjectInstance, support_of
 from tabletop.mapping.kind_reader import OTHER, KindReader
 from tabletop.mapping.voxel_map import VoxelMap
@@ -435,8 +435,10 @@ class ObjectModule:
         if self._shape_cache[0] != key:  # once per instance until the voxels change
             self._shape_cache = (key, {})
         done = self._shape_cache[1]
-        centers, vs = self.voxels.centers, self.voxels.grid.voxel_size
-        for i in instances:
+        vs = self.voxels.grid.voxel_size
+        missing = [i for i in instances if i not in done]
+        centers = self.voxels.centers if missing else None  # every voxel's: only when needed
+        for i in missing:
             if i not in done:
                 base = support_of(supports, np.array([*i.center[:2], i.lo[2] + vs]))
                 done[i] = shape_features(centers[i.rows], vs, base.z)
@@ -1005,11 +1007,10 @@ class ObjectModule:
         r = m.ranked
         if not r.max() > 0:  # every preferred name's weight underflowed: rank by the evidence
             r = s
-        mask = np.zeros(grid.size, bool)
         lin = self.voxels.linear_indices
-        for i in np.nonzero(r >= self.config.keep_ratio * float(r.max()))[0]:
-            mask[lin[inst[i].rows]] = True
-        values = point_heatmap_3d(grid, mask.reshape(grid.shape), decay)
+        keep = np.nonzero(r >= self.config.keep_ratio * float(r.max()))[0]
+        rows = np.concatenate([inst[i].rows for i in keep])
+        values = point_heatmap_3d_at(grid, grid.unravel(lin[rows]), decay)
         return Heatmap(grid, values, query, "object", decay, conf, True, "", best)
 
     def _voxel_heatmap(self, query: str, decay: float, judge: Judge) -> Heatmap:
@@ -1027,9 +1028,7 @@ class ObjectModule:
         best = float(s[cand].max())
         margin = best - float(np.median(s))
         keep = cand[s[cand] >= best - self.config.select_margin * margin]
-        mask = np.zeros(grid.size, bool)
-        mask[self.voxels.linear_indices[keep]] = True
-        values = point_heatmap_3d(grid, mask.reshape(grid.shape), decay)
+        values = point_heatmap_3d_at(grid, grid.unravel(self.voxels.linear_indices[keep]), decay)
         conf, found = judge("object", margin)
         reason = "" if found else f"best match {best:.2f} is weak (confidence {conf:.2f})"
         return Heatmap(grid, values, query, "object", decay, conf, found, reason, margin)

@@ -28,7 +28,7 @@ import numpy as np
 from scipy import ndimage
 
 from tabletop.errors import ConfigError, GoalNotFound
-from tabletop.grid import VoxelGrid
+from tabletop.grid import VoxelGrid, box_argwhere, mask_box
 from tabletop.mapping.heatmaps import Heatmap, sharpest_part
 
 __all__ = [
@@ -72,18 +72,22 @@ def _check_occupancy(grid: VoxelGrid, occupancy: np.ndarray) -> np.ndarray:
 def hottest_region(heatmap: Heatmap) -> np.ndarray:
     """Grid-shaped bool mask of the voxels at the maximum; of several disconnected tied
     regions, the one with the largest total heat."""
+    return _hottest(heatmap)[0]
+
+
+def _hottest(heatmap: Heatmap):
+    """(:func:`hottest_region`'s mask, the box of slices that holds it)."""
     values = _check(heatmap).values
     tied = values >= heatmap.peak - _TIE
     # the components of the tied voxels lie in their bounding box: label that box alone (a
     # peak is usually a few hundred voxels of a grid of a million), numbered in the same order
-    where = [np.flatnonzero(tied.any(axis=tuple(b for b in range(3) if b != a))) for a in range(3)]
-    box = tuple(slice(int(w[0]), int(w[-1]) + 1) for w in where)
+    box = mask_box(tied)
     labels, n = ndimage.label(tied[box], structure=np.ones((3, 3, 3)))
     if n > 1:
         weights = ndimage.sum(values[box], labels, index=np.arange(1, n + 1))
         tied = np.zeros_like(tied)
         tied[box] = labels == (int(np.argmax(weights)) + 1)
-    return tied
+    return tied, box
 
 
 def surface_z(grid: VoxelGrid, occupancy: np.ndarray, xy, radius: float = 0.0) -> float:
@@ -122,9 +126,12 @@ def _centroid(grid: VoxelGrid, occupancy: np.ndarray, idx: np.ndarray) -> np.nda
 def max_position(heatmap: Heatmap, occupancy: np.ndarray) -> np.ndarray:
     """(3,) [m]: the centroid of the hottest region (:func:`hottest_region`); a region spanning
     the grid's whole height (a top-down heatmap) is placed on the surface beneath it."""
-    mask = hottest_region(heatmap)  # checks the heatmap first
+    mask, box = _hottest(heatmap)  # checks the heatmap first
     _, core = _sharp_region(heatmap, mask)
-    return _centroid(heatmap.grid, occupancy, np.argwhere(mask if core is None else core))
+    if core is not None:
+        return _centroid(heatmap.grid, occupancy, box_argwhere(core))
+    idx = np.argwhere(mask[box]) + np.array([b.start for b in box])
+    return _centroid(heatmap.grid, occupancy, idx)
 
 
 def _landmark_region(heatmap: Heatmap) -> np.ndarray:
