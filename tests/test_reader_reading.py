@@ -338,3 +338,18 @@ def test_a_place_beneath_the_table_is_named_as_off_the_map(reader):
     for text in ["go under the table", "move beneath the tabletop"]:
         with pytest.raises(ParseError, match="beneath the table is off the table's top"):
             understand(text, reader=reader)
+
+
+@pytest.mark.parametrize("reader", ["rules", "rules+spelling", "learned", "rules+learned"])
+def test_a_part_that_says_what_a_thing_is_made_of_describes_it(reader):
+    # "in <colour> <material>" was read as a second thing to be near, which no map holds
+    def primaries(text):
+        steps = understand(text, reader=reader).steps
+        return steps[0].action
+
+    a = primaries("go to the mug in shiny red plastic")
+    assert a.goal.primary.text == "mug in shiny red plastic" and a.goal.near == ()
+    a = primaries("go to the left of the duck in yellow rubber")
+    assert a.landmark == "duck in yellow rubber"
+    a = primaries("go to the mug near the duck")  # a thing to be near stays one
+    assert [p.text for p in a.goal.near] == ["duck"]

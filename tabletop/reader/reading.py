@@ -32,7 +32,7 @@ from tabletop.mapping.table_regions import AreaRef
 from tabletop.reader.errors import ParseError
 from tabletop.reader.llm import LLMReader
 from tabletop.reader.places import PlaceReader, beneath_surface
-from tabletop.reader.plan import Part, Reading, Step
+from tabletop.reader.plan import Goal, Part, Reading, Step
 from tabletop.reader.rules import (
     MANNER,
     QUALIFIERS,
@@ -198,12 +198,60 @@ def refuse_beneath_surface(text: str) -> None:
         )
 
 
+def _fold_goal(goal: Goal) -> Goal:
+    """``goal`` with each narrowing part that only describes what the primary is made of or
+    covered with ("the mug in shiny red plastic": a part whose last word is a material or a
+    covering, :data:`~tabletop.mapping.colour_words.SURFACE_NOUNS`) folded into the primary's
+    words, which the map reads as a description; such a part names no thing to be near."""
+    from tabletop.mapping.colour_words import SURFACE_NOUNS
+
+    keep, described = [], goal.primary.text
+    for part in goal.near:
+        words = re.findall(r"[a-z]+", part.text.lower())
+        if (
+            part.kind == "obj"
+            and goal.primary.kind == "obj"
+            and words
+            and (words[-1] in SURFACE_NOUNS)
+        ):
+            described = f"{described} in {part.text}"
+        else:
+            keep.append(part)
+    if len(keep) == len(goal.near):
+        return goal
+    return dataclasses.replace(
+        goal, primary=dataclasses.replace(goal.primary, text=described), near=tuple(keep)
+    )
+
+
+def fold_descriptions(value):
+    """``value`` (steps, an action, a goal) with every goal's describing parts folded into
+    its primary (:func:`_fold_goal`)."""
+    if isinstance(value, Goal):
+        return _fold_goal(value)
+    if isinstance(value, tuple):
+        return tuple(fold_descriptions(v) for v in value)
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        changes = {
+            f.name: fold_descriptions(getattr(value, f.name))
+            for f in dataclasses.fields(value)
+            if isinstance(getattr(value, f.name), (Goal, tuple))
+            or (dataclasses.is_dataclass(getattr(value, f.name)))
+        }
+        for name, v in changes.items():  # a landmark left unnarrowed is a thing's words
+            if name == "landmark" and isinstance(v, Goal) and not v.near:
+                changes[name] = v.primary.text
+        return dataclasses.replace(value, **changes) if changes else value
+    return value
+
+
 def refuse_negated_references(text: str, steps: tuple[Step, ...]) -> tuple[Step, ...]:
     """``steps``, unless a reference in them negates what it names ("the cup that isn't red",
     which a reader would look for as a red cup): ParseError naming the word. "no" and
     "without" describe and pass ("the mug with no handle"); a negation outside every
     reference is the reader's to read ("not far from" for near). A reference that starts with
     an ordinal ("the 3rd mug from the left") is refused the same way."""
+    steps = fold_descriptions(steps)
     for ref in _reference_texts(steps):
         negated = negations(ref, describing=True)
         if negated:
