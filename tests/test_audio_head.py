@@ -100,3 +100,35 @@ def test_tiny_training_run_writes_a_head_the_encoder_loads(tmp_path):
     enc = YamnetAudioEncoder(path)
     assert enc.vocabulary.categories == ("cow", "dog")
     assert enc.encode_audio(clips[0].load(), bank.sample_rate).shape == (384,)
+
+
+def test_a_tiny_tuned_tail_run_gives_a_head_that_reads_its_embeddings(tmp_path):
+    from tabletop.mapping.encoders.yamnet import load_tail
+    from tabletop.train.audio_tail import TailTrainConfig, train_tail
+
+    base = SoundBank.default()
+    clips = [c for k in ("dog", "cow") for c in base.clips(k, split="train")[:3]]
+    bank = SoundBank(clips, sample_rate=base.sample_rate, name="tiny")
+    tail = tmp_path / "tail.npz"
+    cfg = TailTrainConfig(copies=2, epochs=1, batch_segments=4, n_threads=1)
+    info = train_tail(bank, tail, cfg)
+    assert info["segments"] == 12 and info["patches"] >= 12
+    train_tail(bank, tmp_path / "again.npz", cfg)
+    a, b = load_tail(tail), load_tail(tmp_path / "again.npz")
+    assert all(np.array_equal(a[k], b[k]) for k in a)  # seeded
+    head = HeadTrainConfig(
+        out=tmp_path / "head.npz", copies=2, epochs=1, hidden=8, members=1, open_scorer=False,
+        tail=tail,
+    )  # fmt: skip
+    path = train_audio_head(head, bank, evaluate=False)
+    assert load_head(path).meta["tail"] == "tail.npz"  # beside the head, relative
+    enc = YamnetAudioEncoder(path)
+    assert enc.backbone.tail == tail.resolve()
+    from tabletop.mapping.encoders.yamnet import YamnetBackbone
+
+    frozen = YamnetAudioEncoder(path, backbone=YamnetBackbone())
+    x = clips[0].load()
+    assert not np.allclose(
+        enc.backbone_output(x, bank.sample_rate).embeddings,
+        frozen.backbone_output(x, bank.sample_rate).embeddings,
+    )

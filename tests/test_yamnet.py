@@ -112,3 +112,34 @@ def test_missing_or_foreign_archive_is_named(tmp_path):
         YamnetBackbone(num_threads=0)
     with pytest.raises(ConfigError, match="400 samples"):
         log_mel(np.zeros(10, np.float32))
+
+
+def test_a_tuned_tail_gives_the_embeddings_and_leaves_the_class_logits(backbone, tmp_path):
+    import torch
+
+    from tabletop.mapping.encoders.yamnet import load_tail, save_tail, tail_weights
+    from tabletop.train.audio_tail import TorchTail
+
+    rng = np.random.default_rng(3)
+    p = patches(log_mel(rng.normal(0, 0.1, YAMNET_RATE * 2).astype(np.float32)))
+    out = backbone.run(p)
+    weights = tail_weights(float_graph(backbone.zip_path))
+    # the torch tail that training fine-tunes computes what the graph computes
+    torch_emb = TorchTail(weights)(torch.from_numpy(backbone.tail_input(p))).detach().numpy()
+    np.testing.assert_allclose(torch_emb, out.embeddings, atol=1e-4)
+    # the same weights (stored in float16) give the same embeddings; others change them
+    save_tail(tmp_path / "same.npz", weights)
+    assert set(load_tail(tmp_path / "same.npz")) == set(weights)
+    same = YamnetBackbone(tail=tmp_path / "same.npz").run(p)
+    np.testing.assert_allclose(same.embeddings, out.embeddings, atol=1e-2)
+    changed = {k: v * (2.0 if k.endswith("bias") else 1.0) for k, v in weights.items()}
+    save_tail(tmp_path / "changed.npz", changed)
+    tuned = YamnetBackbone(tail=tmp_path / "changed.npz").run(p)
+    assert np.abs(tuned.embeddings - out.embeddings).max() > 0.1
+    np.testing.assert_array_equal(tuned.logits, out.logits)  # AudioSet's scores unchanged
+    # a tail of the wrong shapes, or no tail file, is named
+    save_tail(tmp_path / "bad.npz", {k: v[:1] for k, v in weights.items()})
+    with pytest.raises(AssetError, match="original shapes"):
+        YamnetBackbone(tail=tmp_path / "bad.npz")
+    with pytest.raises(AssetError, match="not found"):
+        YamnetBackbone(tail=tmp_path / "missing.npz")

