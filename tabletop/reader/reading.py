@@ -42,7 +42,6 @@ from tabletop.reader.rules import (
     parse_instruction,
     refuse_negated,
     refuse_nested_relation,
-    refuse_no_words,
     refuse_non_words,
 )
 from tabletop.reader.spelling import Speller, default_speller, name_words, not_english
@@ -62,7 +61,6 @@ __all__ = [
 MAX_WRAPPER_WORDS = 12
 #: Query kinds whose text a reader corrects (an image is a path or pixels).
 TEXT_KINDS = ("obj", "sound", "area")
-_ASKED = {"obj": "thing", "sound": "sound", "area": "place"}
 
 
 class Reader(Protocol):
@@ -121,7 +119,6 @@ class RulesReader:
             raise ConfigError(f"unknown reference kind {kind!r}; valid: {list(TEXT_KINDS)}")
         if not isinstance(text, str):
             raise ConfigError(f"{kind}= must be a string, got {type(text).__name__}")
-        refuse_no_words(text, f"the {_ASKED[kind]} asked for")
         if self.spelling:
             text = self.speller.correct(text)[0]
         refuse_negated(text)
