@@ -353,3 +353,19 @@ def test_a_part_that_says_what_a_thing_is_made_of_describes_it(reader):
     assert a.landmark == "duck in yellow rubber"
     a = primaries("go to the mug near the duck")  # a thing to be near stays one
     assert [p.text for p in a.goal.near] == ["duck"]
+
+
+@pytest.mark.parametrize("reader", ["rules", "rules+spelling", "learned", "rules+learned"])
+def test_a_distance_from_a_thing_is_refused_not_dropped(reader):
+    # "5 cm to the left of the mug" went to the left side's own offset, the 5 cm dropped
+    for text, words in [
+        ("go 5 cm to the left of the mug", "5 cm to the left of"),
+        ("move 3 inches in front of the duck", "3 inches in front of"),
+        ("go 10 cm behind the tray", "10 cm behind"),
+    ]:
+        with pytest.raises(ParseError, match="a distance from a thing is not honoured") as e:
+            understand(text, reader=reader)
+        assert e.value.fragment == words
+    # a compass move's distance, and a side with no distance, are read
+    assert understand("move 10 cm left, then go to the duck", reader=reader).steps
+    assert understand("go to the left of the mug", reader=reader).steps

@@ -43,6 +43,7 @@ from tabletop.reader.rules import (
     refuse_negated,
     refuse_nested_relation,
     refuse_non_words,
+    refuse_relation_distance,
 )
 from tabletop.reader.spelling import Speller, default_speller, name_words, not_english
 
@@ -131,6 +132,7 @@ class RulesReader:
             raise ConfigError(f"an instruction must be a string, got {type(text).__name__}")
         refuse_non_words(text)
         refuse_beneath_surface(text)
+        refuse_relation_distance(text)
         read, fixes = self.speller.correct(text) if self.spelling else (text, ())
         refuse_not_english(text, read)
         refuse_nested_relation(read)  # no reading may drop one of two relations
@@ -291,6 +293,7 @@ class LearnedReader:
             raise ConfigError(f"an instruction must be a string, got {type(text).__name__}")
         refuse_non_words(text)
         refuse_beneath_surface(text)
+        refuse_relation_distance(text)
         refuse_nested_relation(text)  # the tagger would keep one relation of the two
         if self.fallback:
             try:

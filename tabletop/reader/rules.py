@@ -64,6 +64,7 @@ __all__ = [
     "refuse_nested_relation",
     "refuse_no_words",
     "refuse_non_words",
+    "refuse_relation_distance",
 ]
 
 MAX_REPEAT = 20
@@ -271,6 +272,31 @@ def refuse_non_words(text: str) -> None:
             m.group(0),
             f"a request is words, not code: {m.group(0)!r} is code punctuation, in no thing's "
             f"name. A request looks like {REQUEST_EXAMPLES}",
+        )
+
+
+#: A distance said before a relation to a thing ("5 cm to the left of the mug", "3 inches in
+#: front of the duck"): a side goal stands at the relation's own offset, so the number would be
+#: dropped without a word.
+_RELATION_DISTANCE = re.compile(
+    rf"\b{_DIST}\s+(?:(?:over\s+)?to\s+(?:the\s+)?(?:left|right)(?:[\s-]+hand)?(?:\s+side)?\s+of|"
+    r"(?:out\s+)?in\s+front\s+of|behind|beside|above|past|beyond|away\s+from)\b",
+    re.IGNORECASE,
+)
+
+
+def refuse_relation_distance(text: str) -> None:
+    """Refuse a distance said for a relation to a thing: the robot goes to the relation's own
+    place (beside, in front, behind at their fixed offsets), so a number there would be
+    dropped. ParseError naming the words and the two steps that say it."""
+    m = _RELATION_DISTANCE.search(text)
+    if m:
+        raise ParseError(
+            text,
+            m.group(0),
+            "a distance from a thing is not honoured: a side of a thing is at the relation's "
+            "own offset. Say it in two steps, e.g. 'go to the left of the mug, then move 5 cm "
+            "west'",
         )
 
 
