@@ -796,3 +796,22 @@ def test_the_maps_background_asked_as_an_object_is_named_as_the_background(oracl
         assert not h.found and "is the map's background" in h.reason, h.reason
     # anything else still says what it is nearest
     assert "like nothing in this map's vocabulary" in oracle_map.object_heatmap("tablecloth").reason
+
+
+def test_query_pictures_are_not_replaced_without_overwrite(tmp_path, capsys):
+    from tabletop.cli.app import main
+
+    out = tmp_path / "q"
+    top = tmp_path / "q_top.png"
+    top.write_bytes(b"an earlier picture")
+    code = main(["query", str(tmp_path / "none.npz"), "--obj", "mug", "--out", str(out)])
+    assert code == 2 and "pass --overwrite" in capsys.readouterr().err
+    assert top.read_bytes() == b"an earlier picture"  # checked before the map is read
+
+
+def test_train_refuses_a_thread_or_step_count_below_one(capsys):
+    from tabletop.cli.app import main
+
+    for argv in (["train", "reader", "--threads", "0"], ["train", "audio", "--steps", "-3"]):
+        assert main(argv) == 2
+        assert "must be a positive whole number" in capsys.readouterr().err

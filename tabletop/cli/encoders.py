@@ -238,6 +238,9 @@ def _render_backend(args: argparse.Namespace):
 
 
 def cmd_train(args: argparse.Namespace) -> int:
+    for flag, value in (("--threads", args.threads), ("--steps", args.steps)):
+        if value is not None and value < 1:  # before any target reads it
+            raise ConfigError(f"{flag} {value}: must be a positive whole number (1 or more)")
     backend = _render_backend(args)
     if args.what == "reader":
         from tabletop.cli.language import cmd_train_reader

@@ -108,13 +108,19 @@ def _query_reader(args: argparse.Namespace, get_reader):
 
 
 def cmd_query(args: argparse.Namespace) -> int:
+    from tabletop.errors import ConfigError
     from tabletop.mapping import AVLMap, fuse
     from tabletop.mapping.render import heatmap_view_paths, write_heatmap_views
     from tabletop.reader.reading import get_reader
     from tabletop.robot.api import RobotAPI
 
     if args.out is not None:  # before the map is loaded and queried
-        heatmap_view_paths(args.out, what="--out")
+        existing = [p for p in heatmap_view_paths(args.out, what="--out") if p.exists()]
+        if existing and not args.overwrite:
+            raise ConfigError(
+                f"--out {args.out!r}: {', '.join(str(p) for p in existing)} already "
+                "exist; pass --overwrite to replace them, or another prefix"
+            )
     if args.encoders is not None:  # before the map is loaded
         from tabletop.mapping.persistence import check_map_encoders
 
@@ -205,6 +211,7 @@ def add_commands(sub) -> None:
         help="the encoder set the map must have been built with (refused otherwise)",
     )
     p.add_argument("--out", help="picture prefix: writes PREFIX_top.png and PREFIX_side.png")
+    p.add_argument("--overwrite", action="store_true", help="replace existing --out pictures")
     p.add_argument(
         "--reader",
         default=DEFAULT_READER,
