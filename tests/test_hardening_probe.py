@@ -815,3 +815,17 @@ def test_train_refuses_a_thread_or_step_count_below_one(capsys):
     for argv in (["train", "reader", "--threads", "0"], ["train", "audio", "--steps", "-3"]):
         assert main(argv) == 2
         assert "must be a positive whole number" in capsys.readouterr().err
+
+
+def test_a_side_direction_that_picks_no_side_is_named(oracle_map):
+    from tabletop.language.suite import PointRobot
+    from tabletop.robot.api import PrimitiveArgumentError, check_axis
+
+    p = PointRobot(oracle_map)
+    name = oracle_map.config.objects[0]
+    # these gave the landmark's centre (zero), a NaN target, or numpy's ValueError ("left")
+    for bad in [(0, 0, 0), (np.nan, 1, 0), "left", (1, 1), (0, 0, 1)]:
+        with pytest.raises(PrimitiveArgumentError, match=r"side_target\(direction=\.\.\.\)"):
+            p.side_target(name, bad)
+    np.testing.assert_array_equal(check_axis("side_target", (0, 1)), [0.0, 1.0, 0.0])
+    assert np.isfinite(p.side_target(name, (0, 1, 0))).all()

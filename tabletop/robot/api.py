@@ -42,6 +42,7 @@ __all__ = [
     "RobotError",
     "SpatialConfig",
     "TargetOffMap",
+    "check_axis",
     "check_compass_distance",
     "check_on_map",
     "check_primitive_args",
@@ -69,6 +70,25 @@ class RobotClosed(RobotError, RuntimeError):
 class TargetOffMap(RobotError, ConfigError):
     """A motion's target lies off the map: x, y outside its grid, or more than the success
     radius below its floor; no robot on the map goes there (:func:`check_on_map`)."""
+
+
+def check_axis(method: str, direction) -> np.ndarray:
+    """``direction`` as a (3,) horizontal unit axis, or :class:`PrimitiveArgumentError`
+    naming the call: two or three finite numbers whose horizontal part has length 1 (a zero,
+    NaN or text direction picks no side)."""
+    try:
+        d = np.asarray(direction, np.float64).reshape(-1)
+    except (TypeError, ValueError):
+        d = np.array([np.nan])
+    if d.shape in ((2,), (3,)) and np.all(np.isfinite(d)):
+        d = np.append(d, 0.0) if len(d) == 2 else d
+        if abs(float(np.hypot(d[0], d[1])) - 1.0) < 1e-6 and abs(float(d[2])) < 1e-9:
+            return d
+    raise PrimitiveArgumentError(
+        f"{method}(direction=...): direction must be a horizontal unit axis of 2 or 3 numbers, "
+        f"e.g. (0, 1, 0) for the robot's left (left_of, right_of, in_front_of and behind take "
+        f"none); got {_shown(direction)}"
+    )
 
 
 def check_on_map(grid, method: str, target) -> None:
@@ -506,6 +526,7 @@ class RobotAPI(abc.ABC):
         """(3,) [m]: the point beside landmark ``name`` (an object name or a heatmap) along the
         horizontal ``direction`` (a unit axis), ``side_offset`` from its centre and at least
         ``side_gap`` beyond its extent, level with its top."""
+        direction = check_axis("side_target", direction)
         c, lo, hi = self._landmark(name)
         s = self.spatial
         return side_point(direction, c, (hi - lo) / 2, hi[2], s.side_offset, s.side_gap)

@@ -41,7 +41,7 @@ from tabletop.base.driver import BaseDriver
 from tabletop.base.follower import FollowConfig, FollowResult, follow_path, turn_to
 from tabletop.base.planner import grid_path
 from tabletop.errors import ConfigError
-from tabletop.robot.api import RobotAPI, SpatialConfig, _point
+from tabletop.robot.api import RobotAPI, SpatialConfig, _point, check_axis
 from tabletop.robot.obstacles import Embodiment, OccupancyGrid, occupancy_grid
 
 __all__ = [
@@ -324,7 +324,7 @@ class MobileRobot(RobotAPI):
         axes are of its base frame: "left of" is to the base's left, "in front of" further
         along its heading (``side_offset`` from the centre, at least ``side_gap`` beyond the
         landmark's extent)."""
-        d = np.asarray(direction, np.float64)
+        d = check_axis("side_target", direction)
         yaw = self.heading()
         c, s = math.cos(yaw), math.sin(yaw)
         u = np.array([c * d[0] - s * d[1], s * d[0] + c * d[1]])
