@@ -369,3 +369,14 @@ def test_a_distance_from_a_thing_is_refused_not_dropped(reader):
     # a compass move's distance, and a side with no distance, are read
     assert understand("move 10 cm left, then go to the duck", reader=reader).steps
     assert understand("go to the left of the mug", reader=reader).steps
+
+
+@pytest.mark.parametrize("reader", ["learned", "rules+learned"])
+def test_a_side_word_that_names_a_region_with_the_place_words_is_that_region(reader):
+    # "the left area" was refused: 'left' is taken of a thing, not an area
+    for text, area in [("go to the left area", "left area"), ("go to the left side", "left side")]:
+        action = understand(text, reader=reader).steps[0].action
+        assert isinstance(action, GoTo) and action.goal.primary == Part("area", area)
+    # a side taken of a region is still refused, never read as the region
+    with pytest.raises(ParseError, match="'behind' is taken of a thing"):
+        understand("go behind the left area", reader=reader)

@@ -440,6 +440,23 @@ def _count(words: list[str]) -> int:
     return n
 
 
+def _side_as_region(goals: list[Goal], relation: str) -> tuple[list[Goal], str]:
+    """A side word tagged as a relation of a place's words that, with it, name a region of
+    the table ("the left area", "the left side": 'left' of 'area') is that region: one goal,
+    the place "left area", to go to. Other goals and relations are returned as they are."""
+    from tabletop.reader.place_words import parse_region
+
+    g = goals[0] if len(goals) == 1 else None
+    if relation in _SIDES and g is not None and g.primary.kind == "area" and not g.near:
+        words = re.findall(r"[a-z]+", g.primary.text.lower())
+        if relation in words and parse_region(g.primary.text) is not None:
+            return [g], "goto"  # the side word was tagged inside the place's words too
+        merged = f"{relation} {g.primary.text}"
+        if parse_region(merged) is not None:
+            return [Goal(Part("area", merged))], "goto"
+    return goals, relation
+
+
 def _relation(scores: np.ndarray) -> str:
     """The step's relation: the most likely over its words (summed log-probabilities)."""
     return RELATIONS[int(np.argmax(scores.sum(axis=0)))]
@@ -625,6 +642,7 @@ def decode(text: str, words: list[str], roles: list[str], relations, robot: str,
             continue
         if not goals:
             raise ParseError(text, clause, "the step names nothing to go to")
+        goals, relation = _side_as_region(goals, relation)
         _check(text, clause, relation, goals, times)
         if relation == "between":
             action = Between(goals[0], goals[1])
