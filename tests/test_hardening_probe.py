@@ -829,3 +829,18 @@ def test_a_side_direction_that_picks_no_side_is_named(oracle_map):
             p.side_target(name, bad)
     np.testing.assert_array_equal(check_axis("side_target", (0, 1)), [0.0, 1.0, 0.0])
     assert np.isfinite(p.side_target(name, (0, 1, 0))).all()
+
+
+def test_eval_refuses_contradictory_cache_flags_and_a_task_file_given_twice(capsys):
+    from tabletop.cli.app import main
+    from tabletop.eval.runner import collect_task_files
+    from tabletop.eval.tasks import TaskFileError
+
+    for cmd in (["eval", "demo"], ["calibrate"]):
+        assert main([*cmd, "--no-cache", "--cache-dir", "somewhere"]) == 2
+        assert "--no-cache and --cache-dir 'somewhere' exclude each other" in (
+            capsys.readouterr().err
+        )
+    with pytest.raises(TaskFileError, match="is given twice"):
+        collect_task_files(["demo", "demo"])
+    assert len(collect_task_files(["demo"])) == 1

@@ -145,6 +145,13 @@ def test_config_from_env_and_file(tmp_path):
     f.write_text('[llm]\nbase_url = "http://localhost:1/v1"\nmodel = "x"\napi_key = "inline"\n')
     with pytest.raises(ConfigError, match="unknown keys \\['api_key'\\]"):
         LLMConfig.from_file(f)
+    # a syntax error is named as such, not as a missing table
+    f.write_text('[llm]\nbase_url = "http://localhost:1/v1\n')
+    with pytest.raises(ConfigError, match="is not valid TOML"):
+        LLMConfig.from_file(f)
+    f.write_text('[model]\nname = "x"\n')
+    with pytest.raises(ConfigError, match=r"needs an \[llm\] table .* it has \['model'\]"):
+        LLMConfig.from_file(f)
     with pytest.raises(ConfigError, match="http"):
         LLMConfig(base_url="localhost:8000", model="m")
 

@@ -28,6 +28,24 @@ __all__ = [
 ]
 
 CALIBRATION_OUT_DIR = Path("out/calibration")
+#: Where ``eval`` and ``calibrate`` keep recordings and maps unless given ``--cache-dir``.
+DEFAULT_EVAL_CACHE = "out/eval-cache"
+
+
+def _cache_flags(args: argparse.Namespace) -> None:
+    """``--no-cache`` keeps nothing, so a ``--cache-dir`` beside it is refused; otherwise the
+    cache directory is the one given or the default, checked."""
+    if args.no_cache and args.cache_dir is not None:
+        raise ConfigError(
+            f"--no-cache and --cache-dir {args.cache_dir!r} exclude each other: --no-cache "
+            "keeps nothing; leave one out"
+        )
+    if args.cache_dir is None:
+        args.cache_dir = DEFAULT_EVAL_CACHE
+    if not args.no_cache:
+        _check_directory_flag("--cache-dir", args.cache_dir)
+
+
 """Where ``tabletop calibrate`` writes ``<set>.json`` unless given ``--out``."""
 
 
@@ -47,8 +65,7 @@ def cmd_eval(args: argparse.Namespace) -> int:
         if conditions is not None and noise:
             raise ConfigError("--noise and --robustness exclude each other")
         _check_directory_flag("--out", args.out)
-        if not args.no_cache:
-            _check_directory_flag("--cache-dir", args.cache_dir)
+        _cache_flags(args)
         _check_backend_flags(args)
         if args.goals and not args.json:
             raise ConfigError("--goals adds every goal to --json's output: give --json too")
@@ -560,8 +577,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
             f"--scenes {args.scenes}: a count of calibration scenes, valid 1..{n} (the first N); "
             f"leave it out for all {n}"
         )
-    if not args.no_cache:
-        _check_directory_flag("--cache-dir", args.cache_dir)
+    _cache_flags(args)
     out = args.out if args.out is not None else CALIBRATION_OUT_DIR / f"{args.encoders}.json"
     check_output_flag("--out", out)
     _check_calibration_output(Path(out))
@@ -623,8 +639,8 @@ def add_commands(sub) -> None:
     p.add_argument("--goals", action="store_true", help="with --json: include every goal")
     p.add_argument(
         "--cache-dir",
-        default="out/eval-cache",
-        help="recordings and maps reused across runs (default: out/eval-cache)",
+        default=None,
+        help=f"recordings and maps reused across runs (default: {DEFAULT_EVAL_CACHE})",
     )
     p.add_argument("--no-cache", action="store_true", help="scan and map afresh, keep nothing")
     p.add_argument(
@@ -726,8 +742,8 @@ def add_commands(sub) -> None:
     )
     p.add_argument(
         "--cache-dir",
-        default="out/eval-cache",
-        help="recordings and maps reused across runs (default: out/eval-cache)",
+        default=None,
+        help=f"recordings and maps reused across runs (default: {DEFAULT_EVAL_CACHE})",
     )
     p.add_argument("--no-cache", action="store_true", help="scan and map afresh, keep nothing")
     p.set_defaults(func=cmd_calibrate)

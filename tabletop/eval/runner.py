@@ -92,6 +92,15 @@ def collect_task_files(items: str | Path | TaskFile | Iterable) -> list[TaskFile
             out.append(load_tasks(p))
     if not out:
         raise TaskFileError("no task files given")
+    seen: set[Path] = set()
+    for tf in out:  # a file given twice (by name and by path, or in a directory) runs twice
+        if tf.path is not None:
+            key = Path(tf.path).resolve()
+            if key in seen:
+                raise TaskFileError(
+                    f"the task file {str(tf.path)!r} is given twice; give each task file once"
+                )
+            seen.add(key)
     return out
 
 

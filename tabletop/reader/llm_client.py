@@ -147,9 +147,17 @@ class LLMConfig:
             problem = input_file_problem(path) or "does not exist"
             raise ConfigError(f"LLM config {str(path)!r} {problem}")
         try:
-            table = tomllib.loads(p.read_text())["llm"]
-        except (tomllib.TOMLDecodeError, KeyError, UnicodeDecodeError) as e:
-            raise ConfigError(f"LLM config {str(p)!r}: needs an [llm] table ({e})") from None
+            doc = tomllib.loads(p.read_text())
+        except tomllib.TOMLDecodeError as e:
+            raise ConfigError(f"LLM config {str(p)!r} is not valid TOML: {e}") from None
+        except UnicodeDecodeError:
+            raise ConfigError(f"LLM config {str(p)!r} is not text (not UTF-8)") from None
+        if "llm" not in doc:
+            raise ConfigError(
+                f"LLM config {str(p)!r}: needs an [llm] table (base_url, model, ...); it has "
+                f"{sorted(doc) or 'no tables'}"
+            )
+        table = doc["llm"]
         if not isinstance(table, dict):
             raise ConfigError(
                 f"LLM config {str(p)!r}: 'llm' is a {type(table).__name__} ({table!r:.40}), not "
