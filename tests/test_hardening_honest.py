@@ -278,6 +278,19 @@ def test_a_map_is_refused_in_a_scene_it_was_not_built_from(built, capsys):
     check_map_scene(built[1], h["source"], load_scene_spec("default").to_dict(), "default")
     with pytest.raises(MapFormatError, match="does not record the scene"):
         check_map_scene(built[1], {}, other, "random")
+    # a header whose scene name was edited to the one asked: named as another scene of that
+    # name, not as "built from scene 'random' ... not from --scene 'random'"
+    edited = {**h["source"], "scene": "random"}
+    with pytest.raises(MapFormatError, match="names its scene 'random' as --scene does, but"):
+        check_map_scene(built[1], edited, other, "random")
+    # a file that is no map, read the viewer's quick way, is named as no map
+    from tabletop.mapping.persistence import read_map_preview
+
+    junk = built[1].parent / "junk.npz"
+    np.save(junk.with_suffix(".npy"), np.array([{"a": 1}], dtype=object), allow_pickle=True)
+    junk.with_suffix(".npy").rename(junk)
+    with pytest.raises(MapFormatError, match="is not a map file: a map is a .npz archive"):
+        read_map_preview(junk)
 
 
 def test_a_dry_run_checks_the_scene_against_the_map_as_a_run_does(built, capsys):

@@ -218,6 +218,14 @@ def check_map_scene(path: str | Path, source: dict | None, spec_dict: dict, name
             f"against --scene {name!r}"
         )
     if built != scene_fingerprint(spec_dict):
+        said = (source or {}).get("scene")
+        if said == name:  # same name, another scene: the name hides it (a random seed, an edit)
+            raise MapFormatError(
+                f"{path} names its scene {name!r} as --scene does, but was built from another "
+                f"scene of that name (fingerprint {built}, --scene's "
+                f"{scene_fingerprint(spec_dict)}): another seed or layout, or a header edited "
+                "since; give the scene spec the map was built from"
+            )
         raise MapFormatError(
             f"{path} was built from scene {(source or {}).get('scene')!r} (fingerprint "
             f"{built}), not from --scene {name!r} (fingerprint {scene_fingerprint(spec_dict)}): "
@@ -340,8 +348,10 @@ def read_map_preview(path: str | Path) -> MapPreview:
             h = json.loads(_header_bytes(z["header"]).decode())
             a = {k: z[k] for k in names}
             inst = z["voxel_instance"] if "voxel_instance" in z.files else None
-    except (ValueError, KeyError, OSError, EOFError, zipfile.BadZipFile, UnicodeDecodeError) as e:
-        raise MapFormatError(f"{path} is not a readable {MAP_FORMAT} file: {e}") from None
+    except (ValueError, KeyError, UnicodeDecodeError):  # numpy takes it for a pickle, ...
+        raise _not_a_map(path) from None
+    except (OSError, EOFError, zipfile.BadZipFile) as e:
+        raise MapFormatError(f"{path} is not a readable map file (truncated?): {e}") from None
     if not isinstance(h, dict) or h.get("format") != MAP_FORMAT:
         raise MapFormatError(f"{path}: not a {MAP_FORMAT} file")
     try:
@@ -440,6 +450,13 @@ def _map_path(path: str | Path) -> Path:
     return Path(path)
 
 
+def _not_a_map(path) -> MapFormatError:
+    return MapFormatError(
+        f"{path} is not a map file: a map is a .npz archive of format {MAP_FORMAT!r} "
+        "(tabletop build-map --out); this file is something else"
+    )
+
+
 def read_map_file(path: str | Path) -> tuple[dict, dict[str, np.ndarray]]:
     """The header and arrays of a map file, validated."""
     path = _map_path(path)
@@ -450,10 +467,7 @@ def read_map_file(path: str | Path) -> tuple[dict, dict[str, np.ndarray]]:
         with z:
             arrays = {k: z[k] for k in z.files}
     except ValueError:  # not a zip of arrays: numpy takes it for a pickle or another format
-        raise MapFormatError(
-            f"{path} is not a map file: a map is a .npz archive of format {MAP_FORMAT!r} "
-            "(tabletop build-map --out); this file is something else"
-        ) from None
+        raise _not_a_map(path) from None
     except (zipfile.BadZipFile, OSError, EOFError) as e:
         raise MapFormatError(f"{path} is not a readable map file (truncated?): {e}") from None
     if "header" not in arrays:
