@@ -143,7 +143,7 @@ def test_broad_image_heatmap_and_failure_is_not_found_not_an_exception(avlmap, q
     np.testing.assert_array_equal(broad.target, h.target)
     h = avlmap.image_heatmap(np.full((240, 320, 3), 90, np.uint8))
     assert not h.found and "blank image" in h.reason and not h.values.any()
-    with pytest.raises(ConfigError, match="pass its intrinsics K"):
+    with pytest.raises(ConfigError, match="give the camera.s intrinsics K with it"):
         avlmap.image_heatmap(np.full((480, 640, 3), 90, np.uint8))
 
 

@@ -126,7 +126,9 @@ class VisualModule:
         if K is None and len(db) and size != db.image_size:
             raise ConfigError(
                 f"the image is {size[0]}x{size[1]} px but the map's camera "
-                f"{db.image_size[0]}x{db.image_size[1]}: pass its intrinsics K"
+                f"{db.image_size[0]}x{db.image_size[1]}: give the camera's intrinsics K with "
+                f"it (AVLMap.image_heatmap's or localize's K=), or, from the command line, an "
+                f"image of {db.image_size[0]}x{db.image_size[1]} px taken by the map's camera"
             )
         return localize_image(
             db, rgb, K, check=self.photometric_check(), search=self.panorama_search
