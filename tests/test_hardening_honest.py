@@ -293,6 +293,14 @@ def test_a_map_is_refused_in_a_scene_it_was_not_built_from(built, capsys):
         read_map_preview(junk)
 
 
+def test_other_scene_runs_a_map_in_another_scene_with_a_warning(built, capsys):
+    # the flag passed the command's check, and the simulated arm then refused the map
+    rc, out = run(capsys, "run", built[1], "go to the red mug", "--scene", "random",
+                  "--other-scene")  # fmt: skip
+    assert rc in (0, 1) and "WARNING" in out and "was built from scene 'default'" in out, out
+    assert "reached" in out or "not reached" in out
+
+
 def test_a_dry_run_checks_the_scene_against_the_map_as_a_run_does(built, capsys):
     # the dry run used to exit 0 without a word about a map built from another scene
     rc, out = run(capsys, "run", built[1], "go to the red mug", "--dry-run", "--scene", "random")

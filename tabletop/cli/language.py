@@ -248,7 +248,7 @@ def cmd_run(args: argparse.Namespace) -> int:
 
         spec = _scene_of_map(args, m)
         print("starting the simulated arm ...", file=sys.stderr)
-        robot = SimArm(m, spec)
+        robot = SimArm(m, spec, other_scene=bool(args.other_scene))
 
     def on_code(code: str) -> None:
         print(f"code ({args.backend}, checked by the sandbox):")
