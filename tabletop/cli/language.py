@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 import tempfile
 from pathlib import Path
@@ -192,6 +193,8 @@ def cmd_run(args: argparse.Namespace) -> int:
 
     if args.json and not args.suite:
         raise ConfigError("--json is the suite's report: give --suite too (or leave --json out)")
+    if not (math.isfinite(args.timeout) and args.timeout > 0):  # before the map loads
+        raise ConfigError(f"--timeout {args.timeout:g}: a time limit in seconds, > 0 (default 600)")
     if args.room is not None and (args.embodiment != "room" or args.suite):
         with_what = "--suite" if args.suite else f"--embodiment {args.embodiment}"
         raise ConfigError(
