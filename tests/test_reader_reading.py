@@ -380,3 +380,19 @@ def test_a_side_word_that_names_a_region_with_the_place_words_is_that_region(rea
     # a side taken of a region is still refused, never read as the region
     with pytest.raises(ParseError, match="'behind' is taken of a thing"):
         understand("go behind the left area", reader=reader)
+
+
+@pytest.mark.parametrize("reader", ["rules", "rules+spelling", "learned", "rules+learned"])
+def test_a_side_of_another_thing_inside_a_query_is_refused(reader):
+    # "the mug to the left of the duck" found any mug: the map scores one thing's words
+    r = get_reader(reader)
+    for text, words in [
+        ("the mug to the left of the duck", "to the left of the"),
+        ("the cup behind the tray", "behind the"),
+    ]:
+        with pytest.raises(ParseError, match="a place beside a thing is an instruction") as e:
+            r.reference("obj", text)
+        assert e.value.fragment == words
+    # a place beside a thing is an area's to read, and a preposition that ends a phrase passes
+    assert r.reference("area", "the left of the tray") is not None
+    assert r.reference("sound", "the big fiddle you sit behind")

@@ -62,6 +62,13 @@ __all__ = [
 MAX_WRAPPER_WORDS = 12
 #: Query kinds whose text a reader corrects (an image is a path or pixels).
 TEXT_KINDS = ("obj", "sound", "area")
+#: A side of another thing inside a thing's words ("the mug to the left of the duck"): the map
+#: scores one thing's words, so the relation would be dropped and any mug found.
+_SIDE_IN_REFERENCE = re.compile(
+    r"\b(?:(?:to|on)\s+(?:the\s+)?(?:left|right)(?:[\s-]+hand)?(?:\s+side)?\s+of|"
+    r"in\s+front\s+of|behind|between)\s+(?:the|a|an|my|your|that|this)\b",
+    re.IGNORECASE,
+)
 
 
 class Reader(Protocol):
@@ -123,6 +130,13 @@ class RulesReader:
         if self.spelling:
             text = self.speller.correct(text)[0]
         refuse_negated(text)
+        if kind != "area" and (m := _SIDE_IN_REFERENCE.search(text)):
+            raise ParseError(
+                text,
+                m.group(0),
+                "a query names one thing or sound (and what it is near, as its own part); a "
+                "place beside a thing is an instruction, e.g. 'go to the left of the duck'",
+            )
         if kind == "area":
             return (places or _GRAMMAR_PLACES).read(text)
         return text
