@@ -154,7 +154,9 @@ def test_a_limit_violation_is_refused_on_our_side_before_sending(driver):
         driver.execute_trajectory(too_fast)
     after = driver.read_state()
     coasted = before.q + before.dq * (after.time_s - before.time_s)
-    assert np.abs(after.q - coasted).max() < 1e-3  # nothing moved
+    # nothing moved: the refused motions would have moved a joint by 0.3 rad or more; the
+    # coasting wrist's own drift over a few seconds reaches about 1e-3 rad (1.1e-3 seen)
+    assert np.abs(after.q - coasted).max() < 5e-3
 
 
 def test_a_motion_blocked_by_the_joint_stop_stops_short(driver, model):
