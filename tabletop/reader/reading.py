@@ -157,7 +157,7 @@ class RulesReader:
                 raise
             err = first
         else:
-            return Reading(text, read, refuse_negated_references(text, steps), fixes, (), self.name)
+            return Reading(text, read, settle_references(text, steps), fixes, (), self.name)
         # a request after a lead-in the grammar does not read: the fewest dropped words that
         # leave a request it reads
         body = re.sub(r"[.!?]+\s*$", "", read.strip())
@@ -169,7 +169,7 @@ class RulesReader:
                 steps = parse_instruction(kept.strip(" ,;:"), robot)
             except ParseError:
                 continue
-            steps = refuse_negated_references(text, steps)
+            steps = settle_references(text, steps)
             return Reading(text, kept, steps, fixes, (before,), self.name)
         raise err
 
@@ -246,10 +246,9 @@ def fold_descriptions(value):
         return tuple(fold_descriptions(v) for v in value)
     if dataclasses.is_dataclass(value) and not isinstance(value, type):
         changes = {
-            f.name: fold_descriptions(getattr(value, f.name))
+            f.name: fold_descriptions(v)
             for f in dataclasses.fields(value)
-            if isinstance(getattr(value, f.name), (Goal, tuple))
-            or (dataclasses.is_dataclass(getattr(value, f.name)))
+            if isinstance(v := getattr(value, f.name), tuple) or dataclasses.is_dataclass(v)
         }
         for name, v in changes.items():  # a landmark left unnarrowed is a thing's words
             if name == "landmark" and isinstance(v, Goal) and not v.near:
@@ -258,12 +257,13 @@ def fold_descriptions(value):
     return value
 
 
-def refuse_negated_references(text: str, steps: tuple[Step, ...]) -> tuple[Step, ...]:
-    """``steps``, unless a reference in them negates what it names ("the cup that isn't red",
-    which a reader would look for as a red cup): ParseError naming the word. "no" and
-    "without" describe and pass ("the mug with no handle"); a negation outside every
-    reference is the reader's to read ("not far from" for near). A reference that starts with
-    an ordinal ("the 3rd mug from the left") is refused the same way."""
+def settle_references(text: str, steps: tuple[Step, ...]) -> tuple[Step, ...]:
+    """What every reader does to the references of the steps it read: parts that describe a
+    thing are folded into its words (:func:`fold_descriptions`), then a reference that negates
+    what it names ("the cup that isn't red", which a reader would look for as a red cup) or
+    starts with an ordinal ("the 3rd mug from the left") is refused, ParseError naming the
+    word. "no" and "without" describe and pass ("the mug with no handle"); a negation outside
+    every reference is the reader's to read ("not far from" for near)."""
     steps = fold_descriptions(steps)
     for ref in _reference_texts(steps):
         negated = negations(ref, describing=True)
@@ -329,7 +329,7 @@ class LearnedReader:
         negated = [w for w in plain if is_negation(w)]
         if negated:  # the tagger refuses these too; a word that reverses a goal never slips
             raise ParseError(text, " ".join(negated), "the robot cannot honour a negated goal")
-        steps = refuse_negated_references(
+        steps = settle_references(
             text, decode(text, words, roles, rels, robot, read_clause, role_logp)
         )
         manner = tuple(w for w in plain if w in MANNER)

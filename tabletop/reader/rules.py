@@ -174,8 +174,8 @@ _RESERVED = (
     closest nearest beside times twice thrice once sound sounds noise image picture photo where
     heard hear north south east west below under beneath over above to from
     with into onto towards toward after before again repeat meters metres meter metre cm mm
-    km inches feet grab pick place put push get fetch bring take go move open close turn rotate
-    face look it its them there here me you everything all every""".split()
+    grab pick place put push get fetch bring take go move open close turn rotate face look it its
+    them there here me you everything all every""".split()
     )
     | QUALIFIERS
 )
@@ -300,7 +300,7 @@ def refuse_relation_distance(text: str) -> None:
         )
 
 
-def refuse_no_words(text: str, what: str = "a request") -> None:
+def refuse_no_words(text: str) -> None:
     """Refuse text that holds no word at all: only emoji, symbols, punctuation or digits
     ("...", "123"). A letter of any script is a word's (other languages are refused by
     :func:`refuse_not_english`); empty text is left to the caller, which names it empty.
@@ -323,7 +323,7 @@ def refuse_no_words(text: str, what: str = "a request") -> None:
     raise ParseError(
         text,
         text.strip(),
-        f"{what} holds no words, only {' and '.join(kinds)}; name a thing, a sound or a "
+        f"a request holds no words, only {' and '.join(kinds)}; name a thing, a sound or a "
         f"place in words. A request looks like {REQUEST_EXAMPLES}",
     )
 
