@@ -118,13 +118,14 @@ def ground_texts(pools) -> list[PlaceText]:
     held = sorted(set(pools) & set(HELDOUT_POOLS))
     if held:
         raise ConfigError(f"held-out pools {held} are never trained on")
+    from tabletop.mapping.object_module import load_other_objects
+
     try:
         doc = tomllib.loads(GROUNDS_FILE.read_text(encoding="utf-8"))
         surfaces, elsewhere = list(doc["surfaces"]), list(doc["elsewhere"])
-        others = tomllib.loads((DATA_DIR / "other_objects.toml").read_text(encoding="utf-8"))
-        things = list(others["others"])
     except (OSError, KeyError, tomllib.TOMLDecodeError) as e:
         raise AssetError(f"cannot read the place grounds {str(GROUNDS_FILE)!r}: {e}") from None
+    things = load_other_objects()
     both = sorted({_bare(s) for s in surfaces} & {_bare(e) for e in elsewhere})
     if both:
         raise AssetError(f"{str(GROUNDS_FILE)!r}: grounds listed as surface and elsewhere: {both}")

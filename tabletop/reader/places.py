@@ -1,23 +1,24 @@
 """Places: the words of an area query read into an :class:`~tabletop.mapping.table_regions.
 AreaRef` that the map scores.
 
-Three readings, in this order:
+Four readings, in this order:
 
 1. the grammar of :mod:`tabletop.reader.place_words`: a region of the table's own geometry
    named in words it lists ("the far right corner", "the robot's left");
-2. a learned classifier (``learned=True``): the phrase's MiniLM sentence embedding, one
+2. with ``learned=True``, a region the grammar names on something it does not take for the
+   table ("the far end of the workbench", :func:`~tabletop.reader.place_words.region_on_ground`)
+   is that region when the ground classifier, a logistic regression on the ground's MiniLM
+   embedding fitted on surfaces, places and things (``tabletop/data/reader/place_grounds.toml``
+   and the tune pools), takes the ground for the surface the arm works on, at its
+   ``threshold``;
+3. a learned classifier (``learned=True``): the phrase's MiniLM sentence embedding, one
    linear layer and a softmax over the regions that people name (left, right, front: the half
    away from the robot, back: the half by it, the centre) and "other" (no region of the
    table). It was fitted by ``tabletop train places`` on the tune pools' own area phrasings and
    on their names of things and of places off the table (:mod:`tabletop.eval.place_texts`), so
    it reads region wording that no list holds; a region is taken only at a probability of at
    least its ``threshold``, chosen on pools left out of its fit;
-   Before it, a region named on something the grammar does not take for the table ("the far
-   end of the workbench") is read as that region when the ground classifier, a logistic
-   regression on the ground's MiniLM embedding fitted on surfaces, places and things
-   (``tabletop/data/reader/place_grounds.toml`` and the tune pools), takes the ground for the
-   surface the arm works on, at its ``threshold``;
-3. otherwise the place's subject: what a place named after its contents is named after ("the
+4. otherwise the place's subject: what a place named after its contents is named after ("the
    area around the tray" -> "tray"), which the map looks for as a thing or a sound; a phrase of
    place words only names nothing.
 """

@@ -65,12 +65,13 @@ def fit_classifier(
     b = torch.zeros(n_classes, requires_grad=True)
     opt = torch.optim.LBFGS([w, b], max_iter=300, line_search_fn="strong_wolfe")
 
+    weight = None
+    if balanced:  # each class weighs as much as the others in all
+        counts = torch.bincount(yt, minlength=n_classes).clamp(min=1).float()
+        weight = counts.sum() / (n_classes * counts)
+
     def closure():
         opt.zero_grad()
-        weight = None
-        if balanced:  # each class weighs as much as the others in all
-            counts = torch.bincount(yt, minlength=n_classes).clamp(min=1).float()
-            weight = counts.sum() / (n_classes * counts)
         loss = torch.nn.functional.cross_entropy(xt @ w * SCALE + b, yt, weight=weight)
         loss = loss + WEIGHT_DECAY * (w**2).sum()
         loss.backward()
@@ -87,14 +88,20 @@ def _probabilities(x, w, b) -> np.ndarray:
     return p / p.sum(axis=1, keepdims=True)
 
 
+def _ground(w: np.ndarray, b: np.ndarray, threshold: float = 0.5, meta=None):
+    """The :class:`~tabletop.reader.places.GroundClassifier` of a two-class softmax fit
+    (class 1: a surface): its logit is the difference of the two classes'."""
+    from tabletop.reader.places import GroundClassifier
+
+    return GroundClassifier(w[:, 1] - w[:, 0], float(b[1] - b[0]), threshold, meta or {})
+
+
 def fit_ground(grounds, encoder, seed: int = 0):
     """The ground classifier (:class:`~tabletop.reader.places.GroundClassifier`) on
     ``grounds`` (:func:`~tabletop.eval.place_texts.ground_texts`): a class-balanced logistic
     regression on their embeddings. Its threshold is the lowest of :data:`GROUND_THRESHOLDS`
     that takes at most :data:`MAX_ELSEWHERE_AS_SURFACE` of the grounds that are no surface for
     one, each ground predicted by a fit without its fold (:data:`GROUND_FOLDS`, seeded)."""
-    from tabletop.reader.places import GroundClassifier
-
     grounds = list(grounds)
     y = np.array([1 if t.label == "surface" else 0 for t in grounds])
     if y.sum() < GROUND_FOLDS or (1 - y).sum() < GROUND_FOLDS:
@@ -106,9 +113,8 @@ def fit_ground(grounds, encoder, seed: int = 0):
     fold = np.random.default_rng(seed).permutation(len(grounds)) % GROUND_FOLDS
     held_p = np.zeros(len(grounds))
     for k in range(GROUND_FOLDS):
-        w, b = fit_classifier(x[fold != k], y[fold != k], 2, seed, balanced=True)
-        z = x[fold == k] @ (w[:, 1] - w[:, 0]) + (b[1] - b[0])
-        held_p[fold == k] = 1.0 / (1.0 + np.exp(-z))
+        held = _ground(*fit_classifier(x[fold != k], y[fold != k], 2, seed, balanced=True))
+        held_p[fold == k] = held.probability(x[fold == k])
     sweep = {
         str(th): {
             "surfaces_taken": int((held_p[y == 1] >= th).sum()),
@@ -125,12 +131,13 @@ def fit_ground(grounds, encoder, seed: int = 0):
         <= MAX_ELSEWHERE_AS_SURFACE * sweep[str(th)]["elsewhere"]
     ]
     threshold = min(ok) if ok else max(GROUND_THRESHOLDS)
-    w, b = fit_classifier(x, y, 2, seed, balanced=True)
-    missed = [t.text for t, p in zip(grounds, held_p, strict=True) if t.label == "surface"]
-    missed = [m for m, p in zip(missed, held_p[y == 1], strict=True) if p < threshold]
-    return GroundClassifier(
-        w[:, 1] - w[:, 0],
-        float(b[1] - b[0]),
+    missed = [
+        t.text
+        for t, p in zip(grounds, held_p, strict=True)
+        if t.label == "surface" and p < threshold
+    ]
+    return _ground(
+        *fit_classifier(x, y, 2, seed, balanced=True),
         threshold,
         {
             "grounds": len(grounds),
