@@ -118,14 +118,14 @@ def test_a_tuned_tail_gives_the_embeddings_and_leaves_the_class_logits(backbone,
     import torch
 
     from tabletop.mapping.encoders.yamnet import load_tail, save_tail, tail_weights
-    from tabletop.train.audio_tail import TorchTail
+    from tabletop.train.audio_tail import torch_tail
 
     rng = np.random.default_rng(3)
     p = patches(log_mel(rng.normal(0, 0.1, YAMNET_RATE * 2).astype(np.float32)))
     out = backbone.run(p)
     weights = tail_weights(float_graph(backbone.zip_path))
     # the torch tail that training fine-tunes computes what the graph computes
-    torch_emb = TorchTail(weights)(torch.from_numpy(backbone.tail_input(p))).detach().numpy()
+    torch_emb = torch_tail(weights)(torch.from_numpy(backbone.tail_input(p))).detach().numpy()
     np.testing.assert_allclose(torch_emb, out.embeddings, atol=1e-4)
     # the same weights (stored in float16) give the same embeddings; others change them
     save_tail(tmp_path / "same.npz", weights)

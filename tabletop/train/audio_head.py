@@ -31,6 +31,7 @@ from tabletop.train.audio import make_segment
 
 __all__ = [
     "HeadTrainConfig",
+    "augmented_clips",
     "augmented_segment",
     "embed_segments",
     "fit_head",
@@ -222,18 +223,19 @@ def embed_segments(segments, rate: int, backbone) -> np.ndarray:
     return np.stack([pool_patches(backbone(s, rate).embeddings, dim) for s in segments])
 
 
-def _cache(bank, clips, cfg: HeadTrainConfig, backbone) -> tuple[np.ndarray, np.ndarray]:
-    """Pooled features (N * copies, 2048) of the augmented clips and their category index."""
+def augmented_clips(bank, clips, cfg: HeadTrainConfig, rng: np.random.Generator):
+    """For each of ``clips``, (its category index, its ``cfg.copies`` segments): the clip as
+    the evaluation cuts it, then :func:`augmented_segment` copies over the scans' background
+    noise (drawn first from ``rng``), a share of them overlapped by a clip of another
+    category. What the head and the tuned tail (:mod:`tabletop.train.audio_tail`) train on."""
     from tabletop.audio import background_noise
     from tabletop.train.audio import _eval_segment
 
     rate = bank.sample_rate
-    rng = np.random.default_rng(cfg.seed)
     noise = background_noise(60 * rate, rate, rng)
     cats = bank.categories
     audio = [c.load() for c in clips]
     cat = np.array([cats.index(c.category) for c in clips])
-    feats, labels = [], []
     for i, x in enumerate(audio):
         segs = [_eval_segment(x, rate, np.random.default_rng([cfg.seed, 1, i]), 15.0)]
         for _ in range(cfg.copies - 1):
@@ -242,8 +244,15 @@ def _cache(bank, clips, cfg: HeadTrainConfig, backbone) -> tuple[np.ndarray, np.
                 j = int(rng.choice(np.nonzero(cat != cat[i])[0]))
                 other = audio[j]
             segs.append(augmented_segment(x, rate, rng, cfg, noise, other))
-        feats.append(embed_segments(segs, rate, backbone))
-        labels += [cat[i]] * len(segs)
+        yield int(cat[i]), segs
+
+
+def _cache(bank, clips, cfg: HeadTrainConfig, backbone) -> tuple[np.ndarray, np.ndarray]:
+    """Pooled features (N * copies, 2048) of the augmented clips and their category index."""
+    feats, labels = [], []
+    for cat, segs in augmented_clips(bank, clips, cfg, np.random.default_rng(cfg.seed)):
+        feats.append(embed_segments(segs, bank.sample_rate, backbone))
+        labels += [cat] * len(segs)
     return np.concatenate(feats), np.array(labels)
 
 

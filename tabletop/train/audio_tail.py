@@ -26,7 +26,7 @@ import numpy as np
 
 from tabletop.errors import ConfigError
 
-__all__ = ["TailTrainConfig", "TorchTail", "train_tail"]
+__all__ = ["TailTrainConfig", "torch_tail", "train_tail"]
 
 log = logging.getLogger(__name__)
 
@@ -45,7 +45,9 @@ class TailTrainConfig:
     n_threads: int = 2
 
 
-def _torch_tail(weights: dict[str, np.ndarray]):
+def torch_tail(weights: dict[str, np.ndarray]):
+    """The tail as a torch module on ``weights`` (:func:`~tabletop.mapping.encoders.yamnet.
+    tail_weights`' keys); torch is imported here, when a tail is trained."""
     import torch
 
     class TorchTail(torch.nn.Module):
@@ -85,37 +87,22 @@ def _torch_tail(weights: dict[str, np.ndarray]):
     return TorchTail()
 
 
-TorchTail = _torch_tail  # the class is built where torch is imported
-
-
 def _cache(bank, clips, cfg: TailTrainConfig, backbone):
-    """Layer12's output of every patch of ``copies`` augmented segments per clip, the segment
-    of each patch, and each segment's category index."""
-    from tabletop.audio import background_noise
+    """Layer12's output of every patch of ``copies`` augmented segments per clip (the head
+    recipe's augmentation, :func:`~tabletop.train.audio_head.augmented_clips`), the segment of
+    each patch, and each segment's category index."""
     from tabletop.mapping.encoders.yamnet import log_mel, patches, prepare_wave
-    from tabletop.train.audio import _eval_segment
-    from tabletop.train.audio_head import HeadTrainConfig, augmented_segment
+    from tabletop.train.audio_head import HeadTrainConfig, augmented_clips
 
-    aug = HeadTrainConfig(seed=cfg.seed)
-    rate = bank.sample_rate
+    aug = HeadTrainConfig(seed=cfg.seed, copies=cfg.copies)
     rng = np.random.default_rng([cfg.seed, 7])
-    noise = background_noise(60 * rate, rate, rng)
-    cats = bank.categories
-    audio = [c.load() for c in clips]
-    cat = np.array([cats.index(c.category) for c in clips])
     maps, seg_of, labels = [], [], []
-    for i, x in enumerate(audio):
-        segs = [_eval_segment(x, rate, np.random.default_rng([cfg.seed, 1, i]), 15.0)]
-        for _ in range(cfg.copies - 1):
-            other = None
-            if rng.random() < aug.overlap_fraction:
-                other = audio[int(rng.choice(np.nonzero(cat != cat[i])[0]))]
-            segs.append(augmented_segment(x, rate, rng, aug, noise, other))
+    for cat, segs in augmented_clips(bank, clips, aug, rng):
         for s in segs:
-            p = patches(log_mel(prepare_wave(s, rate)))
+            p = patches(log_mel(prepare_wave(s, bank.sample_rate)))
             maps.append(backbone.tail_input(p).astype(np.float16))
             seg_of += [len(labels)] * len(p)
-            labels.append(cat[i])
+            labels.append(cat)
     return np.concatenate(maps), np.array(seg_of), np.array(labels)
 
 
@@ -147,7 +134,7 @@ def train_tail(bank, out, config: TailTrainConfig | None = None, backbone=None) 
     torch.set_num_threads(cfg.n_threads)
     try:
         torch.manual_seed(cfg.seed)
-        tail = _torch_tail(tail_weights(float_graph(backbone.zip_path)))
+        tail = torch_tail(tail_weights(float_graph(backbone.zip_path)))
         head = torch.nn.Linear(2048, proto.shape[1])
         scale = torch.nn.Parameter(torch.tensor(math.log(1 / 0.07)))
         opt = torch.optim.AdamW(

@@ -186,6 +186,11 @@ def _tail_nodes(model):
     ]
 
 
+def _conv_of(node) -> str:
+    """The :data:`TAIL_CONVS` entry a tail node belongs to."""
+    return next(c for c in TAIL_CONVS if node.name.startswith(f"/model/{c}/"))
+
+
 def tail_weights(model) -> dict[str, np.ndarray]:
     """The float weights of the tail's convolutions in the float graph ``model``
     (:func:`float_graph`): ``"<conv>.weight"`` and ``"<conv>.bias"`` for each of
@@ -196,7 +201,7 @@ def tail_weights(model) -> dict[str, np.ndarray]:
     out = {}
     for n in _tail_nodes(model):
         if n.op_type == "Conv":
-            conv = next(c for c in TAIL_CONVS if n.name.startswith(f"/model/{c}/"))
+            conv = _conv_of(n)
             out[f"{conv}.weight"] = numpy_helper.to_array(inits[n.input[1]]).copy()
             out[f"{conv}.bias"] = numpy_helper.to_array(inits[n.input[2]]).copy()
     if len(out) != 2 * len(TAIL_CONVS):
@@ -227,42 +232,33 @@ def with_tuned_tail(model, weights: dict[str, np.ndarray]):
     import onnx
     from onnx import helper, numpy_helper
 
-    want = set(tail_weights(model))
-    if set(weights) != want or any(
-        np.shape(weights[k]) != v.shape for k, v in tail_weights(model).items()
+    original = tail_weights(model)
+    if set(weights) != set(original) or any(
+        np.shape(weights[k]) != v.shape for k, v in original.items()
     ):
-        raise AssetError(f"a tuned YAMNet tail needs {sorted(want)} of the original shapes")
+        raise AssetError(f"a tuned YAMNet tail needs {sorted(original)} of the original shapes")
     m = onnx.ModelProto()
     m.CopyFrom(model)
     g = m.graph
+    for n in g.node:  # the original tail's embedding now feeds the classifier only
+        n.input[:] = ["original_embedding" if x == "embedding" else x for x in n.input]
+        n.output[:] = ["original_embedding" if x == "embedding" else x for x in n.output]
     tail = _tail_nodes(m)
-    rename = {}
-    for n in tail:
-        for o in n.output:
-            rename[o] = f"tuned{o}" if o != "embedding" else "embedding"
-    original_embedding = "original_embedding"
-    for n in g.node:  # the original pool's reshape now feeds the classifier only
-        n.input[:] = [original_embedding if x == "embedding" else x for x in n.input]
-        n.output[:] = [original_embedding if x == "embedding" else x for x in n.output]
-    for n in tail:
-        c = helper.make_node(n.op_type, [], [], name=f"tuned{n.name}")
-        c.attribute.extend(n.attribute)
+    rename = {
+        o: "embedding" if o == "original_embedding" else f"tuned{o}" for n in tail for o in n.output
+    }
+    for n in tail:  # the copy, on the tuned weights, makes the embedding
         ins = []
         for k, x in enumerate(n.input):
-            if x == original_embedding:
-                x = "embedding"
             if n.op_type == "Conv" and k > 0:
-                conv = next(t for t in TAIL_CONVS if n.name.startswith(f"/model/{t}/"))
-                key = f"{conv}.{'weight' if k == 1 else 'bias'}"
+                key = f"{_conv_of(n)}.{'weight' if k == 1 else 'bias'}"
                 x = f"tuned/{key}"
                 g.initializer.append(
                     numpy_helper.from_array(np.asarray(weights[key], np.float32), x)
                 )
             ins.append(rename.get(x, x))
-        c.input.extend(ins)
-        c.output.extend(
-            rename.get(o, o) if o != original_embedding else "embedding" for o in n.output
-        )
+        c = helper.make_node(n.op_type, ins, [rename[o] for o in n.output], name=f"tuned{n.name}")
+        c.attribute.extend(n.attribute)
         g.node.append(c)
     onnx.checker.check_model(m)
     return m
