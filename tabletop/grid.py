@@ -183,9 +183,10 @@ def mask_box(mask: np.ndarray) -> tuple[slice, slice, slice] | None:
     return tuple(slice(int(w[0]), int(w[-1]) + 1) for w in (*where, z))
 
 
-def box_argwhere(mask: np.ndarray) -> np.ndarray:
-    """``np.argwhere(mask)`` for a 3D bool mask, found in its :func:`mask_box` (same order)."""
-    box = mask_box(mask)
+def box_argwhere(mask: np.ndarray, box: tuple[slice, slice, slice] | None = None) -> np.ndarray:
+    """``np.argwhere(mask)`` for a 3D bool mask, found in its :func:`mask_box` (same order);
+    ``box``: that box where the caller has it already."""
+    box = mask_box(mask) if box is None else box
     if box is None:
         return np.zeros((0, 3), np.intp)
     return np.argwhere(mask[box]) + np.array([b.start for b in box])

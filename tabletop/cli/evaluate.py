@@ -14,6 +14,7 @@ from pathlib import Path
 from tabletop.cli.output import check_output_flag, check_parents_are_directories, stdout_to_stderr
 from tabletop.cli.progress import ProgressBars
 from tabletop.errors import ConfigError
+from tabletop.eval.harness import DEFAULT_CACHE_DIR
 from tabletop.reader.reading import DEFAULT_READER, READERS
 
 __all__ = [
@@ -28,8 +29,6 @@ __all__ = [
 ]
 
 CALIBRATION_OUT_DIR = Path("out/calibration")
-#: Where ``eval`` and ``calibrate`` keep recordings and maps unless given ``--cache-dir``.
-DEFAULT_EVAL_CACHE = "out/eval-cache"
 
 
 def _cache_flags(args: argparse.Namespace) -> None:
@@ -41,7 +40,7 @@ def _cache_flags(args: argparse.Namespace) -> None:
             "keeps nothing; leave one out"
         )
     if args.cache_dir is None:
-        args.cache_dir = DEFAULT_EVAL_CACHE
+        args.cache_dir = str(DEFAULT_CACHE_DIR)
     if not args.no_cache:
         _check_directory_flag("--cache-dir", args.cache_dir)
 
@@ -640,7 +639,7 @@ def add_commands(sub) -> None:
     p.add_argument(
         "--cache-dir",
         default=None,
-        help=f"recordings and maps reused across runs (default: {DEFAULT_EVAL_CACHE})",
+        help=f"recordings and maps reused across runs (default: {DEFAULT_CACHE_DIR})",
     )
     p.add_argument("--no-cache", action="store_true", help="scan and map afresh, keep nothing")
     p.add_argument(
@@ -743,7 +742,7 @@ def add_commands(sub) -> None:
     p.add_argument(
         "--cache-dir",
         default=None,
-        help=f"recordings and maps reused across runs (default: {DEFAULT_EVAL_CACHE})",
+        help=f"recordings and maps reused across runs (default: {DEFAULT_CACHE_DIR})",
     )
     p.add_argument("--no-cache", action="store_true", help="scan and map afresh, keep nothing")
     p.set_defaults(func=cmd_calibrate)

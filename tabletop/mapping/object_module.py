@@ -439,9 +439,8 @@ class ObjectModule:
         missing = [i for i in instances if i not in done]
         centers = self.voxels.centers if missing else None  # every voxel's: only when needed
         for i in missing:
-            if i not in done:
-                base = support_of(supports, np.array([*i.center[:2], i.lo[2] + vs]))
-                done[i] = shape_features(centers[i.rows], vs, base.z)
+            base = support_of(supports, np.array([*i.center[:2], i.lo[2] + vs]))
+            done[i] = shape_features(centers[i.rows], vs, base.z)
         return np.stack([done[i] for i in instances])
 
     @staticmethod

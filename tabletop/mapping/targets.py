@@ -128,10 +128,8 @@ def max_position(heatmap: Heatmap, occupancy: np.ndarray) -> np.ndarray:
     the grid's whole height (a top-down heatmap) is placed on the surface beneath it."""
     mask, box = _hottest(heatmap)  # checks the heatmap first
     _, core = _sharp_region(heatmap, mask)
-    if core is not None:
-        return _centroid(heatmap.grid, occupancy, box_argwhere(core))
-    idx = np.argwhere(mask[box]) + np.array([b.start for b in box])
-    return _centroid(heatmap.grid, occupancy, idx)
+    cells = box_argwhere(mask, box) if core is None else box_argwhere(core)
+    return _centroid(heatmap.grid, occupancy, cells)
 
 
 def _landmark_region(heatmap: Heatmap) -> np.ndarray:
