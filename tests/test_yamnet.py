@@ -143,3 +143,44 @@ def test_a_tuned_tail_gives_the_embeddings_and_leaves_the_class_logits(backbone,
         YamnetBackbone(tail=tmp_path / "bad.npz")
     with pytest.raises(AssetError, match="not found"):
         YamnetBackbone(tail=tmp_path / "missing.npz")
+
+
+def test_a_tail_from_an_earlier_block_is_the_graph_and_its_file_names_it(backbone, tmp_path):
+    import torch
+
+    from tabletop.mapping.encoders.yamnet import (
+        load_tail,
+        save_tail,
+        tail_first_layer,
+        tail_weights,
+        with_tuned_tail,
+    )
+    from tabletop.train.audio_tail import TailTrainConfig, torch_tail
+
+    rng = np.random.default_rng(4)
+    p = patches(log_mel(rng.normal(0, 0.1, YAMNET_RATE * 2).astype(np.float32)))
+    out = backbone.run(p)
+    model = float_graph(backbone.zip_path)
+    weights = tail_weights(model, 11)  # layer11..layer14, on layer10's output
+    assert tail_first_layer(weights) == 11 and len(weights) == 2 * 2 * 4
+    x = backbone.tail_input(p, 11)
+    assert x.shape == (len(p), 512, 6, 4)
+    torch_emb = torch_tail(weights, model)(torch.from_numpy(x)).detach().numpy()
+    np.testing.assert_allclose(torch_emb, out.embeddings, atol=1e-4)
+    # the graph with the unchanged weights as its tuned tail gives the original embeddings
+    import onnxruntime as ort
+
+    tuned = ort.InferenceSession(with_tuned_tail(model, weights).SerializeToString())
+    emb, logits = tuned.run(["embedding", "logits"], {"patches": p[:, None]})
+    np.testing.assert_allclose(emb, out.embeddings, atol=1e-5)
+    np.testing.assert_allclose(logits, out.logits, atol=1e-5)
+    # the tail's file names its blocks, so a backbone on it builds the graph it belongs to
+    save_tail(tmp_path / "t11.npz", weights)
+    assert tail_first_layer(load_tail(tmp_path / "t11.npz")) == 11
+    from_file = YamnetBackbone(tail=tmp_path / "t11.npz")
+    assert from_file.tail_first_layer == 11
+    np.testing.assert_allclose(from_file.run(p).embeddings, out.embeddings, atol=1e-2)
+    with pytest.raises(ConfigError, match="first layer"):
+        TailTrainConfig(first_layer=15)
+    with pytest.raises(AssetError, match="not a YAMNet tail"):
+        with_tuned_tail(model, {k: v for k, v in weights.items() if "layer12" not in k})

