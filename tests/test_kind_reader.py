@@ -168,13 +168,19 @@ def test_where_the_cosines_names_fit_nothing_the_readers_name_is_tried(scenes):
         return module
 
     # no teddy bear on this table; a reader sure the words mean the duck finds the yellow duck
-    sure = reading("duck", 0.95)
+    # (the fallback, with the reader not overruling the cosine's names; at its default it
+    # would: then the words mean the duck from the start)
+    assert reading("duck", 0.95).match("the yellow teddy bear").names == ("duck",)
+    sure = reading("duck", 0.95, reader_overrule=1.1)
     m = sure.match("the yellow teddy bear")
     assert m.names == ("teddy bear",) and m.read == "duck"
     h = sure.heatmap("the yellow teddy bear", 10.0, judge_at(0.2))
     assert h.found and h.peak > 0.5
     # not below the threshold, nor where it is switched off
-    for module in (reading("duck", 0.85), reading("duck", 0.95, reader_fallback=1.1)):
+    for module in (
+        reading("duck", 0.85),
+        reading("duck", 0.95, reader_fallback=1.1, reader_overrule=1.1),
+    ):
         assert not module.heatmap("the yellow teddy bear", 10.0, judge_at(0.2)).found
     # the reader's name must fit too: no green duck is no green teddy bear either
     assert not sure.heatmap("the green teddy bear", 10.0, judge_at(0.2)).found
@@ -319,3 +325,33 @@ def test_train_kind_reader_takes_its_own_flags_and_replaces_only_a_reader(tmp_pa
     notes.write_text(json.dumps({"a": 1}))
     assert main(["train", "kind-reader", "--out", str(notes)]) != 0
     assert "not a kind reader" in capsys.readouterr().err and notes.read_text() == '{"a": 1}'
+
+
+def test_a_sure_reading_of_a_name_the_cosine_does_not_give_overrules_it():
+    from tabletop.eval.harness import map_config
+    from tabletop.grid import VoxelGrid
+    from tabletop.mapping.object_module import ObjectConfig, ObjectModule
+    from tabletop.mapping.voxel_map import VoxelMap
+
+    config, text = map_config(), text_encoder()
+
+    def module(**kw):
+        m = ObjectModule(
+            VoxelMap(VoxelGrid(), text.dim),
+            text,
+            ObjectConfig(**kw),
+            config.objects,
+            config.descriptions,
+        )
+        classes = (*config.objects, OTHER)
+        bias = np.where(np.array(classes) == "toy cylinder", 8.0, 0.0)  # reads every words so
+        m.set_kind_reader(KindReader(classes, "minilm-l6-v2", np.zeros((text.dim, 13)), bias))
+        return m
+
+    sure = module().match("the mug")
+    assert sure.read == "toy cylinder" and sure.read_p >= 0.9
+    assert sure.names == ("toy cylinder",) and sure.name_weights == {"toy cylinder": 1.0}
+    # below the reader's operating point the cosine's name stays, the reader's is not added
+    assert module(reader_overrule=1.01).match("the mug").names == ("mug",)
+    # a reading that is one of the cosine's names only ranks it first (reader_prefer)
+    assert module().match("the toy cylinder").names[0] == "toy cylinder"

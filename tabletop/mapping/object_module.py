@@ -178,6 +178,13 @@ class ObjectConfig:
     by ``text_margin`` ("the spool-shaped block" may be the cube, the cylinder or the prism;
     the reader reads the cylinder). The others stay what the words may mean (found where the
     scene has none of the reader's). Above 1: never."""
+    reader_overrule: float = 0.9
+    """Where the reader reads a vocabulary name the words' cosine does not give at this
+    probability or more, that name is what they mean ("the slat from the stacking-tower
+    game" may lie nearer the domino's words than the jenga block's). Chosen on the
+    readings of authors the reader had not seen (each tune pool read by a reader fitted
+    without it): at 0.9 such a reading named the thing meant in 30 of 34 names, the cosine's
+    names in 4. Above 1: never."""
     shape: bool = True
     """Multiply each instance's kind probabilities by the shape prior's
     (:mod:`tabletop.mapping.shape`: what its voxels' geometry says it is)."""
@@ -218,6 +225,7 @@ class ObjectConfig:
             "name_temperature",
             "reader_prefer",
             "reader_fallback",
+            "reader_overrule",
         ):
             if not getattr(self, name) > 0:
                 raise ConfigError(f"{name} must be > 0, got {getattr(self, name)}")
@@ -522,7 +530,10 @@ class ObjectModule:
             # ("puck block") is read the same way
             said = _said(words)
             read, read_p = self._read(e if said == words else self.text.encode_text([said])[0])
-            if len(names) > 1 and read in names and read_p >= cfg.reader_prefer:
+            if read in self.vocabulary and read not in names and read_p >= cfg.reader_overrule:
+                want = np.array([v == read for v in self.vocabulary])
+                names, rank = (read,), np.where(want, rank.max(), rank)
+            elif len(names) > 1 and read in names and read_p >= cfg.reader_prefer:
                 # the reader's name first, by the margin ("the footy ball": the soccer ball)
                 r = self.vocabulary.index(read)
                 rank[r] = rank[want].max() + cfg.text_margin
