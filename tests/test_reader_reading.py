@@ -328,6 +328,18 @@ def test_a_reference_negated_by_a_contraction_or_picked_by_order_is_refused(read
 
 
 @pytest.mark.parametrize("reader", ["rules", "rules+spelling", "learned", "rules+learned"])
+def test_two_goals_offered_as_alternatives_are_refused_not_read_as_between(reader):
+    # the tagger read "the A or the B" as "between A and B"
+    for text in ["go to the duck or the tray", "head to either the ball or the mug"]:
+        with pytest.raises(ParseError, match=r"'or' offers a choice|cannot be part of") as e:
+            understand(text, reader=reader)
+        assert "'or'" in str(e.value) or " or " in e.value.fragment, text
+    # "between A and B" is read
+    between = understand("go between the duck and the tray", reader=reader).steps[0].action
+    assert isinstance(between, Between)
+
+
+@pytest.mark.parametrize("reader", ["rules", "rules+spelling", "learned", "rules+learned"])
 def test_a_place_beneath_the_table_is_named_as_off_the_map(reader):
     # this was "the words name nothing"
     for text in ["go under the table", "move beneath the tabletop"]:

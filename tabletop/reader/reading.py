@@ -32,7 +32,7 @@ from tabletop.mapping.table_regions import AreaRef
 from tabletop.reader.errors import ParseError
 from tabletop.reader.llm import LLMReader
 from tabletop.reader.places import PlaceReader, beneath_surface
-from tabletop.reader.plan import Goal, Part, Reading, Step
+from tabletop.reader.plan import Between, Goal, Part, Reading, Step
 from tabletop.reader.rules import (
     MANNER,
     QUALIFIERS,
@@ -257,6 +257,21 @@ def fold_descriptions(value):
     return value
 
 
+_ALTERNATIVE = re.compile(r"\bor\b(?!\s+so\b)", re.IGNORECASE)
+_JOINED = re.compile(r"\band\b|&|\bplus\b", re.IGNORECASE)
+
+
+def offers_alternatives(step: Step) -> str | None:
+    """The word "or" where ``step`` reads as "between" two goals that it joins with no "and"
+    ("the mug or the duck"; None otherwise): a reader that takes "or" for "and" would send
+    the robot between two things asked as alternatives. An "or" inside one reference
+    describes ("the mug for tea or coffee") and is left to the map."""
+    if isinstance(step.action, Between) and not _JOINED.search(step.text):
+        if m := _ALTERNATIVE.search(step.text):
+            return m.group(0)
+    return None
+
+
 def settle_references(text: str, steps: tuple[Step, ...]) -> tuple[Step, ...]:
     """What every reader does to the references of the steps it read: parts that describe a
     thing are folded into its words (:func:`fold_descriptions`), then a reference that negates
@@ -265,6 +280,14 @@ def settle_references(text: str, steps: tuple[Step, ...]) -> tuple[Step, ...]:
     word. "no" and "without" describe and pass ("the mug with no handle"); a negation outside
     every reference is the reader's to read ("not far from" for near)."""
     steps = fold_descriptions(steps)
+    for step in steps:
+        if (alternative := offers_alternatives(step)) is not None:
+            raise ParseError(
+                text,
+                alternative,
+                "'or' offers a choice of two goals, and the robot goes to one place; name the "
+                "one meant (or 'between A and B' for the point between them)",
+            )
     for ref in _reference_texts(steps):
         negated = negations(ref, describing=True)
         if negated:
