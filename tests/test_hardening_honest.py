@@ -383,3 +383,12 @@ def test_inputs_of_the_wrong_kind_are_named_for_what_they_are(tmp_path, capsys):
         rc, out = run(capsys, *argv)
         assert rc == 2 and words in out and "Traceback" not in out, (argv, out)
         assert "allow_pickle" not in out and "not found" not in out
+
+
+@pytest.mark.parametrize("near", ["--near-obj", "--near-sound", "--near-area"])
+def test_a_landmark_alone_is_refused_before_the_map_loads(tmp_path, capsys, near):
+    # the map does not exist: the refusal must come first, naming the flag and the fix
+    rc, text = run(capsys, "query", str(tmp_path / "no_map.npz"), near, "the mug")
+    assert rc == 2 and "Traceback" not in text, text
+    assert f"{near} only narrows a target" in text and "--obj" in text, text
+    assert "no_map" not in text  # not a complaint about the map: it was never opened

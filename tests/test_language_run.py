@@ -47,6 +47,14 @@ def test_dry_run_records_targets_and_moves_nothing(ref_map):
     assert run.code.startswith("# move to the left of the red mug\n")
 
 
+def test_a_robot_that_returns_no_result_is_reported_once_per_motion(ref_map):
+    seen = []
+    run = run_instruction(
+        "go to the red mug, then move 5 cm north", PointRobot(ref_map), on_motion=seen.append
+    )
+    assert len(run.motions) == 2 and [m.method for m in seen] == [m.method for m in run.motions]
+
+
 def test_tracing_robot_targets_equal_the_robot_apis_own(ref_map):
     robot = PointRobot(ref_map)
     t = TracingRobot(robot, execute=True)

@@ -114,6 +114,17 @@ def cmd_query(args: argparse.Namespace) -> int:
     from tabletop.reader.reading import get_reader
     from tabletop.robot.api import RobotAPI
 
+    majors = [f"--{k}" for k in ("obj", "sound", "area", "img") if getattr(args, k) is not None]
+    nears = [
+        f"--near-{k}"
+        for k in ("obj", "sound", "area", "img")
+        if getattr(args, f"near_{k}") is not None
+    ]
+    if nears and not majors:  # a landmark alone would send the robot to the landmark
+        raise ConfigError(
+            f"{', '.join(nears)} only narrows a target: give what to find near it with one "
+            "of --obj, --sound, --area, --img"
+        )
     if args.out is not None:  # before the map is loaded and queried
         existing = [p for p in heatmap_view_paths(args.out, what="--out") if p.exists()]
         if existing and not args.overwrite:

@@ -64,7 +64,8 @@ class TracingRobot:
         image_dir: the directory images are read from: a relative path in the code is read
             from here, an absolute one must lie inside it (default: the working directory).
         on_motion: called with each :class:`Motion`: once with ``result=None`` before moving
-            (the target), and once more with the result after a real motion.
+            (the target), and once more with the result after a real motion (not where the
+            robot returns no result: a point robot's jump is reported once).
         start: the traced start point of a dry run (3,) [m] (default: the robot's position).
     """
 
@@ -113,7 +114,7 @@ class TracingRobot:
             self._pos = target.copy()
         motion = Motion(method, target, result)
         self.motions.append(motion)
-        if self.execute and self.on_motion is not None:
+        if self.execute and self.on_motion is not None and result is not None:
             self.on_motion(motion)
         return result
 
@@ -204,7 +205,7 @@ def _traced(p: Primitive):
             result = getattr(self.robot, p.name)(*values) if self.execute else None
             motion = Motion(p.name, here, result)
             self.motions.append(motion)
-            if self.execute and self.on_motion is not None:
+            if self.execute and self.on_motion is not None and result is not None:
                 self.on_motion(motion)
             return result
 
