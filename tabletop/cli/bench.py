@@ -154,7 +154,10 @@ def _print_bench(results: dict) -> None:
         f"frames/s; mean features within {r['fusion_reference_max_abs_diff']:.1e} of it; aim "
         f"400 frames/s); object query {r['query_ms']} ms (x{r['query_speedup']} the O(N*M) loop, "
         f"{r['query_reference_ms']} ms; max difference {r['query_reference_max_abs_diff']:.1e}); "
-        f"map {r['map_mb']} MB"
+        f"sound query {r['sound_query_ms']} ms ({r['sound_query_ms_p95']} p95), area "
+        f"{r['area_query_ms']} ms ({r['area_query_ms_p95']} p95), image {r['image_query_ms']} "
+        f"ms ({r['image_query_ms_p95']} p95), each with its target, on this oracle map "
+        f"(aim 2 ms for object, sound and area); map {r['map_mb']} MB"
     )
     readers = sorted({k[len("reader_") : -len("_ms_median")] for k in r if k.endswith("_ms_median")
                       and k.startswith("reader_") and k != "reader_places_ms_median"})  # fmt: skip

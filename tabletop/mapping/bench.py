@@ -123,6 +123,55 @@ def default_encoder_speed(recording, frames: int = 40) -> dict:
     }
 
 
+#: Sound and area queries the benchmark times (found or not, each is the map's whole answer).
+BENCH_SOUNDS = ("a dog barking", "a bell ringing", "glass breaking", "a cat meowing")
+BENCH_AREAS = (
+    "the left side of the table",
+    "the middle of the table",
+    "the far right corner",
+    "the front of the table",
+)
+
+
+def _timed(call, inputs, repeat: int = 5) -> tuple[float, float]:
+    """(median, p95) [ms] of ``call(x)`` over ``inputs``, each ``repeat`` times after one
+    untimed call (caches warmed: the encoders' text embeddings, the instances)."""
+    for x in inputs:
+        call(x)
+    times = []
+    for _ in range(repeat):
+        for x in inputs:
+            t0 = time.perf_counter()
+            call(x)
+            times.append(time.perf_counter() - t0)
+    ms = np.array(times) * 1000
+    return round(float(np.median(ms)), 2), round(float(np.percentile(ms, 95)), 2)
+
+
+def _modal_query_times(m: AVLMap, recording, image_frames: int = 6) -> dict:
+    """Median and p95 of a sound, an area and an image query with its target (heatmap and
+    argmax) on map ``m``; the image queries are frames of ``recording`` itself (the wrist
+    camera's own views). An area's words are read once, before timing: the reader's time is
+    its own benchmark's."""
+    from tabletop.reader.reading import get_reader
+
+    def answer(h):
+        if h.found:
+            m.get_max_pos_3d(h)
+
+    areas = [get_reader().reference("area", a) for a in BENCH_AREAS]
+    frames = np.linspace(0, len(recording) - 1, image_frames).astype(int)
+    out = {}
+    for name, call, inputs in (
+        ("sound", lambda q: answer(m.sound_heatmap(q)), BENCH_SOUNDS),
+        ("area", lambda a: answer(m.area_heatmap(a, major=True)), areas),
+        ("image", lambda i: answer(m.image_heatmap(recording.rgb[i])), frames),
+    ):
+        med, p95 = _timed(call, inputs, repeat=2 if name == "image" else 5)
+        out[f"{name}_query_ms"], out[f"{name}_query_ms_p95"] = med, p95
+    return out
+
+
 def run_map_benchmark(recording, reference_frames: int = 3, save_to=None) -> dict:
     """Build an oracle map of ``recording`` and time fusion and queries against references;
     the map is written to ``save_to`` when given (the viewer's benchmark opens it)."""
@@ -170,6 +219,8 @@ def run_map_benchmark(recording, reference_frames: int = 3, save_to=None) -> dic
     ref_ms = (time.perf_counter() - t0) * 1000
     agree = float(np.abs(ref - m.object_heatmap(q).values).max())
 
+    modal = _modal_query_times(m, recording)
+
     # Object instances: segmenting the whole map (done once per map change, then cached).
     from tabletop.mapping.instances import segment_instances
 
@@ -193,6 +244,7 @@ def run_map_benchmark(recording, reference_frames: int = 3, save_to=None) -> dic
         "query_reference_ms": round(ref_ms, 1),
         "query_speedup": round(ref_ms / query_ms, 1),
         "query_reference_max_abs_diff": agree,
+        **modal,
         "map_mb": round(m.voxels.nbytes / 1e6, 1),
         "heatmap_mb": round(np.zeros(m.grid.shape, np.float32).nbytes / 1e6, 2),
         "grid_shape": list(m.grid.shape),
