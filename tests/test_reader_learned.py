@@ -188,6 +188,11 @@ def test_a_reading_never_drops_a_named_thing_nor_merges_two_relations():
     rels[6:, RELATIONS.index("right")] = np.log(0.6)  # unsure words: one relation is read
     (step,) = decode(" ".join(words), words, roles, rels, "arm", parse_instruction)
     assert step.action == Side("front", "duck")
+    # words sure of going there beside a side: the side is where to go, not a second request
+    rels[6:, :] = np.log(0.001)
+    rels[6:, RELATIONS.index("goto")] = np.log(0.99)
+    (step,) = decode(" ".join(words), words, roles, rels, "arm", parse_instruction)
+    assert step.action == Side("front", "duck")
 
 
 def test_words_sure_of_a_motion_the_grammar_cannot_read_are_no_second_request():

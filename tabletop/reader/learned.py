@@ -548,7 +548,8 @@ def _one_relation(
 ) -> None:
     """Refuse a step whose words are sure of two different relations (:data:`SURE_RELATION`
     on :data:`SURE_WORDS` words each): two requests run together without a joining word the
-    tagger read ("move in front of the duck, then to the right of it").
+    tagger read ("move in front of the duck, then to the right of it"). Going somewhere is
+    no second request beside another relation: the way there is said with it.
 
     A ``motion`` is read by the grammar (``rules(clause, robot)``): words sure of it that the
     grammar does not read as a motion ask for none, and are no second request (a way of
@@ -566,6 +567,8 @@ def _one_relation(
             read = ()
         if not any(isinstance(st.action, _MOTIONS) for st in read):
             held.discard("motion")
+    if len(held) > 1:  # "go" carries the other relation ("go and hover over X, go there")
+        held.discard("goto")
     if len(held) > 1:
         raise ParseError(
             text,
