@@ -32,6 +32,7 @@ __all__ = [
     "Segment",
     "check_output",
     "load_recording",
+    "read_header",
     "save_recording",
 ]
 
@@ -578,16 +579,12 @@ def _load_array_file(path: Path, what: str):
         raise RecordingError(f"{path} is not a valid {kind} ({what}): {reason}") from None
 
 
-def load_recording(path: str | Path, *, workers: int = 2) -> Recording:
-    """Load and validate a recording directory written by :func:`save_recording`.
-
-    Every file the header lists must exist with its recorded size: a missing or truncated
-    file raises :class:`RecordingError` naming it.
-    """
+def read_header(path: str | Path) -> dict:
+    """The checked header of the recording directory ``path`` (its frames are not read: what a
+    command checks its flags against before loading them); :class:`RecordingError` names what
+    is wrong."""
     if not isinstance(path, (str, Path)):
         raise RecordingError(f"a recording is a directory path, got {type(path).__name__}")
-    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
-        raise RecordingError(f"workers must be a whole number >= 1, got {workers!r}")
     path = Path(path)
     header_path = path / _HEADER
     if not header_path.is_file():
@@ -620,6 +617,21 @@ def load_recording(path: str | Path, *, workers: int = 2) -> Recording:
             f"this tabletop reads versions {list(READABLE_VERSIONS)}"
         )
     _check_header(h, header_path)
+    return h
+
+
+def load_recording(path: str | Path, *, workers: int = 2) -> Recording:
+    """Load and validate a recording directory written by :func:`save_recording`.
+
+    Every file the header lists must exist with its recorded size: a missing or truncated
+    file raises :class:`RecordingError` naming it.
+    """
+    if not isinstance(path, (str, Path)):
+        raise RecordingError(f"a recording is a directory path, got {type(path).__name__}")
+    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+        raise RecordingError(f"workers must be a whole number >= 1, got {workers!r}")
+    path = Path(path)
+    h = read_header(path)
     for rel, size in h["files"].items():
         f = path / rel
         if not f.is_file():

@@ -362,6 +362,7 @@ def test_a_pixel_step_that_keeps_a_few_voxels_is_refused_or_warned(built, tmp_pa
     rc, out = run(capsys, "build-map", built[0], "--out", tmp_path / "m.npz", "--pixel-step", "100")
     assert rc == 2 and "keeps 12 pixels of each 320x240 frame, fewer than 100" in out
     assert "valid: 1 to 29" in out and not (tmp_path / "m.npz").exists()
+    assert "loading" not in out  # refused from the header, before the frames load
     rc, out = run(capsys, "build-map", built[0], "--out", tmp_path / "m.npz", "--pixel-step", "29")
     assert rc == 1 and "warning: the map holds" in out and "fewer than 1000" in out
 

@@ -43,14 +43,15 @@ def _check_pixel_step(step: int, width: int, height: int) -> None:
 def cmd_build_map(args: argparse.Namespace) -> int:
     from tabletop.eval.harness import build_map, map_config
     from tabletop.mapping.persistence import check_map_output
-    from tabletop.recording import load_recording
+    from tabletop.recording import load_recording, read_header
 
     check_output_flag("--out", args.out)  # before the map is built, not after
     check_map_output(args.out, args.overwrite)
+    config = map_config(voxel_size=args.voxel_size, pixel_step=args.pixel_step)
+    header = read_header(args.recording)  # the flags are checked before the frames load
+    _check_pixel_step(config.pixel_step, int(header["width"]), int(header["height"]))
     print(f"loading {args.recording} ...", file=sys.stderr)
     rec = load_recording(args.recording)
-    config = map_config(voxel_size=args.voxel_size, pixel_step=args.pixel_step)
-    _check_pixel_step(config.pixel_step, *rec.image_size)  # before the build
     t0 = time.perf_counter()
     with ProgressBars() as bars:
         m = build_map(
