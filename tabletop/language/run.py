@@ -10,6 +10,7 @@ sent (the traced position moves to the target, so relative moves still add up).
 from __future__ import annotations
 
 import inspect
+import os
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -149,9 +150,14 @@ class TracingRobot:
             raise ConfigError(f"an image path must be a non-empty string, got {path!r}")
         p = (self.image_dir / path).resolve()  # an absolute path replaces image_dir
         if not p.is_relative_to(self.image_dir):
+            # a path inside by its words that a link leads out of is named as a link (where
+            # it leads stays unsaid: the code learns nothing about other files)
+            lexical = Path(os.path.normpath(self.image_dir / path))
+            how = " through a link" if lexical.is_relative_to(self.image_dir) else ""
             raise ConfigError(
-                f"image path {str(path)!r} is outside the image directory {str(self.image_dir)!r}"
-                "; give a path inside it (relative paths are read from it)"
+                f"image path {str(path)!r} leads outside the image directory "
+                f"{str(self.image_dir)!r}{how}; give a path inside it (relative paths are read "
+                "from it)"
             )
         problem = input_file_problem(p)
         if problem:  # the words looked like a path: say what they were not
