@@ -725,7 +725,10 @@ def test_query_with_the_llm_reader_takes_the_endpoint_flags_its_message_names(
     # given both, the reader is made and the map is what is refused next
     llm = ["--reader", "llm", "--llm-url", "http://127.0.0.1:9/v1", "--llm-model", "m"]
     assert main([*q, *llm]) == 2
-    assert "none.npz" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "none.npz" in err
+    # and it says that a query's words are read here, not by the endpoint
+    assert "reader llm: a query's words are read here" in err
 
 
 def test_parse_refuses_endpoint_flags_it_would_ignore(capsys):

@@ -99,6 +99,11 @@ def _query_reader(args: argparse.Namespace, get_reader):
     from tabletop.reader.llm import LLMReader
     from tabletop.reader.llm_client import LLMConfig
 
+    print(
+        "reader llm: a query's words are read here (spelling, places); the endpoint reads "
+        "whole instructions (tabletop run)",
+        file=sys.stderr,
+    )
     if args.llm_config:
         config = LLMConfig.from_file(args.llm_config).with_overrides(
             base_url=args.llm_url, model=args.llm_model
