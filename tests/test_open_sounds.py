@@ -85,6 +85,8 @@ def test_the_matcher_keeps_known_sounds_and_opens_for_others(text):
     assert dog.categories == ("dog",)  # the bank answers what it knows
     bell = m.match("a doorbell", emb, z)
     assert bell.categories == (f"{OPEN_PREFIX}Doorbell",) and np.argmax(bell.log_odds) == 2
+    # what it read is named by the class's name (a reason quotes it; it had raised KeyError)
+    assert vocab.caption(bell.nearest) == "Doorbell" and vocab.caption("dog").startswith("the")
     # without the segments' logits the open vocabulary is not used
     plain = m.match("a doorbell", emb)
     assert not any(c.startswith(OPEN_PREFIX) for c in plain.categories)

@@ -178,6 +178,10 @@ class SoundVocabulary:
         return tuple(self.texts)
 
     def caption(self, category: str) -> str:
+        """The caption of a bank category, or the class name of an AudioSet class a match
+        read the words as (``"audioset:<name>"``, :data:`OPEN_PREFIX`)."""
+        if category.startswith(OPEN_PREFIX) and category not in self.texts:
+            return category[len(OPEN_PREFIX) :]
         return self.texts[category][0]
 
     def to_meta(self) -> dict:
