@@ -403,3 +403,15 @@ def test_a_side_of_another_thing_inside_a_query_is_refused(reader):
     # a place beside a thing is an area's to read, and a preposition that ends a phrase passes
     assert r.reference("area", "the left of the tray") is not None
     assert r.reference("sound", "the big fiddle you sit behind")
+
+
+def test_the_reader_is_asked_for_by_its_package_name_as_the_map_says():
+    # the map's area_heatmap names `tabletop.reader.get_reader().reference('area', ...)`
+    import tabletop.reader
+    from tabletop.reader.reading import get_reader
+
+    assert tabletop.reader.get_reader() is get_reader()
+    ref = tabletop.reader.get_reader().reference("area", "the left side of the table")
+    assert ref.region is not None and ref.region.lateral == "left"
+    with pytest.raises(AttributeError, match="no attribute 'grammar'"):
+        tabletop.reader.grammar  # noqa: B018

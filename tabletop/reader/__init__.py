@@ -9,4 +9,23 @@ the CLI and the evaluation all ask the same one.
 from tabletop.reader.errors import LanguageError, ParseError
 from tabletop.reader.rules import parse_instruction
 
-__all__ = ["LanguageError", "ParseError", "parse_instruction"]
+__all__ = [
+    "READERS",
+    "LanguageError",
+    "ParseError",
+    "get_reader",
+    "parse_instruction",
+    "understand",
+]
+
+#: Names read from :mod:`tabletop.reader.reading` when first asked for (the readers load their
+#: models only then): ``tabletop.reader.get_reader()``, ``tabletop.reader.understand(text)``.
+_FROM_READING = ("READERS", "get_reader", "understand")
+
+
+def __getattr__(name: str):
+    if name in _FROM_READING:
+        from tabletop.reader import reading
+
+        return getattr(reading, name)
+    raise AttributeError(f"module 'tabletop.reader' has no attribute {name!r}")
