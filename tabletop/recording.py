@@ -357,6 +357,10 @@ def save_recording(
     An existing ``path`` is an error unless ``overwrite``; then it is replaced only once the
     new recording is complete, so a failure never leaves half a recording behind.
     """
+    if not isinstance(rec, Recording):
+        raise RecordingError(f"save_recording writes a Recording, got {type(rec).__name__}")
+    if not isinstance(path, (str, Path)):
+        raise RecordingError(f"a recording is a directory path, got {type(path).__name__}")
     path = Path(path)
     check_output(path, overwrite)
     if not path.exists():

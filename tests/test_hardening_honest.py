@@ -393,3 +393,20 @@ def test_a_landmark_alone_is_refused_before_the_map_loads(tmp_path, capsys, near
     assert rc == 2 and "Traceback" not in text, text
     assert f"{near} only narrows a target" in text and "--obj" in text, text
     assert "no_map" not in text  # not a complaint about the map: it was never opened
+
+
+def test_api_calls_given_the_wrong_kind_of_object_name_it(tmp_path):
+    from tabletop.errors import RecordingError
+    from tabletop.recording import save_recording
+    from tabletop.sim.scan import ScanConfig, run_scan
+
+    # these reached an AttributeError / TypeError deep inside
+    with pytest.raises(ConfigError, match="run_scan scans a SceneSpec.*got str"):
+        run_scan("default", ScanConfig())
+    with pytest.raises(ConfigError, match="config must be a ScanConfig or None, got dict"):
+        from tabletop.sim.scene import load_scene_spec
+
+        run_scan(load_scene_spec("default"), {"episodes": 1})
+    with pytest.raises(RecordingError, match="writes a Recording, got NoneType"):
+        save_recording(None, tmp_path / "zz")
+    assert list(tmp_path.iterdir()) == []

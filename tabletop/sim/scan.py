@@ -276,6 +276,13 @@ def run_scan(
     """
     from tabletop.sim.sound_insertion import insert_sounds
 
+    if not isinstance(spec, SceneSpec):
+        raise ConfigError(
+            f"run_scan scans a SceneSpec (tabletop.sim.scene.load_scene_spec('default')), got "
+            f"{type(spec).__name__} {spec!r:.60}"
+        )
+    if config is not None and not isinstance(config, ScanConfig):
+        raise ConfigError(f"config must be a ScanConfig or None, got {type(config).__name__}")
     config = config or ScanConfig()
     t_start = time.perf_counter()
     plan = plan_scan(config)
