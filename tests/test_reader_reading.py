@@ -415,3 +415,20 @@ def test_the_reader_is_asked_for_by_its_package_name_as_the_map_says():
     assert ref.region is not None and ref.region.lateral == "left"
     with pytest.raises(AttributeError, match="no attribute 'grammar'"):
         tabletop.reader.grammar  # noqa: B018
+
+
+@pytest.mark.parametrize("reader", ["rules", "rules+learned"])
+def test_an_area_that_says_a_relation_to_things_is_refused_not_looked_for(reader):
+    # "between the tray and the bear" asked as an area found the bear, its words' subject
+    r = get_reader(reader)
+    for text, word in [
+        ("between the tray and the teddy bear", "between"),
+        ("the gap between the two mugs", "between"),
+        ("20 cm to the left of the duck", "20 cm to the left of"),
+    ]:
+        with pytest.raises(ParseError) as e:
+            r.reference("area", text)
+        assert e.value.fragment == word, text
+    # a region of the table and a place named after a thing are read as before
+    assert r.reference("area", "the middle of the table").region is not None
+    assert r.reference("area", "the area around the tray").subject == "tray"

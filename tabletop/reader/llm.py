@@ -36,6 +36,7 @@ from tabletop.reader.rules import (
     refuse_negated,
     refuse_nested_relation,
     refuse_non_words,
+    refuse_relation_as_area,
 )
 from tabletop.reader.spelling import default_speller
 
@@ -178,7 +179,7 @@ class LLMReader:
         if kind == "area":
             from tabletop.reader.places import PlaceReader
 
-            return PlaceReader(learned=True).read(text)
+            return refuse_relation_as_area(PlaceReader(learned=True).read(text))
         return text
 
     def understand(self, text: str, robot: str = "arm") -> Reading:

@@ -285,6 +285,29 @@ _RELATION_DISTANCE = re.compile(
 )
 
 
+_BETWEEN_WORD = re.compile(r"\bbetween\b", re.IGNORECASE)
+
+
+def refuse_relation_as_area(ref):
+    """``ref`` (an :class:`~tabletop.mapping.table_regions.AreaRef`), unless it names no
+    region of the table and its words say a relation to things: the point between two things,
+    or a distance from one. Those words would otherwise be looked for as a thing ("between the
+    tray and the bear" found the bear); a region's own words may hold "between" ("the middle,
+    between all four edges"). ParseError naming the words and the instruction that says it."""
+    if ref.region is not None:
+        return ref
+    refuse_relation_distance(ref.text)
+    if m := _BETWEEN_WORD.search(ref.text):
+        raise ParseError(
+            ref.text,
+            m.group(0),
+            "an area is a place of the table, and the point between two things is a relation "
+            'between them: ask it as an instruction, e.g. `tabletop run MAP "go between the '
+            'tray and the mug"`',
+        )
+    return ref
+
+
 def refuse_relation_distance(text: str) -> None:
     """Refuse a distance said for a relation to a thing: the robot goes to the relation's own
     place (beside, in front, behind at their fixed offsets), so a number there would be
