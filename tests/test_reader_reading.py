@@ -432,3 +432,12 @@ def test_an_area_that_says_a_relation_to_things_is_refused_not_looked_for(reader
     # a region of the table and a place named after a thing are read as before
     assert r.reference("area", "the middle of the table").region is not None
     assert r.reference("area", "the area around the tray").subject == "tray"
+
+
+@pytest.mark.parametrize("reader", ["rules", "learned", "rules+learned"])
+def test_between_one_thing_and_itself_is_refused(reader):
+    # it was read as the point between the mug and the mug: the mug itself
+    for text in ["go between the mug and the mug", "move between the Duck and the duck"]:
+        with pytest.raises(ParseError, match="'between' takes two different things"):
+            understand(text, reader=reader)
+    assert understand("go between the red mug and the blue mug", reader=reader).steps

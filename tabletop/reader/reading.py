@@ -262,6 +262,20 @@ _ALTERNATIVE = re.compile(r"\bor\b(?!\s+so\b)", re.IGNORECASE)
 _JOINED = re.compile(r"\band\b|&|\bplus\b", re.IGNORECASE)
 
 
+def _same_goal(a: Goal, b: Goal) -> bool:
+    """Whether two goals are named in the same words (their articles and case aside)."""
+
+    def words(g: Goal) -> tuple:
+        parts = (g.primary, *g.near)
+        return tuple(
+            (p.kind, " ".join(w for w in p.text.lower().split() if w not in ("the", "a", "an")))
+            for p in parts
+            if isinstance(p, Part)
+        )
+
+    return isinstance(a, Goal) and isinstance(b, Goal) and words(a) == words(b) != ()
+
+
 def offers_alternatives(step: Step) -> str | None:
     """The word "or" where ``step`` reads as "between" two goals that it joins with no "and"
     ("the mug or the duck"; None otherwise): a reader that takes "or" for "and" would send
@@ -282,6 +296,14 @@ def settle_references(text: str, steps: tuple[Step, ...]) -> tuple[Step, ...]:
     every reference is the reader's to read ("not far from" for near)."""
     steps = fold_descriptions(steps)
     for step in steps:
+        a = step.action
+        if isinstance(a, Between) and _same_goal(a.a, a.b):
+            raise ParseError(
+                text,
+                a.a.primary.text,
+                "'between' takes two different things, and both are named the same: name each "
+                "by its colour or by a thing near it",
+            )
         if (alternative := offers_alternatives(step)) is not None:
             raise ParseError(
                 text,
