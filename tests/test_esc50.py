@@ -75,6 +75,9 @@ def test_load_esc50_options(esc50_dir):
 def test_load_esc50_errors_name_what_is_missing(tmp_path, esc50_dir):
     with pytest.raises(AssetError, match="ESC-50 directory not found"):
         load_esc50(tmp_path / "nowhere")
+    (tmp_path / "a.txt").write_text("x")  # it was called "not found"
+    with pytest.raises(AssetError, match="ESC-50 directory is a file, not a directory"):
+        load_esc50(tmp_path / "a.txt")
     (esc50_dir / "audio" / "3-10003-A-0.wav").unlink()
     with pytest.raises(AssetError, match=r"1 clip\(s\) listed .* missing .*: 3-10003-A-0\.wav"):
         load_esc50(esc50_dir)

@@ -58,8 +58,10 @@ def load_esc50(
         )
     root = Path(directory)
     if not root.is_dir():
+        what = "is a file, not a directory" if root.exists() else "not found"
         raise AssetError(
-            f"ESC-50 directory not found: {root}; expected audio/*.wav and meta/esc50.csv in it"
+            f"ESC-50 directory {what}: {root}; expected a directory with audio/*.wav and "
+            "meta/esc50.csv in it"
         )
     meta = root / "meta" / "esc50.csv"
     if not meta.is_file():
