@@ -441,3 +441,14 @@ def test_between_one_thing_and_itself_is_refused(reader):
         with pytest.raises(ParseError, match="'between' takes two different things"):
             understand(text, reader=reader)
     assert understand("go between the red mug and the blue mug", reader=reader).steps
+
+
+@pytest.mark.parametrize("reader", ["rules", "learned", "rules+learned"])
+def test_a_request_longer_than_a_few_sentences_is_refused_at_once(reader):
+    from tabletop.reader.rules import MAX_REQUEST_CHARS
+
+    long = "go to the mug " * 200  # it took 41 s to read and its error quoted it whole
+    with pytest.raises(ParseError, match=f"at most {MAX_REQUEST_CHARS} characters") as e:
+        understand(long, reader=reader)
+    assert e.value.out_of_range and len(str(e.value)) < 400
+    assert len(understand("go to the mug then go to the duck", reader=reader).steps) == 2

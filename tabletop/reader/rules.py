@@ -245,6 +245,11 @@ _CODE_PUNCT = re.compile(r"[`{}\[\]<>=\\|$]|\w\(|\)\(|[\"']\)|\([\"']|\);")
 _CONTROL_NAMES = {"\n": "a line break", "\r": "a line break", "\t": "a tab", "\x1b": "an escape"}
 
 
+#: The longest request read (characters): a few sentences of steps. A longer text is refused
+#: before any reading: reading it took tens of seconds, and its error quoted it whole.
+MAX_REQUEST_CHARS = 1000
+
+
 def refuse_non_words(text: str) -> None:
     """Refuse a request that is not one line of words: a control or format character (a line
     break, a tab, a terminal escape, a bidi override) or code punctuation (a backtick, a
@@ -253,6 +258,14 @@ def refuse_non_words(text: str) -> None:
     the character and what a request looks like."""
     if not isinstance(text, str):
         return
+    if len(text) > MAX_REQUEST_CHARS:
+        raise ParseError(
+            text[:60] + " ...",
+            f"{len(text)} characters",
+            f"a request is at most {MAX_REQUEST_CHARS} characters (a few sentences); this one "
+            f"holds {len(text)}: ask it in shorter requests",
+            out_of_range=True,
+        )
     for ch in text.strip():  # a line's own end is no line break inside it
         if unicodedata.category(ch) == "Cc" or (
             unicodedata.category(ch) == "Cf" and ch != "\u200d"
