@@ -142,6 +142,7 @@ def test_save_load_round_trip_and_errors(avlmap, rec, tmp_path):
     from tabletop.mapping.persistence import MapFormatError
 
     path = avlmap.save(tmp_path / "map.npz")
+    assert avlmap.save(path) == path  # a previous map is replaced
     back = AVLMap.load(path)
     np.testing.assert_array_equal(back.voxels.linear_indices, avlmap.voxels.linear_indices)
     np.testing.assert_array_equal(back.voxels.mean_features(), avlmap.voxels.mean_features())
@@ -176,6 +177,12 @@ def test_save_load_round_trip_and_errors(avlmap, rec, tmp_path):
     with pytest.raises(MapFormatError, match="no header"):
         AVLMap.load(tmp_path / "other.npz")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["cut.npz", "map.npz", "other.npz"]
+    notes = tmp_path / "mine" / "notes.npz"
+    notes.parent.mkdir()
+    notes.write_text("mine")  # a map replaces no other file
+    with pytest.raises(ConfigError, match="exists and is not a map"):
+        avlmap.save(notes)
+    assert notes.read_text() == "mine" and list(notes.parent.iterdir()) == [notes]
 
 
 def test_map_goal_evaluation_scores_the_oracle_map(avlmap, rec):

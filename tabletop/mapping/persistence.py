@@ -385,9 +385,15 @@ def read_map_preview(path: str | Path) -> MapPreview:
 def save_map(m, path: str | Path, *, rebuild: dict | None = None) -> Path:
     """Write map ``m`` to ``path`` (``.npz``; any other suffix is an error, never renamed)
     atomically. ``rebuild`` is what the encoder set needs to be re-created on load (the
-    registry fills it for the oracle)."""
+    registry fills it for the oracle). A previous map at ``path`` is replaced; any other file
+    there is not (the user's data is not ours to delete: :class:`ConfigError`)."""
     path = check_writable(path, what="map file")  # before the arrays are gathered
     _check_suffix(path)
+    if path.exists() and not _is_map_file(path):
+        raise ConfigError(
+            f"{path} exists and is not a map (no header of format {MAP_FORMAT!r}); a map "
+            "replaces only a previous map: choose another path"
+        )
     sounds, areas = m.sounds, m.areas
     header = {
         "format": MAP_FORMAT,
