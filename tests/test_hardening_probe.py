@@ -847,3 +847,14 @@ def test_eval_refuses_contradictory_cache_flags_and_a_task_file_given_twice(caps
     with pytest.raises(TaskFileError, match="is given twice"):
         collect_task_files(["demo", "demo"])
     assert len(collect_task_files(["demo"])) == 1
+
+
+def test_run_checks_its_llm_config_before_the_map_and_the_robot(tmp_path, capsys):
+    from tabletop.cli import main
+
+    # the map does not exist either: the config's problem must be the one named
+    argv = ["run", str(tmp_path / "none.npz"), "go to the mug", "--backend", "llm"]
+    assert main([*argv, "--llm-config", str(tmp_path / "missing.toml")]) == 2
+    err = capsys.readouterr().err
+    assert "missing.toml" in err and "none.npz" not in err
+    assert "starting the simulated arm" not in err

@@ -206,6 +206,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     if args.image_dir is not None and not Path(args.image_dir).is_dir():
         what = "is not a directory" if Path(args.image_dir).exists() else "does not exist"
         raise ConfigError(f"--image-dir {str(args.image_dir)!r} {what}")
+    llm_config = _llm_config(args)  # its flags and file, before the map and the robot
     suite = load_suite(args.suite_file) if (args.suite or args.map == REFERENCE) else None
     m = _load_map(args.map, suite)
     if args.suite:
@@ -286,7 +287,7 @@ def cmd_run(args: argparse.Namespace) -> int:
             args.instruction,
             robot,
             backend=args.backend,
-            llm_config=_llm_config(args),
+            llm_config=llm_config,
             dry_run=args.dry_run,
             image_dir=image_dir,
             sandbox=SandboxConfig(timeout_s=args.timeout),
