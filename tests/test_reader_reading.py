@@ -314,6 +314,7 @@ def test_a_reference_negated_by_a_contraction_or_picked_by_order_is_refused(read
         ("go to the cup which isn't red", "isn't", negated),
         ("go to the mug that doesn\u2019t have a handle", "doesn\u2019t", negated),
         ("go to the left of the cup that isnt blue", "isnt", negated),
+        ("go to the mug that is not red", "'not'", negated),
         ("go to the 3rd mug from the left", "3rd", ordinal),
         ("go to the duck near the second mug", "second", ordinal),
         ("go to the last ball", "last", ordinal),

@@ -639,6 +639,10 @@ def decode(text: str, words: list[str], roles: list[str], relations, robot: str,
             times = said  # "N times" read inside a reference still counts
         goals = _goals(_spans([words[i] for i in idx], step_roles))
         if relation == "none":
+            from tabletop.reader.rules import negations
+
+            if negated := negations(clause):  # "the mug that is not red": say why, by name
+                raise ParseError(text, negated[0], "the robot cannot honour a negated goal")
             raise ParseError(text, clause, "the arm goes to places; this step asks something else")
         if relation == "motion":
             steps.extend(rules(clause, robot))
