@@ -289,7 +289,9 @@ def offers_alternatives(step: Step) -> str | None:
 
 def settle_references(text: str, steps: tuple[Step, ...]) -> tuple[Step, ...]:
     """What every reader does to the references of the steps it read: parts that describe a
-    thing are folded into its words (:func:`fold_descriptions`), then a reference that negates
+    thing are folded into its words (:func:`fold_descriptions`); a "between" of one thing and
+    itself, or of two things offered as alternatives (:func:`offers_alternatives`), is
+    refused; then a reference that negates
     what it names ("the cup that isn't red", which a reader would look for as a red cup) or
     starts with an ordinal ("the 3rd mug from the left") is refused, ParseError naming the
     word. "no" and "without" describe and pass ("the mug with no handle"); a negation outside
