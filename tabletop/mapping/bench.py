@@ -123,14 +123,11 @@ def default_encoder_speed(recording, frames: int = 40) -> dict:
     }
 
 
-#: Sound and area queries the benchmark times (found or not, each is the map's whole answer).
+#: Sound queries and areas (regions of the table, as the reader reads "the left side of the
+#: table", "the middle of the table", "the far right corner", "the far half") the benchmark
+#: times; found or not, each is the map's whole answer.
 BENCH_SOUNDS = ("a dog barking", "a bell ringing", "glass breaking", "a cat meowing")
-BENCH_AREAS = (
-    "the left side of the table",
-    "the middle of the table",
-    "the far right corner",
-    "the front of the table",
-)
+BENCH_REGIONS = (("left", None), ("middle", "middle"), ("right", "far"), (None, "far"))
 
 
 def _timed(call, inputs, repeat: int = 5) -> tuple[float, float]:
@@ -151,15 +148,18 @@ def _timed(call, inputs, repeat: int = 5) -> tuple[float, float]:
 def _modal_query_times(m: AVLMap, recording, image_frames: int = 6) -> dict:
     """Median and p95 of a sound, an area and an image query with its target (heatmap and
     argmax) on map ``m``; the image queries are frames of ``recording`` itself (the wrist
-    camera's own views). An area's words are read once, before timing: the reader's time is
-    its own benchmark's."""
-    from tabletop.reader.reading import get_reader
+    camera's own views). The areas are regions as the reader gives them: reading words is the
+    reader's own benchmark."""
+    from tabletop.mapping.table_regions import AreaRef, TableRegion
 
     def answer(h):
         if h.found:
             m.get_max_pos_3d(h)
 
-    areas = [get_reader().reference("area", a) for a in BENCH_AREAS]
+    areas = [
+        AreaRef(f"{lat} {dep}", TableRegion(lat, dep, f"{lat} {dep}"), how="bench")
+        for lat, dep in BENCH_REGIONS
+    ]
     frames = np.linspace(0, len(recording) - 1, image_frames).astype(int)
     out = {}
     for name, call, inputs in (
