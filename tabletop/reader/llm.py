@@ -36,7 +36,6 @@ from tabletop.reader.rules import (
     refuse_negated,
     refuse_nested_relation,
     refuse_non_words,
-    refuse_relation_as_area,
 )
 from tabletop.reader.spelling import default_speller
 
@@ -179,7 +178,7 @@ class LLMReader:
         if kind == "area":
             from tabletop.reader.places import PlaceReader
 
-            return refuse_relation_as_area(PlaceReader(learned=True).read(text))
+            return PlaceReader(learned=True).read(text)
         return text
 
     def understand(self, text: str, robot: str = "arm") -> Reading:

@@ -37,6 +37,7 @@ from tabletop.errors import AssetError, ConfigError
 from tabletop.mapping.table_regions import AreaRef, TableRegion
 from tabletop.paths import DATA_DIR
 from tabletop.reader.place_words import area_subject, parse_region, region_on_ground
+from tabletop.reader.rules import refuse_relation_as_area
 
 __all__ = [
     "DEFAULT_PLACE_WEIGHTS",
@@ -233,6 +234,12 @@ class PlaceReader:
         return load_place_classifier(self.weights)
 
     def read(self, text: str) -> AreaRef:
+        """``text`` read into an :class:`AreaRef` (the readings of the module docstring, in
+        order); words that name no region and say a relation to things are refused
+        (:func:`~tabletop.reader.rules.refuse_relation_as_area`)."""
+        return refuse_relation_as_area(self._reading(text))
+
+    def _reading(self, text: str) -> AreaRef:
         if not isinstance(text, str):
             raise ConfigError(f"an area must be a string, got {type(text).__name__}")
         if (under := beneath_surface(text)) is not None:

@@ -43,7 +43,6 @@ from tabletop.reader.rules import (
     refuse_negated,
     refuse_nested_relation,
     refuse_non_words,
-    refuse_relation_as_area,
     refuse_relation_distance,
 )
 from tabletop.reader.spelling import Speller, default_speller, name_words, not_english
@@ -139,7 +138,7 @@ class RulesReader:
                 "place beside a thing is an instruction, e.g. 'go to the left of the duck'",
             )
         if kind == "area":
-            return refuse_relation_as_area((places or _GRAMMAR_PLACES).read(text))
+            return (places or _GRAMMAR_PLACES).read(text)
         return text
 
     def understand(self, text: str, robot: str = "arm") -> Reading:
