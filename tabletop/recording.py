@@ -349,6 +349,13 @@ def check_output(path: str | Path, overwrite: bool = False) -> Path:
     return path
 
 
+def _recording_path(path) -> Path:
+    """``path`` as a :class:`Path`, or :class:`RecordingError` where it is no path."""
+    if not isinstance(path, (str, Path)):
+        raise RecordingError(f"a recording is a directory path, got {type(path).__name__}")
+    return Path(path)
+
+
 def save_recording(
     rec: Recording, path: str | Path, *, overwrite: bool = False, workers: int = 2
 ) -> Path:
@@ -359,9 +366,7 @@ def save_recording(
     """
     if not isinstance(rec, Recording):
         raise RecordingError(f"save_recording writes a Recording, got {type(rec).__name__}")
-    if not isinstance(path, (str, Path)):
-        raise RecordingError(f"a recording is a directory path, got {type(path).__name__}")
-    path = Path(path)
+    path = _recording_path(path)
     check_output(path, overwrite)
     if not path.exists():
         with atomic_path(path, directory=True) as tmp:
@@ -587,9 +592,7 @@ def read_header(path: str | Path) -> dict:
     """The checked header of the recording directory ``path`` (its frames are not read: what a
     command checks its flags against before loading them); :class:`RecordingError` names what
     is wrong."""
-    if not isinstance(path, (str, Path)):
-        raise RecordingError(f"a recording is a directory path, got {type(path).__name__}")
-    path = Path(path)
+    path = _recording_path(path)
     header_path = path / _HEADER
     if not header_path.is_file():
         raise RecordingError(f"{path} is not a recording: {header_path} is missing")
@@ -630,11 +633,9 @@ def load_recording(path: str | Path, *, workers: int = 2) -> Recording:
     Every file the header lists must exist with its recorded size: a missing or truncated
     file raises :class:`RecordingError` naming it.
     """
-    if not isinstance(path, (str, Path)):
-        raise RecordingError(f"a recording is a directory path, got {type(path).__name__}")
+    path = _recording_path(path)
     if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
         raise RecordingError(f"workers must be a whole number >= 1, got {workers!r}")
-    path = Path(path)
     h = read_header(path)
     for rel, size in h["files"].items():
         f = path / rel
