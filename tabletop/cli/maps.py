@@ -120,15 +120,18 @@ def cmd_query(args: argparse.Namespace) -> int:
     from tabletop.reader.reading import get_reader
     from tabletop.robot.api import RobotAPI
 
-    majors = [f"--{k}" for k in ("obj", "sound", "area", "img") if getattr(args, k) is not None]
-    nears = [
-        f"--near-{k}"
+    # (the flag's name, its modality, whether it is the major part), majors first
+    given = [
+        (prefix + k, k, not prefix)
+        for prefix in ("", "near_")
         for k in ("obj", "sound", "area", "img")
-        if getattr(args, f"near_{k}") is not None
+        if getattr(args, prefix + k) is not None
     ]
-    if nears and not majors:  # a landmark alone would send the robot to the landmark
+    if given and not any(major for _, _, major in given):
+        # a landmark alone would send the robot to the landmark
+        nears = ", ".join("--" + dest.replace("_", "-") for dest, _, _ in given)
         raise ConfigError(
-            f"{', '.join(nears)} only narrows a target: give what to find near it with one "
+            f"{nears} only narrows a target: give what to find near it with one "
             "of --obj, --sound, --area, --img"
         )
     if args.out is not None:  # before the map is loaded and queried
@@ -145,20 +148,8 @@ def cmd_query(args: argparse.Namespace) -> int:
     reader = _query_reader(args, get_reader)  # refused before the map is loaded
     m = AVLMap.load(args.map)
     parts = []
-    for kind, major in (
-        ("obj", True),
-        ("sound", True),
-        ("area", True),
-        ("img", True),
-        ("near_obj", False),
-        ("near_sound", False),
-        ("near_area", False),
-        ("near_img", False),
-    ):
-        q = getattr(args, kind)
-        if q is None:
-            continue
-        modality = kind.removeprefix("near_")
+    for dest, modality, major in given:
+        q = getattr(args, dest)
         # the words of a reference are read by the one reader every caller asks
         value = RobotAPI.load_image(q) if modality == "img" else reader.reference(modality, q)
         parts.append(m.query(modality, value, major))
