@@ -410,12 +410,14 @@ class YamnetBackbone:
         self.tail = Path(tail) if tail is not None else None
         if self.tail is not None and not self.tail.is_file():
             raise AssetError(f"tuned YAMNet tail {str(self.tail)!r} not found")
-        self.tail_first_layer = (
-            tail_first_layer(load_tail(self.tail)) if self.tail is not None else None
-        )
-        """The block the tuned tail starts at (its file's keys name it), or None."""
         tail_key = str(self.tail.resolve()) if self.tail is not None else ""
         self._session = _session(str(self.zip_path.resolve()), int(num_threads), tail_key)
+
+    @property
+    def tail_first_layer(self) -> int | None:
+        """The block the tuned tail starts at (its file's keys name it), or None: read when
+        asked, not at start-up (the session has read the file already)."""
+        return tail_first_layer(load_tail(self.tail)) if self.tail is not None else None
 
     def run(self, patch_batch: np.ndarray) -> YamnetOutput:
         """YAMNet on (P, 96, 64) log-mel patches."""
