@@ -180,8 +180,8 @@ class ObjectConfig:
     scene has none of the reader's). Above 1: never."""
     reader_overrule: float = 0.9
     """Where the reader reads a vocabulary name the words' cosine does not give at this
-    probability or more, that name is what they mean ("the slat from the stacking-tower
-    game" may lie nearer the domino's words than the jenga block's). Chosen on the
+    probability or more, that name is what they mean (a name of the jenga block whose words
+    lie nearer the domino's descriptions than its own). Chosen on the
     readings of authors the reader had not seen (each tune pool read by a reader fitted
     without it): at 0.9 such a reading named the thing meant in 30 of 34 names, the cosine's
     names in 4. Above 1: never."""
