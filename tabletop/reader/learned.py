@@ -567,7 +567,7 @@ def _one_relation(
             read = ()
         if not any(isinstance(st.action, _MOTIONS) for st in read):
             held.discard("motion")
-    if len(held) > 1:  # "go" carries the other relation ("go and hover over X, go there")
+    if len(held) > 1:  # going is how the other relation is reached, no second request
         held.discard("goto")
     if len(held) > 1:
         raise ParseError(

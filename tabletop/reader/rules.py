@@ -305,8 +305,9 @@ def refuse_relation_as_area(ref):
     """``ref`` (an :class:`~tabletop.mapping.table_regions.AreaRef`), unless it names no
     region of the table and its words say a relation to things: the point between two things,
     or a distance from one. Those words would otherwise be looked for as a thing ("between the
-    tray and the bear" found the bear); a region's own words may hold "between" ("the middle,
-    between all four edges"). ParseError naming the words and the instruction that says it."""
+    tray and the bear" found the bear); a region's own words may hold "between" (a middle
+    named as lying between the table's edges). ParseError naming the words and the
+    instruction that says it."""
     if ref.region is not None:
         return ref
     refuse_relation_distance(ref.text)
