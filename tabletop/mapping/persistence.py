@@ -302,12 +302,18 @@ def check_map_output(path: str | Path, overwrite: bool = False) -> Path:
         return path
     if not overwrite:
         raise ConfigError(f"{path} exists; pass --overwrite to replace it")
-    if not _is_map_file(path):
-        raise ConfigError(
-            f"{path} exists and is not a map (no header of format {MAP_FORMAT!r}); "
-            "--overwrite only replaces a previous map: choose another path"
-        )
+    _refuse_other_file(path, "--overwrite only replaces a previous map")
     return path
+
+
+def _refuse_other_file(path: Path, why: str) -> None:
+    """ConfigError where ``path`` exists and is no map file: the user's data is not ours to
+    replace. ``why``: what may be replaced, for the message."""
+    if path.exists() and not _is_map_file(path):
+        raise ConfigError(
+            f"{path} exists and is not a map (no header of format {MAP_FORMAT!r}); {why}: "
+            "choose another path"
+        )
 
 
 @dataclass(frozen=True)
@@ -389,11 +395,7 @@ def save_map(m, path: str | Path, *, rebuild: dict | None = None) -> Path:
     there is not (the user's data is not ours to delete: :class:`ConfigError`)."""
     path = check_writable(path, what="map file")  # before the arrays are gathered
     _check_suffix(path)
-    if path.exists() and not _is_map_file(path):
-        raise ConfigError(
-            f"{path} exists and is not a map (no header of format {MAP_FORMAT!r}); a map "
-            "replaces only a previous map: choose another path"
-        )
+    _refuse_other_file(path, "a map replaces only a previous map")
     sounds, areas = m.sounds, m.areas
     header = {
         "format": MAP_FORMAT,
