@@ -286,6 +286,29 @@ def test_a_two_coloured_object_fits_either_of_its_colours_but_no_other(scene):
     assert scene.colour_match(scene.colour_weights("red"), [domino])[0] < 0.1
 
 
+def test_two_basic_colours_ask_for_a_thing_of_both_not_a_shade_of_the_last(scene):
+    from tabletop.mapping.colour_words import two_colours
+
+    assert two_colours("red blue") == ("red", "blue")
+    assert two_colours("black white") == ("black", "white")
+    # shades, a repeat and one term are no two colours
+    assert two_colours("blue green") == two_colours("red red") == two_colours("red") == ()
+    # a red mug and a blue mug, none of both colours: no "red blue mug" is on the table, and
+    # the reason names the colours asked for
+    for q in ("the red blue mug", "the mug that is red and blue"):
+        h = scene.heatmap(q, 10.0, judge_at(0.2))
+        assert not h.found and "red blue" in h.reason, (q, h.reason)
+    # a thing of both colours fits; either plain one does not
+    both = _instance((140, 40, 110), [(200, 20, 20), (20, 40, 200)], [0.5, 0.5])
+    m = scene.match("the red blue mug")
+    assert m.colour == "red blue"
+    fits = np.min(
+        [scene.colour_match(scene.colour_weights(c), [both, _instance((200, 20, 20))], True)
+         for c in ("red", "blue")], axis=0,
+    )  # fmt: skip
+    assert fits[0] > 0.6 > 0.2 > fits[1]
+
+
 def test_the_colour_of_a_part_need_not_cover_much_of_the_thing(scene):
     # A football: white panels and black patches covering a quarter of it.
     ball = _instance((190, 190, 190), [(240, 240, 240), (25, 25, 25)], [0.75, 0.25])

@@ -33,6 +33,7 @@ __all__ = [
     "survey_colours",
     "survey_name",
     "survey_words",
+    "two_colours",
     "unlisted_modifiers",
 ]
 
@@ -159,6 +160,23 @@ def unlisted_modifiers(text: str) -> list[str]:
         ):
             out.append(w)
     return out
+
+
+def two_colours(phrase: str) -> tuple[str, ...]:
+    """The basic colour terms of a colour phrase that names a thing of several colours: two or
+    more different basic terms ("red blue", "black white" from "black and white") that are
+    together no colour name of the lexicon or the survey ("blue green" and "red brown" are
+    shades). () for any other phrase."""
+    words = str(phrase).lower().split()
+    if (
+        len(words) < 2
+        or not all(w in BASIC_COLOURS for w in words)
+        or len(set(words)) < 2
+        or " ".join(words) in COLOR_NAMES
+        or " ".join(words) in survey_colours()
+    ):
+        return ()
+    return tuple(dict.fromkeys(words))
 
 
 def colour_word(word: str) -> bool:

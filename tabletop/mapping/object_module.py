@@ -81,6 +81,7 @@ from tabletop.mapping.colour_words import (
     survey_colours,
     survey_name,
     survey_words,
+    two_colours,
     unlisted_modifiers,
 )
 from tabletop.mapping.heatmaps import Heatmap, Judge, point_heatmap_3d_at
@@ -575,14 +576,26 @@ class ObjectModule:
             kind = preference = np.zeros(0)
         close = None
         if colour:
-            w = self.colour_weights(colour)
             of_part = _colour_of_a_part(query, colour)
-            cm = np.maximum(self.colour_match(w, inst, of_part), self.learned_colour(w, inst, want))
+            # two basic colour terms that make no colour name together ("red blue", "black
+            # and white") ask for a thing of both colours, not a shade of the last: each
+            # must fit, and nearness is the farther term's
+            per_term = [self.colour_weights(c) for c in two_colours(colour) or (colour,)]
+            cm = np.min(
+                [
+                    np.maximum(
+                        self.colour_match(w, inst, of_part or len(per_term) > 1),
+                        self.learned_colour(w, inst, want),
+                    )
+                    for w in per_term
+                ],
+                axis=0,
+            )
             if n:
                 # nearness ranks among the instances that fit the phrase: a name far from
                 # every object ("electric blue", a pale cyan, for a mid blue mug) must not
                 # hand the lead to a nearer one of another colour
-                d = self.colour_distance(w, inst)
+                d = np.max([self.colour_distance(w, inst) for w in per_term], axis=0)
                 fits = kind * cm  # >= 0: with no fit at all, every instance counts
                 among = fits >= 0.5 * fits.max()
                 close = np.exp(-np.maximum(d - d[among].min(), 0.0) / cfg.closeness_scale)
