@@ -52,6 +52,20 @@ def test_places_off_the_table_are_no_region(text):
     assert a.region is None and a.subject  # the map looks for it as a thing, then a sound
 
 
+@pytest.mark.parametrize(
+    ("text", "pair"),
+    [("the left right of the table", ("left", "right")), ("the near far side", ("far", "near"))],
+)
+def test_two_opposite_directions_are_no_region_and_the_reason_names_them(text, pair):
+    # the classifier would pick one of the two: the words contradict each other, so neither
+    for reader in (PlaceReader(), PlaceReader(learned=False)):
+        a = reader.read(text)
+        assert a.region is None and a.subject is None
+        assert f"{pair[0]!r} and {pair[1]!r} are opposite directions" in a.how
+    # one direction, or two that are not opposite, is a region as before
+    assert PlaceReader().read("the far left").region == TableRegion("left", "far", "the far left")
+
+
 def test_a_place_named_after_a_thing_gives_its_subject():
     a = PlaceReader().read("the area around the tray")
     assert a == AreaRef("the area around the tray", subject="tray", how="subject")

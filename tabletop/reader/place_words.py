@@ -45,7 +45,7 @@ import re
 
 from tabletop.mapping.table_regions import TableRegion
 
-__all__ = ["area_subject", "parse_region", "region_on_ground"]
+__all__ = ["area_subject", "opposite_directions", "parse_region", "region_on_ground"]
 
 _LEFT = r"left\s*hand|leftmost|left|port"
 _RIGHT = r"right\s*hand|rightmost|right|starboard"
@@ -105,6 +105,19 @@ _SURFACE_FILLER = frozenset({"table", "tabletop", "top", "surface"})
 def _geometry(text: str) -> tuple[dict[str, str], list[str]] | None:
     """The geometric words ``text`` holds ({"depth": "far", ...}) and its other words in order,
     or None when it names two opposite directions ("left ... right")."""
+    found, rest, clash = _directions(text)
+    return None if clash else (found, rest)
+
+
+def opposite_directions(text: str) -> tuple[str, str] | None:
+    """The two opposite directions ``text`` names ("left", "right"; "far", "near"), which no
+    one region lies in; None when it names none such."""
+    return _directions(text)[2]
+
+
+def _directions(text: str) -> tuple[dict[str, str], list[str], tuple[str, str] | None]:
+    """(the geometric words ``text`` holds, its other words, the first two opposite
+    directions it names or None)."""
     t = " " + re.sub(r"[^a-z ]", " ", str(text).lower().replace("'s", " ")) + " "
     t = re.sub(r"\s+", " ", t)
     t = _JUST_AHEAD.sub(" near the robot ", t)
@@ -126,10 +139,10 @@ def _geometry(text: str) -> tuple[dict[str, str], list[str]] | None:
         rx = re.compile(rf" (?:{pattern}) ")
         while rx.search(t):
             if key in found and found[key] != value:
-                return None  # "left ... right": not one region
+                return found, t.split(), (found[key], value)  # "left ... right"
             found[key] = value
             t = rx.sub(" ", t, count=1)
-    return found, t.split()
+    return found, t.split(), None
 
 
 def _region(found: dict[str, str], text: str) -> TableRegion:

@@ -36,7 +36,12 @@ import numpy as np
 from tabletop.errors import AssetError, ConfigError
 from tabletop.mapping.table_regions import AreaRef, TableRegion
 from tabletop.paths import DATA_DIR
-from tabletop.reader.place_words import area_subject, parse_region, region_on_ground
+from tabletop.reader.place_words import (
+    area_subject,
+    opposite_directions,
+    parse_region,
+    region_on_ground,
+)
 from tabletop.reader.rules import refuse_relation_as_area
 
 __all__ = [
@@ -250,6 +255,10 @@ class PlaceReader:
         region = parse_region(text)
         if region is not None:
             return AreaRef(text, region=region, how="grammar")
+        if clash := opposite_directions(text):
+            # no classifier's guess picks one of the two: the words contradict each other
+            return AreaRef(text, how=f"{clash[0]!r} and {clash[1]!r} are opposite directions, "
+                           "and a region lies in one: name one of them")  # fmt: skip
         if self.learned and text.strip():
             clf = self.classifier()
             on = region_on_ground(text)
