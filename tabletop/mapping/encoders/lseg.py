@@ -285,7 +285,7 @@ class LSegEncoder:
         rgb = self._check(rgb)
         sess = self._session(rgb)
         if sess is not None:
-            return sess.run(None, {"rgb": np.ascontiguousarray(rgb)})[0]
+            return sess.run(None, {"rgb": np.ascontiguousarray(rgb)})[0][0]
         emb = self._embed(rgb)
         return np.ascontiguousarray(emb.permute(1, 2, 0).numpy(), dtype=np.float32)
 

@@ -7,13 +7,15 @@ SHA-256, the input size and :data:`GRAPH_VERSION`: no second copy of the weights
 and a retrained file gets its own graph. The file is written atomically; a cached graph that
 does not load is exported again.
 
-The exported graph takes the (H, W, 3) uint8 image and returns the (H/s, W/s, dim) float32
-L2-normalised embeddings, so pre- and post-processing run inside onnxruntime too. It differs
-from the torch module only in form:
+The exported graph takes the (H, W, 3) uint8 image and returns the (1, H/s, W/s, dim)
+float32 L2-normalised embeddings, so pre- and post-processing run inside onnxruntime too. It
+differs from the torch module only in form:
 
 - TensorFlow-style ``SAME`` padding of the stride-2 convolutions, which torch does with a
   separate ``F.pad``, becomes the convolutions' own (asymmetric) ``pads``;
-- the channel L2 normalisation is taken over the last axis of the channels-last output.
+- the input normalisation is one multiply-add per channel plane;
+- the output is channels-last straight from the last convolution (onnxruntime writes it so
+  in the step that leaves its blocked layout), L2-normalised over that last axis.
 
 Every export is checked against the torch module on a fixed random image and used only when
 the two agree to :data:`EXPORT_TOLERANCE`; anything that goes wrong (no onnxruntime, an export
@@ -49,7 +51,7 @@ __all__ = [
 
 log = logging.getLogger(__name__)
 
-GRAPH_VERSION = 1
+GRAPH_VERSION = 2
 """Bumped whenever :func:`export_graph` changes what it writes: old cache files are left
 unread."""
 
@@ -91,13 +93,17 @@ def _export_module(net, mean, std):
         def __init__(self):
             super().__init__()
             self.net = net
-            self.register_buffer("mean", torch.tensor(mean, dtype=torch.float32).view(1, 3, 1, 1))
-            self.register_buffer("std", torch.tensor(std, dtype=torch.float32).view(1, 3, 1, 1))
+            m, sd = torch.tensor(mean, dtype=torch.float32), torch.tensor(std, dtype=torch.float32)
+            # (x / 255 - m) / s as one multiply-add per channel plane
+            self.register_buffer("scale", (1.0 / (255.0 * sd)).view(1, 3, 1, 1))
+            self.register_buffer("shift", (-m / sd).view(1, 3, 1, 1))
 
         def forward(self, rgb):
-            x = rgb.permute(2, 0, 1)[None].float() / 255.0
-            x = (x - self.mean) / self.std
-            y = self.net.proj(self.net.features(x))[0].permute(1, 2, 0)
+            x = rgb.permute(2, 0, 1).unsqueeze(0).float() * self.scale + self.shift
+            # channels-last straight from the last convolution (no Gather of the batch axis in
+            # between), so that onnxruntime's layout passes can drop the transposes
+            y = self.net.proj(self.net.features(x)).permute(0, 2, 3, 1)
+            # (1, h, w, dim): the caller drops the batch axis (a view; a Reshape here copies)
             return y / torch.linalg.vector_norm(y, dim=-1, keepdim=True).clamp_min(1e-12)
 
     return _Export().eval()
@@ -233,7 +239,7 @@ def _new_session(data: bytes | str, num_threads: int | None):
 def _agrees(sess, net, mean, std, height: int, width: int) -> float:
     rgb = _check_image(height, width)
     want = _torch_embeddings(net, mean, std, rgb)
-    got = sess.run(None, {"rgb": rgb})[0]
+    got = sess.run(None, {"rgb": rgb})[0][0]
     if got.shape != want.shape:
         return float("inf")
     return float(np.abs(got - want).max())
