@@ -120,3 +120,16 @@ def test_a_failing_export_falls_back_to_torch(fresh_cache, frames, monkeypatch):
 def test_unknown_backend_is_refused():
     with pytest.raises(ConfigError, match="backend"):
         LSegEncoder(EFFNET_WEIGHTS_PATH, backend="tensorrt")
+
+
+def test_bench_times_the_encoder_on_one_thread_against_torch(frames):
+    from tabletop.mapping.bench import _one_thread_encoder_times
+
+    class Rec:
+        rgb = np.stack(frames)
+
+    out = _one_thread_encoder_times(LSegEncoder(EFFNET_WEIGHTS_PATH), Rec(), [0, 1, 2])
+    assert out["encoder_backend"] == "onnxruntime"
+    assert out["encoder_ms_per_frame_1thread"] > 0
+    assert out["encoder_torch_ms_per_frame_1thread"] > 0
+    assert out["encoder_vs_torch_ratio_1thread"] > 0

@@ -71,7 +71,8 @@ def reference_object_heatmap(m: AVLMap, target_points: np.ndarray, decay: float)
 
 def default_encoder_speed(recording, frames: int = 40) -> dict:
     """Frames/s of the embedded default image encoder (dense and global embeddings from one
-    forward pass) on ``frames`` frames of ``recording``, and ms per 1 s audio segment."""
+    forward pass) on ``frames`` frames of ``recording``, its median ms per frame on one thread
+    against the same network on torch (``encoder_*_1thread``), and ms per 1 s audio segment."""
     from tabletop.mapping.encoders.registry import make_encoders
 
     enc = make_encoders("default")
@@ -117,9 +118,38 @@ def default_encoder_speed(recording, frames: int = 40) -> dict:
         "encoder_ms_per_frame": round(t_new / n * 1000, 1),
         "small_encoder_ms_per_frame": round(t_old / n * 1000, 1),
         "encoder_vs_small_ratio": round(t_new / max(t_old, 1e-9), 2),
+        **_one_thread_encoder_times(enc.dense, recording, idx),
         "audio_encoder": enc.names["audio"],
         "audio_encoder_ms_per_1s": round(audio_ms, 2),
         "audio_melcnn_ms_per_1s": round(old_audio_ms, 2),
+    }
+
+
+def _one_thread_encoder_times(image, recording, idx) -> dict:
+    """Median ms per frame of the default image encoder (dense and global embeddings) on one
+    thread, as it runs (onnxruntime where it can), and of the same network on torch, the two
+    alternating frame by frame so that load from other processes affects both alike."""
+    from tabletop.mapping.encoders.lseg import LSegEncoder
+
+    fast = LSegEncoder(image.weights, num_threads=1)
+    ref = LSegEncoder(image.weights, num_threads=1, backend="torch")
+    first = recording.rgb[idx[0]]
+    fast.encode_dense_and_global(first)  # warm-up (and, once per machine, the graph's export)
+    ref.encode_dense_and_global(first)
+    t_fast, t_ref = [], []
+    for i in idx:
+        t0 = time.perf_counter()
+        fast.encode_dense_and_global(recording.rgb[i])
+        t1 = time.perf_counter()
+        ref.encode_dense_and_global(recording.rgb[i])
+        t_fast.append(t1 - t0)
+        t_ref.append(time.perf_counter() - t1)
+    t_fast, t_ref = np.array(t_fast), np.array(t_ref)
+    return {
+        "encoder_backend": "onnxruntime" if fast._session(first) is not None else "torch",
+        "encoder_ms_per_frame_1thread": round(float(np.median(t_fast)) * 1000, 1),
+        "encoder_torch_ms_per_frame_1thread": round(float(np.median(t_ref)) * 1000, 1),
+        "encoder_vs_torch_ratio_1thread": round(float(np.median(t_fast / t_ref)), 2),
     }
 
 
