@@ -6,10 +6,25 @@ posture task, subject to joint position limits, joint velocity limits (a fractio
 and collision-avoidance limits between the hand/forearm geoms and the environment geoms (mink
 needs the velocity limit for the collision limit to bound the motion). The default orientation
 is top-down: the TCP's z axis points along world -z.
+
+:meth:`MinkDiffIK.step` assembles and solves that QP itself (the same cost, bounds and
+collision rows as ``mink.solve_ik`` with daqp, which :meth:`MinkDiffIK.step_reference` still
+calls): the joint position and velocity limits become one box on the step, collision pairs
+whose bounding spheres are farther apart than the detection distance are skipped before
+MuJoCo's narrow distance query, and only the pairs inside it become rows. The QP is strictly
+convex, so its solution is unique; it is found in the cheapest way that proves optimality:
+
+1. the unconstrained minimiser, when it satisfies every bound and row (the usual case: the
+   arm is away from its limits and from obstacles);
+2. else the previous step's active set (a warm start): the equality-constrained solution with
+   those constraints tight, kept when it satisfies the rest and its multipliers are >= 0
+   (the KKT conditions);
+3. else daqp, directly on the box and the rows.
 """
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -40,6 +55,39 @@ GUARDED_SELF = (
     ("panda_link7", "panda_hand", "panda_leftfinger", "panda_rightfinger"),
     ("panda_link0", "panda_link1", "panda_link2"),
 )
+#: Slack [rad] with which the solution of a guessed active set must satisfy the other bounds
+#: and rows (rounding only: the solution of the tight constraints meets them to ~1e-16).
+_KKT_TOL = 1e-12
+#: ``as_transform``'s tolerances (``np.allclose``: atol + 1e-5 |expected|) on the last row
+#: [0, 0, 0, 1] and on R^T R = I, a hair tighter: a pose this near a limit takes the slow check.
+_ZERO_TOL = 0.999 * 1e-9
+_ONE_TOL = 0.999 * (1e-9 + 1e-5)
+_ORTHO_OFF_TOL = 0.999 * 1e-5
+_ORTHO_DIAG_TOL = 0.999 * 2e-5
+
+
+def _checked_pose(T: object) -> np.ndarray:
+    """``as_transform(T)``'s checks, done on Python floats for a (4, 4) float64 array (which is
+    returned as is: the step only reads it); any other input, or one near or past a limit,
+    goes through ``as_transform`` (a copy, or its error)."""
+    if type(T) is np.ndarray and T.shape == (4, 4) and T.dtype == np.float64:
+        (a, b, c, _), (d, e, f, _), (g, h, i, _), last = rows = T.tolist()
+        if (
+            all(math.isfinite(v) for r in rows for v in r)
+            and abs(last[0]) <= _ZERO_TOL
+            and abs(last[1]) <= _ZERO_TOL
+            and abs(last[2]) <= _ZERO_TOL
+            and abs(last[3] - 1.0) <= _ONE_TOL
+            and abs(a * a + d * d + g * g - 1.0) <= _ORTHO_DIAG_TOL
+            and abs(b * b + e * e + h * h - 1.0) <= _ORTHO_DIAG_TOL
+            and abs(c * c + f * f + i * i - 1.0) <= _ORTHO_DIAG_TOL
+            and abs(a * b + d * e + g * h) <= _ORTHO_OFF_TOL
+            and abs(a * c + d * f + g * i) <= _ORTHO_OFF_TOL
+            and abs(b * c + e * f + h * i) <= _ORTHO_OFF_TOL
+            and a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g) >= 0
+        ):
+            return T
+    return as_transform(T, "T_world_target")
 
 
 def top_down_rotation(yaw: float = 0.0) -> np.ndarray:
@@ -119,6 +167,10 @@ class MinkDiffIK:
         self.config = config or DiffIKConfig()
         self.q_posture = as_arm_q(HOME_Q if q_posture is None else q_posture, "q_posture")
         self.timings_s: list[float] = []
+        #: How many steps each way of solving the QP answered (see the module docstring):
+        #: ``unconstrained``, ``warm`` (the previous active set), ``daqp``, ``mink`` (the
+        #: reference path, for a solver other than daqp).
+        self.qp_paths: dict[str, int] = {"unconstrained": 0, "warm": 0, "daqp": 0, "mink": 0}
         self.set_obstacles(obstacles)
 
     def set_obstacles(self, obstacles: Sequence[Obstacle]) -> None:
@@ -167,6 +219,74 @@ class MinkDiffIK:
             )
         )
         self._mink = mink
+        self._prepare_qp()
+
+    def _prepare_qp(self) -> None:
+        """Constant parts of the QP that :meth:`step` assembles (once per environment)."""
+        import mujoco
+
+        m = self.mj_model
+        config_limit, velocity_limit, collision_limit = self.limits
+        nv = m.nv
+        every_dof = np.arange(nv)
+        self._q_lower, self._q_upper = self.panda.q_lower, self.panda.q_upper
+        self._direct = (
+            self.config.solver == "daqp"
+            and m.nq == nv
+            and np.array_equal(config_limit.indices, every_dof)
+            and np.array_equal(velocity_limit.indices, every_dof)
+            and len(config_limit._ball_qposadr) == 0
+        )
+        self._q_lo = np.array(config_limit.lower)
+        self._q_hi = np.array(config_limit.upper)
+        self._limit_gain = float(config_limit.gain)
+        self._gain_hi = self._limit_gain * self._q_hi
+        self._gain_lo = self._limit_gain * self._q_lo
+        self._dq_max = self.config.dt * np.asarray(velocity_limit.limit, dtype=np.float64)
+        self._dq_min = -self._dq_max
+        cost = np.asarray(self.posture_task.cost, dtype=np.float64)
+        self._posture_w2 = cost * cost
+        self._posture_neg_gain = -float(self.posture_task.gain)
+        self._posture_lm = float(self.posture_task.lm_damping)
+        self._H_const = np.diag(self._posture_w2 + self.config.damping)
+        # Collision pairs: mink's own list. A pair farther apart than the detection distance
+        # gives no row, so it is skipped before the narrow query when a bound says so: for a
+        # robot geom against a world geom (static), the distance from the robot geom's
+        # bounding sphere (MuJoCo's rbound) to the world geom's box; for two moving geoms,
+        # between their bounding spheres. Pairs with an unbounded geom (a plane) are always
+        # queried.
+        self._col = collision_limit
+        distmax = collision_limit.collision_detection_distance
+        pairs = np.array(collision_limit.geom_id_pairs, dtype=np.int64).reshape(-1, 2)
+        self._pairs = [(int(a), int(b)) for a, b in pairs]
+        rb = m.geom_rbound
+        g1, g2 = pairs[:, 0], pairs[:, 1]
+        bounded = (rb[g1] > 0) & (rb[g2] > 0)
+        static = m.body_weldid[m.geom_bodyid] == 0  # geoms welded to the world
+        world1, world2 = static[g1] & ~static[g2], static[g2] & ~static[g1]
+        fixed = bounded & (world1 | world2)
+        wg = np.where(world1, g1, g2)[fixed]  # the world geom of each such pair
+        self._wr_idx = np.nonzero(fixed)[0]
+        self._wr_robot = np.where(world1, g2, g1)[fixed]
+        data = self.configuration.data
+        R = data.geom_xmat[wg].reshape(-1, 3, 3)
+        centre = data.geom_xpos[wg] + np.einsum("kij,kj->ki", R, m.geom_aabb[wg, :3])
+        half = np.einsum("kij,kj->ki", np.abs(R), m.geom_aabb[wg, 3:])
+        self._wr_lo, self._wr_hi = centre - half, centre + half
+        self._wr_reach2 = (rb[self._wr_robot] + distmax) ** 2
+        moving = bounded & ~fixed
+        self._bp_idx = np.nonzero(moving)[0]
+        self._bp_g1, self._bp_g2 = g1[moving], g2[moving]
+        self._bp_reach2 = (rb[g1[moving]] + rb[g2[moving]] + distmax) ** 2
+        self._always = np.nonzero(~bounded)[0].tolist()
+        self._geom_body = [int(b) for b in m.geom_bodyid]
+        self._fromto = np.empty(6)
+        self._normal = np.empty(3)
+        self._jac1 = np.empty((3, nv))
+        self._jac2 = np.empty((3, nv))
+        self._target = None  # the frame task's target, written in place by step()
+        self._active: tuple[tuple[int, ...], tuple[int, ...], tuple[int, ...]] | None = None
+        self._mj = mujoco
 
     def set_posture(self, q_posture: object) -> None:
         """Make the posture task pull towards ``q_posture`` (7,) [rad]."""
@@ -177,10 +297,173 @@ class MinkDiffIK:
         """One QP step from ``q`` towards the TCP pose ``T_world_target`` (4, 4)."""
         t0 = time.perf_counter()
         q = as_arm_q(q)
-        T = as_transform(T_world_target, "T_world_target")
+        T = _checked_pose(T_world_target)
+        if not self._direct:
+            return self._step_mink(q, T, t0)
+        mujoco = self._mj
+        conf = self.configuration
+        conf.update(q)
+        target = self.frame_task.transform_target_to_world
+        if target is None or target is not self._target:  # set elsewhere: own it again
+            self.frame_task.set_target(self._mink.SE3.identity())
+            self._target = target = self.frame_task.transform_target_to_world
+        mujoco.mju_mat2Quat(target.wxyz_xyz[:4], T[:3, :3].ravel())  # as SE3.from_matrix
+        target.wxyz_xyz[4:] = T[:3, 3]
+        H, c = self._objective(q)
+        lb, ub, G, h, rows = self._constraints(q)
+        x = self._solve(H, c, lb, ub, G, h, rows)
+        if x is None:
+            dt = time.perf_counter() - t0
+            self.timings_s.append(dt)
+            return DiffIKStep(q=q, solved=False, solve_time_s=dt)
+        v = x / self.config.dt  # mink's velocity, integrated as mj_integratePos does
+        q_next = np.minimum(np.maximum(q + v * self.config.dt, self._q_lower), self._q_upper)
+        dt = time.perf_counter() - t0
+        self.timings_s.append(dt)
+        return DiffIKStep(q=q_next, solved=True, solve_time_s=dt)
+
+    def _objective(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(H, c) of the QP: the frame task's weighted residual plus the posture task's (its
+        Jacobian is the identity, so its part is diagonal), as ``mink.solve_ik`` sums them."""
+        W, e, mu = self.frame_task.compute_qp_residual(self.configuration)
+        # the posture task's weighted error is cost * -gain * (q ⊖ target); q ⊖ target = q - target
+        e_post = (q - self.posture_task.target_q) * self._posture_neg_gain
+        H = W.T @ W
+        H += self._H_const  # diag(posture cost², damping)
+        if self._posture_lm:
+            mu += self._posture_lm * float(e_post * e_post @ self._posture_w2)
+        if mu:
+            H.flat[:: len(q) + 1] += mu
+        c = -(e @ W)
+        c -= self._posture_w2 * e_post
+        return H, c
+
+    def _constraints(self, q: np.ndarray):
+        """(lb, ub, G, h, pairs): the joint position and velocity limits as one box
+        ``lb <= x <= ub`` on the step x, and the collision rows ``G x <= h`` of the pairs
+        within the detection distance (``pairs``: their indices in mink's pair list)."""
+        gq = self._limit_gain * q
+        ub = np.minimum(self._gain_hi - gq, self._dq_max)  # gain (q_hi - q), as mink has it
+        lb = np.maximum(self._gain_lo - gq, self._dq_min)
+        mujoco = self._mj
+        m, data = self.mj_model, self.configuration.data
+        col = self._col
+        xpos = data.geom_xpos
+        p = xpos[self._wr_robot]
+        gap = np.maximum(self._wr_lo - p, p - self._wr_hi)
+        np.maximum(gap, 0.0, out=gap)
+        near = self._wr_idx[np.einsum("ij,ij->i", gap, gap) <= self._wr_reach2].tolist()
+        if len(self._bp_idx):
+            d = xpos[self._bp_g1] - xpos[self._bp_g2]
+            near += self._bp_idx[np.einsum("ij,ij->i", d, d) <= self._bp_reach2].tolist()
+        distmax = col.collision_detection_distance
+        min_dist = col.minimum_distance_from_collisions
+        fromto, normal, jac1, jac2 = self._fromto, self._normal, self._jac1, self._jac2
+        rows, hs, ids = [], [], []
+        for idx in self._always + near if self._always else near:
+            g1, g2 = self._pairs[idx]
+            dist = mujoco.mj_geomDistance(m, data, g1, g2, distmax, fromto)
+            if abs(dist - distmax) < 1e-12:
+                continue
+            normal[:] = fromto[3:] - fromto[:3]
+            mujoco.mju_normalize3(normal)
+            mujoco.mj_jac(m, data, jac2, None, fromto[3:], self._geom_body[g2])
+            mujoco.mj_jac(m, data, jac1, None, fromto[:3], self._geom_body[g1])
+            row = normal @ (jac2 - jac1)
+            bound = col.gain * (dist - min_dist) / self.config.dt if dist > min_dist else 0.0
+            rows.append(-row if dist >= 0 else row)
+            hs.append(bound + col.bound_relaxation)
+            ids.append(idx)
+        if not rows:
+            return lb, ub, None, None, ids
+        return lb, ub, np.array(rows), np.array(hs), ids
+
+    def _solve(self, H, c, lb, ub, G, h, rows) -> np.ndarray | None:
+        """The QP's minimiser (None when it has none): unconstrained, warm, else daqp."""
+        x = np.linalg.solve(H, -c)
+        if (x <= ub).all() and (x >= lb).all() and (G is None or (G @ x <= h).all()):
+            self._active = None
+            self.qp_paths["unconstrained"] += 1
+            return x
+        if self._active is not None:
+            x = self._solve_active(H, c, lb, ub, G, h, rows, *self._active)
+            if x is not None:
+                self.qp_paths["warm"] += 1
+                return x
+        return self._solve_daqp(H, c, lb, ub, G, h, rows)
+
+    def _solve_active(self, H, c, lb, ub, G, h, rows, upper, lower, pairs):
+        """The minimiser with the given joints at their upper / lower bound and the given
+        collision pairs' rows tight, when that is the QP's minimiser (feasible, multipliers
+        >= 0), else None."""
+        at = {p: k for k, p in enumerate(rows)}
+        if any(p not in at for p in pairs):
+            return None
+        nv = len(c)
+        n = len(upper) + len(lower) + len(pairs)
+        A = np.zeros((n, nv))
+        b = np.empty(n)
+        k = 0
+        for j in upper:
+            A[k, j], b[k] = 1.0, ub[j]
+            k += 1
+        for j in lower:
+            A[k, j], b[k] = -1.0, -lb[j]
+            k += 1
+        for p in pairs:
+            A[k], b[k] = G[at[p]], h[at[p]]
+            k += 1
+        K = np.zeros((nv + n, nv + n))
+        K[:nv, :nv] = H
+        K[:nv, nv:] = A.T
+        K[nv:, :nv] = A
+        try:
+            sol = np.linalg.solve(K, np.concatenate([-c, b]))
+        except np.linalg.LinAlgError:
+            return None
+        x, lam = sol[:nv], sol[nv:]
+        if not (lam >= 0).all():
+            return None
+        if not ((x <= ub + _KKT_TOL).all() and (x >= lb - _KKT_TOL).all()):
+            return None
+        if G is not None and not (G @ x <= h + _KKT_TOL).all():
+            return None
+        return x
+
+    def _solve_daqp(self, H, c, lb, ub, G, h, rows) -> np.ndarray | None:
+        import daqp
+
+        nv = len(c)
+        if G is None:
+            A, bu, bl = np.zeros((0, nv)), ub, lb
+        else:
+            A = G
+            bu = np.concatenate([ub, h])
+            bl = np.concatenate([lb, np.full(len(h), -1e30)])
+        x, _, flag, info = daqp.solve(H, c, A, bu, bl, np.zeros(len(bu), dtype=np.intc))
+        self.qp_paths["daqp"] += 1
+        if flag <= 0:
+            self._active = None
+            return None
+        lam = info["lam"]
+        self._active = (
+            tuple(int(j) for j in np.nonzero(lam[:nv] > 0)[0]),
+            tuple(int(j) for j in np.nonzero(lam[:nv] < 0)[0]),
+            tuple(rows[k] for k in np.nonzero(lam[nv:] != 0)[0]),
+        )
+        return np.asarray(x, dtype=np.float64)
+
+    def step_reference(self, q: object, T_world_target: object) -> DiffIKStep:
+        """The same step through ``mink.solve_ik`` and qpsolvers (the QP as mink builds it,
+        every limit as rows): what :meth:`step` must agree with."""
+        t0 = time.perf_counter()
+        return self._step_mink(as_arm_q(q), as_transform(T_world_target, "T_world_target"), t0)
+
+    def _step_mink(self, q: np.ndarray, T: np.ndarray, t0: float) -> DiffIKStep:
         mink = self._mink
         self.configuration.update(q)
         self.frame_task.set_target(mink.SE3.from_matrix(T))
+        self.qp_paths["mink"] += 1
         try:
             v = mink.solve_ik(
                 self.configuration,

@@ -39,7 +39,7 @@ def as_arm_q(q: object, name: str = "q") -> np.ndarray:
     arr = np.array(q, dtype=np.float64)
     if arr.shape != (7,):
         raise ConfigError(f"{name} must have shape (7,) (one angle per arm joint), got {arr.shape}")
-    if not np.all(np.isfinite(arr)):
+    if not np.isfinite(arr).all():
         raise ConfigError(f"{name} contains non-finite values: {arr.tolist()}")
     return arr
 
