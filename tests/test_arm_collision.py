@@ -4,6 +4,7 @@ import numpy as np
 import pybullet as pb
 import pytest
 
+from tabletop.arm.bench import cluttered_scene
 from tabletop.arm.collision import CollisionChecker
 from tabletop.arm.ik import solve_ik
 from tabletop.arm.model import HOME_Q, PandaModel
@@ -110,3 +111,81 @@ def test_invalid_arguments(model):
         CollisionChecker(model, max_distance=0.0)
     with pytest.raises(ConfigError, match="unsupported obstacle type str"):
         CollisionChecker(model, ["table"])
+
+
+def _counting(checker):
+    """Count the checker's narrow (FCL) distance calls."""
+    calls = [0]
+    narrow = checker._distance
+
+    def counted(a, b):
+        calls[0] += 1
+        return narrow(a, b)
+
+    checker._distance = counted
+    return calls
+
+
+def test_pruned_query_matches_every_pair_on_random_configurations(model):
+    # Spatial bounds: random configurations, far apart, many of them inside the table or
+    # an object (penetrations deeper than a link's bounding sphere must not be pruned).
+    ch = CollisionChecker(model, cluttered_scene(np.random.default_rng(0), 6))
+    calls = _counting(ch)
+    rng = np.random.default_rng(1)
+    pruned = every = negative = 0
+    for _ in range(150):
+        q = model.random_q(rng)
+        calls[0] = 0
+        fast = ch.clearance(q)
+        pruned += calls[0]
+        calls[0] = 0
+        slow = ch.clearance_all_pairs(q)
+        every += calls[0]
+        assert fast == slow
+        negative += slow.distance < 0
+    assert negative > 10
+    assert pruned < every / 4
+
+
+def test_pruned_query_matches_every_pair_along_small_motions(model):
+    # Temporal bounds: walks of small steps (as the controller makes), near the table and the
+    # objects, through contact and out again.
+    obstacles = cluttered_scene(np.random.default_rng(0), 6)
+    ch = CollisionChecker(model, obstacles)
+    calls = _counting(ch)
+    temporal = [0]
+    bounds = ch._temporal_bounds
+
+    def counted_bounds(q):
+        b = bounds(q)
+        temporal[0] += b is not None
+        return b
+
+    ch._temporal_bounds = counted_bounds
+    rng = np.random.default_rng(2)
+    pruned = every = near = 0
+    for start in ([0.45, 0.0, 0.05], [0.6, -0.2, 0.12], [0.35, 0.3, 0.02]):
+        q = solve_ik(model, make_transform(np.diag([1.0, -1.0, -1.0]), start), HOME_Q).q
+        for _ in range(200):
+            q = model.clip(q + rng.normal(0.0, 0.003, 7))
+            calls[0] = 0
+            fast = ch.clearance(q)
+            pruned += calls[0]
+            calls[0] = 0
+            slow = ch.clearance_all_pairs(q)
+            every += calls[0]
+            assert fast == slow
+            near += slow.environment < ch.max_distance
+    assert temporal[0] > 500  # of 600: the bounds carried over from the previous query
+    assert near > 100
+    assert pruned < every / 4
+
+
+def test_set_obstacles_forgets_the_previous_query(model):
+    ch = CollisionChecker(model, [table_box()])
+    q = HOME_Q.copy()
+    ch.clearance(q)
+    T = model.fk(q)
+    ch.set_obstacles([table_box(), Box(T[:3, 3] - [0, 0, 0.05], [0.05, 0.05, 0.02], name="new")])
+    assert ch.clearance(q) == ch.clearance_all_pairs(q)
+    assert ch.clearance(q).closest_pair[1] == "new"

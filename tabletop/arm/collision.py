@@ -11,8 +11,18 @@ clearance. The checker answers three questions for an arm configuration ``q``:
 - whether the motion from one configuration to the next keeps a clearance margin
   (:meth:`CollisionChecker.check_motion`), using a bound on how far any robot point can move.
 
-Distances are capped at ``max_distance`` [m] (pairs farther apart are skipped by a bounding
-sphere/box test), and negative values are penetration depths.
+Distances are capped at ``max_distance`` [m], and negative values are penetration depths.
+
+Only the smallest distance of each kind is needed, so a query is a branch and bound: every
+pair gets a cheap lower bound on its distance (the broad phase), the pairs are taken in the
+order of their bounds, and the exact (narrow, FCL) distance is computed only while a pair's
+bound is below both the cap and the smallest distance found so far. The bounds are either
+spatial (each link's bounding sphere against an obstacle's box or another link's sphere) or,
+when the arm has moved little since the previous query, temporal: the previous query's
+distance (or bound) of the pair less how far the pair can have moved towards each other
+(:meth:`CollisionChecker.max_displacement`'s lever arms, over the joints between the two links
+for a pair of links). Both kinds are true lower bounds, so the answer is the same as from
+computing every pair.
 """
 
 from __future__ import annotations
@@ -199,6 +209,10 @@ class CollisionChecker:
         self._self_j = np.array([j for _, j in self.self_pairs], dtype=np.int64)
         self._lever = self._lever_arms()
         self._req = fcl.DistanceRequest(enable_nearest_points=False, enable_signed_distance=True)
+        self._placed = [not np.allclose(lk.placement.homogeneous, np.eye(4)) for lk in self._links]
+        #: The temporal bounds are used while no robot point can have moved more than this [m]
+        #: since the previous query (beyond it the spatial bounds are the tighter ones).
+        self.coherence_limit = 0.25 * self.max_distance
         self.set_obstacles(obstacles)
         self.timings_s: list[float] = []  # wall time of each clearance() call [s]
 
@@ -255,6 +269,22 @@ class CollisionChecker:
             hi_all.append(hi)
         self._obs_lo = np.array(lo_all).reshape(-1, 3)
         self._obs_hi = np.array(hi_all).reshape(-1, 3)
+        n_obs = len(self._obs_objs)
+        # The pairs' bounds are one array: environment pair p = link i, obstacle k at
+        # p = i * n_obs + k, then the self pairs. Row p of _closing picks the joints whose
+        # motion can bring pair p closer: those up to the link's joint for an environment
+        # pair; those between the two links' joints for a self pair (their distance depends
+        # on the relative pose only).
+        n_self = len(self._self_i) if self.self_collision else 0
+        self._n_env = len(self._links) * n_obs
+        closing = np.zeros((self._n_env + n_self, 7))
+        cols = np.arange(1, 8)
+        closing[: self._n_env] = cols[None] <= np.repeat(self._joint_of, n_obs)[:, None]
+        ji, jj = self._joint_of[self._self_i[:n_self]], self._joint_of[self._self_j[:n_self]]
+        closing[self._n_env :] = (cols[None] > ji[:, None]) & (cols[None] <= jj[:, None])
+        self._closing = closing
+        self._prev_q: np.ndarray | None = None  # the previous query (none yet: spatial bounds)
+        self._prev_bounds = np.empty(0)
 
     @property
     def lever_arms(self) -> np.ndarray:
@@ -267,18 +297,63 @@ class CollisionChecker:
         return v.copy(), t.copy()
 
     # ------------------------------------------------------------------ queries
-    def _poses(self, q: np.ndarray) -> tuple[list[pin.SE3], np.ndarray]:
-        pin.forwardKinematics(self.model.model, self._data, q)
-        oMi = self._data.oMi
-        R = np.array([oMi[j].rotation for j in range(8)])
-        t = np.array([oMi[j].translation for j in range(8)])
-        centers = np.einsum("lij,lj->li", R[self._joint_of], self._sphere_c) + t[self._joint_of]
-        return [oMi[j] for j in range(8)], centers
+    def _spatial_bounds(self, oMi) -> np.ndarray:
+        """Lower bounds [m] of the pairs' distances (environment pairs, then self pairs):
+        bounding spheres against obstacle boxes, and against each other."""
+        H = np.array([oMi[j].homogeneous for j in range(8)])[self._joint_of]
+        centers = np.einsum("lij,lj->li", H[:, :3, :3], self._sphere_c) + H[:, :3, 3]
+        out = np.empty(len(self._closing))
+        if self._n_env:
+            c = centers[:, None]
+            gap = np.maximum(self._obs_lo[None] - c, c - self._obs_hi[None])
+            np.maximum(gap, 0.0, out=gap)
+            env = np.sqrt(np.einsum("lkj,lkj->lk", gap, gap)) - self._sphere_r[:, None]
+            env[~self._moving] = np.inf  # link0 is bolted to the table
+            out[: self._n_env] = env.ravel()
+        if len(out) > self._n_env:
+            d = centers[self._self_i] - centers[self._self_j]
+            slf = out[self._n_env :]
+            np.sqrt(np.einsum("pj,pj->p", d, d), out=slf)
+            slf -= self._sphere_r[self._self_i]
+            slf -= self._sphere_r[self._self_j]
+        return out
 
-    def _set_tf(self, i: int, oMi: list[pin.SE3], done: set[int]) -> fcl.CollisionObject:
+    def _temporal_bounds(self, q: np.ndarray) -> np.ndarray | None:
+        """The previous query's distances and bounds less how far each pair can have closed
+        in since (None when a robot point can have moved more than ``coherence_limit``, or
+        when there is no previous query)."""
+        if self._prev_q is None:
+            return None
+        w = np.abs(q - self._prev_q)
+        w *= self._lever  # joint k's part of how far a point beyond it can move
+        if w.sum() > self.coherence_limit:
+            return None
+        return self._prev_bounds - self._closing @ w
+
+    def _nearest(self, bound: np.ndarray, distance) -> tuple[float, int | None]:
+        """Branch and bound: (smallest distance capped at max_distance, its pair or None).
+        ``bound`` [m] holds a lower bound per pair; the pairs are computed in increasing order
+        of their bounds while a bound is below the smallest distance so far, and each pair
+        computed gets its exact distance (``distance(p)``) written into ``bound``.
+
+        A bound that is not positive says nothing: two bodies that may overlap can overlap by
+        more than either's bounding sphere, so such a pair is always computed."""
+        best, arg = self.max_distance, None
+        values = bound.tolist()
+        for p in bound.argsort().tolist():
+            b = values[p]
+            if b >= best and b > 0.0:
+                break
+            d = distance(p)
+            bound[p] = d
+            if d < best:
+                best, arg = d, p
+        return best, arg
+
+    def _set_tf(self, i: int, oMi, done: set[int]) -> fcl.CollisionObject:
         lk = self._links[i]
         if i not in done:
-            M = oMi[lk.joint] * lk.placement
+            M = oMi[lk.joint] * lk.placement if self._placed[i] else oMi[lk.joint]
             lk.obj.setTransform(fcl.Transform(M.rotation, M.translation))
             done.add(i)
         return lk.obj
@@ -290,34 +365,61 @@ class CollisionChecker:
         """Robot-environment and robot-robot clearance [m] at arm configuration ``q`` [rad]."""
         t0 = time.perf_counter()
         q = as_arm_q(q)
-        oMi, centers = self._poses(q)
-        cap = self.max_distance
+        pin.forwardKinematics(self.model.model, self._data, q)
+        oMi = self._data.oMi
+        bounds = self._temporal_bounds(q)
+        if bounds is None:
+            bounds = self._spatial_bounds(oMi)
         done: set[int] = set()
+        n_obs, n_env = len(self._obs_objs), self._n_env
+        links, obs = self._links, self._obs_objs
+
+        def env_distance(p: int) -> float:
+            i, k = divmod(p, n_obs)
+            return self._distance(self._set_tf(i, oMi, done), obs[k])
+
+        def self_distance(p: int) -> float:
+            i, j = int(self._self_i[p]), int(self._self_j[p])
+            return self._distance(self._set_tf(i, oMi, done), self._set_tf(j, oMi, done))
+
+        env, slf = self.max_distance, self.max_distance
+        env_pair = slf_pair = None
+        if n_env:
+            env, p = self._nearest(bounds[:n_env], env_distance)
+            if p is not None:
+                env_pair = (links[p // n_obs].name, self._obs_names[p % n_obs])
+        if len(bounds) > n_env:
+            slf, p = self._nearest(bounds[n_env:], self_distance)
+            if p is not None:
+                slf_pair = (links[self._self_i[p]].name, links[self._self_j[p]].name)
+        self._prev_q, self._prev_bounds = q, bounds
+        self.timings_s.append(time.perf_counter() - t0)
+        if env <= slf:
+            return Clearance(env, env, slf, env_pair)
+        return Clearance(slf, env, slf, slf_pair)
+
+    def clearance_all_pairs(self, q: object) -> Clearance:
+        """:meth:`clearance` with every pair's distance computed (no bounds, no pruning, no
+        memory of earlier queries): the reference the faster query must agree with."""
+        q = as_arm_q(q)
+        data = self.model.model.createData()
+        pin.forwardKinematics(self.model.model, data, q)
+        oMi, done = data.oMi, set()
+        cap = self.max_distance
         env, env_pair = cap, None
-        if len(self._obs_objs):
-            gap = np.maximum(self._obs_lo[None] - centers[:, None], 0.0) + np.maximum(
-                centers[:, None] - self._obs_hi[None], 0.0
-            )
-            lower = np.linalg.norm(gap, axis=2) - self._sphere_r[:, None]
-            lower[~self._moving] = np.inf
-            for i, k in zip(*np.nonzero(lower < cap), strict=True):
-                d = self._distance(self._set_tf(int(i), oMi, done), self._obs_objs[k])
+        for i, lk in enumerate(self._links):
+            if not self._moving[i]:
+                continue
+            for k, ob in enumerate(self._obs_objs):
+                d = self._distance(self._set_tf(i, oMi, done), ob)
                 if d < env:
-                    env, env_pair = d, (self._links[i].name, self._obs_names[k])
+                    env, env_pair = d, (lk.name, self._obs_names[k])
         slf, slf_pair = cap, None
-        if self.self_collision and len(self._self_i):
-            ci, cj = centers[self._self_i], centers[self._self_j]
-            lower = (
-                np.linalg.norm(ci - cj, axis=1)
-                - self._sphere_r[self._self_i]
-                - self._sphere_r[self._self_j]
-            )
-            for p in np.nonzero(lower < cap)[0]:
-                i, j = int(self._self_i[p]), int(self._self_j[p])
+        if self.self_collision:
+            for i, j in self.self_pairs:
                 d = self._distance(self._set_tf(i, oMi, done), self._set_tf(j, oMi, done))
                 if d < slf:
                     slf, slf_pair = d, (self._links[i].name, self._links[j].name)
-        self.timings_s.append(time.perf_counter() - t0)
         if env <= slf:
             return Clearance(env, env, slf, env_pair)
         return Clearance(slf, env, slf, slf_pair)
