@@ -249,6 +249,15 @@ class CollisionChecker:
                     dist += offsets[j]
                 best = max(best, dist + reach[j])
             lever[k - 1] = best
+        # The same bound per link: from joint k's origin to link l's hull points, k <= joint.
+        self._link_lever = np.zeros((len(self._links), 7))
+        for i, lk in enumerate(self._links):
+            verts, _ = self._hulls[lk.name]
+            pts = verts @ lk.placement.rotation.T + lk.placement.translation
+            dist = float(np.linalg.norm(pts, axis=1).max())
+            for k in range(lk.joint, 0, -1):
+                self._link_lever[i, k - 1] = dist
+                dist += offsets[k]
         return lever
 
     def set_obstacles(self, obstacles: Sequence[Obstacle]) -> None:
@@ -271,17 +280,18 @@ class CollisionChecker:
         self._obs_hi = np.array(hi_all).reshape(-1, 3)
         n_obs = len(self._obs_objs)
         # The pairs' bounds are one array: environment pair p = link i, obstacle k at
-        # p = i * n_obs + k, then the self pairs. Row p of _closing picks the joints whose
-        # motion can bring pair p closer: those up to the link's joint for an environment
-        # pair; those between the two links' joints for a self pair (their distance depends
-        # on the relative pose only).
+        # p = i * n_obs + k, then the self pairs. Row p of _closing bounds how fast [m/rad]
+        # each joint's motion can bring pair p closer: the joints up to the link's, each with
+        # its lever arm over that link, for an environment pair; for a self pair, the joints
+        # between the two links' (their distance depends on the relative pose only), with
+        # their lever arms over the farther link.
         n_self = len(self._self_i) if self.self_collision else 0
         self._n_env = len(self._links) * n_obs
         closing = np.zeros((self._n_env + n_self, 7))
-        cols = np.arange(1, 8)
-        closing[: self._n_env] = cols[None] <= np.repeat(self._joint_of, n_obs)[:, None]
-        ji, jj = self._joint_of[self._self_i[:n_self]], self._joint_of[self._self_j[:n_self]]
-        closing[self._n_env :] = (cols[None] > ji[:, None]) & (cols[None] <= jj[:, None])
+        closing[: self._n_env] = np.repeat(self._link_lever, n_obs, axis=0)
+        si, sj = self._self_i[:n_self], self._self_j[:n_self]
+        between = np.arange(1, 8)[None] > self._joint_of[si][:, None]
+        closing[self._n_env :] = self._link_lever[sj] * between
         self._closing = closing
         self._prev_q: np.ndarray | None = None  # the previous query (none yet: spatial bounds)
         self._prev_bounds = np.empty(0)
@@ -324,11 +334,10 @@ class CollisionChecker:
         when there is no previous query)."""
         if self._prev_q is None:
             return None
-        w = np.abs(q - self._prev_q)
-        w *= self._lever  # joint k's part of how far a point beyond it can move
-        if w.sum() > self.coherence_limit:
+        dq = np.abs(q - self._prev_q)
+        if dq @ self._lever > self.coherence_limit:  # max_displacement
             return None
-        return self._prev_bounds - self._closing @ w
+        return self._prev_bounds - self._closing @ dq
 
     def _nearest(self, bound: np.ndarray, distance) -> tuple[float, int | None]:
         """Branch and bound: (smallest distance capped at max_distance, its pair or None).
