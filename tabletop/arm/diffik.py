@@ -287,6 +287,9 @@ class MinkDiffIK:
         self._target = None  # the frame task's target, written in place by step()
         self._active: tuple[tuple[int, ...], tuple[int, ...], tuple[int, ...]] | None = None
         self._mj = mujoco
+        from scipy.linalg import lapack
+
+        self._posv = lapack.dposv
 
     def set_posture(self, q_posture: object) -> None:
         """Make the posture task pull towards ``q_posture`` (7,) [rad]."""
@@ -380,7 +383,9 @@ class MinkDiffIK:
 
     def _solve(self, H, c, lb, ub, G, h, rows) -> np.ndarray | None:
         """The QP's minimiser (None when it has none): unconstrained, warm, else daqp."""
-        x = np.linalg.solve(H, -c)
+        _, x, info = self._posv(H, -c)  # Cholesky: H is positive definite (damping)
+        if info != 0:
+            x = np.linalg.solve(H, -c)
         if (x <= ub).all() and (x >= lb).all() and (G is None or (G @ x <= h).all()):
             self._active = None
             self.qp_paths["unconstrained"] += 1
