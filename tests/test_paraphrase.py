@@ -427,3 +427,16 @@ def test_paraphrase_seeds_are_used_nowhere_else():
     assert not ours & (shipped | scans | set(CALIBRATION_SEEDS) | vision)
     assert min(ours) < EVAL_SEED_BASE
     assert not ours & set(range(10, 10 + 100))  # eval-map's generated scenes: seed + 10
+
+
+def test_a_filled_template_never_doubles_a_determiner():
+    from tabletop.eval.paraphrase import _fill, _one_determiner
+
+    # the generator gives each thing its "the" unless the template or the name has one
+    assert _fill("go between {a} and the {b}", a="mug", b="duck") == (
+        "go between the mug and the duck"
+    )
+    assert _fill("left of {a}", a="my cup") == "left of my cup"
+    # a pattern's "the" meeting a colour word with its own determiner keeps one
+    assert _one_determiner("the the colour of grass one") == "the colour of grass one"
+    assert _one_determiner("the mug that is the blue one") == "the mug that is the blue one"

@@ -465,8 +465,9 @@ class ParaphraseWording(Wording):
             return _strip_colour(name)
         c = self.colour_word(colour)
         if "{c}" in name and self.rng.random() < self.P_FORM:
-            return self._choice(self.bank.colour_forms).format(n=_strip_colour(name), c=c)
-        return name.replace("{c}", c)
+            form = self._choice(self.bank.colour_forms)
+            return _one_determiner(form.format(n=_strip_colour(name), c=c))
+        return _one_determiner(name.replace("{c}", c))
 
     def _article(self, phrase: str) -> str:
         # the draw is made either way, so that a phrase with its own determiner ("a kiwi
@@ -513,9 +514,9 @@ class ParaphraseWording(Wording):
         ins = self.bank.instructions
         if form == "between":
             a, b = self.object(args[0]), self.object(args[1])
-            return self._choice(ins["between"]).format(a=_the(a), b=_the(b))
+            return _fill(self._choice(ins["between"]), a=a, b=b)
         if form in _SIDES:
-            return self._choice(ins[form]).format(a=_the(self.object(args[0])))
+            return _fill(self._choice(ins[form]), a=self.object(args[0]))
         verb = self._choice(ins["verbs"])
         if form == "object":
             return f"{verb} {_the(self.object(args[0]))}"
@@ -534,6 +535,26 @@ _DETERMINERS = frozenset("the a an my your our his her their this that these tho
 
 def _the(phrase: str) -> str:
     return phrase if phrase.split(" ", 1)[0].lower() in _DETERMINERS else f"the {phrase}"
+
+
+_DOUBLED = re.compile(rf"\b(?:the|a|an)\s+(?=(?:{'|'.join(sorted(_DETERMINERS))})\s)", re.I)
+
+
+def _one_determiner(text: str) -> str:
+    """``text`` without a determiner that stands before another ("the the colour of ..."
+    where a pattern's "the" meets a colour word with its own)."""
+    return _DOUBLED.sub("", text)
+
+
+def _fill(template: str, **things: str) -> str:
+    """``template`` with each thing's placeholder filled by the thing's name, with "the" before
+    it unless the template or the name has a determiner there ("next to the {a}")."""
+    out = {}
+    for key, name in things.items():
+        ahead = re.search(rf"(\w+)\s+\{{{key}\}}", template)
+        own = ahead is not None and ahead.group(1).lower() in _DETERMINERS
+        out[key] = name if own else _the(name)
+    return template.format(**out)
 
 
 # ---------------------------------------------------------------------------- absent goals
