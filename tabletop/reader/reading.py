@@ -36,6 +36,7 @@ from tabletop.reader.plan import Between, Goal, Part, Reading, Step
 from tabletop.reader.rules import (
     MANNER,
     QUALIFIERS,
+    ends_in_determiner,
     is_negation,
     negations,
     ordinal,
@@ -153,7 +154,7 @@ class RulesReader:
         try:
             steps = parse_instruction(read, robot)
         except ParseError as first:
-            if not self.wrappers or first.out_of_range:
+            if not self.wrappers or first.final:
                 raise
             err = first
         else:
@@ -165,6 +166,8 @@ class RulesReader:
         for before, kept in _leads(body):
             if any(w.strip(",.;:'\"!?").lower() in keep for w in before.split()):
                 break  # never drop a word that names something, negates or qualifies
+            if ends_in_determiner(before):
+                continue  # never cut a noun phrase: "put the | duck on the tray"
             try:
                 steps = parse_instruction(kept.strip(" ,;:"), robot)
             except ParseError:
@@ -360,7 +363,7 @@ class LearnedReader:
             try:
                 return self._rules.understand(text, robot)
             except ParseError as e:
-                if e.out_of_range:  # read, and refused by name: no other reading
+                if e.final:  # read, and refused by name: no other reading
                     raise
         read, fixes = self._rules.speller.correct(text)
         refuse_not_english(text, read)

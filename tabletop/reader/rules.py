@@ -56,6 +56,7 @@ __all__ = [
     "NEGATIONS",
     "QUALIFIERS",
     "REQUEST_EXAMPLES",
+    "ends_in_determiner",
     "is_negation",
     "negations",
     "ordinal",
@@ -431,14 +432,21 @@ def refuse_nested_relation(text: str) -> None:
                 )
 
 
-_VERB = re.compile(
-    r"^(?:please\s+)?(?:now\s+)?(?:let's\s+|(?:it's\s+)?time\s+to\s+)?(?:"
-    r"(?:go|move|head|navigate|travel|get|come|drive|bring|take|send|guide|steer|position|"
+#: Verbs of motion that take the goal after a particle or a relation ("head to", "move
+#: behind"), not as their object: followed at once by a thing ("take the mug", "make me a
+#: coffee", "put the duck on the tray"), they ask to do something with it.
+_MOTION_VERBS = (
+    r"go|move|head|navigate|travel|get|come|drive|bring|take|send|guide|steer|position|"
     r"put|place|set|rest|park|lead|direct|pop|swing|hop|scoot|slide|glide|zip|shift|proceed|"
     r"advance|nip|dash|hurry|wander|make|trundle|nudge|edge|inch|creep|sneak|tuck|slip|duck|"
-    r"hide|squeeze|slot|wedge|nestle|stick|pull\s+up|drop\s+back|cent(?:re|er)|point|aim)"
+    r"hide|squeeze|slot|wedge|nestle|stick|pull\s+up|drop\s+back|cent(?:re|er)|point|aim"
+)
+_VERB = re.compile(
+    r"^(?:please\s+)?(?:now\s+)?(?:let's\s+|(?:it's\s+)?time\s+to\s+)?(?:"
+    r"lead\s+the\s+way\s+(?:to|towards?)|"  # before "lead" alone takes "the way" as a thing
+    rf"(?:{_MOTION_VERBS})"
     r"(?:\s+(?:(?:the|your)\s+)?(?:arm|gripper|hand|fingers?|claw|tip|pointer|robot|"
-    r"end[\s-]effector|tcp)|\s+yourself"
+    r"end[\s-]effector|tcp|camera|wrist|grabber|manipulator)|\s+yourself"
     r"|\s+your\s+way|\s+it|\s+me|\s+us)?"
     r"(?:\s+(?:on\s+)?(?:back|over|up|out|down|across|a?round|along|straight|right|directly)"
     r"\s+(?:to|towards?)|\s+as\s+close\s+as\s+(?:you\s+can|possible)\s+to|"
@@ -449,6 +457,26 @@ _VERB = re.compile(
     r"(?:seek|search)\s+out|track\s+down|show\s+me|(?:point|aim)\s+(?:at|to|for)"
     r")(?:\s+|$)"
 )
+#: A motion verb that ends a step's verb phrase with no particle: what follows is its object,
+#: not a place (see :data:`_MOTION_VERBS`); after the one it is done for ("bring me", "make
+#: us") any noun phrase is.
+_BARE_MOTION_VERB = re.compile(rf"(?:^|\s)(?:{_MOTION_VERBS})$")
+_MOTION_VERB_FOR = re.compile(rf"(?:^|\s)(?:{_MOTION_VERBS})\s+(?:me|us)$")
+#: A noun phrase's first word: a determiner ("a", "one" and "some" also start a measure:
+#: "move a bit north", "one step left").
+_DETERMINER = re.compile(
+    r"^(?:the|a|an|some|my|our|your|his|her|their|this|that|these|those|one|two)\s"
+)
+_DEFINITE = re.compile(r"^(?:the|my|our|your|his|her|their|this|that|these|those)\s")
+
+
+def ends_in_determiner(text: str) -> bool:
+    """Whether ``text``'s last word is a determiner ("put the"): a cut after it would split a
+    noun phrase."""
+    words = str(text).lower().split()
+    return bool(words) and bool(_DETERMINER.match(words[-1] + " "))
+
+
 #: What a request may be wrapped in: "could you ...", "I want you to ...", "..., please".
 _POLITE_HEAD = re.compile(
     r"^(?:(?:ok(?:ay)?|alright|now|hey|robot)\s*,?\s+)*"
@@ -781,8 +809,9 @@ class _Parser:
         self.paths: list[str] = []
         self.areas: list[tuple[str, str]] = []  # (as written, the map's area name)
 
-    def fail(self, fragment: str, why: str):
-        raise ParseError(self.instruction, self._restore(fragment), why)
+    def fail(self, fragment: str, why: str, final: bool = False):
+        """Refuse ``fragment``; ``final``: read, and no other reading is to be tried."""
+        raise ParseError(self.instruction, self._restore(fragment), why, final=final)
 
     def out_of_range(self, fragment: str, why: str):
         """Read, but a number beyond what the robot does: final (no other reading is tried)."""
@@ -869,6 +898,16 @@ class _Parser:
         rest = body[m.end() :].strip()
         if not rest:
             self.fail(clause, "the step names no goal")
+        said = m.group(0).strip()
+        if (_BARE_MOTION_VERB.search(said) and _DEFINITE.match(rest)) or (
+            _MOTION_VERB_FOR.search(said) and _DETERMINER.match(rest)
+        ):
+            self.fail(
+                clause,
+                f"'{said} {rest}' asks to do something with {rest!r}, not to go to a place; "
+                "the arm goes to places (e.g. 'go to the mug', 'move behind the duck')",
+                final=True,  # no other reader reads the thing done to as the goal
+            )
         return Step(self.action(rest, clause), times, self._restore(clause))
 
     def base_motion(self, body: str, clause: str):
