@@ -133,3 +133,31 @@ def test_bench_times_the_encoder_on_one_thread_against_torch(frames):
     assert out["encoder_ms_per_frame_1thread"] > 0
     assert out["encoder_torch_ms_per_frame_1thread"] > 0
     assert out["encoder_vs_torch_ratio_1thread"] > 0
+
+
+def test_int8_graph_is_close_to_the_float_one_and_cached(fresh_cache, frames):
+    enc = LSegEncoder(EFFNET_WEIGHTS_PATH, backend="int8")
+    ref = LSegEncoder(EFFNET_WEIGHTS_PATH, backend="torch")
+    for rgb in frames:
+        d, g = enc.encode_dense_and_global(rgb)
+        d0, g0 = ref.encode_dense_and_global(rgb)
+        assert d.shape == d0.shape and d.dtype == np.float32
+        assert np.allclose(np.linalg.norm(d, axis=-1), 1, atol=1e-4)
+        cos = (d * d0).sum(-1)
+        assert cos.mean() > 0.98 and cos.min() > 0.8
+        assert float(g @ g0) > 0.99
+        assert np.abs(d - d0).max() > 1e-4  # quantised: not the float embeddings
+    assert lseg_onnx.graph_path(EFFNET_WEIGHTS_PATH, 240, 320, int8=True).is_file()
+    assert lseg_onnx.graph_path(EFFNET_WEIGHTS_PATH, 240, 320).is_file()
+
+
+def test_int8_falls_back_to_the_float_graph(fresh_cache, frames, monkeypatch):
+    def broken(*a, **k):
+        raise RuntimeError("no quantiser here")
+
+    monkeypatch.setattr(lseg_onnx, "quantize_graph", broken)
+    enc = LSegEncoder(EFFNET_WEIGHTS_PATH, backend="int8")
+    ref = LSegEncoder(EFFNET_WEIGHTS_PATH, backend="torch")
+    rgb = frames[0]
+    assert np.abs(enc.encode_dense(rgb) - ref.encode_dense(rgb)).max() < 1e-4
+    assert not lseg_onnx.graph_path(EFFNET_WEIGHTS_PATH, 240, 320, int8=True).exists()

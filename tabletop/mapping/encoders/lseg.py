@@ -58,9 +58,10 @@ _STD = (0.229, 0.224, 0.225)
 ARCHS = ("lseg-small", "effnet-lite0-fpn")
 """Architectures a vision weights file may record (``ckpt["arch"]``)."""
 
-BACKENDS = ("auto", "torch")
+BACKENDS = ("auto", "torch", "int8")
 """How :class:`LSegEncoder` runs its network: ``"auto"`` (onnxruntime when it can, else
-torch) or ``"torch"``."""
+torch), ``"torch"``, or ``"int8"`` (onnxruntime on the statically quantised graph: faster,
+embeddings not equal to the others; falls back to ``"auto"``)."""
 
 
 def build_vision_net(arch: str, arch_config: dict):
@@ -244,7 +245,8 @@ class LSegEncoder:
             raise ConfigError(f"unknown backend {backend!r}; valid: {list(BACKENDS)}")
         self.backend = backend
         """``"auto"``: onnxruntime where it runs the network (see
-        :mod:`~tabletop.mapping.encoders.lseg_onnx`), else torch; ``"torch"``: torch only."""
+        :mod:`~tabletop.mapping.encoders.lseg_onnx`), else torch; ``"torch"``: torch only;
+        ``"int8"``: the quantised graph on onnxruntime where it can be built, else ``"auto"``."""
         self.num_threads = num_threads
         """Threads of a forward pass: onnxruntime's intra-op threads, or torch's (see
         :func:`~.base.torch_threads`)."""
@@ -277,7 +279,12 @@ class LSegEncoder:
         from tabletop.mapping.encoders.lseg_onnx import session
 
         H, W = rgb.shape[:2]
-        return session(self._net, self.weights, self._mean, self._std, H, W, self.num_threads)
+        args = (self._net, self.weights, self._mean, self._std, H, W, self.num_threads)
+        if self.backend == "int8":
+            sess = session(*args, int8=True)
+            if sess is not None:
+                return sess
+        return session(*args)
 
     def _dense(self, rgb: np.ndarray) -> np.ndarray:
         """(H/s, W/s, dim) float32 C-contiguous L2-normalised cell embeddings of a checked
