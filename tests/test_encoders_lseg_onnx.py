@@ -133,6 +133,8 @@ def test_bench_times_the_encoder_on_one_thread_against_torch(frames):
     assert out["encoder_ms_per_frame_1thread"] > 0
     assert out["encoder_torch_ms_per_frame_1thread"] > 0
     assert out["encoder_vs_torch_ratio_1thread"] > 0
+    assert out["encoder_int8_ms_per_frame_1thread"] > 0
+    assert out["encoder_int8_vs_torch_ratio_1thread"] > 0
 
 
 def test_int8_graph_is_close_to_the_float_one_and_cached(fresh_cache, frames):

@@ -72,7 +72,8 @@ def reference_object_heatmap(m: AVLMap, target_points: np.ndarray, decay: float)
 def default_encoder_speed(recording, frames: int = 40) -> dict:
     """Frames/s of the embedded default image encoder (dense and global embeddings from one
     forward pass) on ``frames`` frames of ``recording``, its median ms per frame on one thread
-    against the same network on torch (``encoder_*_1thread``), and ms per 1 s audio segment."""
+    against the same network on torch and its int8 graph (``encoder_*_1thread``), and ms per
+    1 s audio segment."""
     from tabletop.mapping.encoders.registry import make_encoders
 
     enc = make_encoders("default")
@@ -127,29 +128,41 @@ def default_encoder_speed(recording, frames: int = 40) -> dict:
 
 def _one_thread_encoder_times(image, recording, idx) -> dict:
     """Median ms per frame of the default image encoder (dense and global embeddings) on one
-    thread, as it runs (onnxruntime where it can), and of the same network on torch, the two
-    alternating frame by frame so that load from other processes affects both alike."""
+    thread, as it runs (onnxruntime where it can), of the same network on torch and of its
+    opt-in int8 graph (``backend="int8"``; None where it cannot be built), the three
+    alternating frame by frame so that load from other processes affects them alike."""
     from tabletop.mapping.encoders.lseg import LSegEncoder
 
     fast = LSegEncoder(image.weights, num_threads=1)
     ref = LSegEncoder(image.weights, num_threads=1, backend="torch")
+    int8 = LSegEncoder(image.weights, num_threads=1, backend="int8")
     first = recording.rgb[idx[0]]
-    fast.encode_dense_and_global(first)  # warm-up (and, once per machine, the graph's export)
-    ref.encode_dense_and_global(first)
-    t_fast, t_ref = [], []
+    runs = {"fast": fast, "ref": ref}
+    if int8._session(first) is not fast._session(first):  # the int8 graph was built
+        runs["int8"] = int8
+    times = {k: [] for k in runs}
+    for e in runs.values():  # warm-up (and, once per machine, the graphs' export)
+        e.encode_dense_and_global(first)
     for i in idx:
-        t0 = time.perf_counter()
-        fast.encode_dense_and_global(recording.rgb[i])
-        t1 = time.perf_counter()
-        ref.encode_dense_and_global(recording.rgb[i])
-        t_fast.append(t1 - t0)
-        t_ref.append(time.perf_counter() - t1)
-    t_fast, t_ref = np.array(t_fast), np.array(t_ref)
+        for k, e in runs.items():
+            t0 = time.perf_counter()
+            e.encode_dense_and_global(recording.rgb[i])
+            times[k].append(time.perf_counter() - t0)
+    t = {k: np.array(v) for k, v in times.items()}
+
+    def ms(k):
+        return round(float(np.median(t[k])) * 1000, 1) if k in t else None
+
+    def ratio(k):
+        return round(float(np.median(t[k] / t["ref"])), 2) if k in t else None
+
     return {
         "encoder_backend": "onnxruntime" if fast._session(first) is not None else "torch",
-        "encoder_ms_per_frame_1thread": round(float(np.median(t_fast)) * 1000, 1),
-        "encoder_torch_ms_per_frame_1thread": round(float(np.median(t_ref)) * 1000, 1),
-        "encoder_vs_torch_ratio_1thread": round(float(np.median(t_fast / t_ref)), 2),
+        "encoder_ms_per_frame_1thread": ms("fast"),
+        "encoder_torch_ms_per_frame_1thread": ms("ref"),
+        "encoder_vs_torch_ratio_1thread": ratio("fast"),
+        "encoder_int8_ms_per_frame_1thread": ms("int8"),
+        "encoder_int8_vs_torch_ratio_1thread": ratio("int8"),
     }
 
 
