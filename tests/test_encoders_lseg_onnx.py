@@ -163,3 +163,16 @@ def test_int8_falls_back_to_the_float_graph(fresh_cache, frames, monkeypatch):
     rgb = frames[0]
     assert np.abs(enc.encode_dense(rgb) - ref.encode_dense(rgb)).max() < 1e-4
     assert not lseg_onnx.graph_path(EFFNET_WEIGHTS_PATH, 240, 320, int8=True).exists()
+
+
+def test_default_set_takes_the_int8_backend_as_an_option_and_records_it():
+    from tabletop.mapping.encoders.registry import make_encoders, make_encoders_from_rebuild
+
+    plain = make_encoders("default")
+    assert plain.dense.backend == "auto" and "vision_backend" not in plain.rebuild
+    enc = make_encoders("default", options={"vision_backend": "int8"})
+    assert enc.dense.backend == "int8" and enc.rebuild["vision_backend"] == "int8"
+    assert enc.names["dense"].endswith(", int8")
+    assert make_encoders_from_rebuild("default", enc.rebuild).dense.backend == "int8"
+    with pytest.raises(ConfigError, match="backend"):
+        make_encoders("default", options={"vision_backend": "fp8"})

@@ -45,7 +45,9 @@ def _check_name(name: str) -> None:
 def make_encoders(name: str, recording=None, options: dict | None = None) -> EncoderSet:
     """The named encoder set. The oracle reads the recording's ground truth; ``options``
     (default set: ``vision_weights``, ``audio_weights`` paths override the committed weights;
-    ``audio_encoder`` is one of :data:`AUDIO_ENCODERS`, default ``"yamnet"``)."""
+    ``audio_encoder`` is one of :data:`AUDIO_ENCODERS`, default ``"yamnet"``;
+    ``vision_backend`` is one of :data:`~tabletop.mapping.encoders.lseg.BACKENDS`, default
+    ``"auto"``)."""
     _check_name(name)
     if name == "default":  # a fresh map hears through the YAMNet head unless told otherwise
         options = {"audio_encoder": "yamnet", **dict(options or {})}
@@ -120,7 +122,9 @@ def make_encoders_from_rebuild(name: str, rebuild: dict) -> EncoderSet:
         from tabletop.mapping.encoders.lseg import EFFNET_WEIGHTS_PATH, LSegEncoder
 
         vision_w = rebuild.get("vision_weights") or str(EFFNET_WEIGHTS_PATH)
-        image = LSegEncoder(vision_w)  # dense and global embeddings from one network
+        # "int8": the quantised graph (faster, other embeddings); recorded only when asked
+        backend = rebuild.get("vision_backend") or "auto"
+        image = LSegEncoder(vision_w, backend=backend)  # dense and global from one network
         # a map saved before the YAMNet head recorded no audio encoder: it heard with the CNN
         kind = rebuild.get("audio_encoder") or "melcnn"
         audio, audio_w, audio_name = _default_audio(kind, rebuild.get("audio_weights"))
@@ -132,7 +136,8 @@ def make_encoders_from_rebuild(name: str, rebuild: dict) -> EncoderSet:
             {
                 "set": "default (embedded learned encoders)",
                 "text": "minilm-l6-v2",
-                "dense": f"lseg-style {image.arch} ({_short(vision_w)})",
+                "dense": f"lseg-style {image.arch} ({_short(vision_w)})"
+                + (", int8" if backend == "int8" else ""),
                 "global_image": f"lseg-style {image.arch}, mean of cell embeddings",
                 "audio": f"{audio_name} ({_short(audio_w)})",
             },
@@ -141,6 +146,7 @@ def make_encoders_from_rebuild(name: str, rebuild: dict) -> EncoderSet:
                 "vision_weights": rebuild.get("vision_weights"),
                 "audio_weights": rebuild.get("audio_weights"),
                 "audio_encoder": kind,
+                **({"vision_backend": backend} if backend != "auto" else {}),
             },
         )
     if name == "openclip":
