@@ -265,19 +265,28 @@ class MinkDiffIK:
         static = m.body_weldid[m.geom_bodyid] == 0  # geoms welded to the world
         world1, world2 = static[g1] & ~static[g2], static[g2] & ~static[g1]
         fixed = bounded & (world1 | world2)
-        wg = np.where(world1, g1, g2)[fixed]  # the world geom of each such pair
-        self._wr_idx = np.nonzero(fixed)[0]
-        self._wr_robot = np.where(world1, g2, g1)[fixed]
+        moving = bounded & ~fixed
+        # One test for both kinds: |x_a - centre| - half, clamped at 0, is the gap from the
+        # point x_a to the box (centre, half); a sphere is a box of half 0 whose centre is
+        # the other geom's position, written in at each step.
+        a = np.where(world1, g2, g1)  # the robot geom (the first of a moving pair)
+        self._bp_idx = np.concatenate([np.nonzero(fixed)[0], np.nonzero(moving)[0]])
+        self._bp_a = a[self._bp_idx]
+        wg = np.where(world1, g1, g2)[fixed]  # the world geom of each fixed pair
         data = self.configuration.data
         R = data.geom_xmat[wg].reshape(-1, 3, 3)
-        centre = data.geom_xpos[wg] + np.einsum("kij,kj->ki", R, m.geom_aabb[wg, :3])
-        half = np.einsum("kij,kj->ki", np.abs(R), m.geom_aabb[wg, 3:])
-        self._wr_lo, self._wr_hi = centre - half, centre + half
-        self._wr_reach2 = (rb[self._wr_robot] + distmax) ** 2
-        moving = bounded & ~fixed
-        self._bp_idx = np.nonzero(moving)[0]
-        self._bp_g1, self._bp_g2 = g1[moving], g2[moving]
-        self._bp_reach2 = (rb[g1[moving]] + rb[g2[moving]] + distmax) ** 2
+        n_fixed = len(wg)
+        self._bp_centre = np.zeros((len(self._bp_idx), 3))
+        self._bp_half = np.zeros((len(self._bp_idx), 3))
+        self._bp_centre[:n_fixed] = data.geom_xpos[wg] + np.einsum(
+            "kij,kj->ki", R, m.geom_aabb[wg, :3]
+        )
+        self._bp_half[:n_fixed] = np.einsum("kij,kj->ki", np.abs(R), m.geom_aabb[wg, 3:])
+        self._bp_moving = slice(n_fixed, None)
+        self._bp_b = g2[moving]  # the other geom of each moving pair
+        reach = rb[self._bp_a] + distmax
+        reach[n_fixed:] += rb[self._bp_b]
+        self._bp_reach2 = reach * reach
         self._always = np.nonzero(~bounded)[0].tolist()
         self._geom_body = [int(b) for b in m.geom_bodyid]
         self._fromto = np.empty(6)
@@ -352,13 +361,12 @@ class MinkDiffIK:
         m, data = self.mj_model, self.configuration.data
         col = self._col
         xpos = data.geom_xpos
-        p = xpos[self._wr_robot]
-        gap = np.maximum(self._wr_lo - p, p - self._wr_hi)
+        centre = self._bp_centre
+        centre[self._bp_moving] = xpos[self._bp_b]
+        gap = np.abs(xpos[self._bp_a] - centre)
+        gap -= self._bp_half
         np.maximum(gap, 0.0, out=gap)
-        near = self._wr_idx[np.einsum("ij,ij->i", gap, gap) <= self._wr_reach2].tolist()
-        if len(self._bp_idx):
-            d = xpos[self._bp_g1] - xpos[self._bp_g2]
-            near += self._bp_idx[np.einsum("ij,ij->i", d, d) <= self._bp_reach2].tolist()
+        near = self._bp_idx[np.einsum("ij,ij->i", gap, gap) <= self._bp_reach2].tolist()
         distmax = col.collision_detection_distance
         min_dist = col.minimum_distance_from_collisions
         fromto, normal, jac1, jac2 = self._fromto, self._normal, self._jac1, self._jac2
