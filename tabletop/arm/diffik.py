@@ -391,9 +391,9 @@ class MinkDiffIK:
 
     def _solve(self, H, c, lb, ub, G, h, rows) -> np.ndarray | None:
         """The QP's minimiser (None when it has none): unconstrained, warm, else daqp."""
-        _, x, info = self._posv(H, -c)  # Cholesky: H is positive definite (damping)
-        if info != 0:
-            x = np.linalg.solve(H, -c)
+        _, x, info = self._posv(H, -c)  # Cholesky: H is positive definite with damping > 0
+        if info != 0:  # not positive definite (no damping, no posture cost): daqp decides
+            return self._solve_daqp(H, c, lb, ub, G, h, rows)
         if (x <= ub).all() and (x >= lb).all() and (G is None or (G @ x <= h).all()):
             self._active = None
             self.qp_paths["unconstrained"] += 1
@@ -436,6 +436,9 @@ class MinkDiffIK:
             return None
         x, lam = sol[:nv], sol[nv:]
         if not (lam >= 0).all():
+            return None
+        # stationarity H x + c + A^T lam = 0, to rounding (guards a near-singular K)
+        if np.abs(H @ x + c + lam @ A).max() > 1e-9 * (1.0 + np.abs(c).max()):
             return None
         if not ((x <= ub + _KKT_TOL).all() and (x >= lb - _KKT_TOL).all()):
             return None
