@@ -189,3 +189,17 @@ def test_set_obstacles_forgets_the_previous_query(model):
     ch.set_obstacles([table_box(), Box(T[:3, 3] - [0, 0, 0.05], [0.05, 0.05, 0.02], name="new")])
     assert ch.clearance(q) == ch.clearance_all_pairs(q)
     assert ch.clearance(q).closest_pair[1] == "new"
+
+
+def test_self_collision_can_be_switched_between_queries(model):
+    ch = CollisionChecker(model, [table_box()])
+    q = HOME_Q.copy()
+    assert ch.clearance(q).self_distance < ch.max_distance
+    ch.self_collision = False
+    q = q + 0.001
+    off = ch.clearance(q)
+    assert off.self_distance == ch.max_distance and off == ch.clearance_all_pairs(q)
+    ch.self_collision = True
+    q = q + 0.001
+    on = ch.clearance(q)
+    assert on.self_distance < ch.max_distance and on == ch.clearance_all_pairs(q)

@@ -285,7 +285,7 @@ class CollisionChecker:
         # its lever arm over that link, for an environment pair; for a self pair, the joints
         # between the two links' (their distance depends on the relative pose only), with
         # their lever arms over the farther link.
-        n_self = len(self._self_i) if self.self_collision else 0
+        n_self = len(self._self_i)  # bounded even when self_collision is off (it may be set)
         self._n_env = len(self._links) * n_obs
         closing = np.zeros((self._n_env + n_self, 7))
         closing[: self._n_env] = np.repeat(self._link_lever, n_obs, axis=0)
@@ -397,7 +397,7 @@ class CollisionChecker:
             env, p = self._nearest(bounds[:n_env], env_distance)
             if p is not None:
                 env_pair = (links[p // n_obs].name, self._obs_names[p % n_obs])
-        if len(bounds) > n_env:
+        if self.self_collision and len(bounds) > n_env:
             slf, p = self._nearest(bounds[n_env:], self_distance)
             if p is not None:
                 slf_pair = (links[self._self_i[p]].name, links[self._self_j[p]].name)
