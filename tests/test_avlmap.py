@@ -348,6 +348,44 @@ def test_place_words_alone_name_no_area(avlmap):
     )
 
 
+def test_words_one_thing_s_query_cannot_honour_are_not_found_with_the_reason(avlmap):
+    # scored anyway, they found the red mug, any mug, or the mug or the duck
+    for q, word in (
+        ("not the red mug", "'not'"),
+        ("the mug that isn't red", '"isn\'t"'),
+        ("the second mug", "'second'"),
+        ("the mug near the duck", "'near'"),
+        ("the mug to the left of the tray", "'to the left of'"),
+    ):
+        h = avlmap.object_heatmap(q)
+        assert not h.found and not h.values.any(), q
+        assert word in h.reason and "tabletop.reader.understand()" in h.reason, h.reason
+    # words that describe the thing are no negation
+    assert avlmap.object_heatmap("the mug with no handle").reason.find("negates") < 0
+
+
+def test_a_superlative_keeps_the_one_thing_it_ranks_first(avlmap, rec):
+    mugs = [o for o in rec.ground_truth["objects"] if o["kind"] == "mug"]
+    assert len(mugs) == 2
+
+    def reach(o):
+        return float(np.hypot(*(np.add(o["aabb_min"], o["aabb_max"])[:2] / 2)))
+
+    both = avlmap.object_heatmap("the mug")
+    for q, want in (
+        ("the farthest mug", max(mugs, key=reach)),
+        ("the nearest mug", min(mugs, key=reach)),
+    ):
+        h = avlmap.object_heatmap(q)
+        assert h.found and h.query == q
+        assert box_distance(avlmap.get_max_pos_3d(h), want) <= 0.02, q
+        # only the one is hot: the other mug is as cold as far heat leaves it
+        other = next(o for o in mugs if o is not want)
+        c = np.add(other["aabb_min"], other["aabb_max"]) / 2
+        idx, _ = h.grid.world_to_index(c[None])
+        assert h.values[tuple(idx[0])] < 0.5 < both.values[tuple(idx[0])], q
+
+
 @pytest.mark.parametrize("query", ["🦒🦒", "...", "123", "?! 42"])
 def test_a_query_of_no_words_is_not_found_in_any_modality(avlmap, query):
     for kind in ("obj", "sound", "area"):

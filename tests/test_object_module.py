@@ -309,6 +309,33 @@ def test_two_basic_colours_ask_for_a_thing_of_both_not_a_shade_of_the_last(scene
     assert fits[0] > 0.6 > 0.2 > fits[1]
 
 
+def test_a_superlative_ranks_the_things_the_rest_of_the_words_find(scene):
+    # the red mug stands nearer the robot's base than the blue one; the duck is the smallest
+    # and lowest thing, the mugs the tallest
+    for q, name in (
+        ("the nearest mug", "red mug"),
+        ("the farthest mug", "blue mug"),
+        ("the mug furthest away", "blue mug"),
+        ("the smallest thing", "yellow duck"),
+        ("the lowest one", "yellow duck"),
+        ("the tallest object", "mug"),  # of two equal mugs, one
+    ):
+        h = scene.heatmap(q, 10.0, judge_at(0.2))
+        names = [n for n in SCENE if n.endswith(name)]
+        assert h.found and any(_lands_on(scene, h, n) for n in names), (q, h.reason)
+        assert sum(_box_peak(scene, h, n) == pytest.approx(1.0) for n in SCENE) == 1, q
+    # seen from elsewhere (a mobile base's place), the nearest is another
+    h = scene.heatmap("the nearest mug", 10.0, judge_at(0.2), viewpoint=(0.6, -0.17))
+    assert _lands_on(scene, h, "blue mug")
+    with pytest.raises(ConfigError, match="a viewpoint is finite"):
+        scene.heatmap("the nearest mug", 10.0, judge_at(0.2), viewpoint="here")
+    # no superlative where the words relate two things
+    from tabletop.words import superlative
+
+    assert superlative("the closest to the duck") is None
+    assert superlative("the left-most ball").measure == "left"
+
+
 def test_the_colour_of_a_part_need_not_cover_much_of_the_thing(scene):
     # A football: white panels and black patches covering a quarter of it.
     ball = _instance((190, 190, 190), [(240, 240, 240), (25, 25, 25)], [0.75, 0.25])

@@ -59,6 +59,7 @@ from tabletop.mapping.visual.localization import VisualLocalization
 from tabletop.mapping.visual.module import VisualModule, VisualModuleConfig
 from tabletop.mapping.visual.photometric import PhotometricCheck
 from tabletop.mapping.voxel_map import VoxelMap, frame_points
+from tabletop.words import negations, ordinal, relation_words
 
 __all__ = ["QUERY_KINDS", "AVLMap", "MapStats", "SelfFilter"]
 
@@ -489,14 +490,18 @@ class AVLMap:
             raise ConfigError(f"unknown query kind {kind!r}; valid: {list(QUERY_KINDS)}")
         return getattr(self, name)(value, major=major)
 
-    def object_heatmap(self, query: str, major: bool = True) -> Heatmap:
+    def object_heatmap(self, query: str, major: bool = True, viewpoint=None) -> Heatmap:
         """Heat around the voxels that best match ``query`` (the object module); a query of no
-        words (no letter: emoji, punctuation, digits) is not found."""
+        words (no letter: emoji, punctuation, digits) is not found. ``viewpoint``: (x, y) [m]
+        the robot's place, from which a nearest or farthest thing is ranked ("the nearest
+        mug"); default the map frame's origin, the arm's base."""
         check_bool("object_heatmap", "major", major)
         q = _text(query, "object")
         if (h := self._wordless(q, "object", major)) is not None:
             return h
-        return self.objects.heatmap(q, self.decay(major), self.judge)
+        if why := _unscorable(q):
+            return Heatmap.not_found(self.grid, q, "object", self.decay(major), why)
+        return self.objects.heatmap(q, self.decay(major), self.judge, viewpoint)
 
     def object_scores(self, query: str) -> tuple[np.ndarray, np.ndarray]:
         """Per occupied voxel: the query's cosine score, and whether it beats the background."""
@@ -707,6 +712,21 @@ _SURROGATE = re.compile("[\ud800-\udfff]")
 #: the query to name a thing, not a sound: on the tune pools' 4464 sound phrasings the largest
 #: such lead is 0.18 ("...drinking through a straw"); "the red mug" leads by 0.47.
 THING_NOT_SOUND_MARGIN = 0.25
+
+
+def _unscorable(query: str) -> str:
+    """Why one thing's words hold what the object module cannot honour ("" where they hold
+    none): a negation ("not the red mug"), an ordinal ("the second mug") or words relating it
+    to another thing ("the mug near the duck"). Scored anyway, the words would find the thing
+    they negate, any of the things, or either of the two."""
+    read = "read the request with tabletop.reader.understand(), which says what it can do"
+    if negated := negations(query, describing=True):
+        return f"{query!r} negates what it names ({negated[0]!r}): {read}"
+    if (o := ordinal(query)) is not None:
+        return f"{query!r} picks by order ({o!r}), which the map does not rank: {read}"
+    if (rel := relation_words(query)) is not None:
+        return f"{query!r} relates two things ({rel!r}), and one thing's words are scored: {read}"
+    return ""
 
 
 def _text(query, what: str) -> str:

@@ -89,6 +89,7 @@ from tabletop.mapping.instances import InstanceConfig, InstanceSet, ObjectInstan
 from tabletop.mapping.kind_reader import OTHER, KindReader
 from tabletop.mapping.voxel_map import VoxelMap
 from tabletop.paths import DATA_DIR
+from tabletop.words import Superlative, superlative
 
 __all__ = [
     "BACKGROUND",
@@ -883,21 +884,28 @@ class ObjectModule:
                 fit[k] = max(fit[k], float((part * scale).max()))
         return fit
 
-    def heatmap(self, query: str, decay: float, judge: Judge) -> Heatmap:
+    def heatmap(self, query: str, decay: float, judge: Judge, viewpoint=None) -> Heatmap:
         """Heat around the instances (or voxels) that best match ``query``; not found, with the
-        reason, when nothing does."""
+        reason, when nothing does. ``viewpoint``: (x, y) [m] from which a superlative of
+        distance ranks ("the nearest mug"; default the map frame's origin, the arm's base)."""
         grid = self.voxels.grid
         if self.voxels.n == 0:
             return Heatmap.not_found(grid, query, "object", decay, "the map is empty")
         if not self.uses_instances:
             return self._voxel_heatmap(query, decay, judge)
+        # "the biggest mug": the mugs are found by the words without the superlative, and the
+        # one it ranks first is kept
+        sup = superlative(query)
+        said, query = query, sup.rest if sup is not None else query
+        if sup is not None and viewpoint is not None:
+            sup = sup._replace(viewpoint=check_viewpoint(viewpoint))
         # where none finds anything, the reason given is the lexicon's reading's ("'bottle'
         # reads as 'bottle'" for "wine bottle", not the reading of "wine" as a colour)
         plain, first = color_parses(query)[0], None
         matches = []  # kept for the fallback below
         for reading in self.readings(query):
             m = self.match(query, reading)
-            h = self._instance_heatmap(query, m, decay, judge)
+            h = self._instance_heatmap(said, m, decay, judge, sup)
             if h.found:
                 return h
             first = h if first is None or reading == plain else first
@@ -908,7 +916,7 @@ class ObjectModule:
             fallback = m.read in self.vocabulary and m.read not in m.names
             if fallback and m.read_p >= self.config.reader_fallback and not self.refusal(m):
                 h = self._instance_heatmap(
-                    query, self.match(query, reading, only=m.read), decay, judge
+                    said, self.match(query, reading, only=m.read), decay, judge, sup
                 )
                 if h.found:
                     return h
@@ -999,9 +1007,17 @@ class ObjectModule:
             self._senses[word] = (colour, thing, other)
         return self._senses[word]
 
-    def _instance_heatmap(self, query: str, m: InstanceMatch, decay: float, judge: Judge):
-        """Heat around the instances ``m`` ranks best; not found, with the reason, when none
-        is what the query asks."""
+    def _instance_heatmap(
+        self,
+        query: str,
+        m: InstanceMatch,
+        decay: float,
+        judge: Judge,
+        sup: Superlative | None = None,
+    ):
+        """Heat around the instances ``m`` ranks best (of those, only the one that ``sup``
+        ranks first: "the biggest mug"); not found, with the reason, when none is what the
+        query asks."""
         grid = self.voxels.grid
         if why := self.refusal(m):
             return Heatmap.not_found(grid, query, "object", decay, why, 0.0)
@@ -1032,6 +1048,9 @@ class ObjectModule:
             r = s
         lin = self.voxels.linear_indices
         keep = np.nonzero(r >= self.config.keep_ratio * float(r.max()))[0]
+        if sup is not None:
+            value = np.array([sup.sign * superlative_measure(inst[i], sup) for i in keep])
+            keep = keep[[int(np.argmax(value))]]
         rows = np.concatenate([inst[i].rows for i in keep])
         values = point_heatmap_3d_at(grid, grid.unravel(lin[rows]), decay)
         return Heatmap(grid, values, query, "object", decay, conf, True, "", best)
@@ -1164,3 +1183,31 @@ def _palette_parts(inst: ObjectInstance) -> tuple[np.ndarray, np.ndarray]:
     :data:`PALETTE_MIN_SHARE` of it."""
     big = inst.palette_share >= PALETTE_MIN_SHARE
     return inst.palette[big], inst.palette_share[big]
+
+
+def superlative_measure(inst: ObjectInstance, sup: Superlative) -> float:
+    """What a superlative ranks an instance by (:data:`~tabletop.words.SUPERLATIVES`): its
+    box's volume [m^3], its top [m], how far left it stands (+y [m]), or its horizontal
+    distance [m] from the superlative's viewpoint."""
+    if sup.measure == "size":
+        return float(np.prod(inst.extent))
+    if sup.measure == "height":
+        return float(inst.hi[2])
+    if sup.measure == "left":
+        return float(inst.center[1])
+    if sup.measure == "reach":
+        return float(np.hypot(*(inst.center[:2] - np.asarray(sup.viewpoint, float))))
+    raise ConfigError(
+        f"unknown superlative measure {sup.measure!r}; valid: size, height, left, reach"
+    )
+
+
+def check_viewpoint(viewpoint) -> tuple[float, float]:
+    """``viewpoint`` as (x, y) [m]; ConfigError for anything else."""
+    try:
+        xy = np.asarray(viewpoint, float).reshape(-1)
+    except (TypeError, ValueError):
+        xy = np.zeros(0)
+    if xy.shape not in ((2,), (3,)) or not np.isfinite(xy).all():
+        raise ConfigError(f"a viewpoint is finite (x, y) or (x, y, z) in metres, got {viewpoint!r}")
+    return float(xy[0]), float(xy[1])

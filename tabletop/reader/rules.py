@@ -47,6 +47,7 @@ from tabletop.reader.plan import (
     Turn,
 )
 from tabletop.relations import relation, relation_by_side
+from tabletop.words import NEGATIONS, is_negation, negations, ordinal
 
 __all__ = [
     "MANNER",
@@ -159,9 +160,6 @@ QUALIFIERS = frozenset(
     """not no never don't dont without avoid except unless until if while quickly slowly
     carefully gently fast""".split()
 )
-#: The qualifiers that reverse or exclude a goal: no reader goes to a goal said with one of
-#: them outside its references ("don't go to the mug").
-NEGATIONS = frozenset("not no never don't dont without avoid except unless".split())
 #: The qualifiers that say how to move, not where: the learned reader reads the goal and says
 #: these are not honoured (the arm moves at its controller's speed).
 MANNER = frozenset("quickly slowly carefully gently fast".split())
@@ -181,45 +179,6 @@ _RESERVED = (
     | QUALIFIERS
 )
 _ARTICLES = re.compile(r"^(?:(?:the|a|an|some|any|that|this)\s+)+")
-
-
-#: Auxiliaries whose contraction with "not" may be typed without its apostrophe ("isnt").
-_AUXILIARIES = frozenset(
-    "is are was were do does did can could would should will wo has have had must need might "
-    "ai sha".split()
-)
-
-
-def is_negation(word: str) -> bool:
-    """Whether ``word`` negates: one of :data:`NEGATIONS`, or a verb contracted with "not"
-    ("isn't", "doesn't", "isnt", "won't")."""
-    w = word.lower().replace("\u2019", "'").strip(",.;:!?\"'")
-    if w in NEGATIONS or w.endswith("n't"):
-        return True
-    return w.endswith("nt") and w[:-2] in _AUXILIARIES
-
-
-def negations(text: str, describing: bool = False) -> list[str]:
-    """The negating words of ``text`` in order; ``describing``: without "no" and "without",
-    which also describe ("the mug with no handle")."""
-    words = re.findall(r"[a-z'\u2019]+", text.lower())
-    return [w for w in words if is_negation(w) and not (describing and w in ("no", "without"))]
-
-
-#: An ordinal at the start of a reference ("the 3rd mug", "the second duck from the left", "the
-#: last one"): it picks one of several things by their order, which no map scores.
-_ORDINAL = re.compile(
-    r"^(?:(?:the|a|an|your|my)\s+)?(?:very\s+)?(?P<o>\d+\s*(?:st|nd|rd|th)|first|second|third|"
-    r"fourth|fifth|sixth|seventh|eighth|ninth|tenth|last|penultimate|(?:second|next)[\s-]+to[\s-]+"
-    r"last)\b(?!\s+of\b)",  # "the fourth of July" is a date, not a pick
-    re.IGNORECASE,
-)
-
-
-def ordinal(text: str) -> str | None:
-    """The ordinal a reference starts with ("3rd", "second", "last"), or None."""
-    m = _ORDINAL.match(text.strip())
-    return m.group("o") if m else None
 
 
 def refuse_negated(text: str) -> None:

@@ -35,6 +35,7 @@ from dataclasses import dataclass
 
 from tabletop.errors import ConfigError
 from tabletop.paths import DATA_DIR
+from tabletop.words import SUPERLATIVES
 
 __all__ = [
     "Correction",
@@ -209,7 +210,9 @@ def reader_words() -> frozenset[str]:
         words.update(w for w in _WORD.findall(t.lower()) if len(w) >= 3)
     # whole words only: an expression's pieces ("centimet(?:re|er)") are no words
     english, vocabulary = english_words(), domain_words()
-    return frozenset(w for w in words if english.get(w, 0) >= RARE_COUNT or w in vocabulary)
+    kept = {w for w in words if english.get(w, 0) >= RARE_COUNT or w in vocabulary}
+    # the superlatives the map ranks by, rare as some are ("leftmost" is no "left most")
+    return frozenset(kept | set(SUPERLATIVES))
 
 
 @functools.cache

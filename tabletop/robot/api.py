@@ -438,7 +438,15 @@ class RobotAPI(abc.ABC):
         if kind == "img":
             return self._image_heatmap(value, major)
         # the words of a reference are read by the one reader every caller asks
-        return self.map.query(kind, get_reader(self.reader).reference(kind, value), major)
+        ref = get_reader(self.reader).reference(kind, value)
+        if kind == "obj":  # "the nearest mug": nearest where the robot is
+            return self.map.object_heatmap(ref, major=major, viewpoint=self.viewpoint())
+        return self.map.query(kind, ref, major)
+
+    def viewpoint(self):
+        """(x, y) [m] from which "the nearest" and "the farthest" thing are ranked: None, the
+        map frame's origin (an arm's base); a mobile base ranks from where it stands."""
+        return None
 
     def _heatmap(self, parts: dict, majors: dict) -> Heatmap:
         given = {k: v for k, v in parts.items() if v is not None}

@@ -107,6 +107,10 @@ class MobileBase(RobotAPI):
         """(3,) [m] base frame: the base's centre on the table top (z = 0)."""
         return self._pos.copy()
 
+    def viewpoint(self) -> tuple[float, float]:
+        """Where the base stands: "the nearest chair" is nearest it."""
+        return float(self._pos[0]), float(self._pos[1])
+
     def _nearest_free(self, goal_cell: np.ndarray, start_cell: tuple[int, int]):
         """The free cell reachable from the start nearest to ``goal_cell`` (or None)."""
         free = ~self.blocked.occupied

@@ -1,0 +1,132 @@
+"""Word classes of English that carry structure, not a thing's name: negations, ordinals,
+superlatives and the words that relate one thing to another.
+
+Both the reader (which refuses or reads them) and the map's own text API (which scores one
+thing's words, and so must not drop them silently) ask these; they are closed classes of the
+language, not anybody's phrasings.
+"""
+
+from __future__ import annotations
+
+import re
+from typing import NamedTuple
+
+__all__ = [
+    "NEGATIONS",
+    "SUPERLATIVES",
+    "Superlative",
+    "is_negation",
+    "negations",
+    "ordinal",
+    "relation_words",
+    "superlative",
+]
+
+#: The qualifiers that reverse or exclude a goal: no reader goes to a goal said with one of
+#: them outside its references ("don't go to the mug").
+NEGATIONS = frozenset("not no never don't dont without avoid except unless".split())
+
+
+#: Auxiliaries whose contraction with "not" may be typed without its apostrophe ("isnt").
+_AUXILIARIES = frozenset(
+    "is are was were do does did can could would should will wo has have had must need might "
+    "ai sha".split()
+)
+
+
+def is_negation(word: str) -> bool:
+    """Whether ``word`` negates: one of :data:`NEGATIONS`, or a verb contracted with "not"
+    ("isn't", "doesn't", "isnt", "won't")."""
+    w = word.lower().replace("\u2019", "'").strip(",.;:!?\"'")
+    if w in NEGATIONS or w.endswith("n't"):
+        return True
+    return w.endswith("nt") and w[:-2] in _AUXILIARIES
+
+
+def negations(text: str, describing: bool = False) -> list[str]:
+    """The negating words of ``text`` in order; ``describing``: without "no" and "without",
+    which also describe ("the mug with no handle")."""
+    words = re.findall(r"[a-z'\u2019]+", text.lower())
+    return [w for w in words if is_negation(w) and not (describing and w in ("no", "without"))]
+
+
+#: An ordinal at the start of a reference ("the 3rd mug", "the second duck from the left", "the
+#: last one"): it picks one of several things by their order, which no map scores.
+_ORDINAL = re.compile(
+    r"^(?:(?:the|a|an|your|my)\s+)?(?:very\s+)?(?P<o>\d+\s*(?:st|nd|rd|th)|first|second|third|"
+    r"fourth|fifth|sixth|seventh|eighth|ninth|tenth|last|penultimate|(?:second|next)[\s-]+to[\s-]+"
+    r"last)\b(?!\s+of\b)",  # "the fourth of July" is a date, not a pick
+    re.IGNORECASE,
+)
+
+
+def ordinal(text: str) -> str | None:
+    """The ordinal a reference starts with ("3rd", "second", "last"), or None."""
+    m = _ORDINAL.match(text.strip())
+    return m.group("o") if m else None
+
+
+class Superlative(NamedTuple):
+    """A superlative of a reference: its ``word``, the ``measure`` it ranks by
+    (:data:`SUPERLATIVES`), ``sign`` +1 for the most and -1 for the least of it, the
+    reference's words without it (``rest``), and where distances are measured from."""
+
+    word: str
+    measure: str
+    sign: int
+    rest: str
+    viewpoint: tuple[float, float] = (0.0, 0.0)
+    """(x, y) [m] from which ``reach`` is measured: the robot's place (the arm's base by
+    default)."""
+
+
+#: Superlatives that pick one of several things by a measure a map has: ``size`` (the volume of
+#: its box), ``height`` (its top), ``left`` (along the robot's left, +y), ``reach`` (the
+#: horizontal distance from the robot's base). word -> (measure, +1 most / -1 least).
+SUPERLATIVES: dict[str, tuple[str, int]] = {
+    **dict.fromkeys(("biggest", "largest", "bulkiest", "hugest"), ("size", 1)),
+    **dict.fromkeys(("smallest", "tiniest", "littlest", "teeniest"), ("size", -1)),
+    **dict.fromkeys(("tallest", "highest"), ("height", 1)),
+    **dict.fromkeys(("shortest", "lowest", "flattest"), ("height", -1)),
+    "leftmost": ("left", 1),
+    "rightmost": ("left", -1),
+    **dict.fromkeys(("nearest", "closest"), ("reach", -1)),
+    **dict.fromkeys(("farthest", "furthest", "remotest"), ("reach", 1)),
+}
+_SUPERLATIVE = re.compile(
+    r"\b(?:(?P<dir>left|right)[\s-]*most|most[\s-]+(?P<dir2>left|right)|(?P<w>"
+    + "|".join(sorted(SUPERLATIVES, key=len, reverse=True))
+    + r"))\b(?!\s+(?:to|from)\b)",  # "the closest to the duck" relates two things
+    re.IGNORECASE,
+)
+
+
+def superlative(text: str) -> Superlative | None:
+    """The superlative a reference ranks by ("the biggest mug", "the left-most duck"), or None.
+    A nearest or farthest thing *to* another ("closest to the duck") relates two things and is
+    none."""
+    m = _SUPERLATIVE.search(str(text))
+    if m is None:
+        return None
+    side = m.group("dir") or m.group("dir2")
+    word = f"{side.lower()}most" if side else m.group("w").lower()
+    measure, sign = SUPERLATIVES[word]
+    rest = " ".join((text[: m.start()] + " " + text[m.end() :]).split())
+    return Superlative(m.group(0), measure, sign, rest)
+
+
+#: Words that relate one thing to another ("the mug near the duck", "the ball left of the
+#: tray", "where you heard ..."): one thing's words hold none.
+_RELATION = re.compile(
+    r"\b(?:near(?:\s+to)?|next\s+to|close\s+to|beside|behind|in\s+front\s+of|between|"
+    r"(?:to\s+the\s+)?(?:left|right)(?:[\s-]*hand)?\s+(?:side\s+)?of|"
+    r"(?:nearest|closest|farthest|furthest)\s+(?:to|from)|"
+    r"where\s+(?:you|i|we)\s+(?:just\s+)?(?:heard|hear))\b",
+    re.IGNORECASE,
+)
+
+
+def relation_words(text: str) -> str | None:
+    """The first words of ``text`` that relate one thing to another, or None."""
+    m = _RELATION.search(str(text))
+    return " ".join(m.group(0).split()) if m else None
