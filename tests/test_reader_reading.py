@@ -127,6 +127,21 @@ def test_a_verb_of_motion_with_a_thing_as_its_object_is_no_goal(reader, text):
 
 
 @pytest.mark.parametrize("reader", ["rules", "rules+spelling", "rules+learned"])
+def test_a_superlative_stays_with_its_thing_for_the_map_to_rank(reader):
+    for text, primary, near in (
+        ("go to the nearest mug", "nearest mug", ()),
+        ("go to the leftmost duck", "leftmost duck", ()),
+        ("go to the biggest ball near the tray", "biggest ball", ("tray",)),
+        # "nearest" after a thing still joins it to another
+        ("go to the mug nearest the duck", "mug", ("duck",)),
+    ):
+        (step,) = understand(text, reader=reader).steps
+        goal = step.action.goal
+        assert goal.primary == Part("obj", primary), (text, goal)
+        assert tuple(p.text for p in goal.near) == near, (text, goal)
+
+
+@pytest.mark.parametrize("reader", ["rules", "rules+spelling", "rules+learned"])
 def test_the_same_verbs_with_a_particle_or_a_relation_are_motions(reader):
     for text, kind in (
         ("take me to the mug", GoTo),

@@ -47,7 +47,7 @@ from tabletop.reader.plan import (
     Turn,
 )
 from tabletop.relations import relation, relation_by_side
-from tabletop.words import NEGATIONS, is_negation, negations, ordinal
+from tabletop.words import NEGATIONS, is_negation, negations, ordinal, superlative
 
 __all__ = [
     "MANNER",
@@ -1022,6 +1022,9 @@ class _Parser:
         text = text.strip(" ,")
         pieces = _CONNECT.split(text)
         # pieces = [primary, connector, constraint, connector, constraint, ...]
+        if len(pieces) > 2 and superlative(pieces[1]) and not _ARTICLES.sub("", pieces[0] + " "):
+            # "the nearest mug": a superlative of the thing, not a connector after nothing
+            pieces = [f"{pieces[0]} {pieces[1]} {pieces[2]}", *pieces[3:]]
         if (
             len(pieces) > 2
             and pieces[1].startswith("where")
@@ -1108,7 +1111,13 @@ class _Parser:
         words = _ARTICLES.sub("", text.strip() + " ").split()  # "the" alone is no description
         if not words:
             self.fail(text, f"the {kind} description is empty")
-        bad = [w for w in words if w in _RESERVED or not re.fullmatch(r"[a-z][a-z0-9'-]*", w)]
+        # an object's leading superlative ranks the things the rest names ("nearest mug")
+        lead = words[0] if kind == "object" and superlative(words[0]) else None
+        bad = [
+            w
+            for w in words
+            if (w in _RESERVED and w != lead) or not re.fullmatch(r"[a-z][a-z0-9'-]*", w)
+        ]
         if kind == "sound":  # sounds are free text ("splashing, dripping water"), not structure
             bad = [
                 w
