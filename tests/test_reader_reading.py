@@ -302,12 +302,31 @@ def test_a_request_in_another_language_is_named_as_not_english(reader):
         with pytest.raises(ParseError, match="the request is not in English") as e:
             understand(text, reader=reader)
         assert why in str(e.value) and "only English requests are read" in str(e.value)
+    # words of another language that are English words too, or one edit from them ("la",
+    # "favor"; "roja" is corrected to "rosa"), are read by the language identifier
+    for text, language in [
+        ("ve a la taza roja", "Spanish"),
+        ("lleva el brazo hacia la pelota", "Spanish"),
+        ("porta il braccio alla tazza rossa", "Italian"),
+    ]:
+        with pytest.raises(ParseError, match="the request is not in English") as e:
+            understand(text, reader=reader)
+        # (the rule reader corrects nothing: more than half its words are no English words)
+        assert reader == "rules" or f"it reads as {language}" in str(e.value)
     # an English request naming a thing in another language, imitating a sound or with slips
     # is English
-    for text in ["go to the Tasse", "go to where the clock went tick tock tick tock"]:
+    for text in [
+        "go to the Tasse",
+        "go to where the clock went tick tock tick tock",
+    ]:
         assert understand(text, reader=reader).steps, text
     if reader != "rules":  # the others correct slips first
         assert understand("go to teh bleu mgu", reader=reader).steps
+    # one rare word the identifier takes for German is no other language
+    from tabletop.reader.spelling import language_of, not_english
+
+    assert language_of("a wurlitzer")[0] != "en"
+    assert not_english("a wurlitzer", typed="a wurlitzer") is None
 
 
 @pytest.mark.parametrize("reader", ["learned", "rules+learned"])

@@ -98,7 +98,7 @@ def refuse_not_english(text: str, read: str) -> None:
     """Refuse a request in another language (:func:`~tabletop.reader.spelling.not_english`
     of its words after spelling, ``read``): the grammar and the tagger read English only, and
     would name a foreign request as asking something else, or read its words as a thing's."""
-    why = not_english(read)
+    why = not_english(read, typed=text)
     if why is not None:
         raise ParseError(
             text,

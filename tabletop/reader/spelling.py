@@ -269,13 +269,61 @@ _LATIN_LETTER = re.compile(r"[A-Za-z\u00c0-\u024f]")
 FOREIGN_SHARE = 0.5
 
 
-def not_english(text: str, speller: Speller | None = None) -> str | None:
+#: Languages written in the Latin script that a request is told apart from English by
+#: (:func:`language_of`), as ISO 639-1 codes -> names.
+LATIN_LANGUAGES = {
+    "en": "English", "es": "Spanish", "fr": "French", "de": "German", "it": "Italian",
+    "pt": "Portuguese", "nl": "Dutch", "sv": "Swedish", "da": "Danish", "no": "Norwegian",
+    "pl": "Polish", "cs": "Czech", "ro": "Romanian", "hu": "Hungarian", "tr": "Turkish",
+    "fi": "Finnish",
+}  # fmt: skip
+#: Probability from which the language identifier's other language is taken over English,
+#: where two words at least are no English words (chosen on requests in ten other languages
+#: written for it and on the tune pools' 2714 English texts: none of these is taken).
+LANGUAGE_MIN_P = 0.8
+
+
+@functools.cache
+def _identifier():
+    """langid.py's identifier (its model ships inside the package), restricted to
+    :data:`LATIN_LANGUAGES`, with probabilities."""
+    from langid.langid import LanguageIdentifier, model
+
+    ident = LanguageIdentifier.from_modelstring(model, norm_probs=True)
+    ident.set_languages(list(LATIN_LANGUAGES))
+    return ident
+
+
+def language_of(text: str) -> tuple[str, float]:
+    """(ISO 639-1 code, probability) of the language ``text`` reads as, among
+    :data:`LATIN_LANGUAGES`."""
+    code, p = _identifier().classify(str(text))
+    return str(code), float(p)
+
+
+def rare_words(text: str, speller: Speller | None = None) -> list[str]:
+    """The distinct words of ``text`` that are neither common enough English words (of the word
+    list at :data:`RARE_COUNT` or more, or made regularly from one) nor words of the map's or
+    the reader's vocabulary."""
+    sp = speller or default_speller()
+    words = re.findall(r"[^\W\d_]+(?:'[^\W\d_]+)*", str(text).lower())
+    return [
+        w
+        for w in dict.fromkeys(words)
+        if not (sp.english.get(w, 0) >= RARE_COUNT or w in sp.vocabulary or sp._regular(w))
+    ]
+
+
+def not_english(text: str, speller: Speller | None = None, typed: str | None = None) -> str | None:
     """Why ``text`` is not an English request, or None: most of its letters are of another
     script (Chinese, Cyrillic, Arabic, ...), or more than half its distinct words, and two at
     least, are neither English words (of the word list, or made regularly from one) nor words
     of the map's or the reader's vocabulary. Pass the words after spelling correction:
-    a slip of an English word is then English again. Words only are judged (no list of any
-    other language's words is kept)."""
+    a slip of an English word is then English again. ``typed``: the words as typed, before
+    correction; where two of them at least are rare (:func:`rare_words`) they are also read by
+    a language identifier (:func:`language_of`), since another language's words are often
+    English ones too, or one edit from them ("la", "favor"; "roja" to "rosa"). No list of any
+    other language's words is kept."""
     words = re.findall(r"[^\W\d_]+(?:'[^\W\d_]+)*", text)
     letters = "".join(words)
     if not letters:
@@ -290,6 +338,11 @@ def not_english(text: str, speller: Speller | None = None) -> str | None:
     if len(unknown) >= 2 and len(unknown) / len(distinct) > FOREIGN_SHARE:
         shown = ", ".join(repr(w) for w in unknown[:4])
         return f"{len(unknown)} of its {len(distinct)} words are no English words ({shown})"
+    if typed is not None and len(rare := rare_words(typed, sp)) >= 2:
+        code, p = language_of(typed)
+        if code != "en" and p >= LANGUAGE_MIN_P:
+            shown = ", ".join(repr(w) for w in rare[:4])
+            return f"it reads as {LATIN_LANGUAGES[code]} (p {p:.2f}; {shown})"
     return None
 
 
