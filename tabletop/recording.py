@@ -594,6 +594,10 @@ def read_header(path: str | Path) -> dict:
     is wrong."""
     path = _recording_path(path)
     header_path = path / _HEADER
+    if not path.exists():
+        raise RecordingError(f"{path} does not exist: a recording is a directory (tabletop scan)")
+    if not path.is_dir():
+        raise RecordingError(f"{path} is a file, not a recording: a recording is a directory")
     if not header_path.is_file():
         raise RecordingError(f"{path} is not a recording: {header_path} is missing")
     try:

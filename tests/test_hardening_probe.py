@@ -858,3 +858,21 @@ def test_run_checks_its_llm_config_before_the_map_and_the_robot(tmp_path, capsys
     err = capsys.readouterr().err
     assert "missing.toml" in err and "none.npz" not in err
     assert "starting the simulated arm" not in err
+
+
+@pytest.mark.parametrize("encoders", ["oracle", "default"])
+def test_a_map_is_built_from_a_recording_or_its_path_and_nothing_else(tmp_path, encoders):
+    from tabletop.eval.harness import build_map
+
+    # the default set had raised an AttributeError; the oracle had blamed the ground truth
+    for bad in (None, 3, [tmp_path]):
+        with pytest.raises(ConfigError, match="a map is built from a Recording"):
+            build_map(bad, encoders)
+    (tmp_path / "notes.txt").write_text("x")
+    for path, why in (
+        (tmp_path / "nothing", "does not exist"),
+        (tmp_path / "notes.txt", "is a file, not a recording"),
+        (tmp_path, "is not a recording"),
+    ):
+        with pytest.raises(RecordingError, match=why):
+            build_map(str(path), encoders)

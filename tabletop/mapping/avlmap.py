@@ -20,6 +20,7 @@ uncalibrated prior when none is), saved with it and restored on load.
 from __future__ import annotations
 
 import logging
+import os
 import re
 import time
 import unicodedata
@@ -59,6 +60,7 @@ from tabletop.mapping.visual.localization import VisualLocalization
 from tabletop.mapping.visual.module import VisualModule, VisualModuleConfig
 from tabletop.mapping.visual.photometric import PhotometricCheck
 from tabletop.mapping.voxel_map import VoxelMap, frame_points
+from tabletop.recording import Recording, load_recording
 from tabletop.words import negations, ordinal, relation_words
 
 __all__ = ["QUERY_KINDS", "AVLMap", "MapStats", "SelfFilter"]
@@ -286,9 +288,11 @@ class AVLMap:
         """Build a map from a whole recording with the named encoder set (``encoder_options``:
         see :func:`~tabletop.mapping.encoders.registry.make_encoders`). ``calibration``: the
         encoder set's confidence calibration (``load_calibration(encoders)``), ``self_filter``:
-        see the class; ``progress(done, total)`` is called after each frame."""
+        see the class; ``progress(done, total)`` is called after each frame. ``recording``: a
+        :class:`~tabletop.recording.Recording`, or the path of a recording on disk."""
         from tabletop.mapping.encoders.registry import make_encoders
 
+        recording = _as_recording(recording)
         config = config or MapConfig()
         enc = make_encoders(encoders, recording, encoder_options)
         m = cls(
@@ -712,6 +716,19 @@ _SURROGATE = re.compile("[\ud800-\udfff]")
 #: the query to name a thing, not a sound: on the tune pools' 4464 sound phrasings the largest
 #: such lead is 0.18 ("...drinking through a straw"); "the red mug" leads by 0.47.
 THING_NOT_SOUND_MARGIN = 0.25
+
+
+def _as_recording(recording) -> Recording:
+    """``recording`` itself, or the recording on disk at that path; ConfigError naming what a
+    map is built from for anything else."""
+    if isinstance(recording, Recording):
+        return recording
+    if isinstance(recording, str | os.PathLike):
+        return load_recording(recording)  # names a missing or foreign path
+    raise ConfigError(
+        f"a map is built from a Recording (tabletop.recording.load_recording(path), or "
+        f"tabletop.sim.run_scan) or a recording's path, got {type(recording).__name__}"
+    )
 
 
 def _unscorable(query: str) -> str:
