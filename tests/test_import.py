@@ -455,3 +455,15 @@ def test_missing_topic_option_names_the_choices(short, tmp_path):
 
     with pytest.raises(ImportFormatError, match="no topic '/nope'.*topics:"):
         import_recording(src, None, "rosbag2", topics=BagTopics(rgb="/nope"))
+
+
+def test_a_source_that_does_not_exist_is_named_before_its_format_is_guessed(tmp_path, capsys):
+    from tabletop.ingest import ImportFormatError, guess_format
+
+    with pytest.raises(ImportFormatError, match="does not exist"):
+        guess_format(tmp_path / "nope.bag")
+    # a folder of neither kind still asks for --format
+    with pytest.raises(ImportFormatError, match="cannot tell the format"):
+        guess_format(tmp_path)
+    assert main(["import", str(tmp_path / "nope.bag"), "--out", str(tmp_path / "o")]) == 2
+    assert "nope.bag does not exist" in capsys.readouterr().err

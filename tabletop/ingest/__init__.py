@@ -51,6 +51,8 @@ def guess_format(src: str | Path) -> str:
     """``rosbag2`` for a folder with a ``metadata.yaml`` (or an .mcap/.db3 file), ``tum`` for one
     with an ``rgb.txt``."""
     src = Path(src)
+    if not src.exists():
+        raise ImportFormatError(f"{src} does not exist: give a ROS 2 bag or a TUM RGB-D folder")
     if (src.is_dir() and (src / "metadata.yaml").is_file()) or src.suffix in (".mcap", ".db3"):
         return "rosbag2"
     if src.is_dir() and (src / "rgb.txt").is_file():
