@@ -14,6 +14,7 @@ __all__ = [
     "SimulationError",
     "TabletopError",
     "check_bool",
+    "count_problem",
 ]
 
 
@@ -60,3 +61,17 @@ def check_bool(call: str, name: str, value: object) -> bool:
     ):
         return bool(value)
     raise ConfigError(f"{call}({name}=...): {name} takes True or False, got {value!r}")
+
+
+def count_problem(value: object) -> str:
+    """Why ``value`` is no count of things (a whole number >= 0), "" where it is one: it names
+    text that holds a number as text ("the text '60'"), which a file edited by hand may."""
+    if isinstance(value, int) and not isinstance(value, bool) and value >= 0:
+        return ""
+    if isinstance(value, str):
+        got = f"the text {value!r}" + (" (a number in quotes)" if value.strip().isdigit() else "")
+    elif isinstance(value, bool) or not isinstance(value, int | float):
+        got = f"{value!r} ({type(value).__name__})"
+    else:
+        got = repr(value)
+    return f"must be a count (a whole number >= 0), got {got}"

@@ -12,6 +12,7 @@ from tabletop.errors import ConfigError
 from tabletop.eval.harness import build_map, map_config
 from tabletop.mapping import AVLMap, MapConfig
 from tabletop.mapping.encoders.registry import ENCODER_SETS
+from tabletop.mapping.errors import MapFormatError
 from tabletop.mapping.heatmaps import fuse
 from tabletop.sim.ground_truth import GroundTruth
 from tabletop.sim.scan import ScanConfig, run_scan
@@ -583,3 +584,16 @@ def test_a_sound_query_that_names_a_thing_and_no_sound_is_not_found(avlmap):
     assert "names a thing" not in avlmap.sound_heatmap("the duck").reason
     # the margin decides: without one, "the duck" (a toy here) would be a thing too
     assert avlmap._rather_a_thing("the duck", 0.0)
+
+
+def test_a_header_count_given_as_text_is_named_as_text(avlmap, tmp_path):
+    from tabletop.errors import count_problem
+
+    assert count_problem(3) == ""
+    assert "the text '60' (a number in quotes)" in count_problem("60")
+    assert "got -1" in count_problem(-1) and "(bool)" in count_problem(True)
+    path = tmp_path / "m.npz"
+    avlmap.save(path)
+    bad = _rewrite(path, tmp_path / "bad.npz", n_segments="60")
+    with pytest.raises(MapFormatError, match="'n_segments' must be a count .*the text '60'"):
+        AVLMap.load(bad)

@@ -33,7 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from tabletop.atomic import atomic_path, check_writable
-from tabletop.errors import ConfigError
+from tabletop.errors import ConfigError, count_problem
 from tabletop.mapping.errors import MapFormatError
 from tabletop.paths import input_file_problem
 
@@ -494,9 +494,8 @@ def read_map_file(path: str | Path) -> tuple[dict, dict[str, np.ndarray]]:
         )
     counts = ("n_voxels", "dim", "n_frames", "n_segments", "frames_seen")
     for k in counts:
-        v = h.get(k)
-        if not isinstance(v, int) or isinstance(v, bool) or v < 0:
-            raise MapFormatError(f"{path}: header field {k!r} must be a count >= 0, got {v!r}")
+        if why := count_problem(h.get(k)):
+            raise MapFormatError(f"{path}: header field {k!r} {why}")
     expect = {
         "voxel_linear": (h["n_voxels"],),
         "voxel_feature_sums": (h["n_voxels"], h["dim"]),

@@ -20,7 +20,7 @@ import time
 import cv2
 import numpy as np
 
-from tabletop.errors import ConfigError
+from tabletop.errors import ConfigError, count_problem
 from tabletop.mapping.errors import MapFormatError
 from tabletop.mapping.visual.features import DESCRIPTOR_DIMS, _backend
 from tabletop.mapping.visual.inputs import _check_K, check_rgb
@@ -204,10 +204,8 @@ class VisualDatabase:
         except (KeyError, TypeError, ConfigError) as e:
             raise VisualDatabaseError(f"visual database header is invalid: {e}") from None
         for name, v in (("n_frames", m), ("n_keypoints", p), ("frames_seen", frames_seen)):
-            if not isinstance(v, int) or isinstance(v, bool) or v < 0:
-                raise VisualDatabaseError(
-                    f"visual database header {name!r} must be a count >= 0, got {v!r}"
-                )
+            if why := count_problem(v):
+                raise VisualDatabaseError(f"visual database header {name!r} {why}")
         if dim not in DESCRIPTOR_DIMS.values():
             raise VisualDatabaseError(f"visual database descriptor_dim {dim!r} is not a matcher's")
         if dim != DESCRIPTOR_DIMS[config.matcher]:
