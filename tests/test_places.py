@@ -66,6 +66,21 @@ def test_two_opposite_directions_are_no_region_and_the_reason_names_them(text, p
     assert PlaceReader().read("the far left").region == TableRegion("left", "far", "the far left")
 
 
+@pytest.mark.parametrize(
+    ("text", "depth"),
+    [
+        ("the half on your side", "near"),  # the robot is the one spoken to
+        ("your end of the table", "near"),
+        ("the bit of the table you are at", "near"),
+        ("the part farthest from where you stand", "far"),
+        ("the end away from where the arm is", "far"),
+    ],
+)
+def test_the_robot_s_side_named_from_the_one_spoken_to_is_a_region(text, depth):
+    a = PlaceReader(learned=False).read(text)  # the grammar, not the classifier
+    assert a.region == TableRegion(None, depth, text) and a.how == "grammar", a
+
+
 def test_a_place_named_after_a_thing_gives_its_subject():
     a = PlaceReader().read("the area around the tray")
     assert a == AreaRef("the area around the tray", subject="tray", how="subject")

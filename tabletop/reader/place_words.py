@@ -15,7 +15,8 @@ Geometric phrasings (case and the articles "the"/"a" aside; "table" may be left 
   robot", "next to the robot", "by the robot", "the robot's side" / "end" / "half", "where
   the robot stands" / "is" / "sits" (the half nearest the robot; "arm" or "base" may stand
   for "robot", and so may "the arm's base" or "you": the robot is the one asked, so "the half
-  closest to you" is its side); "in front of the robot" is its forward half, the front, but
+  closest to you", "your side", "your end", "the part you are at" are its side, and "the end
+  farthest from where you stand" the other); "in front of the robot" is its forward half, the front, but
   "right", "just", "directly" or "immediately in front of the robot" is the strip by it;
 - "side", "part", "half", "end", "edge", "margin", "border", "corner", "area", "wing",
   "flank", "quarter", "strip", "patch", "sector" and the like name no direction ("the right
@@ -53,16 +54,21 @@ _RIGHT = r"right\s*hand|rightmost|right|starboard"
 _ROBOT = r"(?:(?:the\s+)?(?:(?:robot|arm)(?:\s+base)?|base)|you|yourself)"
 #: How the robot is set where it stands: "where the arm is mounted".
 _SET = r"(?:mounted|fixed|attached|bolted|clamped|placed|located|positioned|installed|based)"
+#: Where the robot is: "the robot", "you", "where you are", "where the arm stands".
+_ROBOT_AT = rf"(?:where\s+)?{_ROBOT}\s+(?:is|are|stands?|sits?|(?:is|are)\s+{_SET})|{_ROBOT}"
+#: The robot's own (side): "your side", "the arm's end" ("'s" is dropped before reading).
+_ROBOTS = rf"(?:{_ROBOT}|your|yours)"
 _FAR = (
     rf"(?:far(?:thest|ther)?|furthest|further)(?:\s+(?:end|side|part))?\s+(?:away\s+)?from\s+"
-    rf"{_ROBOT}|away\s+from\s+{_ROBOT}|opposite\s+(?:to\s+|from\s+)?{_ROBOT}|"
+    rf"(?:{_ROBOT_AT})|away\s+from\s+(?:{_ROBOT_AT})|opposite\s+(?:to\s+|from\s+)?{_ROBOT}|"
     r"far\s+(?:side|end)|front\s*most|front|forward|far(?:thest|ther)?|furthest|further|"
     r"opposite"
 )
 _NEAR = (
     rf"(?:close(?:st)?|near(?:est)?|next)\s+(?:to\s+)?{_ROBOT}|by\s+{_ROBOT}|"
-    rf"{_ROBOT}\s+(?:own\s+)?(?:side|end|half)|"
+    rf"(?:on\s+)?{_ROBOTS}\s+(?:own\s+)?(?:side|end|half|edge)|"
     rf"(?:by\s+)?(?:where|that)\s+{_ROBOT}\s+(?:stands?|is|are|sits?)(?:\s+{_SET})?|"
+    rf"{_ROBOT}\s+(?:are|is|stand|stands|sit|sits)\s+(?:at|by|on|beside)|"
     r"near\s+(?:side|end)|(?:back|rear|hind)\s*most|back|rear|near(?:est|er)?|closest"
 )
 _MID = (
