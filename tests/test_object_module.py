@@ -336,6 +336,27 @@ def test_a_superlative_ranks_the_things_the_rest_of_the_words_find(scene):
     assert superlative("the left-most ball").measure == "left"
 
 
+def test_a_framed_colour_word_no_survey_has_means_the_colour_the_longer_list_gives_it():
+    from tabletop.mapping.colour_words import colour_word, named_colour
+
+    # "quince" and "byzantium": in the longer list of names only; "bear" there too, but no
+    # query's word is made a colour by that list
+    assert not colour_word("quince") and named_colour("quince") is not None
+    assert not colour_word("byzantium") and named_colour("byzantium") is not None
+    balls = {
+        "red ball": ((0.10, -0.20, 0.01), (0.16, -0.14, 0.07), (200, 30, 30)),
+        "yellow ball": ((0.30, -0.20, 0.01), (0.36, -0.14, 0.07), (230, 200, 40)),
+        "purple ball": ((0.30, 0.10, 0.01), (0.36, 0.16, 0.07), (110, 40, 140)),
+    }
+    m = _module_of(balls, DESCRIPTIONS)
+    for q, name in (
+        ("the quince-coloured ball", "yellow ball"),
+        ("the byzantium-colouredish ball", "purple ball"),  # a frame word's "-ish" form
+    ):
+        h = m.heatmap(q, 10.0, judge_at(0.2))
+        assert h.found and _lands_on(m, h, name, balls), (q, h.reason)
+
+
 def test_the_colour_of_a_part_need_not_cover_much_of_the_thing(scene):
     # A football: white panels and black patches covering a quarter of it.
     ball = _instance((190, 190, 190), [(240, 240, 240), (25, 25, 25)], [0.75, 0.25])

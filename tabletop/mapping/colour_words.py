@@ -29,6 +29,7 @@ __all__ = [
     "framed_colours",
     "heads",
     "modifies",
+    "named_colour",
     "split_color_words",
     "survey_colours",
     "survey_name",
@@ -39,6 +40,10 @@ __all__ = [
 
 #: More colour names, beside the lexicon's: the xkcd colour survey's (CC0).
 SURVEY_PATH = DATA_DIR / "colours" / "survey.toml"
+#: One-word colour names the survey lacks (color-name-list, MIT): read only to say which colour
+#: a word means once the query's words or the text encoder have made it a colour
+#: (:func:`named_colour`); the list also names everyday things ("bear", "tea").
+NAMES_PATH = DATA_DIR / "colours" / "names.toml"
 
 _THING = frozenset(("one", "thing", "object", "something", "item"))
 #: Words that name no particular thing: "the red one", "something red".
@@ -121,6 +126,35 @@ def survey_colours(path: str | Path = SURVEY_PATH) -> dict[str, tuple[int, int, 
             continue
         out[name] = (int(hexa[1:3], 16), int(hexa[3:5], 16), int(hexa[5:7], 16))
     return out
+
+
+@cache
+def _more_colours(path: str | Path = NAMES_PATH) -> dict[str, tuple[int, int, int]]:
+    """Name -> sRGB of :data:`NAMES_PATH` (same format as the survey)."""
+    try:
+        d = tomllib.loads(Path(path).read_text())
+    except (OSError, tomllib.TOMLDecodeError) as e:
+        raise AssetError(f"colour names {path} are unreadable: {e}") from None
+    if d.get("format") != "tabletop-colour-names" or not isinstance(d.get("names"), dict):
+        raise AssetError(f"{path}: expected format 'tabletop-colour-names' with a [names] table")
+    out = {}
+    for name, hexa in d["names"].items():
+        if not (isinstance(hexa, str) and re.fullmatch(r"#[0-9a-f]{6}", hexa)):
+            raise AssetError(f"{path} [names].{name!r}: expected '#rrggbb', got {hexa!r}")
+        out[name] = (int(hexa[1:3], 16), int(hexa[3:5], 16), int(hexa[5:7], 16))
+    return out
+
+
+def named_colour(word: str) -> tuple[int, int, int] | None:
+    """The sRGB colour a word named as a colour means where neither the lexicon nor the survey
+    has it ("quince", "marigold"; its "-y" or "-ish" form too), from :data:`NAMES_PATH`; None
+    where no list has it. Never a test of whether the word *is* a colour."""
+    more = _more_colours()
+    w = str(word).lower()
+    for cand in (w, w[:-3] if w.endswith("ish") else "", w[:-1] if w.endswith("y") else ""):
+        if cand and cand in more:
+            return more[cand]
+    return None
 
 
 def survey_words(text: str) -> list[str]:
@@ -322,9 +356,9 @@ def framed_colours(text: str) -> list[str]:
     words = _plain_words(text)
     out = []
     for k, w in enumerate(words):
-        framed = (k + 1 < len(words) and words[k + 1] in _FRAME_AFTER) or (
-            k > 0 and words[k - 1] in _FRAME_BEFORE
-        )
+        after = words[k + 1] if k + 1 < len(words) else ""
+        framed = after in _FRAME_AFTER or after.removesuffix("ish") in _FRAME_AFTER  # "-ish"
+        framed = framed or (k > 0 and words[k - 1] in _FRAME_BEFORE)
         if (
             framed
             and len(w) > 2

@@ -64,6 +64,7 @@ import numpy as np
 from tabletop.errors import AssetError, ConfigError
 from tabletop.mapping.colors import (
     BASIC_COLOURS,
+    COLOR_MODIFIERS,
     COLOR_NAMES,
     delta_e,
     delta_e94,
@@ -77,6 +78,7 @@ from tabletop.mapping.colour_words import (
     framed_colours,
     heads,
     modifies,
+    named_colour,
     split_color_words,
     survey_colours,
     survey_name,
@@ -778,8 +780,12 @@ class ObjectModule:
         # "pure blue", "deep orange") is a shade of that term, as people read it: the nearest
         # lexicon name may lie in another family (brown for "pale red", purple for "pure blue")
         survey = [s for s in survey_words(colour) if not _shade_of_basic(s)]
-        if survey:  # a survey name means its basic colour term: that of the nearest name
-            rgb = np.array(survey_colours()[survey_name(survey[0])], float)
+        # a word no lexicon or survey has, read as a colour ("quince"), is the colour the
+        # longer list of colour names gives it
+        more = [w for w in colour.split() if not colour_word(w) and w not in COLOR_MODIFIERS]
+        named = next((c for w in more if (c := named_colour(w)) is not None), None)
+        if survey or named is not None:  # a name means its basic colour term: the nearest's
+            rgb = np.array(survey_colours()[survey_name(survey[0])] if survey else named, float)
             de = delta_e94(rgb_to_lab(rgb), lab[-1])  # the names at full light (gain 1)
             return self.colour_weights(COLOR_NAMES[list(COLOR_NAMES)[int(np.argmin(de))]][1])
         sim = embeddings @ self.text.encode_text([colour])[0]
