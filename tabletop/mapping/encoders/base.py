@@ -71,6 +71,25 @@ def mono_at(audio: np.ndarray, sample_rate: int, rate: int) -> np.ndarray:
     return x
 
 
+#: ImageNet statistics: the dense image encoders' input normalisation.
+IMAGENET_MEAN = (0.485, 0.456, 0.406)
+IMAGENET_STD = (0.229, 0.224, 0.225)
+
+
+def preprocess(rgb: np.ndarray, mean: tuple = IMAGENET_MEAN, std: tuple = IMAGENET_STD):
+    """(H, W, 3) uint8 RGB (or (B, H, W, 3)) -> (B, 3, H, W) float32 normalised tensor
+    (per-channel ``(x / 255 - mean) / std``; ImageNet statistics by default)."""
+    import torch
+
+    x = torch.from_numpy(np.require(rgb, requirements=["C", "W"])).float().div_(255.0)
+    if x.ndim == 3:
+        x = x[None]
+    x = x.permute(0, 3, 1, 2)
+    m = torch.tensor(mean).view(1, 3, 1, 1)
+    s = torch.tensor(std).view(1, 3, 1, 1)
+    return (x - m) / s
+
+
 def l2_normalize(x: np.ndarray, axis: int = -1, eps: float = 1e-12) -> np.ndarray:
     """``x`` scaled to unit L2 norm along ``axis`` (zero vectors stay zero), as float32."""
     x = np.asarray(x, dtype=np.float32)

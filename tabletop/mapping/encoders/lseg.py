@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from tabletop.errors import AssetError, ConfigError
-from tabletop.mapping.encoders.base import torch_threads
+from tabletop.mapping.encoders.base import IMAGENET_MEAN, IMAGENET_STD, preprocess, torch_threads
 from tabletop.mapping.encoders.minilm import MINILM_SPACE
 from tabletop.paths import DATA_DIR
 
@@ -52,8 +52,7 @@ without a path."""
 EFFNET_WEIGHTS_PATH = DATA_DIR / "weights" / "vision_dense_effnet.pt"
 """Where the committed weights of the EfficientNet-Lite0 image encoder live."""
 
-_MEAN = (0.485, 0.456, 0.406)
-_STD = (0.229, 0.224, 0.225)
+_MEAN, _STD = IMAGENET_MEAN, IMAGENET_STD
 
 ARCHS = ("lseg-small", "effnet-lite0-fpn")
 """Architectures a vision weights file may record (``ckpt["arch"]``)."""
@@ -169,19 +168,6 @@ def _net_class():
 def LSegNet(width: int = 32, dim: int = 384):
     """The network (a ``torch.nn.Module``); see :func:`build_lseg_net`."""
     return _net_class()(width=width, dim=dim)
-
-
-def preprocess(rgb: np.ndarray, mean: tuple = _MEAN, std: tuple = _STD):
-    """(H, W, 3) uint8 RGB (or (B, H, W, 3)) -> (B, 3, H, W) float32 normalised tensor
-    (per-channel ``(x / 255 - mean) / std``; ImageNet statistics by default)."""
-    torch = _torch()
-    x = torch.from_numpy(np.require(rgb, requirements=["C", "W"])).float().div_(255.0)
-    if x.ndim == 3:
-        x = x[None]
-    x = x.permute(0, 3, 1, 2)
-    m = torch.tensor(mean).view(1, 3, 1, 1)
-    s = torch.tensor(std).view(1, 3, 1, 1)
-    return (x - m) / s
 
 
 @functools.cache

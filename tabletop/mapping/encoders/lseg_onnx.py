@@ -46,8 +46,12 @@ from pathlib import Path
 
 import numpy as np
 
+from tabletop.errors import AssetError
+from tabletop.paths import DATA_DIR
+
 __all__ = [
     "CALIBRATION_LAYOUTS",
+    "CALIBRATION_PATH",
     "EXPORT_TOLERANCE",
     "GRAPH_VERSION",
     "INT8_VERSION",
@@ -73,6 +77,8 @@ INT8_VERSION = 1
 CALIBRATION_LAYOUTS = (0, 1, 2, 3)
 """Layout seeds (``tabletop.train.vision`` training seeds ``0 * 100_000 + i``) rendered, two
 views each, to measure the int8 graph's activation ranges."""
+CALIBRATION_PATH = DATA_DIR / "weights" / "lseg_int8_calibration.npz"
+"""Those renders, committed (``tools/build_int8_calibration.py``)."""
 
 _OPSET = 17
 _lock = threading.Lock()
@@ -236,8 +242,7 @@ def _check_image(height: int, width: int) -> np.ndarray:
 
 
 def _torch_embeddings(net, mean, std, rgb) -> np.ndarray:
-    from tabletop.mapping.encoders.base import torch_threads
-    from tabletop.mapping.encoders.lseg import preprocess
+    from tabletop.mapping.encoders.base import preprocess, torch_threads
 
     with torch_threads(1):
         emb = net(preprocess(rgb, mean, std))[0]
@@ -294,12 +299,18 @@ def _keep(path: Path, data: bytes) -> None:
 
 
 def calibration_frames(height: int, width: int) -> np.ndarray:
-    """(N, height, width, 3) uint8 renders of :data:`CALIBRATION_LAYOUTS` (resampled to the
-    size by nearest pixel when the renders have another)."""
-    from tabletop.train.vision import render_dataset
-
-    rgbs, _ = render_dataset(list(CALIBRATION_LAYOUTS), views=2, heldout=False, seed=0, lit=True)
-    rgbs = np.asarray(rgbs)
+    """(N, height, width, 3) uint8 renders of :data:`CALIBRATION_LAYOUTS`, read from
+    :data:`CALIBRATION_PATH` (written by ``tools/build_int8_calibration.py``: the map layer
+    does not render), resampled to the size by nearest pixel when the renders have another."""
+    try:
+        with np.load(CALIBRATION_PATH, allow_pickle=False) as z:
+            rgbs = np.asarray(z["rgb"], np.uint8)
+    except (OSError, KeyError, ValueError) as e:
+        raise AssetError(
+            f"the int8 calibration frames {CALIBRATION_PATH} are unreadable: {e}"
+        ) from None
+    if rgbs.ndim != 4 or rgbs.shape[-1] != 3 or not len(rgbs):
+        raise AssetError(f"{CALIBRATION_PATH}: expected (N, H, W, 3) frames, got {rgbs.shape}")
     H, W = rgbs.shape[1:3]
     if (H, W) != (height, width):
         rows = (np.arange(height) * H // height)[:, None]
