@@ -41,10 +41,14 @@ def _check_pixel_step(step: int, width: int, height: int) -> None:
 
 
 def cmd_build_map(args: argparse.Namespace) -> int:
-    from tabletop.eval.harness import build_map, map_config
+    from tabletop.errors import ConfigError
+    from tabletop.eval.harness import build_map, build_map_online, map_config
     from tabletop.mapping.persistence import check_map_output
     from tabletop.recording import load_recording, read_header
 
+    given = [f for f, v in (("--rate", args.rate), ("--drop", args.drop)) if v is not None]
+    if given and not args.online:
+        raise ConfigError(f"{', '.join(given)}: only with --online")
     check_output_flag("--out", args.out)  # before the map is built, not after
     check_map_output(args.out, args.overwrite)
     config = map_config(voxel_size=args.voxel_size, pixel_step=args.pixel_step)
@@ -53,15 +57,29 @@ def cmd_build_map(args: argparse.Namespace) -> int:
     print(f"loading {args.recording} ...", file=sys.stderr)
     rec = load_recording(args.recording)
     t0 = time.perf_counter()
+    report = None
     with ProgressBars() as bars:
-        m = build_map(
-            rec, args.encoders, config, progress=bars.stage(f"map ({args.encoders} encoders)")
-        )
+        stage = bars.stage(f"map ({args.encoders} encoders{', online' if args.online else ''})")
+        if args.online:
+            rate = 1.0 if args.rate is None else args.rate
+            m, report = build_map_online(
+                rec, args.encoders, config, rate=rate, drop=args.drop or "none", progress=stage
+            )
+        else:
+            m = build_map(rec, args.encoders, config, progress=stage)
     wall = time.perf_counter() - t0
     path = m.save(args.out)
     st = m.stats
     print(f"encoders:  {m.encoder_names.get('set', args.encoders)}")
     print(f"frames:    {st.frames} ({st.fused_frames} fused), {wall:.1f} s in all")
+    if report is not None:
+        r = report
+        print(
+            f"online:    camera {r.camera_fps:.1f} frames/s; {r.fused} of {r.frames} frames "
+            f"given to the map, {r.dropped} dropped (--drop {args.drop or 'none'}); lag median "
+            f"{r.lag_median_s * 1e3:.0f} ms, p95 {r.lag_p95_s * 1e3:.0f} ms, max "
+            f"{r.lag_max_s * 1e3:.0f} ms; keeps up: {'yes' if r.keeps_up else 'no'}"
+        )
     print(f"encoder:   {st.frames / max(st.encoder_s, 1e-9):.1f} frames/s")
     print(f"fusion:    {st.fused_frames / max(st.fusion_s, 1e-9):.1f} frames/s (encoder excluded)")
     print(
@@ -206,6 +224,23 @@ def add_commands(sub) -> None:
         help="voxel size [m], 0.001 to 0.2 (default 0.01; the shipped figures use 0.01 and 0.005)",
     )
     p.add_argument("--pixel-step", type=int, default=3, help="fuse every n-th pixel row/column")
+    p.add_argument(
+        "--online",
+        action="store_true",
+        help="replay the recording's frames as the camera delivered them and report how far "
+        "the map lags (no table registration: it needs the whole scan)",
+    )
+    p.add_argument(
+        "--rate",
+        type=float,
+        help="with --online: replay speed, 1 = as recorded (default), 2 = twice as fast",
+    )
+    p.add_argument(
+        "--drop",
+        choices=["none", "late"],
+        help="with --online: 'none' fuses every frame however late (default); 'late' skips a "
+        "frame when the next has already arrived",
+    )
     p.set_defaults(func=cmd_build_map)
 
     p = sub.add_parser("query", help="query a map; print the target and write heatmap pictures")

@@ -106,24 +106,46 @@ def catalog_descriptions(path: Path = DESCRIPTIONS_PATH) -> dict[str, tuple[str,
     return {k: tuple(v) for k, v in d.items()}
 
 
+def build_map_online(
+    recording, encoders: str, config=None, *, rate=1.0, drop="none", progress=None
+):
+    """(map, :class:`~tabletop.mapping.online.ReplayReport`): ``recording`` replayed into a
+    map as a camera delivers it (:func:`~tabletop.mapping.online.replay_online`), with the
+    encoders, calibration and self-filter of :func:`build_map`."""
+    from tabletop.mapping import AVLMap, load_calibration
+    from tabletop.mapping.online import replay_online
+
+    config = config or map_config()
+    calibration = load_calibration(encoders)
+    m = AVLMap.empty(recording, config, encoders, None, calibration, _self_filter(config))
+    report = replay_online(m, recording, rate=rate, drop=drop, progress=progress)
+    return m, report
+
+
 def build_map(recording, encoders: str, config=None, progress=None, **kwargs):
     """The map of ``recording`` with encoder set ``encoders``, its committed calibration and the
     Panda's self-filter (``config``: :func:`map_config` by default; ``kwargs``: the rest of
     :meth:`AVLMap.build`'s options)."""
-    from tabletop.arm import RobotSelfFilter
     from tabletop.mapping import AVLMap, load_calibration
 
     config = config or map_config()
-    margin = config.self_filter_margin
     return AVLMap.build(
         recording,
         config,
         encoders=encoders,
         progress=progress,
         calibration=kwargs.pop("calibration", None) or load_calibration(encoders),
-        self_filter=None if margin is None else RobotSelfFilter(margin),
+        self_filter=_self_filter(config),
         **kwargs,
     )
+
+
+def _self_filter(config):
+    """The Panda's self-filter at the config's margin (None: no filter)."""
+    from tabletop.arm import RobotSelfFilter
+
+    margin = config.self_filter_margin
+    return None if margin is None else RobotSelfFilter(margin)
 
 
 #: Modules that only answer queries on a built map (or render their query images), or move the

@@ -274,6 +274,39 @@ class AVLMap:
         self.sounds.add(audio, sample_rate, timestamps, T_world_mic, self.audio_encoder)
 
     @classmethod
+    def empty(
+        cls,
+        recording,
+        config: MapConfig | None = None,
+        encoders: str = "oracle",
+        encoder_options: dict | None = None,
+        calibration: Calibration | None = None,
+        self_filter: SelfFilter | None = None,
+    ) -> AVLMap:
+        """A map with no frame yet, for ``recording``'s frames to be added one by one
+        (:meth:`add_frame`, as :mod:`tabletop.mapping.online` does), with the encoder set
+        ``encoders`` (see :meth:`build` for the rest)."""
+        from tabletop.mapping.encoders.registry import make_encoders
+
+        recording = _as_recording(recording)
+        enc = make_encoders(encoders, recording, encoder_options)
+        m = cls(
+            config or MapConfig(),
+            enc.text,
+            enc.dense,
+            enc.global_image,
+            enc.audio,
+            enc.names,
+            encoders,
+            enc.rebuild,
+            enc.audio_text,
+            calibration=calibration,
+            self_filter=self_filter,
+        )
+        m.source = source_of(recording)
+        return m
+
+    @classmethod
     def build(
         cls,
         recording,
@@ -290,25 +323,10 @@ class AVLMap:
         encoder set's confidence calibration (``load_calibration(encoders)``), ``self_filter``:
         see the class; ``progress(done, total)`` is called after each frame. ``recording``: a
         :class:`~tabletop.recording.Recording`, or the path of a recording on disk."""
-        from tabletop.mapping.encoders.registry import make_encoders
 
         recording = _as_recording(recording)
         config = config or MapConfig()
-        enc = make_encoders(encoders, recording, encoder_options)
-        m = cls(
-            config,
-            enc.text,
-            enc.dense,
-            enc.global_image,
-            enc.audio,
-            enc.names,
-            encoders,
-            enc.rebuild,
-            enc.audio_text,
-            calibration=calibration,
-            self_filter=self_filter,
-        )
-        m.source = source_of(recording)
+        m = cls.empty(recording, config, encoders, encoder_options, calibration, self_filter)
         T_hand = recording.T_world_hand
         m.registration = table_corrections(
             recording.depth, recording.K, recording.T_world_cam, config.registration
