@@ -26,6 +26,7 @@ from tabletop.eval.paraphrase import (
     READ_HELDOUT_POOLS,
     SUITE_DIRS,
     TUNE_POOLS,
+    bare_colour_word,
     load_bank,
     paraphrase_suite,
     suite_sections,
@@ -292,7 +293,10 @@ def test_generated_goals_are_asked_the_way_people_ask(pool, seed):
     # another word order is a paraphrase ("cube toy"); the label itself is not
     labels = {norm(o.label) for o in gt.objects} | {norm(k.label) for k in OBJECT_KINDS.values()}
     captions = {norm(e.caption) for e in gt.sound_events}
-    colour_words = {c: {bag(c), *(bag(w) for w in BANKS[pool].colours.get(c, ()))} for c in COLORS}
+    colour_words = {
+        c: {bag(c), *(bag(bare_colour_word(w)) for w in BANKS[pool].colours.get(c, ()))}
+        for c in COLORS
+    }
     for g in doc["goals"]:
         parts = [g["query"]] if "query" in g else g.get("landmarks", [])
         for p in parts:
