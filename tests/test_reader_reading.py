@@ -126,6 +126,23 @@ def test_a_verb_of_motion_with_a_thing_as_its_object_is_no_goal(reader, text):
         understand(text, reader=reader)
 
 
+@pytest.mark.parametrize("reader", ["learned", "rules+learned"])
+def test_a_thing_the_tagger_leaves_out_or_a_list_of_things_is_refused(reader):
+    # the tagger read these as the relation alone, or as between the first two of three
+    for text, fragment in (
+        ("head to the duck behind the tray", "duck"),
+        ("go to the cube right of the mug", "cube"),
+        ("reach the ball, the duck and the mug", "ball, the duck"),
+    ):
+        with pytest.raises(ParseError) as e:
+            understand(text, reader=reader)
+        assert repr(fragment) in str(e.value), e.value
+    # a name with its colour said after a comma is one thing; the relation alone is read
+    (step,) = understand("go to the ball, the blue one", reader=reader).steps
+    assert step.action.goal.primary.text.endswith("blue one")
+    assert isinstance(understand("head behind the tray", reader=reader).steps[0].action, Side)
+
+
 @pytest.mark.parametrize("reader", ["rules", "rules+spelling", "rules+learned"])
 def test_a_superlative_stays_with_its_thing_for_the_map_to_rank(reader):
     for text, primary, near in (

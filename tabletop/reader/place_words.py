@@ -16,8 +16,9 @@ Geometric phrasings (case and the articles "the"/"a" aside; "table" may be left 
   the robot stands" / "is" / "sits" (the half nearest the robot; "arm" or "base" may stand
   for "robot", and so may "the arm's base" or "you": the robot is the one asked, so "the half
   closest to you", "your side", "your end", "the part you are at" are its side, and "the end
-  farthest from where you stand" the other); "in front of the robot" is its forward half, the front, but
-  "right", "just", "directly" or "immediately in front of the robot" is the strip by it;
+  farthest from where you stand" the other); "in front of the robot" is its forward half,
+  the front, but "right", "just", "directly" or "immediately in front of the robot" is the
+  strip by it;
 - "side", "part", "half", "end", "edge", "margin", "border", "corner", "area", "wing",
   "flank", "quarter", "strip", "patch", "sector" and the like name no direction ("the right
   wing" is the right side), nor do "away", "over", "along", "towards", "most", "extreme" or

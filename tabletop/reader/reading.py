@@ -46,7 +46,13 @@ from tabletop.reader.rules import (
     refuse_non_words,
     refuse_relation_distance,
 )
-from tabletop.reader.spelling import Speller, default_speller, name_words, not_english
+from tabletop.reader.spelling import (
+    Speller,
+    default_speller,
+    kind_words,
+    name_words,
+    not_english,
+)
 
 __all__ = [
     "DEFAULT_READER",
@@ -379,9 +385,28 @@ class LearnedReader:
         negated = [w for w in plain if is_negation(w)]
         if negated:  # the tagger refuses these too; a word that reverses a goal never slips
             raise ParseError(text, " ".join(negated), "the robot cannot honour a negated goal")
+        # a thing's name the tagger left out of every reference ("go to the mug left of the
+        # duck" read as left of the duck): the reading would drop the thing asked for
+        left_out = [w for w in plain if w in kind_words()]
+        if left_out:
+            raise ParseError(
+                text,
+                left_out[0],
+                f"{left_out[0]!r} names a thing the reading leaves out (a thing picked by where "
+                "it stands, 'the mug left of the duck', is not read): ask for the place, 'go to "
+                "the left of the duck', or the thing near another, 'go to the mug near the duck'",
+            )
         steps = settle_references(
             text, decode(text, words, roles, rels, robot, read_clause, role_logp)
         )
+        for ref in _reference_texts(steps):
+            # (", the blue one" after a name says which: no list)
+            if re.search(r",\s*(?:and\s+)?(?:the|a|an)\s(?!.*\bones?\b)", ref):
+                raise ParseError(
+                    text,
+                    ref,
+                    "a list of things is no one place: name one goal per step, joined by 'then'",
+                )
         manner = tuple(w for w in plain if w in MANNER)
         return Reading(text, read, steps, fixes, (), self.name, manner)
 

@@ -154,6 +154,14 @@ def domain_words() -> frozenset[str]:
 
 
 @functools.cache
+def kind_words() -> frozenset[str]:
+    """The words of the map vocabulary's kind names ("mug", "teddy", "bear", "cube"), but
+    "toy", which names none by itself."""
+    words = {w for k in data_toml("descriptions.toml") for w in k.replace("_", " ").split()}
+    return frozenset(words - {"toy"})
+
+
+@functools.cache
 def name_words() -> frozenset[str]:
     """Words that name something in the map's vocabulary: the catalog's kinds, the other
     objects, the colour survey's names and the sound categories (no descriptions)."""
