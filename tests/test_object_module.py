@@ -318,12 +318,14 @@ def test_a_superlative_ranks_the_things_the_rest_of_the_words_find(scene):
         ("the mug furthest away", "blue mug"),
         ("the smallest thing", "yellow duck"),
         ("the lowest one", "yellow duck"),
-        ("the tallest object", "mug"),  # of two equal mugs, one
     ):
         h = scene.heatmap(q, 10.0, judge_at(0.2))
         names = [n for n in SCENE if n.endswith(name)]
         assert h.found and any(_lands_on(scene, h, n) for n in names), (q, h.reason)
         assert sum(_box_peak(scene, h, n) == pytest.approx(1.0) for n in SCENE) == 1, q
+    # two equal mugs are the tallest alike: neither is picked
+    h = scene.heatmap("the tallest object", 10.0, judge_at(0.2))
+    assert not h.found and "'tallest' picks none of the 3 things" in h.reason, h.reason
     # seen from elsewhere (a mobile base's place), the nearest is another
     h = scene.heatmap("the nearest mug", 10.0, judge_at(0.2), viewpoint=(0.6, -0.17))
     assert _lands_on(scene, h, "blue mug")

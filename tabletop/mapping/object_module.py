@@ -1056,7 +1056,15 @@ class ObjectModule:
         keep = np.nonzero(r >= self.config.keep_ratio * float(r.max()))[0]
         if sup is not None:
             value = np.array([sup.sign * superlative_measure(inst[i], sup) for i in keep])
-            keep = keep[[int(np.argmax(value))]]
+            order = np.argsort(-value)
+            if len(keep) > 1 and _alike(value[order[0]], value[order[1]], sup.measure):
+                return Heatmap.not_found(
+                    grid, query, "object", decay,
+                    f"{sup.word!r} picks none of the {len(keep)} things the words name: the "
+                    f"first two are alike by it ({SUPERLATIVE_TIES[sup.measure][1]}); name the "
+                    "one meant by its colour or by a thing near it", best,
+                )  # fmt: skip
+            keep = keep[[int(order[0])]]
         rows = np.concatenate([inst[i].rows for i in keep])
         values = point_heatmap_3d_at(grid, grid.unravel(lin[rows]), decay)
         return Heatmap(grid, values, query, "object", decay, conf, True, "", best)
@@ -1189,6 +1197,25 @@ def _palette_parts(inst: ObjectInstance) -> tuple[np.ndarray, np.ndarray]:
     :data:`PALETTE_MIN_SHARE` of it."""
     big = inst.palette_share >= PALETTE_MIN_SHARE
     return inst.palette[big], inst.palette_share[big]
+
+
+#: Two things a superlative cannot tell apart: (how alike by its measure, as said) — volumes
+#: within 15 % of the larger, tops, sides or distances within 1.5 cm (about a voxel and a half:
+#: what a map of identical things measures differently).
+SUPERLATIVE_TIES = {
+    "size": (0.15, "volumes within 15 %"),
+    "height": (0.015, "tops within 1.5 cm"),
+    "left": (0.015, "within 1.5 cm across the table"),
+    "reach": (0.015, "within 1.5 cm of the same distance"),
+}
+
+
+def _alike(a: float, b: float, measure: str) -> bool:
+    """Whether two superlative values (signed, :func:`superlative_measure`) are a tie."""
+    tol = SUPERLATIVE_TIES[measure][0]
+    if measure == "size":
+        return abs(a - b) <= tol * max(abs(a), abs(b))
+    return abs(a - b) <= tol
 
 
 def superlative_measure(inst: ObjectInstance, sup: Superlative) -> float:

@@ -350,7 +350,9 @@ def not_english(text: str, speller: Speller | None = None, typed: str | None = N
         code, p = language_of(typed)
         if code != "en" and p >= LANGUAGE_MIN_P:
             shown = ", ".join(repr(w) for w in rare[:4])
-            return f"it reads as {LATIN_LANGUAGES[code]} (p {p:.2f}; {shown})"
+            # the identifier may mistake one language for a neighbour: it says "not English"
+            most = LATIN_LANGUAGES[code]
+            return f"it reads as another language, most like {most} (p {p:.2f}; {shown})"
     return None
 
 
