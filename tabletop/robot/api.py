@@ -440,10 +440,10 @@ class RobotAPI(abc.ABC):
         # the words of a reference are read by the one reader every caller asks
         ref = get_reader(self.reader).reference(kind, value)
         if kind == "obj":  # "the nearest mug": nearest where the robot is
-            return self.map.object_heatmap(ref, major=major, viewpoint=self.viewpoint())
+            return self.map.object_heatmap(ref, major=major, viewpoint=self._viewpoint())
         return self.map.query(kind, ref, major)
 
-    def viewpoint(self):
+    def _viewpoint(self):
         """(x, y) [m] from which "the nearest" and "the farthest" thing are ranked: None, the
         map frame's origin (an arm's base); a mobile base ranks from where it stands."""
         return None

@@ -107,7 +107,7 @@ class MobileBase(RobotAPI):
         """(3,) [m] base frame: the base's centre on the table top (z = 0)."""
         return self._pos.copy()
 
-    def viewpoint(self) -> tuple[float, float]:
+    def _viewpoint(self) -> tuple[float, float]:
         """Where the base stands: "the nearest chair" is nearest it."""
         return float(self._pos[0]), float(self._pos[1])
 
