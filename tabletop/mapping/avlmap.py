@@ -333,20 +333,8 @@ class AVLMap:
         )
         if m.registration.any:  # the recorded poses, corrected onto the table
             T_hand = m.registration.C @ T_hand
-        T_cam = T_hand @ recording.T_hand_cam
         for i in range(len(recording)):
-            ctx = None
-            if recording.segmentation is not None:
-                ctx = {"segmentation": recording.segmentation[i]}
-            m.add_frame(
-                recording.rgb[i],
-                recording.depth[i],
-                recording.K,
-                T_cam[i],
-                ctx,
-                recording.joint_positions[i],
-                T_hand[i],
-            )
+            m.add_recorded_frame(recording, i, T_hand[i])
             if progress is not None:
                 progress(i + 1, len(recording))
         if len(recording) and m.voxels.n == 0:
@@ -356,14 +344,33 @@ class AVLMap:
                 f"map's grid ({lo} .. {hi} m in the base frame): check that the poses are in "
                 "metres in the robot's base frame and that the depth is valid"
             )
-        if recording.audio is not None and m.audio_encoder is not None:
-            m.add_audio(
-                recording.audio,
-                recording.audio_rate,
-                recording.timestamps,
-                T_hand @ recording.T_hand_mic,
-            )
+        m.add_recorded_audio(recording, T_hand)
         return m
+
+    def add_recorded_frame(self, recording, i: int, T_world_hand: np.ndarray) -> None:
+        """Fuse frame ``i`` of ``recording`` (:meth:`add_frame`) taken from the hand pose
+        ``T_world_hand`` (the recorded one, or one corrected onto the table), with its
+        segmentation as the encoders' context where the recording has one."""
+        ctx = None
+        if recording.segmentation is not None:
+            ctx = {"segmentation": recording.segmentation[i]}
+        self.add_frame(
+            recording.rgb[i],
+            recording.depth[i],
+            recording.K,
+            T_world_hand @ recording.T_hand_cam,
+            ctx,
+            recording.joint_positions[i],
+            T_world_hand,
+        )
+
+    def add_recorded_audio(self, recording, T_world_hand: np.ndarray) -> None:
+        """Segment ``recording``'s audio track (:meth:`add_audio`), heard from the microphone
+        on the hand poses ``T_world_hand`` (N, 4, 4); nothing where it has no track or the map
+        no audio encoder."""
+        if recording.audio is not None and self.audio_encoder is not None:
+            T_mic = T_world_hand @ recording.T_hand_mic
+            self.add_audio(recording.audio, recording.audio_rate, recording.timestamps, T_mic)
 
     def save(self, path) -> Path:
         """Write the map to ``path`` (.npz); see :mod:`tabletop.mapping.persistence`."""

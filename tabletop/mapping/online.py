@@ -81,7 +81,6 @@ def replay_online(
     ts = np.asarray(recording.timestamps, float)  # increasing: a Recording checks them
     arrive_in = (ts - ts[0]) / float(rate)
     T_hand = np.asarray(recording.T_world_hand)
-    T_cam = T_hand @ recording.T_hand_cam
     lags: list[float] = []
     dropped = 0
     start = clock()
@@ -92,25 +91,12 @@ def replay_online(
         elif drop == "late" and i + 1 < n and now >= arrive_in[i + 1]:
             dropped += 1  # the next frame is already here: the map takes the newer
             continue
-        ctx = None
-        if recording.segmentation is not None:
-            ctx = {"segmentation": recording.segmentation[i]}
-        m.add_frame(
-            recording.rgb[i],
-            recording.depth[i],
-            recording.K,
-            T_cam[i],
-            ctx,
-            recording.joint_positions[i],
-            T_hand[i],
-        )
+        m.add_recorded_frame(recording, i, T_hand[i])
         lags.append(clock() - start - arrive_in[i])
         if progress is not None:
             progress(i + 1, n)
     wall = clock() - start
-    if recording.audio is not None and m.audio_encoder is not None:
-        T_mic = T_hand @ recording.T_hand_mic
-        m.add_audio(recording.audio, recording.audio_rate, recording.timestamps, T_mic)
+    m.add_recorded_audio(recording, T_hand)
     period = (ts[-1] - ts[0]) / (n - 1) / rate if n > 1 else 1.0
     lag = np.asarray(lags)
     return ReplayReport(
