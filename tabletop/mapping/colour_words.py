@@ -105,44 +105,43 @@ _JOINING = frozenset(
 _NOT_THING = _JOINING | FILLER_WORDS | COLOR_LINK_WORDS
 
 
+def _read_colour_names(path: str | Path, words: str) -> dict[str, tuple[int, int, int]]:
+    """Name -> sRGB (0-255) of a ``tabletop-colour-names`` file whose names are ``words``
+    ("one or two", or "one", lower-case words). AssetError: a malformed file (naming the
+    entry)."""
+    try:
+        d = tomllib.loads(Path(path).read_text())
+    except (OSError, tomllib.TOMLDecodeError) as e:
+        raise AssetError(f"colour names {path} are unreadable: {e}") from None
+    if d.get("format") != "tabletop-colour-names" or not isinstance(d.get("names"), dict):
+        raise AssetError(f"{path}: expected format 'tabletop-colour-names' with a [names] table")
+    shape = r"[a-z]+(?: [a-z]+)?" if words == "one or two" else r"[a-z]+"
+    out = {}
+    for name, hexa in d["names"].items():
+        if not (isinstance(hexa, str) and re.fullmatch(r"#[0-9a-f]{6}", hexa)):
+            raise AssetError(f"{path} [names].{name!r}: expected '#rrggbb', got {hexa!r}")
+        if not re.fullmatch(shape, name):
+            raise AssetError(f"{path} [names].{name!r}: expected {words} lower-case words")
+        out[name] = (int(hexa[1:3], 16), int(hexa[3:5], 16), int(hexa[5:7], 16))
+    return out
+
+
 @cache
 def survey_colours(path: str | Path = SURVEY_PATH) -> dict[str, tuple[int, int, int]]:
     """Colour name -> sRGB (0-255) of the colour survey (:data:`SURVEY_PATH`), less the
     lexicon's own names, the colour modifiers and the filler words. AssetError: a malformed
     file (naming the entry)."""
-    try:
-        d = tomllib.loads(Path(path).read_text())
-    except (OSError, tomllib.TOMLDecodeError) as e:
-        raise AssetError(f"colour names {path} are unreadable: {e}") from None
-    if d.get("format") != "tabletop-colour-names" or not isinstance(d.get("names"), dict):
-        raise AssetError(f"{path}: expected format 'tabletop-colour-names' with a [names] table")
-    out = {}
-    for name, hexa in d["names"].items():
-        if not (isinstance(hexa, str) and re.fullmatch(r"#[0-9a-f]{6}", hexa)):
-            raise AssetError(f"{path} [names].{name!r}: expected '#rrggbb', got {hexa!r}")
-        if not re.fullmatch(r"[a-z]+(?: [a-z]+)?", name):
-            raise AssetError(f"{path} [names].{name!r}: expected one or two lower-case words")
-        if name in COLOR_NAMES or name in COLOR_MODIFIERS or name in FILLER_WORDS:
-            continue
-        out[name] = (int(hexa[1:3], 16), int(hexa[3:5], 16), int(hexa[5:7], 16))
-    return out
+    return {
+        name: rgb
+        for name, rgb in _read_colour_names(path, "one or two").items()
+        if name not in COLOR_NAMES and name not in COLOR_MODIFIERS and name not in FILLER_WORDS
+    }
 
 
 @cache
 def _more_colours(path: str | Path = NAMES_PATH) -> dict[str, tuple[int, int, int]]:
-    """Name -> sRGB of :data:`NAMES_PATH` (same format as the survey)."""
-    try:
-        d = tomllib.loads(Path(path).read_text())
-    except (OSError, tomllib.TOMLDecodeError) as e:
-        raise AssetError(f"colour names {path} are unreadable: {e}") from None
-    if d.get("format") != "tabletop-colour-names" or not isinstance(d.get("names"), dict):
-        raise AssetError(f"{path}: expected format 'tabletop-colour-names' with a [names] table")
-    out = {}
-    for name, hexa in d["names"].items():
-        if not (isinstance(hexa, str) and re.fullmatch(r"#[0-9a-f]{6}", hexa)):
-            raise AssetError(f"{path} [names].{name!r}: expected '#rrggbb', got {hexa!r}")
-        out[name] = (int(hexa[1:3], 16), int(hexa[3:5], 16), int(hexa[5:7], 16))
-    return out
+    """Name -> sRGB of :data:`NAMES_PATH` (one-word names, the survey's format)."""
+    return _read_colour_names(path, "one")
 
 
 def named_colour(word: str) -> tuple[int, int, int] | None:
