@@ -25,6 +25,30 @@ def assert_on_table(points: np.ndarray, tol: float = 0.005) -> None:
     assert np.mean(np.abs(points[:, 2]) <= tol) > 0.9  # most of what is seen is the top
 
 
+def small_recording(n: int = 3, **changes):
+    """A valid recording of ``n`` 64x48 frames 30 ms apart (random colours, depth 0.5 m, the
+    camera 0.5 m above (0.3, 0)) with fields replaced by ``changes``."""
+    from tabletop.recording import Recording
+
+    rng = np.random.default_rng(0)
+    T = np.tile(np.eye(4), (n, 1, 1))
+    T[:, :3, 3] = (0.3, 0.0, 0.5)
+    fields = {
+        "timestamps": np.arange(n) / 30.0,
+        "rgb": rng.integers(0, 256, (n, 48, 64, 3), dtype=np.uint8),
+        "depth": np.full((n, 48, 64), 0.5, np.float32),
+        "joint_positions": np.zeros((n, 7)),
+        "T_world_hand": T,
+        "K": np.array([[40.0, 0, 32], [0, 40.0, 24], [0, 0, 1]]),
+        "T_hand_cam": np.eye(4),
+        "audio": np.zeros(1600, np.float32),
+        "audio_rate": 16000,
+        "segments": (),
+        "meta": {"source": "fuzz"},
+    }
+    return Recording(**{**fields, **changes})
+
+
 def ground_truth_dict(objects=(), sound_events=(), areas=()) -> dict:
     """A valid ground truth as a recording stores it, from partial entries; what a test leaves
     out gets a plain value. Objects need ``name``, ``aabb_min`` and ``aabb_max``; sound events

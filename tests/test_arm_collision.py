@@ -126,6 +126,17 @@ def _counting(checker):
     return calls
 
 
+def _both_queries(ch, calls, q):
+    """(every pair's clearance, narrow calls of the pruned query, of every pair's), asserting
+    that the pruned query gives the same clearance."""
+    calls[0] = 0
+    fast = ch.clearance(q)
+    n_fast, calls[0] = calls[0], 0
+    slow = ch.clearance_all_pairs(q)
+    assert fast == slow
+    return slow, n_fast, calls[0]
+
+
 def test_pruned_query_matches_every_pair_on_random_configurations(model):
     # Spatial bounds: random configurations, far apart, many of them inside the table or
     # an object (penetrations deeper than a link's bounding sphere must not be pruned).
@@ -134,14 +145,8 @@ def test_pruned_query_matches_every_pair_on_random_configurations(model):
     rng = np.random.default_rng(1)
     pruned = every = negative = 0
     for _ in range(150):
-        q = model.random_q(rng)
-        calls[0] = 0
-        fast = ch.clearance(q)
-        pruned += calls[0]
-        calls[0] = 0
-        slow = ch.clearance_all_pairs(q)
-        every += calls[0]
-        assert fast == slow
+        slow, n_fast, n_every = _both_queries(ch, calls, model.random_q(rng))
+        pruned, every = pruned + n_fast, every + n_every
         negative += slow.distance < 0
     assert negative > 10
     assert pruned < every / 4
@@ -168,13 +173,8 @@ def test_pruned_query_matches_every_pair_along_small_motions(model):
         q = solve_ik(model, make_transform(np.diag([1.0, -1.0, -1.0]), start), HOME_Q).q
         for _ in range(200):
             q = model.clip(q + rng.normal(0.0, 0.003, 7))
-            calls[0] = 0
-            fast = ch.clearance(q)
-            pruned += calls[0]
-            calls[0] = 0
-            slow = ch.clearance_all_pairs(q)
-            every += calls[0]
-            assert fast == slow
+            slow, n_fast, n_every = _both_queries(ch, calls, q)
+            pruned, every = pruned + n_fast, every + n_every
             near += slow.environment < ch.max_distance
     assert temporal[0] > 500  # of 600: the bounds carried over from the previous query
     assert near > 100

@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers import small_recording
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -190,29 +191,10 @@ def test_arbitrary_bytes_in_a_task_file_give_a_typed_error(text):
 
 
 # ---------------------------------------------------------------------- recordings
-def _small_recording(n=3) -> Recording:
-    rng = np.random.default_rng(0)
-    T = np.tile(np.eye(4), (n, 1, 1))
-    T[:, :3, 3] = (0.3, 0.0, 0.5)
-    return Recording(
-        timestamps=np.arange(n) / 30.0,
-        rgb=rng.integers(0, 256, (n, 48, 64, 3), dtype=np.uint8),
-        depth=np.full((n, 48, 64), 0.5, np.float32),
-        joint_positions=np.zeros((n, 7)),
-        T_world_hand=T,
-        K=np.array([[40.0, 0, 32], [0, 40.0, 24], [0, 0, 1]]),
-        T_hand_cam=np.eye(4),
-        audio=np.zeros(1600, np.float32),
-        audio_rate=16000,
-        segments=(),
-        meta={"source": "fuzz"},
-    )
-
-
 @pytest.fixture(scope="module")
 def saved_recording(tmp_path_factory):
     path = tmp_path_factory.mktemp("fuzzrec") / "rec"
-    save_recording(_small_recording(), path)
+    save_recording(small_recording(), path)
     return path
 
 
@@ -276,7 +258,7 @@ def saved_map(tmp_path_factory):
 
     from tabletop.eval.harness import build_map
 
-    rec = _small_recording(4)
+    rec = small_recording(4)
     T = np.array(rec.T_world_hand)
     T[:, :3, :3] = np.diag([1.0, -1.0, -1.0])  # the camera looks down at the table
     seg = np.zeros((4, 48, 64), np.uint16)

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from helpers import ground_truth_dict
+from helpers import ground_truth_dict, small_recording
 
 from tabletop.cli.app import main
 from tabletop.errors import ConfigError, RecordingError
@@ -16,9 +16,8 @@ from tabletop.mapping.online import replay_online
 from tabletop.recording import Recording, save_recording
 
 
-def _recording(n: int = 6, fps: float = 30.0) -> Recording:
-    """A camera looking down at a labelled patch of table (oracle segmentation)."""
-    rng = np.random.default_rng(0)
+def _recording(n: int = 6) -> Recording:
+    """A camera looking down at a labelled patch of table (oracle segmentation), moving."""
     T = np.tile(np.eye(4), (n, 1, 1))
     T[:, :3, :3] = np.diag([1.0, -1.0, -1.0])
     T[:, :3, 3] = (0.3, 0.0, 0.5)
@@ -28,20 +27,8 @@ def _recording(n: int = 6, fps: float = 30.0) -> Recording:
     truth = ground_truth_dict(
         objects=[{"name": "red_mug", "aabb_min": [0.25, -0.05, 0.0], "aabb_max": [0.4, 0.05, 0.1]}]
     )
-    return Recording(
-        timestamps=np.arange(n) / fps,
-        rgb=rng.integers(0, 256, (n, 48, 64, 3), dtype=np.uint8),
-        depth=np.full((n, 48, 64), 0.5, np.float32),
-        joint_positions=np.zeros((n, 7)),
-        T_world_hand=T,
-        K=np.array([[40.0, 0, 32], [0, 40.0, 24], [0, 0, 1]]),
-        T_hand_cam=np.eye(4),
-        audio=None,
-        audio_rate=16000,
-        segments=(),
-        segmentation=seg,
-        ground_truth=truth,
-        meta={"source": "test"},
+    return small_recording(
+        n, T_world_hand=T, audio=None, segmentation=seg, ground_truth=truth, meta={"source": "test"}
     )
 
 
