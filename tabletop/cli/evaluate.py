@@ -617,7 +617,8 @@ def add_commands(sub) -> None:
         "two were held out until their report), 'paraphrase-heldout-13', "
         "'paraphrase-heldout-14', 'paraphrase-heldout-15', 'paraphrase-heldout-17', "
         "'paraphrase-heldout-18', 'paraphrase-heldout-19', 'paraphrase-heldout-20', "
-        "'paraphrase-heldout-21', 'paraphrase-heldout-22', 'paraphrase-heldout-23' (held "
+        "'paraphrase-heldout-21', 'paraphrase-heldout-22', 'paraphrase-heldout-23', "
+        "'paraphrase-heldout-24' (held "
         "out: each run once for a report, never read), "
         "'clutter' (dense tables: goals on, beside and between objects), "
         "'mobile' (a wheeled base in rooms, 1 m success radius)",
