@@ -12,6 +12,7 @@ import re
 from typing import NamedTuple
 
 __all__ = [
+    "AUXILIARIES",
     "NEGATIONS",
     "SUPERLATIVES",
     "Superlative",
@@ -28,7 +29,7 @@ NEGATIONS = frozenset("not no never don't dont without avoid except unless".spli
 
 
 #: Auxiliaries whose contraction with "not" may be typed without its apostrophe ("isnt").
-_AUXILIARIES = frozenset(
+AUXILIARIES = _AUXILIARIES = frozenset(
     "is are was were do does did can could would should will wo has have had must need might "
     "ai sha".split()
 )

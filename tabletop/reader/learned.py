@@ -598,6 +598,60 @@ def _joint(role_logp: np.ndarray, rel_logp: np.ndarray, margin: float = JOINT_MA
     return chosen[1], chosen[2]
 
 
+def _relation_before_landmark(text: str, words: list[str], roles: list[str], relation: str
+                              ) -> None:  # fmt: skip
+    """Refuse a side or "above" said after the thing it would be taken of, between it and a
+    thing near it ("the mug which is tucked away behind the duck", read as behind the mug
+    near the duck): the relation picks the first thing by where it stands, which no reading
+    honours. ParseError naming the thing."""
+    from tabletop.reader.rules import _relations_at
+    from tabletop.relations import relation_by_side
+
+    want = relation_by_side(relation).name if relation in _SIDES else relation
+    first = next((i for i, r in enumerate(roles) if r != "O"), None)
+    if first is None:
+        return
+    end = next((i for i in range(first, len(roles)) if roles[i] == "O"), len(roles))
+    near = next((i for i in range(end, len(roles)) if roles[i].startswith("B-N")), None)
+    if near is None:
+        return
+    for k in range(end, near):
+        if any(name == want for name, _ in _relations_at(" ".join(words[k:]).lower())):
+            thing = " ".join(words[first:end])
+            raise ParseError(
+                text,
+                thing,
+                f"{thing!r} is picked by where it stands ({words[k]!r} another thing), which "
+                "is not read: ask for the place, 'go to the left of the duck', or the thing "
+                "near another, 'go to the mug near the duck'",
+            )
+
+
+#: Words that only join two references: "A and B", "A & B", "A plus B".
+_JOIN_ONLY = re.compile(r"^(?:,?\s*(?:and|&|plus)\s*)+$", re.IGNORECASE)
+
+
+def _between_said(text: str, clause: str, words: list[str], roles: list[str]) -> None:
+    """Refuse a "between" that no word says: two things joined by "and" straight after the
+    verb ("go to the mug and the duck") ask for both, not for the point between them; the
+    tagger reads "between" from the "and" alone. ParseError naming the clause."""
+    refs = [i for i, r in enumerate(roles) if r != "O"]
+    if not refs or "," in clause:  # a list of things is refused as one, by name
+        return
+    from tabletop.reader.rules import is_verb_phrase
+
+    lead = " ".join(words[: refs[0]])
+    gaps = [" ".join(words[a + 1 : b]) for a, b in itertools.pairwise(refs) if b > a + 1]
+    if is_verb_phrase(lead) and len(gaps) == 1 and _JOIN_ONLY.match(gaps[0]):
+        raise ParseError(
+            text,
+            clause,
+            "two things joined by 'and' with nothing saying where to go among them: say "
+            "'between A and B' for the point between them, or 'A, then B' to go to each in "
+            "turn",
+        )
+
+
 def decode(text: str, words: list[str], roles: list[str], relations, robot: str,
            rules, role_logp: np.ndarray | None = None,
            margin: float = JOINT_MARGIN) -> tuple[Step, ...]:  # fmt: skip
@@ -652,12 +706,15 @@ def decode(text: str, words: list[str], roles: list[str], relations, robot: str,
         goals, relation = _side_as_region(goals, relation)
         _check(text, clause, relation, goals, times)
         if relation == "between":
+            _between_said(text, clause, [words[i] for i in idx], step_roles)
             action = Between(goals[0], goals[1])
         elif relation == "backforth":
             action = BackAndForth(goals[0], goals[1])
         elif relation in _SIDES:
+            _relation_before_landmark(text, [words[i] for i in idx], step_roles, relation)
             action = Side(relation, _landmark(goals[0]))
         elif relation == "above":
+            _relation_before_landmark(text, [words[i] for i in idx], step_roles, relation)
             action = Above(_landmark(goals[0]))
         else:
             action = GoTo(goals[0])

@@ -36,6 +36,7 @@ from tabletop.reader.plan import Between, Goal, Part, Reading, Step
 from tabletop.reader.rules import (
     MANNER,
     QUALIFIERS,
+    SEVERAL_WHY,
     ends_in_determiner,
     is_negation,
     negations,
@@ -45,14 +46,17 @@ from tabletop.reader.rules import (
     refuse_nested_relation,
     refuse_non_words,
     refuse_relation_distance,
+    several,
 )
 from tabletop.reader.spelling import (
     Speller,
     default_speller,
+    english_words,
     kind_words,
     name_words,
     not_english,
 )
+from tabletop.words import AUXILIARIES, SUPERLATIVES, superlative
 
 __all__ = [
     "DEFAULT_READER",
@@ -100,6 +104,52 @@ def _leads(text: str) -> list[tuple[str, str]]:
     ]
 
 
+#: A condition put to the one asked, or to nothing in particular ("if you ...", "if it's
+#: ...", "if that's ..."), as its own clause before or after the request.
+_IF_CLAUSE = re.compile(
+    r"^(?P<lead>if\s+(?:you|it|that|this)(?:['\u2019](?:s|re|d|ll|ve))?\s[^,;]*?)\s*[,;]\s*"
+    r"(?P<kept>\S.*)$|"
+    r"^(?P<before>.*?\S)\s*[,;]\s*(?P<tail>if\s+(?:you|it|that|this)(?:['\u2019](?:s|re|d|ll|ve))?"
+    r"\s[^,;]*?)\s*[.!?]*$",
+    re.IGNORECASE,
+)
+#: Words that start a noun phrase, or are one ("anything"): a clause with one names a thing.
+_NOUN_PHRASE = re.compile(
+    r"^(?:the|a|an|any|some|my|our|his|her|their|these|those|each|every|both|"
+    r"(?:any|some|no|every)(?:thing|one|body|where))$"
+)
+
+
+def courtesy(text: str) -> tuple[str, str | None]:
+    """``text`` without a courtesy clause ("if you don't mind, go to the duck", "go to the
+    duck, if it's no trouble"), and the clause (None where it has none). A courtesy is a
+    clause of its own, set off by a comma, that puts a condition to the one asked or to
+    nothing in particular (its subject "you", "it", "that" or "this") and names nothing: no
+    noun phrase and no word of the map's vocabulary after its auxiliaries. So its negation
+    ("don't mind") reverses no goal. A condition on the world is kept, to be refused:
+    "if you see a mug, ...", "if there is no duck, ...", "if the mug is red, ..."."""
+    m = _IF_CLAUSE.match(text.strip())
+    if m is None:
+        return text, None
+    clause = m.group("lead") or m.group("tail")
+    kept = m.group("kept") if m.group("lead") else m.group("before")
+    return (kept, clause) if is_courtesy(clause) else (text, None)
+
+
+def is_courtesy(clause: str) -> bool:
+    """Whether ``clause`` is a courtesy (:func:`courtesy`): "if" with the one asked, "it",
+    "that" or "this" as its subject, and no noun phrase or vocabulary word after the
+    subject's auxiliaries ("if you would be so kind as to"; not "if you see a mug")."""
+    m = _IF_CLAUSE.match(f"{clause.strip()}, x")
+    if m is None or m.group("lead") is None:
+        return False
+    words = [w.strip("'\u2019") for w in re.findall(r"[a-z'\u2019]+", clause.lower())][2:]
+    while words and (words[0] in AUXILIARIES or is_negation(words[0])):
+        words = words[1:]  # "if you can", "if you wouldn't mind": the verb's own helpers
+    names = name_words()
+    return not any(_NOUN_PHRASE.match(w) or w in names for w in words)
+
+
 def refuse_not_english(text: str, read: str) -> None:
     """Refuse a request in another language (:func:`~tabletop.reader.spelling.not_english`
     of its words after spelling, ``read``): the grammar and the tagger read English only, and
@@ -137,6 +187,8 @@ class RulesReader:
         if self.spelling:
             text = self.speller.correct(text)[0]
         refuse_negated(text)
+        if kind == "obj" and (word := several(text)) is not None:
+            raise ParseError(text, word, SEVERAL_WHY)
         if kind != "area" and (m := _SIDE_IN_REFERENCE.search(text)):
             raise ParseError(
                 text,
@@ -157,6 +209,8 @@ class RulesReader:
         read, fixes = self.speller.correct(text) if self.spelling else (text, ())
         refuse_not_english(text, read)
         refuse_nested_relation(read)  # no reading may drop one of two relations
+        read, polite = courtesy(read)
+        said = (polite,) if polite else ()
         try:
             steps = parse_instruction(read, robot)
         except ParseError as first:
@@ -164,13 +218,15 @@ class RulesReader:
                 raise
             err = first
         else:
-            return Reading(text, read, settle_references(text, steps), fixes, (), self.name)
+            return Reading(text, read, settle_references(text, steps), fixes, said, self.name)
         # a request after a lead-in the grammar does not read: the fewest dropped words that
         # leave a request it reads
         body = re.sub(r"[.!?]+\s*$", "", read.strip())
         keep = name_words() | QUALIFIERS
         for before, kept in _leads(body):
-            if any(w.strip(",.;:'\"!?").lower() in keep for w in before.split()):
+            if not is_courtesy(before) and any(
+                w.strip(",.;:'\"!?").lower() in keep for w in before.split()
+            ):
                 break  # never drop a word that names something, negates or qualifies
             if ends_in_determiner(before):
                 continue  # never cut a noun phrase: "put the | duck on the tray"
@@ -179,7 +235,7 @@ class RulesReader:
             except ParseError:
                 continue
             steps = settle_references(text, steps)
-            return Reading(text, kept, steps, fixes, (before,), self.name)
+            return Reading(text, kept, steps, fixes, (*said, before), self.name)
         raise err
 
 
@@ -189,20 +245,21 @@ def read_clause(clause: str, robot: str = "arm") -> tuple[Step, ...]:
     return _CLAUSE_READER.understand(clause, robot).steps
 
 
-def _reference_texts(value) -> list[str]:
-    """The words of every reference in a plan value (a step, an action, a goal, a part)."""
+def _reference_texts(value, kinds: tuple[str, ...] | None = None) -> list[str]:
+    """The words of every reference in a plan value (a step, an action, a goal, a part); of
+    the ``kinds`` of part only, where given (a landmark named by its words is an object's)."""
     if isinstance(value, Part):
-        return [value.text]
+        return [value.text] if kinds is None or value.kind in kinds else []
     if isinstance(value, str):
-        return [value]
+        return [value] if kinds is None or "obj" in kinds else []
     if isinstance(value, tuple):
-        return [t for v in value for t in _reference_texts(v)]
+        return [t for v in value for t in _reference_texts(v, kinds)]
     if dataclasses.is_dataclass(value):
         return [
             t
             for f in dataclasses.fields(value)
             if f.name not in ("text", "side", "direction")
-            for t in _reference_texts(getattr(value, f.name))
+            for t in _reference_texts(getattr(value, f.name), kinds)
         ]
     return []
 
@@ -321,6 +378,27 @@ def settle_references(text: str, steps: tuple[Step, ...]) -> tuple[Step, ...]:
                 "'or' offers a choice of two goals, and the robot goes to one place; name the "
                 "one meant (or 'between A and B' for the point between them)",
             )
+    for ref in _reference_texts(steps, ("obj",)):
+        if (word := several(ref)) is not None:  # "the two mugs": one place is no two things
+            raise ParseError(text, word, SEVERAL_WHY, final=True)
+        if ranks := [w for w in superlative_forms(ref) if w not in SUPERLATIVES]:
+            raise ParseError(
+                text,
+                ranks[0],
+                f"{ranks[0]!r} ranks things by a measure the map does not hold; it ranks by "
+                "size, height, left and right, and nearness ('the biggest mug', 'the tallest "
+                "block', 'the leftmost duck', 'the nearest ball')",
+                final=True,
+            )
+    for ref in _reference_texts(steps, ("sound",)):
+        ranks = superlative_forms(ref) or ([superlative(ref).word] if superlative(ref) else [])
+        if ranks:  # "the loudest sound": no sound is ranked, and the word would be dropped
+            raise ParseError(
+                text,
+                ranks[0],
+                SOUND_RANK_WHY,
+                final=True,
+            )
     for ref in _reference_texts(steps):
         negated = negations(ref, describing=True)
         if negated:
@@ -333,6 +411,27 @@ def settle_references(text: str, steps: tuple[Step, ...]) -> tuple[Step, ...]:
                 "rank; name the one meant by its colour, or by a thing near it",
             )
     return steps
+
+
+#: Why a sound said with a superlative is refused.
+SOUND_RANK_WHY = (
+    "a sound is found by what was heard, and no measure ranks the sounds heard; name the sound "
+    "('where you heard the dog bark')"
+)
+
+
+def superlative_forms(text: str) -> list[str]:
+    """The words of ``text`` that are superlatives by their form: "-est" after a stem whose
+    comparative ("-er") is a common English word ("loudest", "shiniest", "biggest"; not
+    "forest" or "interest"). Which of them the map ranks by is
+    :data:`~tabletop.words.SUPERLATIVES`'s to say."""
+    english = english_words()
+    words = re.findall(r"[a-z]+", str(text).lower())
+    return [w for w in words if len(w) >= 6 and w.endswith("est") and f"{w[:-3]}er" in english]
+
+
+#: Words that gather several things wherever they stand ("each side of", "all the cubes").
+_GATHER = frozenset(("all", "both", "each", "every"))
 
 
 class LearnedReader:
@@ -374,6 +473,7 @@ class LearnedReader:
         read, fixes = self._rules.speller.correct(text)
         refuse_not_english(text, read)
         refuse_nested_relation(read)
+        read, polite = courtesy(read)
         words = words_of(read)
         if not words:
             raise ParseError(text, text, "the instruction is empty")
@@ -382,7 +482,24 @@ class LearnedReader:
         roles = best_roles(role_logp)
         plain = [w.strip(",.;:!?\"'").lower() for w, r in zip(words, roles, strict=True)
                  if r in ("O", "THEN", "REP")]  # fmt: skip
+        for i, (w, r) in enumerate(zip(words, roles, strict=True)):
+            # "all the cubes", "both ducks", "each side of the mug": a word left out of the
+            # references that gathers several of what follows
+            follows = i + 1 < len(roles) and roles[i + 1] != "O"
+            if r == "O" and (follows or w.lower() in _GATHER) and several(" ".join(words[i:])):
+                raise ParseError(text, w, SEVERAL_WHY)
+        ranks = [w for w in plain if superlative(w) or superlative_forms(w)]
+        if ranks:  # "the nearest dog barking" read as the dog barking: the rank dropped
+            raise ParseError(
+                text,
+                ranks[0],
+                f"{ranks[0]!r} ranks things, and the reading leaves it out of every reference: "
+                "a thing ranks by size, height, left and right, or nearness ('the nearest "
+                f"mug'); {SOUND_RANK_WHY}",
+            )
         negated = [w for w in plain if is_negation(w)]
+        if negated and (reading := self._after_courtesy(text, words, roles, robot)):
+            return reading
         if negated:  # the tagger refuses these too; a word that reverses a goal never slips
             raise ParseError(text, " ".join(negated), "the robot cannot honour a negated goal")
         # a thing's name the tagger left out of every reference ("go to the mug left of the
@@ -408,7 +525,26 @@ class LearnedReader:
                     "a list of things is no one place: name one goal per step, joined by 'then'",
                 )
         manner = tuple(w for w in plain if w in MANNER)
-        return Reading(text, read, steps, fixes, (), self.name, manner)
+        said = (polite,) if polite else ()
+        return Reading(text, read, steps, fixes, said, self.name, manner)
+
+    def _after_courtesy(self, text: str, words: list[str], roles: list[str], robot: str):
+        """The reading of what follows a courtesy that runs into the request with no comma
+        ("if you wouldn't mind heading to the mug"): the longest courtesy
+        (:func:`is_courtesy`) among the words before the first reference whose rest reads;
+        None where none does."""
+        lead = next((i for i, r in enumerate(roles) if r != "O"), 0)
+        for k in range(lead, 2, -1):
+            before, rest = " ".join(words[:k]), " ".join(words[k:])
+            if not is_courtesy(before) or any(w.endswith((",", ";")) for w in words[k:lead]):
+                continue  # (a cut inside a clause: "if you don't hear | anything, go ...")
+            try:
+                reading = self.understand(rest, robot)
+            except ParseError:
+                continue
+            wrapper = (before, *reading.wrapper)
+            return dataclasses.replace(reading, text=text, wrapper=wrapper)
+        return None
 
 
 _CLAUSE_READER = RulesReader(spelling=False, wrappers=True)

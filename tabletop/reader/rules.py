@@ -57,8 +57,10 @@ __all__ = [
     "NEGATIONS",
     "QUALIFIERS",
     "REQUEST_EXAMPLES",
+    "SEVERAL_WHY",
     "ends_in_determiner",
     "is_negation",
+    "is_verb_phrase",
     "negations",
     "ordinal",
     "parse_instruction",
@@ -67,6 +69,7 @@ __all__ = [
     "refuse_no_words",
     "refuse_non_words",
     "refuse_relation_distance",
+    "several",
 ]
 
 MAX_REPEAT = 20
@@ -179,6 +182,28 @@ _RESERVED = (
     | QUALIFIERS
 )
 _ARTICLES = re.compile(r"^(?:(?:the|a|an|some|any|that|this)\s+)+")
+
+
+#: A reference that counts or gathers several things: "the two mugs", "both ducks", "all
+#: the cubes", "3 balls" (a measure, "the 5 cm cube", is one thing's size).
+_SEVERAL = re.compile(
+    r"^(?:(?:the|these|those|my|your)\s+)?(?:(?:all|both|each|every)\b(?!\s+the\s+way\b)|"
+    r"(?P<n>" + "|".join(n for n, v in _NUMBERS.items() if v > 1) + rf"|\d+)\s+(?!{_UNIT}\b))"
+)
+
+
+def several(text: str) -> str | None:
+    """The word by which a reference counts or gathers several things ("the two mugs": "two";
+    "both ducks", "all the cubes"), or None: the robot goes to one place."""
+    m = _SEVERAL.match(str(text).strip().lower())
+    return m.group(0).split()[-1] if m else None
+
+
+#: Why a reference of several things is refused.
+SEVERAL_WHY = (
+    "a reference names one thing, and this one names several; the robot goes to one place: "
+    "name the one meant (by its colour, or a thing near it), or ask for 'between A and B'"
+)
 
 
 def refuse_negated(text: str) -> None:
@@ -429,6 +454,14 @@ _DETERMINER = re.compile(
 _DEFINITE = re.compile(r"^(?:the|my|our|your|his|her|their|this|that|these|those)\s")
 
 
+def is_verb_phrase(text: str) -> bool:
+    """Whether ``text`` is all a request's verb phrase, a polite head before it ("go to",
+    "could you head over to", "please reach"): it says to go, and nothing of where."""
+    said = _POLITE_HEAD.sub("", str(text).lower().strip(" ,"), count=1).strip(" ,")
+    verb = _VERB.match(said + " ")
+    return bool(said) and verb is not None and verb.end() >= len(said)
+
+
 def ends_in_determiner(text: str) -> bool:
     """Whether ``text``'s last word is a determiner ("put the"): a cut after it would split a
     noun phrase."""
@@ -492,11 +525,22 @@ _BE_AT = re.compile(
     r"^(?:(?:over|up|down|out|round|around|right|just)\s+)?(?:by|at|on|upon|in|into)\s+"
     r"(?!top\b|front\b|back\s+of\b)(?=\S)"
 )
+#: Words of posture or placing: "the mug sitting next to X", "where the duck is lying".
+_POSTURE = (
+    r"sitting|sits|sat|lying|lies|standing|stands|resting|rests|placed|located|positioned|"
+    r"kept|parked|perched|set|left"
+)
+#: Words that only say how near or how exactly ("right next to", "just by", "up against").
+_DEGREE = (
+    r"right|just|directly|really|somewhere|over|up|down|round|around|kinda|kind\s+of|"
+    r"sort\s+of|pretty|fairly|quite|close"
+)
+_DEGREE_ONLY = re.compile(rf"(?:(?:{_DEGREE})(?:\s+|$))+")
 #: "where the dog barked", "the spot where the alarm went off": a sound, told by what was heard
 #: ("where the mug is" is the mug).
 _WHERE = re.compile(
     r"^(?:(?:the\s+)?(?:place|spot|point|location)\s+)?where\s+(?!(?:you|i|we)\s)(.+?)"
-    r"(\s+(?:is|are|was|were|sits|stands|lies|was\s+put|was\s+left))?$"
+    rf"(\s+(?:(?:is|are|was|were)(?:\s+(?:{_POSTURE}))?|{_POSTURE}|was\s+put))?$"
 )
 #: What may follow a sound after "where": "where X was playing", "where X started".
 _WHERE_SOUND_TAIL = re.compile(
@@ -644,11 +688,13 @@ _LOCATION_OF = re.compile(r"^(?:the\s+)?(?:location|position|whereabouts|directi
 #: What joins a goal to what narrows it: "the mug near / right by / not far from / where you
 #: heard / sitting next to X". "where" alone ("the mug where the dog barked") joins a place.
 _CONNECT = re.compile(
-    r"\s+(?:(?:that|which)(?:\s+(?:is|was)|'s)\s+)?"
-    r"(?:(?:(?:that|which)\s+)?(?:sitting|sits|sat|lying|lies|standing|stands|resting|rests|"
-    r"placed|located|positioned|kept|parked|perched|set|left)\s+)?"
-    r"(?:(?:right|just|directly|really|somewhere|over|up|down|round|around|kinda|kind\s+of|"
-    r"sort\s+of|pretty|fairly|quite|close)\s+)*"
+    # "that's sitting", "which is hanging around": after a relative pronoun and its verb, a
+    # present participle (and a particle) says where the thing is, as a posture word does
+    # (not "-ed" or "-en": "that is red", "that's striped", "that's golden" describe it)
+    r"\s+(?:(?:that|which)(?:\s+(?:is|was|are|were)|'s|'re)\s+"
+    r"(?:[a-z]{3,}ing\s+(?:(?:around|about|away|out|up|down|over|there)\s+)?)?)?"
+    rf"(?:(?:(?:that|which)\s+)?(?:{_POSTURE})\s+)?"
+    rf"(?:(?:{_DEGREE})\s+)*"
     r"(close\s+by|hard\s+by|near\s*by|alongside(?:\s+of)?|adjacent\s+to|"
     r"not\s+(?:too\s+|that\s+|very\s+)?far\s+(?:away\s+)?from|(?:up\s+)?against|"
     r"a\s+(?:short\s+way|little\s+way|stone's\s+throw|few\s+(?:inches|centimet(?:er|re)s|cm))"
@@ -1031,6 +1077,11 @@ class _Parser:
             and re.fullmatch(_PLACE_NOUN, pieces[0].strip())
         ):  # "the place where you heard S ...", "the spot where S ..." is the place itself
             pieces = [f"{pieces[1]} {pieces[2]}", *pieces[3:]]
+        if len(pieces) > 2 and _DEGREE_ONLY.fullmatch(pieces[0].strip()):
+            # "just next to the mug", "right up against the duck": the words before the
+            # connector say how near and name nothing; the goal is what follows
+            said = f"{pieces[1]} {pieces[2]}" if pieces[1].startswith("where") else pieces[2]
+            pieces = [said, *pieces[3:]]
         primary = self.part(pieces[0], None)
         near: list[Part] = []
         for i in range(1, len(pieces), 2):
@@ -1053,6 +1104,10 @@ class _Parser:
             m = _SOUND_OF.match(text) or _SOUND_SUFFIX.match(text)
             return Part("sound", self.description(m.group(1) if m else text, "sound"))
         m = _PLACE_HEARD.match(text) or (_CAME_FROM.match(text) is None and _PLACE_X.match(text))
+        if m and len(said := m.group(1).split()) == 1 and said[0] not in _sound_verbs():
+            # "the spot flanked by ...": one word after the place, and no sound's, says
+            # nothing that was heard there
+            self.fail(text, f"{said[0]!r} after a place says nothing heard there")
         if m:  # "the spot you heard X" is "where you heard X"
             text = f"where {m.group(1)}"
         m = _HEARD.match(text)
