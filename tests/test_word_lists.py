@@ -10,20 +10,27 @@ module and line of each English word list it finds:
 - a regular expression (a pattern given to ``re``) whose pattern holds ``|`` alternations and
   at least :data:`MIN_WORDS` different words.
 
-A list is no word list but a list of identifiers when every one of its strings is also an
-identifier of the package: a name (variable, function, class, argument), an attribute, a
-keyword argument, a string subscript or ``.get``/``.pop``/``getattr`` key, a ``choices=`` value
-of the command line, or a key of a table of the package's data files (``tabletop/data``: sound
-categories, object kinds). Field names ("obj", "sound", "img", "area"), modality names and
-measure names all are; "the", "of" and "with" never are. The rule needs no allowlist: a list
-stops counting as identifiers as soon as one of its strings is read in text only.
+A list is no word list but a list of identifiers when every one of its strings (each word of
+a two-word string) is also an identifier of the package: a name (variable, function, class,
+argument), an attribute, a keyword argument, a string subscript or ``.get``/``.pop``/``getattr``
+key, a ``choices=`` value of the command line, a Python keyword, a key of the map's data files
+(``tabletop/data/*.toml`` and ``tabletop/data/sounds/*.toml``: object kinds, sound categories),
+or a name the simulator gives a thing it builds (a one- or two-word string constant of
+``tabletop.sim``: "shelf", "sofa"). Field names ("obj", "sound", "img", "area"), modality
+names, measure names, sound categories and the map's background and furniture categories all
+are; "the", "an", "please" never are. The rule needs no allowlist: a list stops counting as
+identifiers as soon as one of its strings is read in text only.
+
+A list that holds a phrase of three words or more ("an animal making a sound") holds texts (the
+prompts a module embeds, a benchmark's queries), not words, and is no word list either.
 
 Out of scope, and why: ``tabletop.sim`` (its catalogue and scenes *write* scene data: object
 names and colours it renders, never text it reads), ``tabletop.eval`` and ``tabletop.train``
 (suite and training-text generators *write* the words people might say, to test and teach the
-reader with), ``tabletop.cli`` and ``tabletop.viewer`` (help text and labels for people), and
-``tabletop.ingest`` (file formats). The reader's own package (``tabletop/reader/``) is where
-the lists live.
+reader with; a few of their lists of determiners and prepositions shape the texts they write),
+``tabletop.cli`` and ``tabletop.viewer`` (help text and labels for people), and
+``tabletop.ingest`` (file formats). The reader's own package (``tabletop/reader/``, the
+lexicon with it) is where the lists live.
 """
 
 from __future__ import annotations
@@ -108,7 +115,8 @@ def identifiers(root: Path = ROOT) -> set[str]:
                 and isinstance(n.value, str)
                 and _WORD.fullmatch(n.value)
             }
-    for path in sorted((root / "data").rglob("*.toml")) if (root / "data").is_dir() else ():
+    data = root / "data"
+    for path in sorted([*data.glob("*.toml"), *data.glob("sounds/*.toml")]):
         try:
             _data_keys(tomllib.loads(path.read_text()), out)
         except (UnicodeDecodeError, tomllib.TOMLDecodeError):
