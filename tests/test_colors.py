@@ -3,8 +3,9 @@
 import numpy as np
 import pytest
 
-from tabletop.mapping.colors import BASIC_COLOURS, COLOR_NAMES, rgb_to_lab
-from tabletop.mapping.colour_words import (
+from tabletop.mapping.colors import rgb_to_lab
+from tabletop.reader.lexicon.colour_names import BASIC_COLOURS, COLOR_NAMES
+from tabletop.reader.lexicon.colour_words import (
     color_parses,
     framed_colours,
     heads,
@@ -195,7 +196,7 @@ def test_shaded_lab_darkens_a_colour_and_keeps_it_at_full_light():
 
 def test_the_survey_names_load_without_the_lexicons_and_a_bad_file_is_named(tmp_path):
     from tabletop.errors import AssetError
-    from tabletop.mapping.colour_words import survey_colours, survey_name, survey_words
+    from tabletop.reader.lexicon.colour_words import survey_colours, survey_name, survey_words
 
     names = survey_colours()
     assert len(names) > 500 and not set(names) & set(COLOR_NAMES)

@@ -1,8 +1,12 @@
 """Imports run downward only: a module may import its own subpackage and the layers below it.
 
-core (errors, transforms, grid, recording, paths) -> arm, base -> sim; mapping beside arm, base
-and sim (importing none of them) -> robot -> language -> eval, train -> viewer -> cli. The test
-walks every module's imports (top-level and inside functions) with ``ast``.
+core (errors, transforms, grid, recording, paths) -> arm, base -> sim; the lexicon
+(``tabletop.reader.lexicon``, the one place English word lists live) on the core alone; mapping
+beside arm, base and sim (importing none of them, only the core and the lexicon) -> reader ->
+robot -> language -> eval, train -> viewer -> cli. The lexicon is its own layer inside the
+reader's package: the map and every layer above it may ask it for words, while the map still
+imports nothing else of the reader. The test walks every module's imports (top-level and inside
+functions) with ``ast``.
 """
 
 import ast
@@ -14,18 +18,31 @@ ROOT = Path(tabletop.__file__).parent
 #: layer -> the layers it may import (besides itself).
 ALLOWED = {
     "core": set(),
+    "lexicon": {"core"},
     "arm": {"core"},
     "base": {"core"},
     "sim": {"core", "arm", "base"},
-    "mapping": {"core"},
-    "reader": {"core", "mapping"},
-    "robot": {"core", "arm", "base", "sim", "mapping", "reader"},
-    "language": {"core", "arm", "base", "sim", "mapping", "reader", "robot"},
-    "eval": {"core", "arm", "base", "sim", "mapping", "reader", "robot", "language"},
-    "train": {"core", "arm", "base", "sim", "mapping", "reader", "robot", "language"},
-    "viewer": {"core", "arm", "base", "sim", "mapping", "reader", "robot", "language", "eval"},
+    "mapping": {"core", "lexicon"},
+    "reader": {"core", "lexicon", "mapping"},
+    "robot": {"core", "lexicon", "arm", "base", "sim", "mapping", "reader"},
+    "language": {"core", "lexicon", "arm", "base", "sim", "mapping", "reader", "robot"},
+    "eval": {"core", "lexicon", "arm", "base", "sim", "mapping", "reader", "robot", "language"},
+    "train": {"core", "lexicon", "arm", "base", "sim", "mapping", "reader", "robot", "language"},
+    "viewer": {
+        "core",
+        "lexicon",
+        "arm",
+        "base",
+        "sim",
+        "mapping",
+        "reader",
+        "robot",
+        "language",
+        "eval",
+    },
     "cli": {
         "core",
+        "lexicon",
         "arm",
         "base",
         "sim",
@@ -42,6 +59,8 @@ ALLOWED = {
 
 def _layer(module: str) -> str:
     parts = module.split(".")
+    if parts[1:3] == ["reader", "lexicon"]:
+        return "lexicon"  # tabletop.reader.lexicon: its own layer inside the reader's package
     if len(parts) < 2 or parts[1] not in ALLOWED:
         return "core"  # tabletop, tabletop.errors, tabletop.transforms, ...
     return parts[1]
@@ -87,6 +106,26 @@ def test_the_walk_catches_an_upward_import(tmp_path):
     (pkg / "mapping" / "__init__.py").write_text("")
     (pkg / "mapping" / "m.py").write_text("def f():\n    from tabletop.sim.scan import run_scan\n")
     assert upward_imports(pkg) == ["tabletop.mapping.m (mapping) imports tabletop.sim.scan (sim)"]
+
+
+def test_the_lexicon_is_a_layer_of_its_own(tmp_path):
+    pkg = tmp_path / "tabletop"
+    for sub in ("mapping", "reader", "reader/lexicon"):
+        (pkg / sub).mkdir(parents=True)
+        (pkg / sub / "__init__.py").write_text("")
+    (pkg / "__init__.py").write_text("")
+    (pkg / "mapping" / "m.py").write_text(
+        "from tabletop.reader.lexicon.words import negations\nfrom tabletop.reader.rules import x\n"
+    )
+    (pkg / "reader" / "lexicon" / "w.py").write_text(
+        "from tabletop.errors import E\nfrom tabletop.mapping.colors import delta_e\n"
+        "from tabletop.reader.plan import Plan\n"
+    )
+    assert sorted(upward_imports(pkg)) == [
+        "tabletop.mapping.m (mapping) imports tabletop.reader.rules (reader)",
+        "tabletop.reader.lexicon.w (lexicon) imports tabletop.mapping.colors (mapping)",
+        "tabletop.reader.lexicon.w (lexicon) imports tabletop.reader.plan (reader)",
+    ]
 
 
 def test_requires_python_covers_the_standard_library_the_code_uses():

@@ -234,7 +234,7 @@ def test_a_shaded_colour_keeps_its_name_and_a_neighbouring_term_does_not_take_it
 
 
 def test_colour_names_people_use_mean_their_basic_colour(scene):
-    from tabletop.mapping.colors import BASIC_COLOURS, COLOR_NAMES
+    from tabletop.reader.lexicon.colour_names import BASIC_COLOURS, COLOR_NAMES
 
     def family(phrase):
         w = scene.colour_weights(phrase)
@@ -287,7 +287,7 @@ def test_a_two_coloured_object_fits_either_of_its_colours_but_no_other(scene):
 
 
 def test_two_basic_colours_ask_for_a_thing_of_both_not_a_shade_of_the_last(scene):
-    from tabletop.mapping.colour_words import two_colours
+    from tabletop.reader.lexicon.colour_words import two_colours
 
     assert two_colours("red blue") == ("red", "blue")
     assert two_colours("black white") == ("black", "white")
@@ -332,14 +332,14 @@ def test_a_superlative_ranks_the_things_the_rest_of_the_words_find(scene):
     with pytest.raises(ConfigError, match="a viewpoint is finite"):
         scene.heatmap("the nearest mug", 10.0, judge_at(0.2), viewpoint="here")
     # no superlative where the words relate two things
-    from tabletop.words import superlative
+    from tabletop.reader.lexicon.words import superlative
 
     assert superlative("the closest to the duck") is None
     assert superlative("the left-most ball").measure == "left"
 
 
 def test_a_framed_colour_word_no_survey_has_means_the_colour_the_longer_list_gives_it():
-    from tabletop.mapping.colour_words import colour_word, named_colour
+    from tabletop.reader.lexicon.colour_words import colour_word, named_colour
 
     # "quince" and "byzantium": in the longer list of names only; "bear" there too, but no
     # query's word is made a colour by that list
@@ -410,8 +410,8 @@ def test_a_survey_colour_name_the_lexicon_lacks_reads_as_its_colour(scene):
     """ "sapphire" and "cherry" are no lexicon names: the survey's colour for them picks the
     mug, and a thing of no such colour stays not found; "tea" names a drink a mug holds as
     well as a green, so "the tea mug" still finds a mug that is not green."""
-    from tabletop.mapping.colors import COLOR_NAMES
-    from tabletop.mapping.colour_words import survey_colours
+    from tabletop.reader.lexicon.colour_names import COLOR_NAMES
+    from tabletop.reader.lexicon.colour_words import survey_colours
 
     assert "sapphire" not in COLOR_NAMES and "sapphire" in survey_colours()
     for q, name in (("the sapphire mug", "blue mug"), ("the cherry mug", "red mug")):
@@ -453,7 +453,7 @@ def test_other_readings_of_colour_words_are_tried_when_the_first_finds_nothing(s
 
 
 def test_a_colour_word_no_list_has_is_read_where_the_encoder_places_it_near_a_colour(scene):
-    from tabletop.mapping.colour_words import colour_word
+    from tabletop.reader.lexicon.colour_words import colour_word
 
     # "bluebird" and "coal" are in neither the lexicon nor the survey
     assert not colour_word("bluebird") and not colour_word("coal")
@@ -481,11 +481,11 @@ def test_a_part_s_colour_does_not_refuse_the_thing(scene):
 
 
 def test_a_thing_the_words_liken_the_object_to_is_no_other_thing(scene):
-    from tabletop.mapping.object_module import _without_likeness
+    from tabletop.reader.lexicon.object_words import without_likeness
 
-    assert _without_likeness("the tin can shaped toy") == "the toy"
-    assert _without_likeness("a toy shaped like a barrel") == "a toy"
-    assert _without_likeness("the wine bottle") == "the wine bottle"
+    assert without_likeness("the tin can shaped toy") == "the toy"
+    assert without_likeness("a toy shaped like a barrel") == "a toy"
+    assert without_likeness("the wine bottle") == "the wine bottle"
     assert scene.heatmap("the teapot shaped cup", 10.0, judge_at(0.2)).found
     teapot = scene.heatmap("the teapot", 10.0, judge_at(0.2))
     assert not teapot.found and "reads as" in teapot.reason
@@ -559,12 +559,12 @@ def _inside(p, box) -> bool:
 
 
 def test_a_word_only_one_candidate_is_described_by_ranks_it_first():
-    from tabletop.mapping.object_module import _word_forms
+    from tabletop.reader.lexicon.object_words import word_forms
 
-    assert {"boxy", "box", "roundish", "round", "bumps", "bump"} <= _word_forms(
+    assert {"boxy", "box", "roundish", "round", "bumps", "bump"} <= word_forms(
         "a boxy, roundish thing with bumps"
     )
-    assert not _word_forms("the small toy with a shape like")  # filler and tie words
+    assert not word_forms("the small toy with a shape like")  # filler and tie words
     toys = {
         "toy cube": ((0.10, -0.20, 0.01), (0.16, -0.14, 0.07), (200, 30, 30)),
         "toy cylinder": ((0.40, 0.10, 0.01), (0.46, 0.16, 0.07), (200, 30, 30)),
@@ -606,13 +606,19 @@ def test_words_all_of_one_names_descriptions_find_it_below_the_cosine_floor():
 
 
 def test_words_all_of_one_names_descriptions_outweigh_a_cosine_that_names_another():
-    from tabletop.mapping.object_module import _DEIXIS, _without_likeness, _word_forms
+    from tabletop.reader.lexicon.object_words import (
+        DEIXIS,
+        without_deixis,
+        without_likeness,
+        word_forms,
+    )
 
-    assert {"dot", "angle", "knob", "stuff"} <= _word_forms("dotted angled knobbly stuffie")
-    assert _without_likeness("the can shape") == "the"
-    assert _without_likeness("in the shape of a can") == ""
-    assert _without_likeness("the shape") == "the shape"
-    assert _DEIXIS.sub("", "the cup over there please").split() == ["the", "cup"]
+    assert {"dot", "angle", "knob", "stuff"} <= word_forms("dotted angled knobbly stuffie")
+    assert without_likeness("the can shape") == "the"
+    assert without_likeness("in the shape of a can") == ""
+    assert without_likeness("the shape") == "the shape"
+    assert DEIXIS.sub("", "the cup over there please").split() == ["the", "cup"]
+    assert without_deixis("the cup over there please") == "the cup"
     toys = {
         "toy cylinder": ((0.10, -0.20, 0.01), (0.16, -0.14, 0.07), (200, 30, 30)),
         "toy prism": ((0.40, -0.20, 0.01), (0.46, -0.14, 0.05), (30, 30, 200)),

@@ -13,6 +13,10 @@ def test_listed_words_counts_literals_but_not_docstrings(tmp_path):
         '    return "zeta x"\n'
     )
     assert listed_words(f) == 3  # gamma, delta, zeta ("x" is too short)
+    (tmp_path / "pkg").mkdir()
+    (tmp_path / "pkg" / "a.py").write_text('A = ("gamma", "eta")\n')
+    (tmp_path / "pkg" / "b.py").write_text('B = "theta eta"\n')
+    assert listed_words(tmp_path / "pkg") == 3  # a package counts each word once
 
 
 def test_the_benchmark_requests_are_the_projects_own():

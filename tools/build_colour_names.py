@@ -33,7 +33,7 @@ def main(source: str) -> None:
         f"# color-name-list {VERSION} (https://github.com/meodai/color-name-list), MIT licence,",
         "# copyright (c) 2017 David Aerne (its LICENSE is kept beside this file as",
         "# names.LICENSE). Names the xkcd survey (survey.toml) holds are left out.",
-        "# Written by tools/build_colour_names.py; read by tabletop/mapping/colour_words.py",
+        "# Written by tools/build_colour_names.py; read by tabletop/reader/lexicon/colour_words.py",
         "# only to say which colour a word already read as a colour means.",
         "",
         'format = "tabletop-colour-names"',

@@ -172,7 +172,7 @@ def _print_bench(results: dict) -> None:
         f"({r.get('reader_places_ms_p95')} p95) per area phrase; "
         f"words listed by hand: rules {r['listed_words_rules']}, "
         f"place_words {r['listed_words_place_words']}, colour_words "
-        f"{r['listed_words_colour_words']}"
+        f"{r['listed_words_colour_words']}, the lexicon {r['listed_words_lexicon']}"
     )
     print(
         f"arm:   {r['reach_n_targets']} targets, {r['reach_reachable']} reachable: "

@@ -154,13 +154,13 @@ def _self_filter(config):
 #: the cache). Of the arm, a map reads only the
 #: self-filter (``arm/self_filter.py`` on ``arm/model.py``). A map holds a sound vocabulary's
 #: texts, but they come from the audio weights (fingerprinted); ``sound_vocabulary.py`` only
-#: reads queries against them.
+#: reads queries against them. The words a query is read with (``reader/lexicon/``) are no
+#: package a map's fingerprint hashes.
 QUERY_TIME_SOURCES = frozenset(
     (
         "mapping/object_module.py",
         "mapping/sound_vocabulary.py",
         "mapping/kind_reader.py",
-        "mapping/colour_words.py",
         "mapping/shape.py",
         "mapping/heatmaps.py",
         "mapping/targets.py",

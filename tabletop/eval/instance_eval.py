@@ -38,7 +38,7 @@ def evaluate_instances(
     docstring); scans and maps are reused from ``cache_dir`` (None: none kept). ``scan``:
     ``ScanConfig`` fields beside the seed (default: speed 0.3, as the suites scan)."""
     from tabletop.eval.harness import generated_scene, scene_map
-    from tabletop.mapping.colors import BASIC_COLOURS
+    from tabletop.reader.lexicon.colour_names import BASIC_COLOURS
     from tabletop.sim.catalog import OBJECT_KINDS
     from tabletop.sim.ground_truth import GroundTruth
 

@@ -41,7 +41,7 @@ from tabletop.reader.plan import (
 )
 from tabletop.reader.reading import DEFAULT_READER, understand
 from tabletop.relations import RELATIONS
-from tabletop.robot.primitives import Primitive, motion_to, primitive
+from tabletop.robot.primitives import PRIMITIVES, Primitive, motion_to, primitive
 
 __all__ = ["instruction_to_code", "plan_to_code"]
 
@@ -55,7 +55,10 @@ _MOVE_TO = primitive("move_to")
 _MOVE_ABOVE = motion_to(_ABOVE.name)  # move_to_object
 _MOVE_BETWEEN = motion_to("between")  # move_in_between
 _MOVE_SIDE = {r.side: motion_to(r.name) for r in RELATIONS if r.side is not None}
-_MOVE_COMPASS = {d: primitive(f"move_{d}") for d in ("north", "south", "east", "west")}
+#: Compass direction -> its motion: the robot API's compass moves ("move_north", ...).
+_MOVE_COMPASS = {
+    p.name.removeprefix("move_"): p for p in PRIMITIVES if p.kind == "motion" and p.direction
+}
 _MOVE_FORWARD = primitive("move_forward")
 _TURN = primitive("turn")
 _FACE = primitive("face")

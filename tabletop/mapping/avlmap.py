@@ -37,7 +37,6 @@ from tabletop.mapping.area_module import AreaModule
 from tabletop.mapping.audio_module import AudioModule
 from tabletop.mapping.audio_segments import AudioSegment
 from tabletop.mapping.calibration import Calibration
-from tabletop.mapping.colour_words import FILLER_WORDS
 from tabletop.mapping.config import MapConfig
 from tabletop.mapping.encoders.base import check_same_space
 from tabletop.mapping.encoders.minilm import MINILM_SPACE
@@ -60,8 +59,9 @@ from tabletop.mapping.visual.localization import VisualLocalization
 from tabletop.mapping.visual.module import VisualModule, VisualModuleConfig
 from tabletop.mapping.visual.photometric import PhotometricCheck
 from tabletop.mapping.voxel_map import VoxelMap, frame_points
+from tabletop.reader.lexicon.colour_words import FILLER_WORDS
+from tabletop.reader.lexicon.words import negations, ordinal, relation_words
 from tabletop.recording import Recording, load_recording
-from tabletop.words import negations, ordinal, relation_words
 
 __all__ = ["QUERY_KINDS", "AVLMap", "MapStats", "SelfFilter"]
 

@@ -1,20 +1,16 @@
-"""Colour names and perceptual colour: what a person calls a colour, and how far two colours
-look apart.
+"""Perceptual colour: how far two colours look apart.
 
 The object module composes a colour word of a query ("the crimson mug") with the colour an
 object instance was measured to have (the mean RGB of its fused pixels), because the learned
 image embedding alone does not carry colour reliably for colour–kind pairs it never saw. The
-comparison goes through the text encoder, so it is not a lookup of the simulator's colours:
+comparison goes through the text encoder, so it is not a lookup of the simulator's colours: a
+measured colour is compared with the colour lexicon's names
+(:data:`~tabletop.reader.lexicon.colour_names.COLOR_NAMES`, each with a typical sRGB value) by
+the perceptual distance ΔE in CIELAB (:func:`rgb_to_lab`).
 
-- :data:`COLOR_NAMES` is a lexicon of everyday English colour names with a typical sRGB value
-  each (web and paint-chart conventions) and the basic colour term it is a shade of; a
-  measured colour is compared with them by the perceptual distance ΔE in CIELAB
-  (:func:`rgb_to_lab`).
-- A query's colour word is embedded by the text encoder and compared with the embeddings of
-  those names; any word the text encoder places near a lexicon name scores — "scarlet" near
-  "red", "navy" near "dark blue" — not only the lexicon's own names.
-
-:mod:`tabletop.mapping.colour_words` says which words of a query are colour words.
+The words live in the lexicon (:mod:`tabletop.reader.lexicon`): the colour names in
+:mod:`~tabletop.reader.lexicon.colour_names`, which words of a query are colour words in
+:mod:`~tabletop.reader.lexicon.colour_words`.
 """
 
 from __future__ import annotations
@@ -22,190 +18,11 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = [
-    "BASIC_COLOURS",
-    "COLOR_MODIFIERS",
-    "COLOR_NAMES",
     "delta_e",
     "delta_e94",
     "rgb_to_lab",
     "shaded_lab",
 ]
-
-#: The basic colour terms of English: every lexicon name belongs to one of them.
-BASIC_COLOURS = (
-    "black",
-    "white",
-    "red",
-    "green",
-    "yellow",
-    "blue",
-    "brown",
-    "purple",
-    "pink",
-    "orange",
-    "grey",
-)
-
-#: Everyday colour names -> (a typical sRGB value (0-255), the basic colour term it is a shade
-#: of: "scarlet" is a red, "navy" a blue).
-COLOR_NAMES: dict[str, tuple[tuple[int, int, int], str]] = {
-    "red": ((220, 30, 30), "red"),
-    "dark red": ((139, 0, 0), "red"),
-    "crimson": ((220, 20, 60), "red"),
-    "scarlet": ((255, 36, 0), "red"),
-    "maroon": ((128, 0, 0), "red"),
-    "burgundy": ((128, 0, 32), "red"),
-    "pink": ((255, 150, 180), "pink"),
-    "hot pink": ((255, 105, 180), "pink"),
-    "rose": ((255, 0, 127), "pink"),
-    "magenta": ((255, 0, 255), "purple"),
-    "orange": ((255, 140, 0), "orange"),
-    "coral": ((255, 127, 80), "orange"),
-    "salmon": ((250, 128, 114), "pink"),
-    "peach": ((255, 203, 164), "orange"),
-    "yellow": ((255, 225, 25), "yellow"),
-    "gold": ((255, 200, 0), "yellow"),
-    "lemon": ((255, 247, 0), "yellow"),
-    "mustard": ((225, 173, 1), "yellow"),
-    "amber": ((255, 191, 0), "orange"),
-    "cream": ((255, 253, 208), "white"),
-    "beige": ((225, 210, 170), "brown"),
-    "tan": ((210, 180, 140), "brown"),
-    "khaki": ((195, 176, 145), "brown"),
-    "brown": ((130, 80, 40), "brown"),
-    "dark brown": ((92, 64, 51), "brown"),
-    "chocolate": ((123, 63, 0), "brown"),
-    "caramel": ((175, 111, 9), "brown"),
-    "bronze": ((205, 127, 50), "brown"),
-    "green": ((40, 160, 50), "green"),
-    "dark green": ((0, 100, 0), "green"),
-    "lime": ((150, 230, 40), "green"),
-    "olive": ((128, 128, 0), "green"),
-    "mint": ((152, 255, 152), "green"),
-    "emerald": ((80, 200, 120), "green"),
-    "teal": ((0, 128, 128), "blue"),
-    "turquoise": ((64, 224, 208), "blue"),
-    "cyan": ((0, 220, 230), "blue"),
-    "blue": ((30, 80, 220), "blue"),
-    "light blue": ((150, 200, 240), "blue"),
-    "sky blue": ((135, 206, 235), "blue"),
-    "navy": ((0, 0, 128), "blue"),
-    "dark blue": ((0, 30, 120), "blue"),
-    "royal blue": ((65, 105, 225), "blue"),
-    "cobalt": ((0, 71, 171), "blue"),
-    "indigo": ((75, 0, 130), "purple"),
-    "purple": ((128, 40, 170), "purple"),
-    "violet": ((143, 0, 255), "purple"),
-    "lavender": ((200, 170, 230), "purple"),
-    "lilac": ((200, 162, 200), "purple"),
-    "plum": ((142, 69, 133), "purple"),
-    "white": ((245, 245, 245), "white"),
-    "ivory": ((255, 255, 240), "white"),
-    "off-white": ((240, 236, 225), "white"),
-    "silver": ((192, 192, 192), "grey"),
-    "light grey": ((200, 200, 200), "grey"),
-    "grey": ((128, 128, 128), "grey"),
-    "gray": ((128, 128, 128), "grey"),
-    "dark grey": ((80, 80, 80), "grey"),
-    "charcoal": ((54, 69, 79), "grey"),
-    # Names people reach for beside the basic ones (gems, fruit, paint charts), which the text
-    # encoder alone places poorly (a lone "mauve" lands nearer "rose" than "purple"). Not
-    # words that name a material or a thing a mug or a block is often called by ("coffee",
-    # "steel", "copper", "brick", "ash", "wine"): those stay part of the thing's description.
-    # None is a phrasing of the held-out paraphrase pool (tests/test_paraphrase.py).
-    "garnet": ((115, 54, 53), "red"),
-    "vermilion": ((227, 66, 52), "red"),
-    "carmine": ((150, 0, 24), "red"),
-    "cardinal": ((196, 30, 58), "red"),
-    "cherry red": ((210, 4, 45), "red"),
-    "brick red": ((203, 65, 84), "red"),
-    "blood red": ((136, 8, 8), "red"),
-    "wine red": ((114, 47, 55), "red"),
-    "fuchsia": ((255, 0, 200), "pink"),
-    "cerise": ((222, 49, 99), "pink"),
-    "blush": ((222, 93, 131), "pink"),
-    "raspberry": ((227, 11, 92), "pink"),
-    "baby pink": ((244, 194, 194), "pink"),
-    "flamingo pink": ((252, 142, 172), "pink"),
-    "tangerine": ((242, 133, 0), "orange"),
-    "pumpkin": ((255, 117, 24), "orange"),
-    "apricot": ((251, 206, 177), "orange"),
-    "marigold": ((234, 162, 33), "orange"),
-    "terracotta": ((226, 114, 91), "orange"),
-    "burnt orange": ((204, 85, 0), "orange"),
-    "canary": ((255, 239, 0), "yellow"),
-    "saffron": ((244, 196, 48), "yellow"),
-    "daffodil": ((255, 255, 49), "yellow"),
-    "golden": ((255, 200, 0), "yellow"),
-    "sunflower yellow": ((255, 218, 3), "yellow"),
-    "banana yellow": ((255, 225, 53), "yellow"),
-    "sage": ((178, 172, 136), "green"),
-    "chartreuse": ((127, 255, 0), "green"),
-    "pistachio": ((147, 197, 114), "green"),
-    "moss": ((138, 154, 91), "green"),
-    "avocado": ((86, 130, 3), "green"),
-    "fern": ((79, 121, 66), "green"),
-    "shamrock": ((0, 158, 96), "green"),
-    "viridian": ((64, 130, 109), "green"),
-    "malachite": ((11, 218, 81), "green"),
-    "kelly green": ((76, 187, 23), "green"),
-    "bottle green": ((0, 106, 78), "green"),
-    "sea green": ((46, 139, 87), "green"),
-    "army green": ((75, 83, 32), "green"),
-    "azure": ((0, 127, 255), "blue"),
-    "cerulean": ((0, 123, 167), "blue"),
-    "ultramarine": ((18, 10, 143), "blue"),
-    "denim": ((21, 96, 189), "blue"),
-    "cornflower": ((100, 149, 237), "blue"),
-    "aqua": ((0, 255, 255), "blue"),
-    "aquamarine": ((127, 255, 212), "blue"),
-    "baby blue": ((137, 207, 240), "blue"),
-    "powder blue": ((176, 224, 230), "blue"),
-    "steel blue": ((70, 130, 180), "blue"),
-    "midnight blue": ((25, 25, 112), "blue"),
-    "electric blue": ((125, 249, 255), "blue"),
-    "navy blue": ((0, 0, 128), "blue"),
-    "mauve": ((224, 176, 255), "purple"),
-    "eggplant": ((97, 64, 81), "purple"),
-    "amethyst": ((153, 102, 204), "purple"),
-    "grape": ((111, 45, 168), "purple"),
-    "orchid": ((218, 112, 214), "purple"),
-    "mulberry": ((197, 75, 140), "purple"),
-    "wisteria": ((201, 160, 220), "purple"),
-    "periwinkle": ((204, 204, 255), "purple"),
-    "mahogany": ((192, 64, 0), "brown"),
-    "mocha": ((120, 85, 60), "brown"),
-    "sepia": ((112, 66, 20), "brown"),
-    "cinnamon": ((210, 105, 30), "brown"),
-    "cocoa": ((135, 95, 66), "brown"),
-    "umber": ((99, 81, 71), "brown"),
-    "sienna": ((160, 82, 45), "brown"),
-    "taupe": ((72, 60, 50), "brown"),
-    "camel": ((193, 154, 107), "brown"),
-    "toffee": ((117, 76, 36), "brown"),
-    "russet": ((128, 70, 27), "brown"),
-    "auburn": ((165, 42, 42), "brown"),
-    "fawn": ((229, 170, 112), "brown"),
-    "pearl": ((234, 224, 200), "white"),
-    "alabaster": ((237, 234, 224), "white"),
-    "eggshell": ((240, 234, 214), "white"),
-    "linen": ((250, 240, 230), "white"),
-    "snow white": ((255, 250, 250), "white"),
-    "slate": ((112, 128, 144), "grey"),
-    "graphite": ((56, 60, 63), "grey"),
-    "gunmetal": ((42, 52, 57), "grey"),
-    "platinum": ((229, 228, 226), "grey"),
-    "ash grey": ((178, 190, 181), "grey"),
-    "steel grey": ((113, 121, 126), "grey"),
-    "onyx": ((53, 56, 57), "black"),
-    "obsidian": ((30, 30, 35), "black"),
-    "jet black": ((52, 52, 52), "black"),
-    "pitch black": ((10, 10, 10), "black"),
-    "black": ((15, 15, 15), "black"),
-}
-
-#: Words that modify a colour ("dark blue", "pale pink"); part of a colour phrase, not a noun.
-COLOR_MODIFIERS = ("light", "dark", "pale", "bright", "deep", "vivid", "pastel", "soft")
 
 
 def delta_e(a, b) -> np.ndarray:

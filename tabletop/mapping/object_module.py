@@ -5,7 +5,7 @@ geometry, each with a fused embedding and a measured colour). A query is answere
 steps, each with its own reason when it fails:
 
 1. **Words to the vocabulary.** The query is split into a colour phrase and the rest
-   (:func:`~tabletop.mapping.colour_words.color_parses`: its readings are tried in order, and
+   (:func:`~tabletop.reader.lexicon.colour_words.color_parses`: its readings are tried in order, and
    the first that finds something answers). The rest is scored by the text encoder against
    every name of the map's vocabulary and that name's descriptions (what it is, its
    shape, material, use): a person's word for a thing ("coffee cup", "plush bear") lands on the
@@ -30,8 +30,8 @@ steps, each with its own reason when it fails:
    the prior's fitted weight. An instance's kind score is the probability of the query's names.
 3. **Colour, composed.** A colour phrase is compared with the instance's *measured* colour:
    the colour words are matched by the text encoder to the colour lexicon's names
-   (:data:`~tabletop.mapping.colors.COLOR_NAMES`), and each name's colour, lit at any gain
-   down to ``shading_gain_min`` (shaded faces are darker and duller), is compared with the
+   (:data:`~tabletop.reader.lexicon.colour_names.COLOR_NAMES`), and each name's colour, lit at
+   any gain down to ``shading_gain_min`` (shaded faces are darker and duller), is compared with the
    instance's by ΔE (CIELAB); a basic colour term means its whole family of names. The fit
    falls with how much nearer another basic colour term lies (``colour_scale``) and with the
    distance itself (``colour_abs_scale``). A two-coloured instance (its palette: a domino's
@@ -62,16 +62,14 @@ from pathlib import Path
 import numpy as np
 
 from tabletop.errors import AssetError, ConfigError
-from tabletop.mapping.colors import (
-    BASIC_COLOURS,
-    COLOR_MODIFIERS,
-    COLOR_NAMES,
-    delta_e,
-    delta_e94,
-    rgb_to_lab,
-    shaded_lab,
-)
-from tabletop.mapping.colour_words import (
+from tabletop.mapping.colors import delta_e, delta_e94, rgb_to_lab, shaded_lab
+from tabletop.mapping.heatmaps import Heatmap, Judge, point_heatmap_3d_at
+from tabletop.mapping.instances import InstanceConfig, InstanceSet, ObjectInstance, support_of
+from tabletop.mapping.kind_reader import OTHER, KindReader
+from tabletop.mapping.voxel_map import VoxelMap
+from tabletop.paths import DATA_DIR
+from tabletop.reader.lexicon.colour_names import BASIC_COLOURS, COLOR_MODIFIERS, COLOR_NAMES
+from tabletop.reader.lexicon.colour_words import (
     FILLER_WORDS,
     color_parses,
     colour_word,
@@ -86,12 +84,13 @@ from tabletop.mapping.colour_words import (
     two_colours,
     unlisted_modifiers,
 )
-from tabletop.mapping.heatmaps import Heatmap, Judge, point_heatmap_3d_at
-from tabletop.mapping.instances import InstanceConfig, InstanceSet, ObjectInstance, support_of
-from tabletop.mapping.kind_reader import OTHER, KindReader
-from tabletop.mapping.voxel_map import VoxelMap
-from tabletop.paths import DATA_DIR
-from tabletop.words import Superlative, superlative
+from tabletop.reader.lexicon.object_words import (
+    LIKENESS_WORDS,
+    without_deixis,
+    without_likeness,
+    word_forms,
+)
+from tabletop.reader.lexicon.words import Superlative, superlative
 
 __all__ = [
     "BACKGROUND",
@@ -459,7 +458,7 @@ class ObjectModule:
     def _query_words(query: str, reading: tuple[str, str] | None = None) -> tuple[str, str]:
         """(colour phrase, the words :meth:`match` reads as the thing's name)."""
         colour, words = reading if reading is not None else split_color_words(query)
-        return colour, " ".join(_DEIXIS.sub(" ", words).split()) or words  # "the cup over there"
+        return colour, without_deixis(words)  # "the cup over there"
 
     def prefetch(self, queries: list[str]) -> None:
         """Embed at once, in batches, the texts :meth:`match` embeds for each of ``queries``
@@ -470,7 +469,7 @@ class ObjectModule:
         for q in queries:
             words = self._query_words(q)[1]
             if [w for w in words.split() if w not in FILLER_WORDS]:
-                texts.update(dict.fromkeys((words, _said(words), _without_likeness(words))))
+                texts.update(dict.fromkeys((words, _said(words), without_likeness(words))))
         if texts:
             self.text.encode_text(list(texts))
 
@@ -498,7 +497,7 @@ class ObjectModule:
             # bear" the teddy bear; but "the wedge block" is no jenga block, nor "the
             # barrel-shaped toy" any toy: the words before the head decide).
             want = per >= per[best] - cfg.text_margin
-            plain = _without_likeness(words)
+            plain = without_likeness(words)
             head = content[-1]
             # (unless a word before the head is the best name's alone: "the triangular prism
             # toy" is the prism, not any toy)
@@ -507,7 +506,7 @@ class ObjectModule:
                 want |= np.array([head in name.split() for name in self.vocabulary])
             # What the thing is likened to may be one name's own ("the can-shaped block": the
             # cylinder is "a toy like a short tube or can"): then it is that name.
-            kept = set(plain.split()) | _LIKENESS_WORDS
+            kept = set(plain.split()) | LIKENESS_WORDS
             likened = [w for w in words.split() if w not in kept]
             if likened and (d := self._described_fully(likened)) >= 0:
                 want = np.arange(nv) == d
@@ -551,7 +550,7 @@ class ObjectModule:
                 other, other_score = "", -1.0
             # words that are all one name's own read as another thing only by a word of it
             # ("the bath buddy" is the duck's, though its cosine lies nearer "toilet")
-            if described and not _word_forms(other) & _word_forms(" ".join(content)):
+            if described and not word_forms(other) & word_forms(" ".join(content)):
                 other, other_score = "", -1.0
             # the reader names what the cosine refused ("the tin can toy": nearer "tin can")
             refused = bool(
@@ -723,8 +722,9 @@ class ObjectModule:
 
     def _described_fully(self, content: list[str]) -> int:
         """The index of the one vocabulary name whose label and descriptions hold every
-        telling word of ``content`` (:func:`_word_forms`), or -1 (none, or several)."""
-        telling = [f for f in (_word_forms(w) for w in content) if f]
+        telling word of ``content`` (:func:`~tabletop.reader.lexicon.object_words.word_forms`),
+        or -1 (none, or several)."""
+        telling = [f for f in (word_forms(w) for w in content) if f]
         if not telling:
             return -1
         words = self._name_word_forms()
@@ -735,7 +735,7 @@ class ObjectModule:
         """Per vocabulary name, the word forms of its label and descriptions."""
         if self._name_words is None:
             self._name_words = [
-                {f for t in (name, *self.descriptions.get(name, ())) for f in _word_forms(t)}
+                {f for t in (name, *self.descriptions.get(name, ())) for f in word_forms(t)}
                 for name in self.vocabulary
             ]
         return self._name_words
@@ -749,7 +749,7 @@ class ObjectModule:
         if len(wanted) < 2:
             return out
         for w in content:
-            forms = _word_forms(w)
+            forms = word_forms(w)
             have = [i for i in wanted if forms & name_words[i]]
             if len(have) == 1:
                 out[have[0]] = True
@@ -930,21 +930,21 @@ class ObjectModule:
 
     def readings(self, query: str) -> list[tuple[str, str]]:
         """The readings of ``query``'s colour words to try, in order
-        (:func:`~tabletop.mapping.colour_words.color_parses`). Where the query has no colour
+        (:func:`~tabletop.reader.lexicon.colour_words.color_parses`). Where the query has no colour
         word of the lexicon, a colour name of the survey
-        (:func:`~tabletop.mapping.colour_words.survey_words`: "aubergine", "cherry") is a
+        (:func:`~tabletop.reader.lexicon.colour_words.survey_words`: "aubergine", "cherry") is a
         colour where the text encoder places it nearer a lexicon colour than every vocabulary
         name, description and other thing ("cherry" is, "tomato" and "coffee" are not); where
         it also names something of the vocabulary's (its cosine with one reaches
         ``text_min``: "tea" for a mug), the readings without it follow. So they do where the
         encoder places it nearer a thing, but one of no vocabulary name, and it modifies the
-        rest of the noun phrase (:func:`~tabletop.mapping.colour_words.modifies`: "the
+        rest of the noun phrase (:func:`~tabletop.reader.lexicon.colour_words.modifies`: "the
         heliotrope block" is no flower block, "the tomato one" no tomato); and they follow a
         colour name that ends the noun phrase as its head noun ("the domino stone",
-        :func:`~tabletop.mapping.colour_words.heads`); they come first where such a word
+        :func:`~tabletop.reader.lexicon.colour_words.heads`); they come first where such a word
         names something of the vocabulary's and stands where no modifier does ("the mug
         you'd put tea in": tea, not its green). A word the query's
-        own words call a colour (:func:`~tabletop.mapping.colour_words.framed_colours`:
+        own words call a colour (:func:`~tabletop.reader.lexicon.colour_words.framed_colours`:
         "tomato-coloured", "colour heliotrope") is one, whatever the text encoder says; the
         readings without it follow only where such a word names no colour of the lexicon or
         the survey ("the solid colour ball"; not "the leaf-coloured block", which where no
@@ -1097,47 +1097,6 @@ BACKGROUND_TIE = 1e-4
 PALETTE_MIN_SHARE = 0.25
 
 
-#: The words of a likeness that name nothing.
-_LIKENESS_WORDS = frozenset("shaped shape like looks look in of the a an".split())
-#: "X-shaped", "shaped like X", "in the shape of X", "like X", "the X shape": words that liken
-#: the thing to another (hyphens are spaces here; X is one or two words, or up to a joining
-#: word).
-_LIKENESS = re.compile(
-    r"\b(?:shaped\s+like|in\s+the\s+shape\s+of|looks?\s+like|like)\s+(?:(?:a|an|the)\s+)?"
-    r"[a-z']+(?:\s+(?!with\b|and\b|near\b|on\b|by\b)[a-z']+)?"
-    r"|(?:\b(?!a\b|an\b|the\b)[a-z']+\s+)?\b[a-z']+\s+shaped\b(?!\s+like)"
-    r"|(?:\b(?!a\b|an\b|the\b)[a-z']+\s+)?\b(?!a\b|an\b|the\b)[a-z']+\s+shape\b(?!\s+of)"
-)
-
-
-def _word_forms(text: str) -> set[str]:
-    """The plain forms of ``text``'s words, filler and words of two letters aside: each word,
-    without a plural "s", and "boxy" as "box", "roundish" as "round", "dotted" as "dot",
-    "angled" as "angle", "knobbly" as "knob", "stuffie" as "stuff"."""
-    out = set()
-    for w in re.findall(r"[a-z]+", str(text).lower()):
-        if len(w) < 3 or w in FILLER_WORDS or w in _FORM_STOP:
-            continue
-        out.add(w)
-        for suffix in ("ish", "es", "s", "y", "ie", "ed", "ly"):
-            if w.endswith(suffix) and len(w) - len(suffix) >= 3:
-                stem = w[: -len(suffix)]
-                out.add(stem)
-                if suffix in ("ed", "ly") and stem[-1] == stem[-2]:
-                    out.add(stem[:-1])  # "dotted" is "dot", "knobbly" "knob"
-                elif suffix == "ed":
-                    out.add(stem + "e")  # "angled" is "angle"
-    return out
-
-
-#: Words that tie a description together, or name a thing only loosely ("the bath buddy"),
-#: and tell no name from another.
-_FORM_STOP = frozenset(
-    "and with for from you like shaped shape one small little big piece bit thing object toy plain "
-    "buddy pal friend fella chap guy".split()
-)
-
-
 def _names_a_word_of(content: list[str], name: str, vocabulary) -> bool:
     """Whether a word of ``content`` is a word of ``name`` and of no other vocabulary name."""
     return any(
@@ -1146,27 +1105,10 @@ def _names_a_word_of(content: list[str], name: str, vocabulary) -> bool:
     )
 
 
-#: Words that point or ask politely, and describe nothing: "the cup over there", "the red one
-#: please", "the duck for me".
-_DEIXIS = re.compile(
-    r"\b(?:(?:over|right|just|up|down)\s+)?(?:there|here)\b|\bplease\b|\bfor\s+me\b"
-)
-
-
 def _said(words: str) -> str:
     """The words as the kind reader learnt names: after "the" ("puck block" -> "the puck
     block")."""
     return "the " + re.sub(r"^(?:the|a|an)\s+", "", words)
-
-
-def _without_likeness(words: str) -> str:
-    """``words`` without what they liken the thing to ("the tin can shaped toy" -> "the toy",
-    "a toy shaped like a barrel" -> "a toy"); the words themselves when they liken nothing."""
-    return (
-        " ".join(_LIKENESS.sub(" ", words).split())
-        if "shape" in words or "like" in words
-        else words
-    )
 
 
 def _shade_of_basic(name: str) -> bool:
@@ -1219,9 +1161,10 @@ def _alike(a: float, b: float, measure: str) -> bool:
 
 
 def superlative_measure(inst: ObjectInstance, sup: Superlative) -> float:
-    """What a superlative ranks an instance by (:data:`~tabletop.words.SUPERLATIVES`): its
-    box's volume [m^3], its top [m], how far left it stands (+y [m]), or its horizontal
-    distance [m] from the superlative's viewpoint."""
+    """What a superlative ranks an instance by
+    (:data:`~tabletop.reader.lexicon.words.SUPERLATIVES`): its box's volume [m^3], its top [m],
+    how far left it stands (+y [m]), or its horizontal distance [m] from the superlative's
+    viewpoint."""
     if sup.measure == "size":
         return float(np.prod(inst.extent))
     if sup.measure == "height":

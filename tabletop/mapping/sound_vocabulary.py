@@ -39,6 +39,7 @@ from scipy.special import expit, logsumexp
 
 from tabletop.errors import AssetError, ConfigError
 from tabletop.paths import DATA_DIR
+from tabletop.reader.lexicon.sound_words import source_after_of
 
 __all__ = [
     "OPEN_PREFIX",
@@ -242,23 +243,6 @@ class SoundQuery:
 GENERAL_SOUNDS = ("Sound effect", "Noise", "Silence")
 #: :attr:`SoundQuery.other` of such a query.
 GENERAL = "sound in general"
-
-
-#: Words after "of" that name no source ("the sound of it", "a bit of").
-_NO_SOURCE = frozenset("it that this them something anything some sort kind bit".split())
-
-
-def _source_after_of(query: str) -> str:
-    """What a sound query names after its last "of" ("the pitter-patter of feet" -> "feet",
-    "the sound of a flock of geese" -> "geese"); "" where it has no "of" or nothing but
-    articles and :data:`_NO_SOURCE` words follow it."""
-    words = str(query).lower().split()
-    if "of" not in words:
-        return ""
-    k = len(words) - 1 - words[::-1].index("of")
-    tail = words[k + 1 :]
-    content = [w for w in tail if w not in ("a", "an", "the", "some") and w not in _NO_SOURCE]
-    return " ".join(tail) if content else ""
 
 
 class SoundMatcher:
@@ -466,7 +450,7 @@ class SoundMatcher:
     def _match_vocabulary(self, query: str, embeddings: np.ndarray, e: np.ndarray) -> SoundQuery:
         """:meth:`match` through the vocabulary alone (``e``: the query's embedding)."""
         per = self.category_scores(query, e)
-        source = _source_after_of(query)
+        source = source_after_of(query)
         if source:
             per = np.maximum(per, self.category_scores(source))
         best = int(np.argmax(per))

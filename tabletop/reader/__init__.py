@@ -7,7 +7,6 @@ the CLI and the evaluation all ask the same one.
 """
 
 from tabletop.reader.errors import LanguageError, ParseError
-from tabletop.reader.rules import parse_instruction
 
 __all__ = [
     "READERS",
@@ -24,8 +23,14 @@ _FROM_READING = ("READERS", "get_reader", "understand")
 
 
 def __getattr__(name: str):
+    # The grammar (tabletop.reader.rules) too is loaded when first asked for: the map imports
+    # the lexicon (tabletop.reader.lexicon), and with it this package, but never the grammar.
     if name in _FROM_READING:
         from tabletop.reader import reading
 
         return getattr(reading, name)
+    if name == "parse_instruction":
+        from tabletop.reader.rules import parse_instruction
+
+        return parse_instruction
     raise AttributeError(f"module 'tabletop.reader' has no attribute {name!r}")

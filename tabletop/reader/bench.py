@@ -44,19 +44,27 @@ BENCH_PLACES = (
 
 
 def listed_words(path: str | Path) -> int:
-    """Distinct lower-case words inside the string literals of a Python file, docstrings
-    left out: how many words its author listed by hand."""
-    tree = ast.parse(Path(path).read_text(encoding="utf-8"))
-    docs = set()
-    for node in ast.walk(tree):
-        body = getattr(node, "body", None)
-        if isinstance(body, list) and body and isinstance(body[0], ast.Expr):
-            if isinstance(getattr(body[0], "value", None), ast.Constant):
-                docs.add(id(body[0].value))
+    """Distinct lower-case words inside the string literals of a Python file, or of every
+    Python file of a package (a folder), docstrings left out: how many words its authors
+    listed by hand."""
+    path = Path(path)
+    files = sorted(path.rglob("*.py")) if path.is_dir() else [path]
     words: set[str] = set()
-    for node in ast.walk(tree):
-        if isinstance(node, ast.Constant) and isinstance(node.value, str) and id(node) not in docs:
-            words.update(re.findall(r"[a-z]{2,}", node.value.lower()))
+    for f in files:
+        tree = ast.parse(f.read_text(encoding="utf-8"))
+        docs = set()
+        for node in ast.walk(tree):
+            body = getattr(node, "body", None)
+            if isinstance(body, list) and body and isinstance(body[0], ast.Expr):
+                if isinstance(getattr(body[0], "value", None), ast.Constant):
+                    docs.add(id(body[0].value))
+        for node in ast.walk(tree):
+            if (
+                isinstance(node, ast.Constant)
+                and isinstance(node.value, str)
+                and id(node) not in docs
+            ):
+                words.update(re.findall(r"[a-z]{2,}", node.value.lower()))
     return len(words)
 
 
@@ -106,6 +114,11 @@ def run_reader_benchmark(repeats: int = 5) -> dict:
     finally:
         torch.set_num_threads(threads)
     root = Path(__file__).resolve().parent.parent
-    for rel in ("reader/rules.py", "reader/place_words.py", "mapping/colour_words.py"):
+    for rel in (
+        "reader/rules.py",
+        "reader/place_words.py",
+        "reader/lexicon/colour_words.py",
+        "reader/lexicon",  # the whole lexicon: every word list the map and the robot read with
+    ):
         out[f"listed_words_{Path(rel).stem}"] = listed_words(root / rel)
     return out

@@ -280,9 +280,9 @@ def refuse_beneath_surface(text: str) -> None:
 def _fold_goal(goal: Goal) -> Goal:
     """``goal`` with each narrowing part that only describes what the primary is made of or
     covered with ("the mug in shiny red plastic": a part whose last word is a material or a
-    covering, :data:`~tabletop.mapping.colour_words.SURFACE_NOUNS`) folded into the primary's
+    covering, :data:`~tabletop.reader.lexicon.colour_words.SURFACE_NOUNS`) folded into the primary's
     words, which the map reads as a description; such a part names no thing to be near."""
-    from tabletop.mapping.colour_words import SURFACE_NOUNS
+    from tabletop.reader.lexicon.colour_words import SURFACE_NOUNS
 
     keep, described = [], goal.primary.text
     for part in goal.near:

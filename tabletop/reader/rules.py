@@ -32,6 +32,7 @@ import unicodedata
 
 from tabletop.errors import ConfigError
 from tabletop.reader.errors import ParseError
+from tabletop.reader.lexicon.words import NEGATIONS, is_negation, negations, ordinal, superlative
 from tabletop.reader.plan import (
     Above,
     BackAndForth,
@@ -47,7 +48,6 @@ from tabletop.reader.plan import (
     Turn,
 )
 from tabletop.relations import relation, relation_by_side
-from tabletop.words import NEGATIONS, is_negation, negations, ordinal, superlative
 
 __all__ = [
     "MANNER",

@@ -35,7 +35,7 @@ from dataclasses import dataclass
 
 from tabletop.errors import ConfigError
 from tabletop.paths import DATA_DIR
-from tabletop.words import SUPERLATIVES
+from tabletop.reader.lexicon.words import SUPERLATIVES
 
 __all__ = [
     "Correction",

@@ -261,7 +261,7 @@ class ViewerSession:
     def instances(self) -> list[InstanceInfo]:
         """The map's object instances, each named by the object module's most probable kind
         and its measured colour's nearest basic colour name."""
-        from tabletop.mapping.colors import BASIC_COLOURS
+        from tabletop.reader.lexicon.colour_names import BASIC_COLOURS
 
         m = self._need_map()
         objs = m.objects

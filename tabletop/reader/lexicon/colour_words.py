@@ -3,7 +3,8 @@
 :func:`split_color_words` splits a query into its colour phrase and the rest ("the dark blue
 coffee mug" -> "dark blue", "the coffee mug"); :func:`color_parses` adds the other readings a
 noun phrase allows ("tomato red" one colour; "hot chocolate" a drink, not a colour), for the
-object module to try in order. The colour names are :data:`~tabletop.mapping.colors.COLOR_NAMES`.
+object module to try in order. The colour names are
+:data:`~tabletop.reader.lexicon.colour_names.COLOR_NAMES`.
 
 Read at query time only (a map holds nothing this module computes).
 """
@@ -16,8 +17,8 @@ from functools import cache
 from pathlib import Path
 
 from tabletop.errors import AssetError
-from tabletop.mapping.colors import BASIC_COLOURS, COLOR_MODIFIERS, COLOR_NAMES
 from tabletop.paths import DATA_DIR
+from tabletop.reader.lexicon.colour_names import BASIC_COLOURS, COLOR_MODIFIERS, COLOR_NAMES
 
 __all__ = [
     "COLOR_LINK_WORDS",
