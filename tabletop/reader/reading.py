@@ -30,6 +30,7 @@ from typing import Protocol
 from tabletop.errors import ConfigError
 from tabletop.mapping.table_regions import AreaRef
 from tabletop.reader.errors import ParseError
+from tabletop.reader.lexicon.words import AUXILIARIES, SUPERLATIVES, superlative
 from tabletop.reader.llm import LLMReader
 from tabletop.reader.places import PlaceReader, beneath_surface
 from tabletop.reader.plan import Between, Goal, Part, Reading, Step
@@ -56,7 +57,6 @@ from tabletop.reader.spelling import (
     name_words,
     not_english,
 )
-from tabletop.words import AUXILIARIES, SUPERLATIVES, superlative
 
 __all__ = [
     "DEFAULT_READER",
@@ -424,7 +424,7 @@ def superlative_forms(text: str) -> list[str]:
     """The words of ``text`` that are superlatives by their form: "-est" after a stem whose
     comparative ("-er") is a common English word ("loudest", "shiniest", "biggest"; not
     "forest" or "interest"). Which of them the map ranks by is
-    :data:`~tabletop.words.SUPERLATIVES`'s to say."""
+    :data:`~tabletop.reader.lexicon.words.SUPERLATIVES`'s to say."""
     english = english_words()
     words = re.findall(r"[a-z]+", str(text).lower())
     return [w for w in words if len(w) >= 6 and w.endswith("est") and f"{w[:-3]}er" in english]
