@@ -331,3 +331,14 @@ def test_the_harness_sees_heavy_work_and_leftovers():
     status, text, left = run_cli(["scenes"])
     assert status == 0 and "default" in text and left == []
     assert TOTAL_EXAMPLES == sum(EXAMPLES.values()) >= 500
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [["eval-map", "--seeds", "0"], ["demo", "--encoders", "foo"], ["demo", "--encoders", ","]],
+)
+def test_a_refused_flag_is_the_first_thing_said(argv):
+    # the command's banner had been printed before the refusal, as if the run had started
+    status, text, left = run_cli(argv)
+    assert status == 2 and left == []
+    assert text.strip().splitlines()[0].startswith(f"tabletop {argv[0]}: error"), text

@@ -385,8 +385,9 @@ def cmd_eval_compare(args: argparse.Namespace) -> int:
 
 # ---------------------------------------------------------------------- eval-map
 def cmd_eval_map(args: argparse.Namespace) -> int:
-    from tabletop.eval.map_goals import run_map_eval
+    from tabletop.eval.map_goals import check_map_eval, run_map_eval
 
+    check_map_eval(args.seeds, args.speed)  # refused before the banner, not after it
     log = sys.stderr if args.json else sys.stdout  # --json: stdout carries only the JSON
 
     def show(run):
@@ -436,6 +437,12 @@ def cmd_demo(args: argparse.Namespace) -> int:
     _check_directory_flag("--out", args.out)  # before the scan, not after it
     out = Path(args.out)
     encoders = [e.strip() for e in args.encoders.split(",") if e.strip()]
+    from tabletop.mapping.encoders.registry import ENCODER_SETS
+
+    if not encoders or (unknown := [e for e in encoders if e not in ENCODER_SETS]):
+        # refused before the banner that names them, not after it
+        named = f"unknown encoder set {unknown[0]!r}" if encoders else "no encoder set named"
+        raise ConfigError(f"--encoders: {named}; valid: {list(ENCODER_SETS)}")
     if args.robot == "mobile":
         if args.driver != "sim":
             print(

@@ -256,6 +256,15 @@ def evaluate_map_goals(
     return out
 
 
+def check_map_eval(seeds, speed) -> None:
+    """ConfigError naming the first of :func:`run_map_eval`'s arguments that is out of range
+    (checked before anything is printed or scanned)."""
+    if isinstance(seeds, bool) or not isinstance(seeds, int) or seeds < 1:
+        raise ConfigError(f"seeds must be a whole number >= 1, got {seeds!r}")
+    if not (isinstance(speed, (int, float)) and np.isfinite(speed) and speed > 0):
+        raise ConfigError(f"speed must be a positive number [m/s], got {speed!r}")
+
+
 def run_map_eval(
     seeds: int = 3, speed: float = 0.3, encoders: str = "oracle", progress=None
 ) -> dict:
@@ -265,10 +274,7 @@ def run_map_eval(
     Returns {"runs": [...], "by_type": {type: {goals, successes, not_found, success_rate}},
     "by_scene": {"default" | "random": {type: ...}}, "encoders"}.
     """
-    if isinstance(seeds, bool) or not isinstance(seeds, int) or seeds < 1:
-        raise ConfigError(f"seeds must be a whole number >= 1, got {seeds!r}")
-    if not (isinstance(speed, (int, float)) and np.isfinite(speed) and speed > 0):
-        raise ConfigError(f"speed must be a positive number [m/s], got {speed!r}")
+    check_map_eval(seeds, speed)
     from tabletop.eval.harness import generated_scene, scene_map
     from tabletop.sim.scene import load_scene_spec
     from tabletop.sim.world import SimWorld
