@@ -643,3 +643,21 @@ def test_a_rank_the_map_does_not_hold_is_refused_not_dropped(reader):
     # a rank the map holds is read with the thing, and "forest" is no superlative
     for text in ["go to the biggest mug", "go to the forest green mug"]:
         assert understand(text, reader=reader).steps[0].action.goal.primary.kind == "obj"
+
+
+@pytest.mark.parametrize("reader", ["rules", "rules+spelling", "learned", "rules+learned"])
+def test_a_symbol_among_words_and_a_distance_up_or_down_are_named(reader):
+    # the symbol had left "the" to be named as naming nothing; "5 cm up" as a thing's words
+    for text, word, why in [
+        ("go to the \U0001f986", "\U0001f986", "is a symbol, not a word"),
+        ("go to the duck \U0001f44d", "\U0001f44d", "is a symbol, not a word"),
+        ("move 5 cm up", "up", "not up or down"),
+        ("go 10 cm higher", "higher", "not up or down"),
+    ]:
+        with pytest.raises(ParseError, match=why) as e:
+            understand(text, reader=reader)
+        assert e.value.fragment == word, text
+    # going up to a thing is going to it, and an accented letter is a letter
+    assert understand("move up to the mug", reader=reader).steps[0].action == GoTo(
+        Goal(Part("obj", "mug"))
+    )

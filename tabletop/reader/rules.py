@@ -330,6 +330,18 @@ def refuse_no_words(text: str) -> None:
     if not isinstance(text, str) or not text.strip():
         return
     if any(unicodedata.category(ch).startswith("L") for ch in text):
+        symbols = [
+            w
+            for w in text.split()
+            if all(unicodedata.category(ch).startswith("S") or ch in "\u200d\ufe0f" for ch in w)
+        ]
+        if symbols:  # "go to the 🦆": the reading had named "the" as naming nothing
+            raise ParseError(
+                text,
+                symbols[0],
+                f"{symbols[0]!r} is a symbol, not a word: name the thing, the sound or the "
+                f"place in words. A request looks like {REQUEST_EXAMPLES}",
+            )
         return
     kinds = sorted(
         {
@@ -584,6 +596,12 @@ _COMPASS_ANY = [
         rf"^(?:to(?:wards)?\s+(?:the\s+)?)?{_DIR}(?:wards?)?\s+(?:by\s+|for\s+)?(?P<d>\S+)\s*{_UNIT}$"
     ),
 ]
+#: A distance up or down ("5 cm up", "up by 2 cm", "10 cm higher").
+_VERTICAL = re.compile(
+    rf"^(?:\S+\s*{_UNIT}\s+(?:straight\s+)?(?P<v>upwards?|downwards?|up|down|higher|lower)|"
+    rf"(?:straight\s+)?(?P<v2>upwards?|downwards?|up|down|higher|lower)\s+(?:by\s+|for\s+)?\S+\s*"
+    rf"{_UNIT})$"
+)
 _COMPASS = [
     re.compile(rf"^{_DIST}\s+(?:to(?:wards)?\s+(?:the\s+)?)?{_DIR}(?:wards?)?$"),
     re.compile(rf"^(?:to(?:wards)?\s+(?:the\s+)?)?{_DIR}(?:wards?)?\s+(?:by\s+|for\s+)?{_DIST}$"),
@@ -991,6 +1009,13 @@ class _Parser:
                 return Compass(_DIRECTIONS[direction], round(d, 6))
         if re.match(rf"^(?:to(?:wards)?\s+(?:the\s+)?)?{_DIR}(?:wards?)?$", rest):
             self.fail(rest, "a compass move needs a distance, e.g. 'move 10 cm north'")
+        m = _VERTICAL.match(rest)
+        if m:  # "move 5 cm up": a distance in a direction off the table's plane
+            self.fail(
+                m.group("v") or m.group("v2"),
+                "a move by a distance goes across the table (north, south, east, west, left, "
+                "right), not up or down; 'above X' hovers over a thing",
+            )
         for rx in _COMPASS_ANY:  # a compass move whose distance is no number ("by nan m")
             m = rx.match(rest)
             if m:
