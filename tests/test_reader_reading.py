@@ -661,3 +661,30 @@ def test_a_symbol_among_words_and_a_distance_up_or_down_are_named(reader):
     assert understand("move up to the mug", reader=reader).steps[0].action == GoTo(
         Goal(Part("obj", "mug"))
     )
+
+
+def test_a_side_the_tagger_leaves_out_is_refused_and_a_courtesy_holds_no_side():
+    # the side of a long description had been dropped, and the reading sent to the thing
+    with pytest.raises(ParseError, match="says a side, and the reading leaves it out") as e:
+        understand("go over to the cup my aunt gave me - the blue one, you know's left")
+    assert e.value.fragment == "left"
+    # a clause after "if" that says a side is no courtesy to leave out
+    from tabletop.reader.reading import courtesy, is_courtesy
+
+    assert not is_courtesy("if that's its right")
+    assert courtesy("go to the duck, if that's on the left") == (
+        "go to the duck, if that's on the left",
+        None,
+    )
+    assert courtesy("go to the duck, if that's all right with you")[1] is None
+    assert courtesy("go to the duck, if that's ok with you")[1] == "if that's ok with you"
+
+
+@pytest.mark.parametrize("reader", ["learned", "rules+learned"])
+def test_an_opening_right_and_a_nearest_to_another_thing_are_no_side_or_rank(reader):
+    # "Right, ..." opens a request; "closest ... to X" and "nearest you" relate, not rank
+    for text in ["right, head over to the blue mug", "all right, go to the duck"]:
+        action = understand(text, reader=reader).steps[0].action
+        assert isinstance(action, GoTo) and not action.goal.near, text
+    near = understand("go to the mug closest in distance to the duck", reader=reader)
+    assert near.steps[0].action.goal.near == (Part("obj", "duck"),)

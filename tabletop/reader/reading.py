@@ -33,11 +33,23 @@ from tabletop.reader.errors import ParseError
 from tabletop.reader.lexicon.words import AUXILIARIES, SUPERLATIVES, superlative
 from tabletop.reader.llm import LLMReader
 from tabletop.reader.places import PlaceReader, beneath_surface
-from tabletop.reader.plan import Between, Goal, Part, Reading, Step
+from tabletop.reader.plan import (
+    Between,
+    Compass,
+    Face,
+    Forward,
+    Goal,
+    Part,
+    Reading,
+    Side,
+    Step,
+    Turn,
+)
 from tabletop.reader.rules import (
     MANNER,
     QUALIFIERS,
     SEVERAL_WHY,
+    STRUCTURE_WORDS,
     ends_in_determiner,
     is_negation,
     negations,
@@ -143,11 +155,14 @@ def is_courtesy(clause: str) -> bool:
     m = _IF_CLAUSE.match(f"{clause.strip()}, x")
     if m is None or m.group("lead") is None:
         return False
-    words = [w.strip("'\u2019") for w in re.findall(r"[a-z'\u2019]+", clause.lower())][2:]
+    words = [w.strip("'\u2019") for w in re.findall(r"[a-z]+(?:['\u2019][a-z]+)?", clause.lower())]
+    words = [re.sub(r"['\u2019]s$", "", w) for w in words][2:]
     while words and (words[0] in AUXILIARIES or is_negation(words[0])):
         words = words[1:]  # "if you can", "if you wouldn't mind": the verb's own helpers
     names = name_words()
-    return not any(_NOUN_PHRASE.match(w) or w in names for w in words)
+    return not any(
+        _NOUN_PHRASE.match(w) or w in names or w in STRUCTURE_WORDS for w in words
+    )  # ("if that helps's right": the side of the thing before it, no courtesy)
 
 
 def refuse_not_english(text: str, read: str) -> None:
@@ -430,6 +445,26 @@ def superlative_forms(text: str) -> list[str]:
     return [w for w in words if len(w) >= 6 and w.endswith("est") and f"{w[:-3]}er" in english]
 
 
+#: The steps that move by a direction, not to a thing's side ("move 5 cm left", "turn left").
+_MOTIONS = (Compass, Forward, Turn, Face)
+#: After a superlative of nearness, what it is near: "the mug closest in distance to the
+#: duck", "the side nearest you" relate two things, and rank nothing (see
+#: :func:`~tabletop.reader.lexicon.words.superlative`).
+_NEAREST_TO = re.compile(r"\b(?:to|from|you|me|us)\b")
+
+
+def _interjection(words: list[str], i: int) -> bool:
+    """Whether the word at ``i`` opens the request as an interjection ("Right, ...", "Right
+    then, ...", "All right, ..."), not a side."""
+    first = i == 0 or (i == 1 and words[0].lower() == "all")
+    after = words[i + 1].lower() if i + 1 < len(words) else ""
+    return first and (words[i].endswith((",", ";", "!", ".")) or after in ("then", "so", "then,"))
+
+
+#: Words that name a side of a thing, and the side they name.
+_SIDE_WORDS = {"left": "left", "right": "right", "front": "front", "behind": "behind"}
+
+
 #: Words that gather several things wherever they stand ("each side of", "all the cubes").
 _GATHER = frozenset(("all", "both", "each", "every"))
 
@@ -488,7 +523,9 @@ class LearnedReader:
             follows = i + 1 < len(roles) and roles[i + 1] != "O"
             if r == "O" and (follows or w.lower() in _GATHER) and several(" ".join(words[i:])):
                 raise ParseError(text, w, SEVERAL_WHY)
-        ranks = [w for w in plain if superlative(w) or superlative_forms(w)]
+        ranks = [w for w in plain if (superlative(w) or superlative_forms(w)) and not (
+            SUPERLATIVES.get(w, ("",))[0] == "reach"
+            and _NEAREST_TO.search(read.lower().split(w, 1)[-1]))]  # fmt: skip
         if ranks:  # "the nearest dog barking" read as the dog barking: the rank dropped
             raise ParseError(
                 text,
@@ -516,6 +553,24 @@ class LearnedReader:
         steps = settle_references(
             text, decode(text, words, roles, rels, robot, read_clause, role_logp)
         )
+        # a side word left out of the references where no step goes to a side ("..., the
+        # one in yellow's right" read as the duck): the reading would drop the side asked for
+        said = {s.action.side for s in steps if isinstance(s.action, Side)}
+        sides = [
+            w.strip(",.;:!?\"'").lower()
+            for i, (w, r) in enumerate(zip(words, roles, strict=True))
+            if r in ("O", "THEN", "REP")
+            and (side := _SIDE_WORDS.get(w.strip(",.;:!?\"'").lower())) is not None
+            and side not in said
+            and not _interjection(words, i)  # "Right, off you go to the mug"
+        ]
+        if sides and not any(isinstance(s.action, _MOTIONS) for s in steps):
+            raise ParseError(
+                text,
+                sides[0],
+                f"{sides[0]!r} says a side, and the reading leaves it out: say the side of "
+                "what, e.g. 'go to the right of the duck'",
+            )
         for ref in _reference_texts(steps):
             # (", the blue one" after a name says which: no list)
             if re.search(r",\s*(?:and\s+)?(?:the|a|an)\s(?!.*\bones?\b)", ref):

@@ -58,6 +58,7 @@ __all__ = [
     "QUALIFIERS",
     "REQUEST_EXAMPLES",
     "SEVERAL_WHY",
+    "STRUCTURE_WORDS",
     "ends_in_determiner",
     "is_negation",
     "is_verb_phrase",
@@ -187,7 +188,7 @@ _ARTICLES = re.compile(r"^(?:(?:the|a|an|some|any|that|this)\s+)+")
 #: A reference that counts or gathers several things: "the two mugs", "both ducks", "all
 #: the cubes", "3 balls" (a measure, "the 5 cm cube", is one thing's size).
 _SEVERAL = re.compile(
-    r"^(?:(?:the|these|those|my|your)\s+)?(?:(?:all|both|each|every)\b(?!\s+the\s+way\b)|"
+    r"^(?:(?:the|these|those|my|your)\s+)?(?:(?:all|both|each|every)\b(?!\s+the\s+way\b|\s+right\b)|"
     r"(?P<n>" + "|".join(n for n, v in _NUMBERS.items() if v > 1) + rf"|\d+)\s+(?!{_UNIT}\b))"
 )
 
@@ -1234,6 +1235,11 @@ _RESERVED_SOUND = frozenset(
     then times twice image picture photo north south east west not no don't dont never without
     avoid except if while until""".split()
 )
+
+
+#: Words that place or order a goal ("right", "near", "between", "then"): a clause holding
+#: one says where to go, whatever else it says.
+STRUCTURE_WORDS = _RESERVED_SOUND - QUALIFIERS
 
 
 def _a(noun: str) -> str:
