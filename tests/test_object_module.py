@@ -256,6 +256,10 @@ def test_colour_names_people_use_mean_their_basic_colour(scene):
     # a compound is a shade of its last word, whatever the first is nearest on its own
     assert family("rose") == "pink" and family("rose red") == "red"
     assert family("teal") == "blue" and family("teal green") == "green"
+    # even where a word of the compound names a colour of another family of its own
+    # ("navy" a blue, "lemon" a yellow): "navy-flag red" had been read as a blue
+    assert family("navy") == "blue" and family("navy-flag red") == "red"
+    assert family("lemon") == "yellow" and family("lemon-peel green") == "green"
     # so is a survey name of a basic term after a word that names no colour, though the
     # lexicon name nearest the survey's colour lies in another family
     for phrase, want in (

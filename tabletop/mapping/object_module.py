@@ -784,13 +784,19 @@ class ObjectModule:
         # longer list of colour names gives it
         more = [w for w in colour.split() if not colour_word(w) and w not in COLOR_MODIFIERS]
         named = next((c for w in more if (c := named_colour(w)) is not None), None)
+        head = re.split(r"[\s-]+", colour.strip())[-1]
+        basic_head = colour not in COLOR_NAMES and head in BASIC_COLOURS
         if survey or named is not None:  # a name means its basic colour term: the nearest's
             rgb = np.array(survey_colours()[survey_name(survey[0])] if survey else named, float)
             de = delta_e94(rgb_to_lab(rgb), lab[-1])  # the names at full light (gain 1)
-            return self.colour_weights(COLOR_NAMES[list(COLOR_NAMES)[int(np.argmin(de))]][1])
+            term = COLOR_NAMES[list(COLOR_NAMES)[int(np.argmin(de))]][1]
+            # ... unless a thing's compound ("navy-flag", "pillar-box": one of its words no
+            # colour) stands before a basic colour term, saying which shade of it: the term
+            # decides ("rust red", two colour words, stays the survey's brown)
+            if not (basic_head and term != head and _compound_before(colour)):
+                return self.colour_weights(term)
         sim = embeddings @ self.text.encode_text([colour])[0]
-        head = re.split(r"[\s-]+", colour.strip())[-1]
-        if colour not in COLOR_NAMES and head in BASIC_COLOURS:
+        if basic_head:
             # "rose red", "teal green", "grass-green": a shade of the last word's colour,
             # whatever the word before it is nearest to on its own ("rose" is a pink)
             sim = np.where(self._family_id == BASIC_COLOURS.index(head), sim, -np.inf)
@@ -1109,6 +1115,17 @@ def _said(words: str) -> str:
     """The words as the kind reader learnt names: after "the" ("puck block" -> "the puck
     block")."""
     return "the " + re.sub(r"^(?:the|a|an)\s+", "", words)
+
+
+def _compound_before(colour: str) -> bool:
+    """Whether a hyphenated word before the colour phrase's last word holds a word that names
+    no colour ("navy-flag red": "flag"): a thing's compound naming a shade, not two colours."""
+    tokens = colour.lower().split()[:-1]
+    names = survey_colours()
+    return any(
+        "-" in t and any(p and not colour_word(p) and p not in names for p in t.split("-"))
+        for t in tokens
+    )
 
 
 def _shade_of_basic(name: str) -> bool:
