@@ -688,3 +688,26 @@ def test_an_opening_right_and_a_nearest_to_another_thing_are_no_side_or_rank(rea
         assert isinstance(action, GoTo) and not action.goal.near, text
     near = understand("go to the mug closest in distance to the duck", reader=reader)
     assert near.steps[0].action.goal.near == (Part("obj", "duck"),)
+
+
+@pytest.mark.parametrize("reader", ["rules+spelling", "rules+learned"])
+def test_a_sound_place_said_with_a_hedge_a_stranded_preposition_or_where_it_was_loudest(reader):
+    # "roughly" had been read as a thing near the sound; "... loudest at" as a ranked sound
+    for text, words in [
+        ("head over to roughly where a dog was barking", "dog was barking"),
+        ("go to wherever the dog barking was loudest at", "dog barking"),
+        ("go over to the corner the kettle whistled in", "kettle whistled"),
+    ]:
+        goal = understand(text, reader=reader).steps[0].action.goal
+        assert (goal.primary.kind, goal.primary.text, goal.near) == ("sound", words, ()), text
+
+
+def test_a_between_whose_things_the_tagger_cut_in_pieces_is_read_at_its_one_and():
+    r = understand(
+        "go between the little cylinder which is sort of dark green and the yellow brick with "
+        "the bumps on top"
+    )
+    action = r.steps[0].action
+    assert isinstance(action, Between)
+    assert action.a.primary.text == "little cylinder which is sort of dark green"
+    assert action.b.primary.text == "yellow brick with the bumps on top"

@@ -604,10 +604,17 @@ def _relation_before_landmark(text: str, words: list[str], roles: list[str], rel
     thing near it ("the mug which is tucked away behind the duck", read as behind the mug
     near the duck): the relation picks the first thing by where it stands, which no reading
     honours. ParseError naming the thing."""
-    from tabletop.reader.rules import _relations_at
+    from tabletop.reader.rules import _ABOVE
+    from tabletop.reader.rules import _SIDES as _SIDE_RX
     from tabletop.relations import relation_by_side
 
-    want = relation_by_side(relation).name if relation in _SIDES else relation
+    def starts_relation(rest: str) -> bool:
+        """Whether ``rest`` starts with the step's own relation, said before a thing ("behind
+        the duck"; not "the duck's left", said after it)."""
+        if relation == "above":
+            return bool(_ABOVE.match(rest))
+        return any(side == relation and rx.match(rest) for side, rx in _SIDE_RX)
+
     first = next((i for i, r in enumerate(roles) if r != "O"), None)
     if first is None:
         return
@@ -616,15 +623,36 @@ def _relation_before_landmark(text: str, words: list[str], roles: list[str], rel
     if near is None:
         return
     for k in range(end, near):
-        if any(name == want for name, _ in _relations_at(" ".join(words[k:]).lower())):
+        if starts_relation(" ".join(words[k:]).lower()):
+            said = relation_by_side(relation).wording if relation in _SIDES else "above"
             thing = " ".join(words[first:end])
             raise ParseError(
                 text,
                 thing,
-                f"{thing!r} is picked by where it stands ({words[k]!r} another thing), which "
+                f"{thing!r} is picked by where it stands ({said!r} another thing), which "
                 "is not read: ask for the place, 'go to the left of the duck', or the thing "
                 "near another, 'go to the mug near the duck'",
             )
+
+
+def _two_at_and(words: list[str], roles: list[str]) -> list[Goal] | None:
+    """The two things of a "between" whose descriptions the tagger cut into more pieces
+    ("between the prism which is sort of dark red and the brick with the studs on top"): each
+    side of the one "and" among them is one thing's words, where every piece names an object;
+    None otherwise."""
+    refs = [i for i, r in enumerate(roles) if r != "O"]
+    if not refs or any(not roles[i].endswith("OBJ") for i in refs):
+        return None
+    first, last = refs[0], refs[-1]
+    joins = [
+        i
+        for i in range(first, last)
+        if roles[i] == "O" and words[i].lower().strip(",") in ("and", "&")
+    ]
+    if len(joins) != 1:
+        return None
+    a, b = " ".join(words[first : joins[0]]), " ".join(words[joins[0] + 1 : last + 1])
+    return [Goal(Part("obj", _bare(a))), Goal(Part("obj", _bare(b)))]
 
 
 #: Words that only join two references: "A and B", "A & B", "A plus B".
@@ -704,6 +732,8 @@ def decode(text: str, words: list[str], roles: list[str], relations, robot: str,
         if not goals:
             raise ParseError(text, clause, "the step names nothing to go to")
         goals, relation = _side_as_region(goals, relation)
+        if relation in ("between", "backforth") and len(goals) > 2:
+            goals = _two_at_and([words[i] for i in idx], step_roles) or goals
         _check(text, clause, relation, goals, times)
         if relation == "between":
             _between_said(text, clause, [words[i] for i in idx], step_roles)

@@ -407,6 +407,8 @@ def settle_references(text: str, steps: tuple[Step, ...]) -> tuple[Step, ...]:
             )
     for ref in _reference_texts(steps, ("sound",)):
         ranks = superlative_forms(ref) or ([superlative(ref).word] if superlative(ref) else [])
+        # "the rain was loudest": said of the sound's own place, it ranks no sounds
+        ranks = [w for w in ranks if not re.search(rf"\b(?:{'|'.join(_COPULAS)})\s+{w}\b", ref)]
         if ranks:  # "the loudest sound": no sound is ranked, and the word would be dropped
             raise ParseError(
                 text,
@@ -447,6 +449,8 @@ def superlative_forms(text: str) -> list[str]:
 
 #: The steps that move by a direction, not to a thing's side ("move 5 cm left", "turn left").
 _MOTIONS = (Compass, Forward, Turn, Face)
+#: Verbs after which a superlative says where one thing was most so ("was loudest").
+_COPULAS = frozenset(("is", "was", "were", "are", "sounded", "seemed", "got", "sounds", "seems"))
 #: After a superlative of nearness, what it is near: "the mug closest in distance to the
 #: duck", "the side nearest you" relate two things, and rank nothing (see
 #: :func:`~tabletop.reader.lexicon.words.superlative`).
@@ -523,9 +527,18 @@ class LearnedReader:
             follows = i + 1 < len(roles) and roles[i + 1] != "O"
             if r == "O" and (follows or w.lower() in _GATHER) and several(" ".join(words[i:])):
                 raise ParseError(text, w, SEVERAL_WHY)
-        ranks = [w for w in plain if (superlative(w) or superlative_forms(w)) and not (
-            SUPERLATIVES.get(w, ("",))[0] == "reach"
-            and _NEAREST_TO.search(read.lower().split(w, 1)[-1]))]  # fmt: skip
+        ranks = [
+            w
+            for i, (said, r) in enumerate(zip(words, roles, strict=True))
+            if r in ("O", "THEN", "REP")
+            and (superlative(w := said.strip(",.;:!?\"'").lower()) or superlative_forms(w))
+            and not (
+                SUPERLATIVES.get(w, ("",))[0] == "reach"
+                and _NEAREST_TO.search(read.lower().split(w, 1)[-1])
+            )
+            # "where the rain was loudest": said of one thing's place, it ranks nothing
+            and not (i and words[i - 1].lower() in _COPULAS)
+        ]
         if ranks:  # "the nearest dog barking" read as the dog barking: the rank dropped
             raise ParseError(
                 text,

@@ -331,10 +331,13 @@ def refuse_no_words(text: str) -> None:
     if not isinstance(text, str) or not text.strip():
         return
     if any(unicodedata.category(ch).startswith("L") for ch in text):
+        # (an emoji, a pictograph, a dingbat: "other symbols"; code punctuation such as "|"
+        # or "$" is named as code by refuse_non_words)
         symbols = [
             w
             for w in text.split()
-            if all(unicodedata.category(ch).startswith("S") or ch in "\u200d\ufe0f" for ch in w)
+            if any(unicodedata.category(ch) == "So" for ch in w)
+            and all(unicodedata.category(ch).startswith("S") or ch in "\u200d\ufe0f" for ch in w)
         ]
         if symbols:  # "go to the 🦆": the reading had named "the" as naming nothing
             raise ParseError(
@@ -546,7 +549,7 @@ _POSTURE = (
 #: Words that only say how near or how exactly ("right next to", "just by", "up against").
 _DEGREE = (
     r"right|just|directly|really|somewhere|over|up|down|round|around|kinda|kind\s+of|"
-    r"sort\s+of|pretty|fairly|quite|close"
+    r"sort\s+of|pretty|fairly|quite|close|roughly|approximately|more\s+or\s+less"
 )
 _DEGREE_ONLY = re.compile(rf"(?:(?:{_DEGREE})(?:\s+|$))+")
 #: "where the dog barked", "the spot where the alarm went off": a sound, told by what was heard
@@ -555,6 +558,9 @@ _WHERE = re.compile(
     r"^(?:(?:the\s+)?(?:place|spot|point|location)\s+)?where\s+(?!(?:you|i|we)\s)(.+?)"
     rf"(\s+(?:(?:is|are|was|were)(?:\s+(?:{_POSTURE}))?|{_POSTURE}|was\s+put))?$"
 )
+#: A preposition left at the end of a clause of place ("the corner the kettle whistled in",
+#: "wherever the rain was loudest at"): the place is the clause's, said before it.
+_STRANDED = re.compile(r"\s+(?:at|in|on|from|by)$")
 #: What may follow a sound after "where": "where X was playing", "where X started".
 _WHERE_SOUND_TAIL = re.compile(
     r"\s+(?:(?:was|were|is)(?:\s+(?:playing|loudest|going\s+on|happening|on))?|happened|started|"
@@ -1157,7 +1163,10 @@ class _Parser:
             named = bool(_SOUND_OF.match(what) or _SOUND_SUFFIX.match(what))
             if m.group(2) and not heard and not named:  # "where the mug is (was)"
                 return Part("obj", self.description(what, "object"))
-            return self.part(_WHERE_SOUND_TAIL.sub("", what), "sound")
+            said = _WHERE_SOUND_TAIL.sub("", what)
+            if _STRANDED.search(said):  # "... was loudest at": the tail before it
+                said = _WHERE_SOUND_TAIL.sub("", _STRANDED.sub("", said))
+            return self.part(said, "sound")
         m = _SOUND_OF.match(text) or _SOUND_SUFFIX.match(text) or _SOUND_SOURCE.match(text)
         if m:
             said = m.group(1)  # "whatever is making the ticking (noise)": the ticking
