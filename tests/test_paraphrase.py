@@ -409,16 +409,24 @@ def test_shipped_paraphrase_suites_load_and_cover_every_goal_type(pool, seeds):
     files = _suites(pool)
     assert [f.scene.random["seed"] for f in files] == list(seeds)
     assert [f.name for f in collect_task_files(SUITE_DIRS[pool])] == [f.name for f in files]
+    seen = set()
     for f in files:
         assert f.extra["generator"]["pool"] == pool and f.scan["seed"] == f.scene.random["seed"]
         types = Counter(g.type for g in f.goals)
-        assert set(types) == set(GOAL_TYPES), (f.name, types)
+        seen |= set(types)
+        # a scene whose scan placed no sound the generator can tie to a thing has no
+        # multimodal goal (heldout-24's 1052, found after it was judged: kept as judged)
+        assert set(GOAL_TYPES) - {"multimodal_spatial"} <= set(types) <= set(GOAL_TYPES), (
+            f.name,
+            types,
+        )
         assert types["absent"] >= MIN_ABSENT, f.name
         # object truths resolve against the scene (sounds need the scan: the runner checks)
         gt = spec_ground_truth(f.scene.random["seed"], sounds=0, repeats=0)
         for g in f.goals:
             if g.truth.kind == "object":
                 resolve_truth(g.truth, gt, f"{f.name} {g.id}")
+    assert seen == set(GOAL_TYPES), pool  # the pool as a whole asks every type
 
 
 def test_paraphrase_seeds_are_used_nowhere_else():
