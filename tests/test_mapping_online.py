@@ -87,3 +87,21 @@ def test_build_map_online_prints_the_lag(tmp_path, capsys):
     assert "lag median" in text and out.is_file()
     assert main(["build-map", str(tmp_path / "rec"), "--out", str(out), "--drop", "late"]) == 2
     assert "--drop: only with --online" in capsys.readouterr().err
+
+
+def test_judge_and_image_target_name_a_wrong_argument():
+    # the eighth probe: a 3x3 pose raised IndexError, a margin of "big" ValueError, and a
+    # margin of nan answered a confidence of nan
+    rec = _recording(3)
+    m = AVLMap.empty(rec, map_config(), "oracle")
+    for margin in ("big", float("nan"), None, True):
+        with pytest.raises(ConfigError, match="margin must be a finite number"):
+            m.judge("object", margin)
+    assert 0.0 <= m.judge("object", 0.2)[0] <= 1.0
+    K = rec.K
+    for T, why in ((np.eye(3), r"T_world_cam must be a \(4, 4\) matrix"), ("x", "T_world_cam")):
+        with pytest.raises(ConfigError, match=why):
+            m.image_target(T, K, (64, 48))
+    for size in ((64,), (0, 48), ("a", "b")):
+        with pytest.raises(ConfigError, match="image_size must be"):
+            m.image_target(np.eye(4), K, size)

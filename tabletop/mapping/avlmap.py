@@ -506,7 +506,13 @@ class AVLMap:
 
     def judge(self, modality: str, margin: float) -> tuple[float, bool]:
         """(calibrated confidence, found) of a query of ``modality`` whose best match beats
-        the map's typical match by ``margin``."""
+        the map's typical match by ``margin`` (a finite number)."""
+        if (
+            isinstance(margin, bool)
+            or not isinstance(margin, (int, float, np.floating, np.integer))
+            or not np.isfinite(margin)
+        ):
+            raise ConfigError(f"judge: margin must be a finite number, got {margin!r}")
         return self.calibration.judge(modality, float(margin), self.config.min_confidence)
 
     def query(self, kind: str, value, major: bool = True) -> Heatmap:
@@ -713,7 +719,26 @@ class AVLMap:
         return self.images.photometric_check()
 
     def image_target(self, T_world_cam, K, image_size) -> np.ndarray:
-        """(3,) [m]: the point an image taken from ``T_world_cam`` shows at its centre."""
+        """(3,) [m]: the point an image taken from ``T_world_cam`` (a 4x4 rigid transform)
+        shows at its centre, through the 3x3 intrinsics ``K``, for an image of ``image_size``
+        (width, height) pixels."""
+        for name, value, shape in (("T_world_cam", T_world_cam, (4, 4)), ("K", K, (3, 3))):
+            a = np.asarray(value) if not isinstance(value, (str, bytes)) else None
+            if a is None or a.shape != shape or not np.issubdtype(a.dtype, np.number):
+                got = getattr(a, "shape", type(value).__name__)
+                raise ConfigError(f"image_target: {name} must be a {shape} matrix, got {got}")
+            if not np.isfinite(a).all():
+                raise ConfigError(f"image_target: {name} holds a value that is not finite")
+        size = np.asarray(image_size) if not isinstance(image_size, (str, bytes)) else None
+        if (
+            size is None
+            or size.shape != (2,)
+            or not np.issubdtype(size.dtype, np.number)
+            or not (size > 0).all()
+        ):
+            raise ConfigError(
+                f"image_target: image_size must be (width, height) in pixels, got {image_size!r}"
+            )
         return self.images.image_target(T_world_cam, K, image_size)
 
     def get_max_pos_3d(self, heatmap: Heatmap) -> np.ndarray:
