@@ -711,3 +711,18 @@ def test_a_between_whose_things_the_tagger_cut_in_pieces_is_read_at_its_one_and(
     assert isinstance(action, Between)
     assert action.a.primary.text == "little cylinder which is sort of dark green"
     assert action.b.primary.text == "yellow brick with the bumps on top"
+
+
+@pytest.mark.parametrize("reader", ["rules", "rules+spelling", "learned", "rules+learned"])
+def test_a_compass_move_without_a_unit_or_between_two_directions_is_named(reader):
+    # these had been refused as words of an object description
+    for text, word, why in [
+        ("move 10 north", "10", "needs a unit"),
+        ("go north by 10", "10", "needs a unit"),
+        ("move 10 cm northeast", "northeast", "north, south, east or west"),
+        ("move north-west by 5 cm", "north-west", "north, south, east or west"),
+    ]:
+        with pytest.raises(ParseError, match=why) as e:
+            understand(text, reader=reader)
+        assert e.value.fragment == word, text
+    assert understand("move 10 cm north", reader=reader).steps

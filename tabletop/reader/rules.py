@@ -603,6 +603,16 @@ _COMPASS_ANY = [
         rf"^(?:to(?:wards)?\s+(?:the\s+)?)?{_DIR}(?:wards?)?\s+(?:by\s+|for\s+)?(?P<d>\S+)\s*{_UNIT}$"
     ),
 ]
+#: A compass move whose number has no unit ("10 north", "north by 10").
+_NO_UNIT = re.compile(
+    rf"^(?:(?P<n>{_NUM})\s+(?:to(?:wards)?\s+(?:the\s+)?)?{_DIR}(?:wards?)?|"
+    rf"(?:to(?:wards)?\s+(?:the\s+)?)?{_DIR}(?:wards?)?\s+(?:by\s+|for\s+)?(?P<n2>{_NUM}))$"
+)
+#: A compass move between two directions ("10 cm northeast", "north-west by 5 cm").
+_DIAGONAL = re.compile(
+    rf"^(?:\S+\s*{_UNIT}\s+(?:to(?:wards)?\s+(?:the\s+)?)?)?"
+    r"(?P<d>(?:north|south)[\s-]?(?:east|west))(?:wards?)?(?:\s+(?:by\s+)?\S+\s*\S*)?$"
+)
 #: A distance up or down ("5 cm up", "up by 2 cm", "10 cm higher").
 _VERTICAL = re.compile(
     rf"^(?:\S+\s*{_UNIT}\s+(?:straight\s+)?(?P<v>upwards?|downwards?|up|down|higher|lower)|"
@@ -1016,6 +1026,20 @@ class _Parser:
                 return Compass(_DIRECTIONS[direction], round(d, 6))
         if re.match(rf"^(?:to(?:wards)?\s+(?:the\s+)?)?{_DIR}(?:wards?)?$", rest):
             self.fail(rest, "a compass move needs a distance, e.g. 'move 10 cm north'")
+        m = _NO_UNIT.match(rest)
+        if m:  # "move 10 north": a number with no unit
+            self.fail(
+                m.group("n") or m.group("n2"),
+                "a compass move's distance needs a unit, e.g. 'move 10 cm north' (mm, cm, m, "
+                "km, inches, feet, yards, miles)",
+            )
+        m = _DIAGONAL.match(rest)
+        if m:  # "move 10 cm northeast": between two compass directions
+            self.fail(
+                m.group("d"),
+                "a compass move goes north, south, east or west (or left, right, forward, "
+                "back): make two moves, e.g. 'move 10 cm north, then 10 cm east'",
+            )
         m = _VERTICAL.match(rest)
         if m:  # "move 5 cm up": a distance in a direction off the table's plane
             self.fail(
