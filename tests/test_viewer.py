@@ -232,6 +232,9 @@ def test_the_page_draws_the_map_asks_it_and_reaches(page):
     # a query typed into the page: the heatmap appears, hot on the box
     browser.wait_enabled("Ask", timeout=90)
     browser.type_into("request", "the mug")
+    # the page sends each keystroke on its own: "Ask" is pressed once the server holds them
+    # all (pressed at once, it had once asked for "t")
+    wait_for(lambda: viewer.t_query.value == "the mug", 30, "the typed words at the server")
     browser.button("Ask").click()
     wait_for(lambda: viewer.asked >= 1, 60, "the answer")
     assert viewer.last.found, viewer.last.reason
@@ -240,6 +243,7 @@ def test_the_page_draws_the_map_asks_it_and_reaches(page):
     # a second query changes the drawn heatmap: now on a side of the table
     before = browser.scene()
     browser.type_into("request", "the left side of the table")
+    wait_for(lambda: viewer.t_query.value == "the left side of the table", 30, "the typed words")
     browser.button("Ask").click()
     wait_for(lambda: viewer.asked >= 2, 60, "the second answer")
     assert viewer.last.found, viewer.last.reason
