@@ -175,3 +175,26 @@ def fast_scan_reloaded():
     path = tmp / "rec"
     save_recording(fast_scan()[0], path)
     return load_recording(path)
+
+
+def package_modules(root: Path):
+    """(dotted module name, path) of every Python file under the package folder ``root``
+    ("tabletop/mapping/__init__.py" -> "tabletop.mapping"), in path order."""
+    for path in sorted(root.rglob("*.py")):
+        rel = path.relative_to(root.parent).with_suffix("")
+        yield ".".join(rel.parts).removesuffix(".__init__"), path
+
+
+def plant_package(tmp_path: Path, files: dict[str, str]) -> Path:
+    """A package ``tabletop`` under ``tmp_path`` holding ``files`` (path inside the package ->
+    text), with an empty ``__init__.py`` in it and in every folder above a file unless given."""
+    pkg = tmp_path / "tabletop"
+    folders = {pkg} | {(pkg / rel).parent for rel in files}
+    for folder in list(folders):
+        folders |= {p for p in folder.parents if pkg in p.parents}
+    for folder in folders:
+        folder.mkdir(parents=True, exist_ok=True)
+        (folder / "__init__.py").write_text("")
+    for rel, text in files.items():
+        (pkg / rel).write_text(text)
+    return pkg

@@ -12,6 +12,8 @@ functions) with ``ast``.
 import ast
 from pathlib import Path
 
+from helpers import package_modules, plant_package
+
 import tabletop
 
 ROOT = Path(tabletop.__file__).parent
@@ -84,9 +86,7 @@ def _imports(path: Path, module: str) -> set[str]:
 
 def upward_imports(root: Path = ROOT) -> list[str]:
     bad = []
-    for path in sorted(root.rglob("*.py")):
-        rel = path.relative_to(root.parent).with_suffix("")
-        module = ".".join(rel.parts).removesuffix(".__init__")
+    for module, path in package_modules(root):
         layer = _layer(module)
         for name in _imports(path, module):
             other = _layer(name)
@@ -100,26 +100,21 @@ def test_imports_run_downward_only():
 
 
 def test_the_walk_catches_an_upward_import(tmp_path):
-    pkg = tmp_path / "tabletop"
-    (pkg / "mapping").mkdir(parents=True)
-    (pkg / "__init__.py").write_text("")
-    (pkg / "mapping" / "__init__.py").write_text("")
-    (pkg / "mapping" / "m.py").write_text("def f():\n    from tabletop.sim.scan import run_scan\n")
+    pkg = plant_package(
+        tmp_path, {"mapping/m.py": "def f():\n    from tabletop.sim.scan import run_scan\n"}
+    )
     assert upward_imports(pkg) == ["tabletop.mapping.m (mapping) imports tabletop.sim.scan (sim)"]
 
 
 def test_the_lexicon_is_a_layer_of_its_own(tmp_path):
-    pkg = tmp_path / "tabletop"
-    for sub in ("mapping", "reader", "reader/lexicon"):
-        (pkg / sub).mkdir(parents=True)
-        (pkg / sub / "__init__.py").write_text("")
-    (pkg / "__init__.py").write_text("")
-    (pkg / "mapping" / "m.py").write_text(
-        "from tabletop.reader.lexicon.words import negations\nfrom tabletop.reader.rules import x\n"
-    )
-    (pkg / "reader" / "lexicon" / "w.py").write_text(
-        "from tabletop.errors import E\nfrom tabletop.mapping.colors import delta_e\n"
-        "from tabletop.reader.plan import Plan\n"
+    pkg = plant_package(
+        tmp_path,
+        {
+            "mapping/m.py": "from tabletop.reader.lexicon.words import negations\n"
+            "from tabletop.reader.rules import x\n",
+            "reader/lexicon/w.py": "from tabletop.errors import E\n"
+            "from tabletop.mapping.colors import delta_e\nfrom tabletop.reader.plan import Plan\n",
+        },
     )
     assert sorted(upward_imports(pkg)) == [
         "tabletop.mapping.m (mapping) imports tabletop.reader.rules (reader)",
@@ -177,10 +172,7 @@ def test_the_package_never_hides_its_own_import_errors(tmp_path):
 def module_cycles(root: Path = ROOT) -> list[list[str]]:
     """Groups of modules (package ``__init__`` files aside) that import each other, directly
     or through others: each group is a strongly connected component of the import graph."""
-    modules = {}
-    for path in sorted(root.rglob("*.py")):
-        rel = path.relative_to(root.parent).with_suffix("")
-        modules[".".join(rel.parts).removesuffix(".__init__")] = path
+    modules = dict(package_modules(root))
     inits = {m for m, p in modules.items() if p.name == "__init__.py"}
     graph = {}
     for m, path in modules.items():
@@ -221,10 +213,11 @@ def module_cycles(root: Path = ROOT) -> list[list[str]]:
 
 def test_no_two_modules_import_each_other(tmp_path):
     assert module_cycles() == []
-    pkg = tmp_path / "tabletop"
-    (pkg / "sim").mkdir(parents=True)
-    (pkg / "__init__.py").write_text("")
-    (pkg / "sim" / "__init__.py").write_text("")
-    (pkg / "sim" / "a.py").write_text("from tabletop.sim.b import x\n")
-    (pkg / "sim" / "b.py").write_text("def f():\n    from tabletop.sim.a import y\n")
+    pkg = plant_package(
+        tmp_path,
+        {
+            "sim/a.py": "from tabletop.sim.b import x\n",
+            "sim/b.py": "def f():\n    from tabletop.sim.a import y\n",
+        },
+    )
     assert module_cycles(pkg) == [["tabletop.sim.a", "tabletop.sim.b"]]

@@ -41,6 +41,8 @@ import re
 import tomllib
 from pathlib import Path
 
+from helpers import package_modules, plant_package
+
 import tabletop
 
 ROOT = Path(tabletop.__file__).parent
@@ -61,12 +63,6 @@ def _layer(module: str) -> str:
     return parts[1] if len(parts) > 1 and parts[1] in layers else "core"
 
 
-def _modules(root: Path):
-    for path in sorted(root.rglob("*.py")):
-        rel = path.relative_to(root.parent).with_suffix("")
-        yield ".".join(rel.parts).removesuffix(".__init__"), path
-
-
 def _data_keys(node, out: set[str]) -> None:
     if isinstance(node, dict):
         for k, v in node.items():
@@ -80,7 +76,7 @@ def _data_keys(node, out: set[str]) -> None:
 def identifiers(root: Path = ROOT) -> set[str]:
     """Every identifier of the package under ``root`` (see the module docstring)."""
     out: set[str] = set()
-    for module, path in _modules(root):
+    for module, path in package_modules(root):
         tree = ast.parse(path.read_text())
         for node in ast.walk(tree):
             if isinstance(node, ast.Name):
@@ -199,7 +195,7 @@ def word_lists(root: Path = ROOT, layers=READING_LAYERS) -> list[str]:
     """``module:line (kind) words...`` of every English word list in ``layers`` under ``root``."""
     known = identifiers(root)
     bad = []
-    for module, path in _modules(root):
+    for module, path in package_modules(root):
         if _layer(module) not in layers:
             continue
         for line, words, kind in _lists(ast.parse(path.read_text())):
@@ -215,24 +211,22 @@ def test_only_the_reader_holds_word_lists():
 
 
 def test_the_walk_catches_a_planted_word_list(tmp_path):
-    pkg = tmp_path / "tabletop"
-    (pkg / "mapping").mkdir(parents=True)
-    (pkg / "__init__.py").write_text("")
-    (pkg / "mapping" / "__init__.py").write_text("")
-    (pkg / "mapping" / "m.py").write_text(
-        "import re\n"
-        "FIELDS = ('obj', 'sound')\n"
-        "KEYS = ('obj', 'sound', 'img', 'area')\n"
-        "\n"
-        "def f(d, obj, sound, img, area):\n"
-        "    return d['obj']\n"
-        "\n"
-        "STOP = frozenset('the a an of'.split())\n"
-        "PRONOUNS = {'it', 'this', 'that', 'them'}\n"
-        "HERE = re.compile(r'\\b(?:over|right|just)\\s+(?:there|here)\\b')\n"
+    pkg = plant_package(
+        tmp_path,
+        {
+            "mapping/m.py": "import re\n"
+            "FIELDS = ('obj', 'sound')\n"
+            "KEYS = ('obj', 'sound', 'img', 'area')\n"
+            "\n"
+            "def f(d, obj, sound, img, area):\n"
+            "    return d['obj']\n"
+            "\n"
+            "STOP = frozenset('the a an of'.split())\n"
+            "PRONOUNS = {'it', 'this', 'that', 'them'}\n"
+            "HERE = re.compile(r'\\b(?:over|right|just)\\s+(?:there|here)\\b')\n",
+            "reader/__init__.py": "WORDS = ('the', 'a', 'an', 'of')\n",
+        },
     )
-    (pkg / "reader").mkdir()
-    (pkg / "reader" / "__init__.py").write_text("WORDS = ('the', 'a', 'an', 'of')\n")
     assert word_lists(pkg) == [
         "tabletop.mapping.m:8 (split string) the, a, an, of",
         "tabletop.mapping.m:9 (list) it, this, that, them",
