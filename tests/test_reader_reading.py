@@ -11,6 +11,13 @@ from tabletop.reader.plan import Between, Goal, GoTo, Part, Side
 from tabletop.reader.reading import READERS, get_reader, understand
 
 
+def _fragment_refused(text: str, reader: str, why: str) -> str:
+    """The words ``reader`` names in refusing ``text`` for a reason matching ``why``."""
+    with pytest.raises(ParseError, match=why) as e:
+        understand(text, reader=reader)
+    return e.value.fragment
+
+
 def test_the_rule_reader_refuses_what_the_default_reads():
     text = "would you be so kind as to move to the gren mug"
     with pytest.raises(ParseError):
@@ -602,9 +609,9 @@ def test_a_reference_to_several_things_is_refused(reader):
         ("go to the left of the three balls", "three"),
     ]:
         # (the grammar refuses "all" in a thing's words before reading it)
-        with pytest.raises(ParseError, match="names several|'all' cannot be part") as e:
-            understand(text, reader=reader)
-        assert word in e.value.fragment.split(), text
+        assert (
+            word in _fragment_refused(text, reader, "names several|'all' cannot be part").split()
+        ), text
     # a measure, or a count inside a description, is no several things
     assert understand("move 2 cm north", reader=reader).steps
     if "learned" in reader:  # (the grammar reads no "with" in a thing's words)
@@ -637,9 +644,9 @@ def test_a_rank_the_map_does_not_hold_is_refused_not_dropped(reader):
         ("go to the shiniest mug", "shiniest"),
     ]:
         # (the grammar refuses "nearest" in a sound's words before reading it)
-        with pytest.raises(ParseError, match="ranks|'nearest' cannot be part") as e:
-            understand(text, reader=reader)
-        assert word in e.value.fragment.split(), text
+        assert word in _fragment_refused(text, reader, "ranks|'nearest' cannot be part").split(), (
+            text
+        )
     # a rank the map holds is read with the thing, and "forest" is no superlative
     for text in ["go to the biggest mug", "go to the forest green mug"]:
         assert understand(text, reader=reader).steps[0].action.goal.primary.kind == "obj"
@@ -654,9 +661,7 @@ def test_a_symbol_among_words_and_a_distance_up_or_down_are_named(reader):
         ("move 5 cm up", "up", "not up or down"),
         ("go 10 cm higher", "higher", "not up or down"),
     ]:
-        with pytest.raises(ParseError, match=why) as e:
-            understand(text, reader=reader)
-        assert e.value.fragment == word, text
+        assert _fragment_refused(text, reader, why) == word, text
     # going up to a thing is going to it, and an accented letter is a letter
     assert understand("move up to the mug", reader=reader).steps[0].action == GoTo(
         Goal(Part("obj", "mug"))
@@ -722,7 +727,5 @@ def test_a_compass_move_without_a_unit_or_between_two_directions_is_named(reader
         ("move 10 cm northeast", "northeast", "north, south, east or west"),
         ("move north-west by 5 cm", "north-west", "north, south, east or west"),
     ]:
-        with pytest.raises(ParseError, match=why) as e:
-            understand(text, reader=reader)
-        assert e.value.fragment == word, text
+        assert _fragment_refused(text, reader, why) == word, text
     assert understand("move 10 cm north", reader=reader).steps
