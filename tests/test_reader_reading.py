@@ -700,6 +700,8 @@ def test_a_sound_place_said_with_a_hedge_a_stranded_preposition_or_where_it_was_
     # "roughly" had been read as a thing near the sound; "... loudest at" as a ranked sound
     for text, words in [
         ("head over to roughly where a dog was barking", "dog was barking"),
+        # (an adverb of manner by its form, listed nowhere)
+        ("move over to precisely where a dog was barking", "dog was barking"),
         ("go to wherever the dog barking was loudest at", "dog barking"),
         ("go over to the corner the kettle whistled in", "kettle whistled"),
     ]:
@@ -729,3 +731,12 @@ def test_a_compass_move_without_a_unit_or_between_two_directions_is_named(reader
     ]:
         assert _fragment_refused(text, reader, why) == word, text
     assert understand("move 10 cm north", reader=reader).steps
+
+
+def test_only_adverbs_of_an_english_adjective_say_how_exactly():
+    from tabletop.reader.rules import says_only_how
+
+    for text in ["roughly", "approximately", "precisely", "just", "right up", "more or less"]:
+        assert says_only_how(text), text
+    for text in ["jelly", "family", "the", "lovely mug", ""]:  # a "-ly" noun names something
+        assert not says_only_how(text), text

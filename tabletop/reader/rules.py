@@ -549,9 +549,31 @@ _POSTURE = (
 #: Words that only say how near or how exactly ("right next to", "just by", "up against").
 _DEGREE = (
     r"right|just|directly|really|somewhere|over|up|down|round|around|kinda|kind\s+of|"
-    r"sort\s+of|pretty|fairly|quite|close|roughly|approximately|more\s+or\s+less"
+    r"sort\s+of|pretty|fairly|quite|close|more\s+or\s+less"
 )
-_DEGREE_ONLY = re.compile(rf"(?:(?:{_DEGREE})(?:\s+|$))+")
+#: The words before a connector, one by one (a degree word of two words kept whole).
+_DEGREE_WORD = re.compile(rf"(?:{_DEGREE})(?=\s|$)|\S+")
+
+
+def says_only_how(text: str) -> bool:
+    """Whether ``text`` is made only of words that say how near or how exactly: degree words
+    (:data:`_DEGREE`), and adverbs of manner by their form, "-ly" after an English adjective
+    ("roughly", "approximately", "precisely"; not "jelly" or "family")."""
+    from tabletop.reader.spelling import english_words
+
+    english = english_words()
+    words = _DEGREE_WORD.findall(text.strip().lower())
+    return bool(words) and all(
+        re.fullmatch(_DEGREE, w)
+        or (
+            len(w) >= 6
+            and w.endswith("ly")
+            and any(stem in english for stem in (w[:-2], w[:-2] + "e"))
+        )
+        for w in words
+    )
+
+
 #: "where the dog barked", "the spot where the alarm went off": a sound, told by what was heard
 #: ("where the mug is" is the mug).
 _WHERE = re.compile(
@@ -1133,7 +1155,7 @@ class _Parser:
             and re.fullmatch(_PLACE_NOUN, pieces[0].strip())
         ):  # "the place where you heard S ...", "the spot where S ..." is the place itself
             pieces = [f"{pieces[1]} {pieces[2]}", *pieces[3:]]
-        if len(pieces) > 2 and _DEGREE_ONLY.fullmatch(pieces[0].strip()):
+        if len(pieces) > 2 and says_only_how(pieces[0]):
             # "just next to the mug", "right up against the duck": the words before the
             # connector say how near and name nothing; the goal is what follows
             said = f"{pieces[1]} {pieces[2]}" if pieces[1].startswith("where") else pieces[2]
