@@ -35,18 +35,15 @@ from tabletop.errors import AssetError, ConfigError
 from tabletop.paths import DATA_DIR
 from tabletop.reader.errors import ParseError
 from tabletop.reader.plan import (
+    MOTIONS,
     Above,
     BackAndForth,
     Between,
-    Compass,
-    Face,
-    Forward,
     Goal,
     GoTo,
     Part,
     Side,
     Step,
-    Turn,
 )
 from tabletop.relations import SIDES
 
@@ -539,10 +536,6 @@ def _keeps_what_it_names(text: str, words: list[str], own: list[str], chosen: li
         )
 
 
-#: The steps a ``motion`` is read as (by the grammar): moves by a distance, a base's own.
-_MOTIONS = (Compass, Forward, Turn, Face)
-
-
 def _one_relation(
     text: str, clause: str, rel_logp: np.ndarray, words=None, rules=None, robot: str = "arm"
 ) -> None:
@@ -565,7 +558,7 @@ def _one_relation(
             read = rules(span, robot)
         except ParseError:
             read = ()
-        if not any(isinstance(st.action, _MOTIONS) for st in read):
+        if not any(isinstance(st.action, MOTIONS) for st in read):
             held.discard("motion")
     if len(held) > 1:  # going is how the other relation is reached, no second request
         held.discard("goto")

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 from tabletop.errors import ConfigError
 
 __all__ = [
+    "MOTIONS",
     "PART_KINDS",
     "Above",
     "Action",
@@ -151,3 +152,8 @@ class Reading:
     unhonoured: tuple[str, ...] = ()
     """Words read that do not change where the robot goes and that it does not honour (how
     fast or how carefully to move: it moves at its controller's speed); said to the user."""
+
+
+#: The steps that move by a distance or turn (a base's own), not to a place: the grammar
+#: reads them, and a side word in them ("move 5 cm left") names no side of a thing.
+MOTIONS = (Compass, Forward, Turn, Face)

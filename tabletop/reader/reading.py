@@ -33,19 +33,9 @@ from tabletop.reader.errors import ParseError
 from tabletop.reader.lexicon.words import AUXILIARIES, SUPERLATIVES, superlative
 from tabletop.reader.llm import LLMReader
 from tabletop.reader.places import PlaceReader, beneath_surface
-from tabletop.reader.plan import (
-    Between,
-    Compass,
-    Face,
-    Forward,
-    Goal,
-    Part,
-    Reading,
-    Side,
-    Step,
-    Turn,
-)
+from tabletop.reader.plan import MOTIONS, Between, Goal, Part, Reading, Side, Step
 from tabletop.reader.rules import (
+    GATHERING,
     MANNER,
     QUALIFIERS,
     SEVERAL_WHY,
@@ -69,6 +59,7 @@ from tabletop.reader.spelling import (
     name_words,
     not_english,
 )
+from tabletop.relations import SIDES
 
 __all__ = [
     "DEFAULT_READER",
@@ -406,7 +397,7 @@ def settle_references(text: str, steps: tuple[Step, ...]) -> tuple[Step, ...]:
                 final=True,
             )
     for ref in _reference_texts(steps, ("sound",)):
-        ranks = superlative_forms(ref) or ([superlative(ref).word] if superlative(ref) else [])
+        ranks = superlative_forms(ref) or [s.word for s in (superlative(ref),) if s is not None]
         # "the rain was loudest": said of the sound's own place, it ranks no sounds
         ranks = [w for w in ranks if not re.search(rf"\b(?:{'|'.join(_COPULAS)})\s+{w}\b", ref)]
         if ranks:  # "the loudest sound": no sound is ranked, and the word would be dropped
@@ -447,8 +438,6 @@ def superlative_forms(text: str) -> list[str]:
     return [w for w in words if len(w) >= 6 and w.endswith("est") and f"{w[:-3]}er" in english]
 
 
-#: The steps that move by a direction, not to a thing's side ("move 5 cm left", "turn left").
-_MOTIONS = (Compass, Forward, Turn, Face)
 #: Verbs after which a superlative says where one thing was most so ("was loudest").
 _COPULAS = frozenset(("is", "was", "were", "are", "sounded", "seemed", "got", "sounds", "seems"))
 #: After a superlative of nearness, what it is near: "the mug closest in distance to the
@@ -463,14 +452,6 @@ def _interjection(words: list[str], i: int) -> bool:
     first = i == 0 or (i == 1 and words[0].lower() == "all")
     after = words[i + 1].lower() if i + 1 < len(words) else ""
     return first and (words[i].endswith((",", ";", "!", ".")) or after in ("then", "so", "then,"))
-
-
-#: Words that name a side of a thing, and the side they name.
-_SIDE_WORDS = {"left": "left", "right": "right", "front": "front", "behind": "behind"}
-
-
-#: Words that gather several things wherever they stand ("each side of", "all the cubes").
-_GATHER = frozenset(("all", "both", "each", "every"))
 
 
 class LearnedReader:
@@ -525,7 +506,7 @@ class LearnedReader:
             # "all the cubes", "both ducks", "each side of the mug": a word left out of the
             # references that gathers several of what follows
             follows = i + 1 < len(roles) and roles[i + 1] != "O"
-            if r == "O" and (follows or w.lower() in _GATHER) and several(" ".join(words[i:])):
+            if r == "O" and (follows or w.lower() in GATHERING) and several(" ".join(words[i:])):
                 raise ParseError(text, w, SEVERAL_WHY)
         ranks = [
             w
@@ -573,11 +554,11 @@ class LearnedReader:
             w.strip(",.;:!?\"'").lower()
             for i, (w, r) in enumerate(zip(words, roles, strict=True))
             if r in ("O", "THEN", "REP")
-            and (side := _SIDE_WORDS.get(w.strip(",.;:!?\"'").lower())) is not None
+            and (side := w.strip(",.;:!?\"'").lower()) in SIDES
             and side not in said
             and not _interjection(words, i)  # "Right, off you go to the mug"
         ]
-        if sides and not any(isinstance(s.action, _MOTIONS) for s in steps):
+        if sides and not any(isinstance(s.action, MOTIONS) for s in steps):
             raise ParseError(
                 text,
                 sides[0],

@@ -50,6 +50,7 @@ from tabletop.reader.plan import (
 from tabletop.relations import relation, relation_by_side
 
 __all__ = [
+    "GATHERING",
     "MANNER",
     "MAX_DISTANCE_M",
     "MAX_DRIVE_M",
@@ -187,8 +188,11 @@ _ARTICLES = re.compile(r"^(?:(?:the|a|an|some|any|that|this)\s+)+")
 
 #: A reference that counts or gathers several things: "the two mugs", "both ducks", "all
 #: the cubes", "3 balls" (a measure, "the 5 cm cube", is one thing's size).
+#: Words that gather several things wherever they stand ("each side of", "all the cubes").
+GATHERING = ("all", "both", "each", "every")
 _SEVERAL = re.compile(
-    r"^(?:(?:the|these|those|my|your)\s+)?(?:(?:all|both|each|every)\b(?!\s+the\s+way\b|\s+right\b)|"
+    r"^(?:(?:the|these|those|my|your)\s+)?"
+    rf"(?:(?:{'|'.join(GATHERING)})\b(?!\s+the\s+way\b|\s+right\b)|"
     r"(?P<n>" + "|".join(n for n, v in _NUMBERS.items() if v > 1) + rf"|\d+)\s+(?!{_UNIT}\b))"
 )
 
