@@ -109,11 +109,10 @@ def _leads(text: str) -> list[tuple[str, str]]:
 
 #: A condition put to the one asked, or to nothing in particular ("if you ...", "if it's
 #: ...", "if that's ..."), as its own clause before or after the request.
+_IF_SUBJECT = r"if\s+(?:you|it|that|this)(?:['\u2019](?:s|re|d|ll|ve))?\s"
 _IF_CLAUSE = re.compile(
-    r"^(?P<lead>if\s+(?:you|it|that|this)(?:['\u2019](?:s|re|d|ll|ve))?\s[^,;]*?)\s*[,;]\s*"
-    r"(?P<kept>\S.*)$|"
-    r"^(?P<before>.*?\S)\s*[,;]\s*(?P<tail>if\s+(?:you|it|that|this)(?:['\u2019](?:s|re|d|ll|ve))?"
-    r"\s[^,;]*?)\s*[.!?]*$",
+    rf"^(?P<lead>{_IF_SUBJECT}[^,;]*?)\s*[,;]\s*(?P<kept>\S.*)$|"
+    rf"^(?P<before>.*?\S)\s*[,;]\s*(?P<tail>{_IF_SUBJECT}[^,;]*?)\s*[.!?]*$",
     re.IGNORECASE,
 )
 #: Words that start a noun phrase, or are one ("anything"): a clause with one names a thing.
@@ -143,10 +142,9 @@ def is_courtesy(clause: str) -> bool:
     """Whether ``clause`` is a courtesy (:func:`courtesy`): "if" with the one asked, "it",
     "that" or "this" as its subject, and no noun phrase or vocabulary word after the
     subject's auxiliaries ("if you would be so kind as to"; not "if you see a mug")."""
-    m = _IF_CLAUSE.match(f"{clause.strip()}, x")
-    if m is None or m.group("lead") is None:
+    if not re.match(_IF_SUBJECT, clause.strip(), re.IGNORECASE):
         return False
-    words = [w.strip("'\u2019") for w in re.findall(r"[a-z]+(?:['\u2019][a-z]+)?", clause.lower())]
+    words = re.findall(r"[a-z]+(?:['\u2019][a-z]+)?", clause.lower())
     words = [re.sub(r"['\u2019]s$", "", w) for w in words][2:]
     while words and (words[0] in AUXILIARIES or is_negation(words[0])):
         words = words[1:]  # "if you can", "if you wouldn't mind": the verb's own helpers
