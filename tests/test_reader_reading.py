@@ -740,3 +740,89 @@ def test_only_adverbs_of_an_english_adjective_say_how_exactly():
         assert says_only_how(text), text
     for text in ["jelly", "family", "the", "lovely mug", ""]:  # a "-ly" noun names something
         assert not says_only_how(text), text
+
+
+@pytest.mark.parametrize("reader", ["learned", "rules+learned"])
+def test_a_number_the_reading_uses_for_nothing_is_refused_not_dropped(reader):
+    # a time, a duration and an index had been dropped, or read as repetitions
+    for text, word in [
+        ("reach the cube within 10 seconds", "10"),
+        ("go to the ball and wait there for 4 minutes", "4"),
+        ("approach the tray at 9am", "9am"),
+    ]:
+        assert _fragment_refused(text, reader, "neither") == word, text
+    # a distance, a repetition, a count of a thing's parts and a digit typed for a word are read
+    assert understand("move 5 cm east", reader=reader).steps
+    assert understand("go to the tray 3 times", reader=reader).steps[0].times == 3
+    assert understand("go 2 the duck", reader=reader).steps
+    assert understand("go to the lego brick with 8 studs", reader=reader).steps
+
+
+def test_a_count_an_index_or_a_plural_in_a_things_words_is_found_by_its_form():
+    from tabletop.reader.lexicon.counts import count_in, unused_numbers
+    from tabletop.reader.spelling import head_nouns
+
+    heads = head_nouns()
+    for ref, word in [
+        ("zero balls", "zero"),
+        ("-1 cubes", "-1"),
+        ("half a cube", "half"),
+        ("a couple of trays", "couple"),
+        ("the trays", "trays"),
+        ("cube #3", "#3"),
+        ("ball number 4", "number 4"),
+        # not a count: a measure, one thing, a number after a describing word, a thing's
+        # parts, a compound, a plural of no kind's noun
+        ("5 cm cube", None),
+        ("one duck", None),
+        ("size four ball", None),
+        ("lego brick with 8 studs", None),
+        ("6-dot domino", None),
+        ("green legos", None),
+    ]:
+        assert count_in(ref, heads) == word, ref
+    assert unused_numbers("go to the cube in 5 seconds", ["cube"], {1}) == ["5"]
+    assert unused_numbers("go to the cube 3 times", ["cube"], {3}) == []
+    assert unused_numbers("go to the cube 30 times", ["cube"], {1}) == ["30"]
+    assert unused_numbers("move 4 cm north", ["move 4 cm north"], {1}) == []
+
+
+@pytest.mark.parametrize("reader", ["rules", "rules+spelling", "learned", "rules+learned"])
+def test_a_thing_counted_or_said_in_the_plural_is_refused(reader):
+    for text in ["go to zero balls", "go to the trays", "go to half a cube", "go to several balls"]:
+        with pytest.raises(ParseError):
+            understand(text, reader=reader)
+    for text in ["go to one duck", "go to the size four ball"]:
+        assert understand(text, reader=reader).steps, text
+
+
+@pytest.mark.parametrize("reader", ["learned", "rules+learned"])
+def test_a_description_cut_off_before_its_clause_and_a_place_far_from_a_thing_are_refused(
+    reader,
+):
+    for text in [
+        "if the cube is blue, go to it",  # a condition read as the thing "cube is blue"
+        "go to the tray, and then lift it",
+        "go to the mug far from the ball",
+    ]:
+        with pytest.raises(ParseError):
+            understand(text, reader=reader)
+    # a thing's words may end in a preposition
+    assert understand("go to the tray you put cups on", reader=reader).steps
+    if reader == "rules+learned":  # ("not far from" is near; the tagger reads no "not")
+        (step,) = understand("go to the mug not far from the ball", reader=reader).steps
+        assert step.action.goal.near[0].text == "ball"
+
+
+@pytest.mark.parametrize("reader", ["rules", "learned", "rules+learned"])
+def test_a_thing_narrowed_by_a_thing_of_the_same_name_is_refused(reader):
+    with pytest.raises(ParseError, match="both are named the same"):
+        understand("go to the cube near the cube", reader=reader)
+    assert understand("go to the red cube near the blue cube", reader=reader).steps
+
+
+def test_the_spelling_pass_makes_no_article_where_no_word_follows():
+    from tabletop.reader.spelling import default_speller
+
+    fixed, _ = default_speller().correct("go to the mug thx")
+    assert not fixed.endswith(" the")

@@ -30,13 +30,21 @@ from typing import Protocol
 from tabletop.errors import ConfigError
 from tabletop.mapping.table_regions import AreaRef
 from tabletop.reader.errors import ParseError
-from tabletop.reader.lexicon.words import AUXILIARIES, SUPERLATIVES, superlative
+from tabletop.reader.lexicon.counts import count_in, unused_numbers
+from tabletop.reader.lexicon.words import (
+    AUXILIARIES,
+    SUPERLATIVES,
+    breaks_off,
+    far_from,
+    superlative,
+)
 from tabletop.reader.llm import LLMReader
 from tabletop.reader.places import PlaceReader, beneath_surface
 from tabletop.reader.plan import MOTIONS, Between, Goal, Part, Reading, Side, Step
 from tabletop.reader.rules import (
     GATHERING,
     MANNER,
+    POINTERS,
     QUALIFIERS,
     SEVERAL_WHY,
     STRUCTURE_WORDS,
@@ -55,6 +63,7 @@ from tabletop.reader.spelling import (
     Speller,
     default_speller,
     english_words,
+    head_nouns,
     kind_words,
     name_words,
     not_english,
@@ -222,7 +231,9 @@ class RulesReader:
                 raise
             err = first
         else:
-            return Reading(text, read, settle_references(text, steps), fixes, said, self.name)
+            steps = settle_references(text, steps)
+            refuse_unused_numbers(text, read, steps)
+            return Reading(text, read, steps, fixes, said, self.name)
         # a request after a lead-in the grammar does not read: the fewest dropped words that
         # leave a request it reads
         body = re.sub(r"[.!?]+\s*$", "", read.strip())
@@ -239,6 +250,7 @@ class RulesReader:
             except ParseError:
                 continue
             steps = settle_references(text, steps)
+            refuse_unused_numbers(text, read, steps)
             return Reading(text, kept, steps, fixes, (*said, before), self.name)
         raise err
 
@@ -331,6 +343,17 @@ _ALTERNATIVE = re.compile(r"\bor\b(?!\s+so\b)", re.IGNORECASE)
 _JOINED = re.compile(r"\band\b|&|\bplus\b", re.IGNORECASE)
 
 
+def _goals_in(value) -> list[Goal]:
+    """Every goal of a plan value (steps, an action, a goal), landmarks included."""
+    if isinstance(value, Goal):
+        return [value]
+    if isinstance(value, tuple):
+        return [g for v in value for g in _goals_in(v)]
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return [g for f in dataclasses.fields(value) for g in _goals_in(getattr(value, f.name))]
+    return []
+
+
 def _same_goal(a: Goal, b: Goal) -> bool:
     """Whether two goals are named in the same words (their articles and case aside)."""
 
@@ -356,6 +379,33 @@ def offers_alternatives(step: Step) -> str | None:
     return None
 
 
+#: Words that join a second request to a first (after the last place named).
+_JOINERS = frozenset(("and", "then", "after", "afterwards", "next"))
+#: Words that say a side or "above" of a thing.
+SIDES_SAID = frozenset((*SIDES, "back", "above", "over", "top"))
+#: Why a reference that counts or numbers its thing is refused.
+COUNTED_WHY = (
+    "a reference names one thing, and these words count or number it; the robot goes to one "
+    "place: name the one meant (by its colour, or a thing near it)"
+)
+#: Why a number the reading uses for nothing is refused.
+UNUSED_NUMBER_WHY = (
+    "the robot reads a number as a distance ('move 5 cm north') or as a repetition ('3 times'), "
+    "and this one is neither (a time, a duration or an index is not honoured)"
+)
+
+
+def refuse_unused_numbers(text: str, read: str, steps: tuple[Step, ...]) -> None:
+    """Refuse a request with a number that the reading of ``read`` uses for nothing
+    (:func:`~tabletop.reader.lexicon.counts.unused_numbers`): a reader that drops it, or reads
+    "for 3 hours" as three repetitions, would do something nobody asked. ParseError naming
+    it."""
+    used = [*_reference_texts(steps), *(s.text for s in steps if isinstance(s.action, MOTIONS))]
+    unused = unused_numbers(read, used, {s.times for s in steps})
+    if unused:
+        raise ParseError(text, unused[0], UNUSED_NUMBER_WHY, final=True)
+
+
 def settle_references(text: str, steps: tuple[Step, ...]) -> tuple[Step, ...]:
     """What every reader does to the references of the steps it read: parts that describe a
     thing are folded into its words (:func:`fold_descriptions`); a "between" of one thing and
@@ -366,6 +416,24 @@ def settle_references(text: str, steps: tuple[Step, ...]) -> tuple[Step, ...]:
     word. "no" and "without" describe and pass ("the mug with no handle"); a negation outside
     every reference is the reader's to read ("not far from" for near)."""
     steps = fold_descriptions(steps)
+    if (far := far_from(text)) is not None:
+        raise ParseError(
+            text,
+            far,
+            "a place far from a thing is no one place: the map scores how near things are; "
+            "name a place, or a side of the thing ('behind the duck')",
+            final=True,
+        )
+    for goal in _goals_in(steps):
+        own = Goal(goal.primary)
+        if any(_same_goal(own, Goal(p)) for p in goal.near if p.kind == goal.primary.kind):
+            raise ParseError(
+                text,
+                goal.primary.text,
+                "a thing is narrowed by a thing near it, and both are named the same: name "
+                "the one meant by its colour, or by another thing near it",
+                final=True,
+            )
     for step in steps:
         a = step.action
         if isinstance(a, Between) and _same_goal(a.a, a.b):
@@ -385,6 +453,17 @@ def settle_references(text: str, steps: tuple[Step, ...]) -> tuple[Step, ...]:
     for ref in _reference_texts(steps, ("obj",)):
         if (word := several(ref)) is not None:  # "the two mugs": one place is no two things
             raise ParseError(text, word, SEVERAL_WHY, final=True)
+        if (word := count_in(ref, head_nouns())) is not None:  # "zero mugs", "mug #2"
+            raise ParseError(text, word, COUNTED_WHY, final=True)
+        if (word := breaks_off(ref)) is not None:  # "the duck, and (pick it up)"
+            raise ParseError(
+                text,
+                word,
+                f"the words of one thing, {ref!r}, stop being a thing's name at {word!r}: what "
+                "follows it was not read (a condition, a statement or a second request the "
+                "robot does not do); name the thing, and join two places with 'then'",
+                final=True,
+            )
         if ranks := [w for w in superlative_forms(ref) if w not in SUPERLATIVES]:
             raise ParseError(
                 text,
@@ -506,6 +585,10 @@ class LearnedReader:
             follows = i + 1 < len(roles) and roles[i + 1] != "O"
             if r == "O" and (follows or w.lower() in GATHERING) and several(" ".join(words[i:])):
                 raise ParseError(text, w, SEVERAL_WHY)
+            # "half a cube", "zero balls": a count left out of the thing's words
+            counted = count_in(" ".join(words[i:]), head_nouns()) if r == "O" and follows else None
+            if counted is not None and counted == w.strip(",.;:!?\"'").lower():
+                raise ParseError(text, w, COUNTED_WHY)
         ranks = [
             w
             for i, (said, r) in enumerate(zip(words, roles, strict=True))
@@ -571,6 +654,21 @@ class LearnedReader:
                     ref,
                     "a list of things is no one place: name one goal per step, joined by 'then'",
                 )
+        refuse_unused_numbers(text, read, steps)
+        # a second request after the last reference that the tagger left out ("..., and then
+        # put it down"): a joining word, then words that point back at what was named
+        last = max((i for i, r in enumerate(roles) if r not in ("O", "THEN", "REP")), default=-1)
+        after = [w.strip(",.;:!?\"'").lower() for w in words[last + 1 :]]
+        joined = next((i for i, w in enumerate(after) if w in _JOINERS), None)
+        rest = after[joined + 1 :] if joined is not None else []
+        # (unless it says the side the reading goes to: "..., and stop on its right")
+        if POINTERS.intersection(rest) and not SIDES_SAID.intersection(rest):
+            raise ParseError(
+                text,
+                " ".join(words[last + 1 + joined :]),
+                "a second request after the place was not read: the arm goes to places, and a "
+                "second place is joined with 'then' ('go to the mug, then to the duck')",
+            )
         manner = tuple(w for w in plain if w in MANNER)
         said = (polite,) if polite else ()
         return Reading(text, read, steps, fixes, said, self.name, manner)

@@ -193,7 +193,9 @@ GATHERING = ("all", "both", "each", "every")
 _SEVERAL = re.compile(
     r"^(?:(?:the|these|those|my|your)\s+)?"
     rf"(?:(?:{'|'.join(GATHERING)})\b(?!\s+the\s+way\b|\s+right\b)|"
-    r"(?P<n>" + "|".join(n for n, v in _NUMBERS.items() if v > 1) + rf"|\d+)\s+(?!{_UNIT}\b))"
+    r"(?P<n>" + "|".join(n for n, v in _NUMBERS.items() if v > 1) + rf"|\d+)\s+(?!{_UNIT}\b)"
+    # (a digit before a determiner counts nothing: "go 2 the mug" is typed for "to")
+    r"(?<!\d\s)(?!(?:the|a|an|this|that|my|your)\b))"
 )
 
 

@@ -129,6 +129,10 @@ def _strings(value: object) -> Iterable[str]:
             yield from _strings(v)
 
 
+#: Articles: a correction into one must stand before a word.
+_ARTICLES = frozenset(("the", "a", "an"))
+
+
 @functools.cache
 def data_toml(name: str) -> dict:
     """The TOML data file ``name`` (relative to the package's data folder), read once; an
@@ -159,6 +163,13 @@ def kind_words() -> frozenset[str]:
     "toy", which names none by itself."""
     words = {w for k in data_toml("descriptions.toml") for w in k.replace("_", " ").split()}
     return frozenset(words - {"toy"})
+
+
+@functools.cache
+def head_nouns() -> frozenset[str]:
+    """The last word of each of the map vocabulary's kind names ("mug", "bear", "brick"): the
+    noun a thing of that kind is named by (its plural names several)."""
+    return frozenset(k.replace("_", " ").split()[-1] for k in data_toml("descriptions.toml"))
 
 
 @functools.cache
@@ -490,12 +501,16 @@ class Speller:
         fixes: list[Correction] = []
         tokens = re.split(r"(\s+)", text)
         imitations = _imitations(tokens)
-        for token in tokens:
+        for i, token in enumerate(tokens):
             word = token.lower().strip('.,;:!?"()')
             if not token.strip() or "/" in token or not _WORD.fullmatch(word):
                 out.append(token)
                 continue
             new, why = (None, "") if word in imitations else self._fix(word)
+            if new in _ARTICLES and (
+                token.rstrip('.,;:!?"()') != token or not "".join(tokens[i + 1 :]).strip()
+            ):
+                new = None  # an article stands before a word: "thx" at the end is no "the"
             if new is None:
                 out.append(token)
             else:

@@ -16,6 +16,8 @@ __all__ = [
     "NEGATIONS",
     "SUPERLATIVES",
     "Superlative",
+    "breaks_off",
+    "far_from",
     "is_negation",
     "negations",
     "ordinal",
@@ -130,4 +132,46 @@ _RELATION = re.compile(
 def relation_words(text: str) -> str | None:
     """The first words of ``text`` that relate one thing to another, or None."""
     m = _RELATION.search(str(text))
+    return " ".join(m.group(0).split()) if m else None
+
+
+#: Words that join or introduce what follows them: a thing's words that end in one were cut
+#: off before the rest of their phrase ("the duck then", "the mug which is the"). (A
+#: preposition may end a thing's words: "the mug you drink out of".)
+_JOINING = frozenset(
+    "the a an and or but then which who whose is are was were be been being if".split()
+)
+#: Words that open a relative clause: after one, a verb describes the thing ("the mug that is
+#: red"); without one, a verb in a thing's words makes a statement ("the mug is red").
+_RELATIVES = frozenset("that which who whose where one ones".split())
+_COPULA_FORMS = frozenset("is are was were isn't aren't wasn't weren't".split())
+
+
+def breaks_off(ref: str) -> str | None:
+    """The word at which one thing's words ``ref`` stop being a noun phrase, or None: a last
+    word that joins or introduces more ("the duck, and", "the mug which is the"), or a verb
+    "to be" with no relative word before it ("the mug is red": a statement, or a condition,
+    about the thing)."""
+    words = [w.strip(",.;:!?\"'()").lower() for w in str(ref).split()]
+    words = [w for w in words if w]
+    if len(words) > 1 and words[-1] in _JOINING:
+        return words[-1]
+    for i, w in enumerate(words[1:], 1):
+        if w in _COPULA_FORMS and not _RELATIVES.intersection(words[:i]):
+            return w
+    return None
+
+
+#: A place away from a thing ("far from the duck", "a long way from the mug"): a map scores
+#: nearness, and no reading may turn it into near. "not far from" is near.
+_FAR_FROM = re.compile(
+    r"(?<!not )(?<!n't )(?<!not too )(?<!not that )(?<!not very )(?<!not so )"
+    r"\b(?:far(?:\s+away)?|a\s+long\s+way|well\s+away|miles)\s+from\b",
+    re.IGNORECASE,
+)
+
+
+def far_from(text: str) -> str | None:
+    """The words that ask for a place far from a thing, or None (see :data:`_FAR_FROM`)."""
+    m = _FAR_FROM.search(str(text))
     return " ".join(m.group(0).split()) if m else None
