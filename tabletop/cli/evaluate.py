@@ -625,7 +625,8 @@ def add_commands(sub) -> None:
         "'paraphrase-heldout-14', 'paraphrase-heldout-15', 'paraphrase-heldout-17', "
         "'paraphrase-heldout-18', 'paraphrase-heldout-19', 'paraphrase-heldout-20', "
         "'paraphrase-heldout-21', 'paraphrase-heldout-22', 'paraphrase-heldout-23', "
-        "'paraphrase-heldout-24', 'paraphrase-heldout-25' (held "
+        "'paraphrase-heldout-24', 'paraphrase-heldout-25', 'paraphrase-heldout-26', "
+        "'paraphrase-heldout-27' (held "
         "out: each run once for a report, never read), "
         "'clutter' (dense tables: goals on, beside and between objects), "
         "'mobile' (a wheeled base in rooms, 1 m success radius)",

@@ -107,10 +107,13 @@ POOLS = (
     "heldout-23",
     "heldout-24",
     "heldout-25",
+    "heldout-26",
+    "heldout-27",
 )
 #: Held-out pools nobody on the team has read: evaluated once, for a report ("heldout-13",
 #: "heldout-14", "heldout-15", "heldout-17", "heldout-18", "heldout-19", "heldout-20", "heldout-21",
-#: "heldout-22", "heldout-23", "heldout-24" and "heldout-25", written without reading the
+#: "heldout-22", "heldout-23", "heldout-24", "heldout-25", "heldout-26" and "heldout-27", written
+#: without reading the
 #: parser, the lexicons or the other pools; their suites generated unread; heldout-18's area
 #: misses and the misses of heldout-19, heldout-20, heldout-21, heldout-22, heldout-23,
 #: heldout-24 and heldout-25 were read after their reports, and they stay
@@ -132,6 +135,8 @@ HELDOUT_POOLS: tuple[str, ...] = (
     "heldout-23",
     "heldout-24",
     "heldout-25",
+    "heldout-26",
+    "heldout-27",
 )
 TUNE_POOLS = tuple(p for p in POOLS if p not in HELDOUT_POOLS)
 #: Held-out pools read after their report (to diagnose, not to train on): a newer held-out pool
@@ -154,7 +159,7 @@ SUITE_DIRS = {p: f"paraphrase-{p}" for p in POOLS}
 #: ``seed * 100_000 + i``: 0-219) or its held-out layouts (from 9,000,000). In use here: 750-752,
 #: 760-762, 800-803 ... 890-893 (by tens), 910-913, 920-923, 930-933, 940-943, 960-963,
 #: 970-973, 980-983, 990, 992-994 (991 gave no multimodal goal), 995-998, 1010-1013,
-#: 1020-1023, 1030-1033, 1040-1043, 1050-1053 and 1060-1063.
+#: 1020-1023, 1030-1033, 1040-1043, 1050-1053, 1060-1063, 1070-1073 and 1080-1083.
 TUNE_SEEDS = (750, 751, 752)
 HELDOUT_SEEDS = (800, 801, 802, 803)
 POOL_SEEDS = {
@@ -185,6 +190,8 @@ POOL_SEEDS = {
     "heldout-23": (1040, 1041, 1042, 1043),
     "heldout-24": (1050, 1051, 1052, 1053),
     "heldout-25": (1060, 1061, 1062, 1063),
+    "heldout-26": (1070, 1071, 1072, 1073),
+    "heldout-27": (1080, 1081, 1082, 1083),
 }
 
 #: Absent goals per scene: objects outside the catalog, catalog kinds the scene lacks, a colour
