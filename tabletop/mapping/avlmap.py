@@ -786,7 +786,11 @@ def _unscorable(query: str) -> str:
     none): a negation ("not the red mug"), an ordinal ("the second mug") or words relating it
     to another thing ("the mug near the duck"). Scored anyway, the words would find the thing
     they negate, any of the things, or either of the two."""
-    read = "read the request with tabletop.reader.understand(), which says what it can do"
+    read = (
+        "ask it as an instruction ('tabletop run MAP \"go to ...\"', or "
+        "tabletop.reader.understand() in Python), which says what it can do, or ask for a "
+        "place on the table as an area (--area, area=)"
+    )
     if negated := negations(query, describing=True):
         return f"{query!r} negates what it names ({negated[0]!r}): {read}"
     if (o := ordinal(query)) is not None:

@@ -403,7 +403,11 @@ def _bare(text: str) -> str:
 
 
 def _landmark(goal: Goal) -> str | Goal:
-    return goal.primary.text if not goal.near and goal.primary.kind == "obj" else goal
+    """A side's or above's landmark: the thing's words (without a possessive ending, "the
+    cube's right"), or the goal that narrows it."""
+    if not goal.near and goal.primary.kind == "obj":
+        return re.sub(r"'s?$", "", goal.primary.text)
+    return goal
 
 
 #: An image reference names a file: a path with a folder or an image file's extension.

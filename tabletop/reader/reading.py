@@ -25,6 +25,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import re
+import unicodedata
 from typing import Protocol
 
 from tabletop.errors import ConfigError
@@ -197,6 +198,7 @@ class RulesReader:
             raise ConfigError(f"unknown reference kind {kind!r}; valid: {list(TEXT_KINDS)}")
         if not isinstance(text, str):
             raise ConfigError(f"{kind}= must be a string, got {type(text).__name__}")
+        text = normalise(text)
         if self.spelling:
             text = self.speller.correct(text)[0]
         refuse_negated(text)
@@ -216,6 +218,7 @@ class RulesReader:
     def understand(self, text: str, robot: str = "arm") -> Reading:
         if not isinstance(text, str):
             raise ConfigError(f"an instruction must be a string, got {type(text).__name__}")
+        text = normalise(text)
         refuse_non_words(text)
         refuse_beneath_surface(text)
         refuse_relation_distance(text)
@@ -343,6 +346,32 @@ _ALTERNATIVE = re.compile(r"\bor\b(?!\s+so\b)", re.IGNORECASE)
 _JOINED = re.compile(r"\band\b|&|\bplus\b", re.IGNORECASE)
 
 
+def _regions_as_places(value):
+    """``value`` (steps, an action, a goal, a part) with each thing's words that name no
+    thing of the vocabulary and do name a region of the table ("the centre", "the far left")
+    made a place: a reader that took them for a thing would look for a thing called so. A
+    side's or above's landmark is left as read."""
+    from tabletop.reader.place_words import parse_region
+
+    if isinstance(value, Part):
+        said = set(re.findall(r"[a-z]+", value.text.lower()))
+        if value.kind == "obj" and not said & name_words() and parse_region(value.text):
+            return Part("area", value.text)
+        return value
+    if isinstance(value, tuple):
+        return tuple(_regions_as_places(v) for v in value)
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        # (a side's landmark keeps its words: "the mug, on the far side" restates the side)
+        changes = {
+            f.name: _regions_as_places(v)
+            for f in dataclasses.fields(value)
+            if f.name != "landmark"
+            and (isinstance(v := getattr(value, f.name), tuple) or dataclasses.is_dataclass(v))
+        }
+        return dataclasses.replace(value, **changes) if changes else value
+    return value
+
+
 def _goals_in(value) -> list[Goal]:
     """Every goal of a plan value (steps, an action, a goal), landmarks included."""
     if isinstance(value, Goal):
@@ -395,6 +424,24 @@ UNUSED_NUMBER_WHY = (
 )
 
 
+#: Typographic quotes and apostrophes, as typed on a keyboard.
+_TYPOGRAPHIC = str.maketrans({"\u2019": "'", "\u2018": "'", "\u201c": '"', "\u201d": '"'})
+#: Quotation marks around words ("go to the \"duck\"", "the 'blue' one"): no part of them.
+_QUOTED = re.compile(r"(?<![\w'])([\"'])([^\"']+?)\1(?![\w'])")
+
+
+def normalise(text: str) -> str:
+    """``text`` as plain keyboard text: compatibility forms folded (full-width letters, "ｍｕｇ",
+    are "mug"), typographic quotes and apostrophes made plain, and quotation marks around words
+    dropped. Every reader reads this form, so that a quote or a width never hides a word."""
+    if not isinstance(text, str):
+        return text
+    if any(c.isalpha() for c in text):  # (symbols alone stay symbols: no words to fold)
+        text = unicodedata.normalize("NFKC", text)
+    text = text.translate(_TYPOGRAPHIC)
+    return _QUOTED.sub(r"\2", text)
+
+
 def refuse_unused_numbers(text: str, read: str, steps: tuple[Step, ...]) -> None:
     """Refuse a request with a number that the reading of ``read`` uses for nothing
     (:func:`~tabletop.reader.lexicon.counts.unused_numbers`): a reader that drops it, or reads
@@ -415,7 +462,7 @@ def settle_references(text: str, steps: tuple[Step, ...]) -> tuple[Step, ...]:
     starts with an ordinal ("the 3rd mug from the left") is refused, ParseError naming the
     word. "no" and "without" describe and pass ("the mug with no handle"); a negation outside
     every reference is the reader's to read ("not far from" for near)."""
-    steps = fold_descriptions(steps)
+    steps = _regions_as_places(fold_descriptions(steps))
     if (far := far_from(text)) is not None:
         raise ParseError(
             text,
@@ -557,6 +604,7 @@ class LearnedReader:
 
         if not isinstance(text, str):
             raise ConfigError(f"an instruction must be a string, got {type(text).__name__}")
+        text = normalise(text)
         refuse_non_words(text)
         refuse_beneath_surface(text)
         refuse_relation_distance(text)

@@ -958,11 +958,13 @@ class _Parser:
             # later steps may leave the verb out: "..., then (to) the duck"
             m = re.match(r"^(?:to(?:wards)?\s+|on\s+to\s+)?", body)
         if not m:
-            self.fail(
-                clause,
-                "a step starts with a motion verb: go to, move to, reach, approach, "
-                "head to, navigate to, return to, move back and forth between",
+            verbs = (
+                "go to, move to, reach, approach, head to, navigate to, return to, move back "
+                "and forth between"
             )
+            if self.robot == "mobile":  # a base also drives and turns on the spot
+                verbs += "; or a base's own move: drive 2 m forward, turn left 90 degrees, face X"
+            self.fail(clause, f"a step starts with a motion verb: {verbs}")
         rest = body[m.end() :].strip()
         if not rest:
             self.fail(clause, "the step names no goal")
