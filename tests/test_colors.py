@@ -27,6 +27,9 @@ def test_lab_of_reference_colours():
     [
         ("the dark blue coffee mug", "dark blue", "the coffee mug"),
         ("a reddish duck", "red", "a duck"),
+        # a hedged compound a basic term leads is that term; unhedged it is the thing's word
+        ("the greenstone-ish cube", "green", "the cube"),
+        ("the redwood tray", "", "the redwood tray"),
         ("the light-grey tray", "light grey", "the tray"),
         ("the red one", "red", "the one"),
         ("the mug", "", "the mug"),

@@ -54,7 +54,7 @@ _WORD = re.compile(r"[a-z]+(?:-[a-z]+)*")
 
 def _plain_words(text: str) -> list[str]:
     """``text``'s lower-case words, hyphens as spaces."""
-    return _WORD.findall(str(text).lower().replace("-", " "))
+    return _WORD.findall(str(text).lower().replace("-ish", "ish").replace("-", " "))
 
 
 def _places(words: list[str], name: str):
@@ -485,7 +485,8 @@ def _reading(words: list[str], where, keep_names: bool = False) -> tuple[str, st
 
 
 def _ish(word: str) -> str:
-    """ "reddish" -> "red", "bluish" -> "blue", "greyish" -> "grey", the superlatives
+    """ "reddish" -> "red", "bluish" -> "blue", "greyish" -> "grey", a hedged compound led by a
+    basic colour term ("bluebellish" -> "blue"), the superlatives
     ("blackest" -> "black", "bluest" -> "blue") and the adjectives in "-y" of a colour name
     ("minty" -> "mint", "creamy" -> "cream", "chocolatey" -> "chocolate", "rosy" -> "rose",
     "grassy" -> "grass", "icy" -> "ice", "muddy" -> "mud" of the survey); other words
@@ -496,6 +497,13 @@ def _ish(word: str) -> str:
             for cand in (stem, stem[:-1], stem + "e"):  # redd-ish, blu-ish, purpl-ish
                 if cand in COLOR_NAMES:
                     return cand
+    if word.endswith("ish") and word[:-3] not in survey_colours():
+        # a hedged compound that a basic colour term leads ("bluebell-ish", "greenstone-ish"):
+        # the hedge says its colour is the compound's, and no list has the compound
+        stem = word[:-3]
+        for basic in BASIC_COLOURS:
+            if stem.startswith(basic) and len(stem) - len(basic) >= 3:
+                return basic
     if word.endswith("y") and len(word) > 2 and word not in COLOR_NAMES:
         stem = word[:-1]  # mint-y, chocolate-y, smok(e)-y, ic(e)-y, clay-ey, mud(d)-y
         doubled = stem[:-1] if len(stem) > 2 and stem[-1] == stem[-2] else ""
