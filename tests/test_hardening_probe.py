@@ -651,6 +651,59 @@ def test_between_a_landmark_and_itself_is_refused(oracle_map):
             robot.move_in_between("red mug", "red mug")
 
 
+def _two_mugs():
+    """Two frames from 0.5 m above the table looking down: a red mug and a blue mug 20 cm
+    apart (8 cm boxes)."""
+    from helpers import ground_truth_dict
+
+    from tabletop.recording import Recording
+
+    n, w, h = 2, 320, 240
+    T = np.tile(np.eye(4), (n, 1, 1))
+    T[:, :3, :3] = np.diag([1.0, -1.0, -1.0])
+    T[:, 0, 3], T[:, 2, 3] = 0.4, 0.5
+    depth = np.full((n, h, w), 0.5, np.float32)
+    seg = np.full((n, h, w), 2, np.uint16)
+    rgb = np.full((n, h, w, 3), 200, np.uint8)
+    boxes = []
+    for k, (name, colour, u) in enumerate(
+        (("red_mug", (200, 20, 20), 70), ("blue_mug", (20, 20, 200), 230))
+    ):
+        depth[:, 100:140, u - 20 : u + 20] = 0.42
+        seg[:, 100:140, u - 20 : u + 20] = 4 + k
+        rgb[:, 100:140, u - 20 : u + 20] = colour
+        x = 0.4 + (u - 160) / 200 * 0.5
+        boxes.append(
+            {"name": name, "aabb_min": [x - 0.05, -0.05, 0.0], "aabb_max": [x + 0.05, 0.05, 0.08]}
+        )
+    gt = ground_truth_dict(objects=boxes)
+    gt["scene"] = load_scene_spec("default").to_dict()
+    K = np.array([[200.0, 0, 160], [0, 200.0, 120], [0, 0, 1]])
+    return Recording(
+        timestamps=np.arange(n) / 30.0, rgb=rgb, depth=depth, joint_positions=np.zeros((n, 7)),
+        T_world_hand=T, K=K, T_hand_cam=np.eye(4), segmentation=seg, ground_truth=gt,
+        meta={"source": "test", "scene": "default"},
+    )  # fmt: skip
+
+
+def test_between_two_names_that_find_one_thing_takes_the_next_thing_for_one_of_them():
+    from tabletop.eval.harness import build_map, map_config
+    from tabletop.language.suite import PointRobot
+    from tabletop.robot.api import PrimitiveArgumentError
+
+    robot = PointRobot(build_map(_two_mugs(), "oracle", map_config(visual=None)))
+    red, blue = robot.get_pos("red mug"), robot.get_pos("blue mug")
+    assert np.linalg.norm(red[:2] - blue[:2]) > 0.1
+    # "the mug" finds one of the two, as its coloured name does: said apart, they are both
+    plain = "red mug" if np.allclose(robot.get_pos("mug"), red) else "blue mug"
+    want = robot.between("red mug", "blue mug")
+    for a, b in ((plain, "mug"), ("mug", plain)):
+        assert np.allclose(robot.between(a, b)[:2], want[:2], atol=0.01), (a, b)
+    # the same words are one thing
+    with pytest.raises(PrimitiveArgumentError, match="are the same thing"):
+        robot.between("mug", "mug")
+
+
 def test_a_sim_arm_in_another_scene_than_the_maps_is_refused_or_warned(oracle_map):
     from tabletop.robot.arm import SimArm
 

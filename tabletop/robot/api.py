@@ -158,6 +158,11 @@ def _number(v) -> str | None:
     return None
 
 
+#: "between" two things named apart whose best matches are one thing: the other name's next
+#: instance must score at least this share of its best to be taken for the second thing (a
+#: floor against a thing with no evidence at all; not tuned on any suite).
+APART_MIN_RATIO = 0.1
+
 def _landmark_arg(v) -> str | None:
     if isinstance(v, Heatmap):
         return None
@@ -564,9 +569,15 @@ class RobotAPI(abc.ABC):
         what stood there, so the mean of it and an object's centre floats above the table, and
         an arm approaching that point from above would stop a gripper's gap over it."""
         pa, pb = self.get_pos(a), self.get_pos(b)
+        same = type(a) is type(b) and np.allclose(pa, pb, rtol=0.0, atol=1e-6)
+        if same and isinstance(a, str) and " ".join(a.split()) != " ".join(b.split()):
+            # two things named apart: the one whose next match is nearer its best takes it
+            apart = self._apart(a, b, pa)
+            if apart is not None:
+                (pa, pb), same = apart, False
         # two names (or two heatmaps) that find the same place are one thing; a heatmap and
         # a name may well be (a sound heard on the object is a place beside it, not it)
-        if type(a) is type(b) and np.allclose(pa, pb, rtol=0.0, atol=1e-6):
+        if same:
             raise PrimitiveArgumentError(
                 f"between(a=..., b=...): a {_shown(a)} and b {_shown(b)} are the same thing "
                 f"(both at ({pa[0]:.3f}, {pa[1]:.3f}, {pa[2]:.3f}) m): there is no place between "
@@ -575,6 +586,33 @@ class RobotAPI(abc.ABC):
         p = (pa + pb) / 2
         p[2] = surface_z(self.map.grid, self.map.voxels.occupancy(), p[:2])
         return p
+
+    def _apart(self, a: str, b: str, shared) -> tuple[np.ndarray, np.ndarray] | None:
+        """Centres of two different things for the names ``a`` and ``b``, whose best matches
+        are the one thing at ``shared``: "between" two things said differently means two
+        things, so the name whose next-best instance scores nearer its best moves to that
+        instance. None where the map holds no instances or neither name matches another
+        thing at :data:`APART_MIN_RATIO` of its best."""
+        objects = getattr(self.map, "objects", None)
+        if objects is None or not getattr(objects, "uses_instances", False):
+            return None
+        items = objects.instances.items
+        if len(items) < 2:
+            return None
+        centres = np.array([it.center for it in items])
+        i = int(np.argmin(np.linalg.norm(centres[:, :2] - np.asarray(shared)[:2], axis=1)))
+        best = []
+        for name in (a, b):
+            r = np.asarray(objects.match(name).ranked, dtype=float).copy()
+            top, r[i] = r[i], 0.0
+            j = int(np.argmax(r))
+            best.append((r[j] / top if top > 0 else 0.0, j))
+        (qa, ja), (qb, jb) = best
+        if max(qa, qb) < APART_MIN_RATIO:
+            return None
+        if qa >= qb:
+            return centres[ja].copy(), centres[i].copy()
+        return centres[i].copy(), centres[jb].copy()
 
     def offset(self, dx: float, dy: float) -> np.ndarray:
         for v in (dx, dy):
