@@ -807,8 +807,11 @@ def test_a_description_cut_off_before_its_clause_and_a_place_far_from_a_thing_ar
     ]:
         with pytest.raises(ParseError):
             understand(text, reader=reader)
-    # a thing's words may end in a preposition
+    # a thing's words may end in a preposition, and going there after naming it is going
     assert understand("go to the tray you put cups on", reader=reader).steps
+    assert understand(
+        "locate the middle of the cube and the ball and go there", reader=reader
+    ).steps
     if reader == "rules+learned":  # ("not far from" is near; the tagger reads no "not")
         (step,) = understand("go to the mug not far from the ball", reader=reader).steps
         assert step.action.goal.near[0].text == "ball"

@@ -51,6 +51,7 @@ from tabletop.reader.rules import (
     STRUCTURE_WORDS,
     ends_in_determiner,
     is_negation,
+    is_verb_phrase,
     negations,
     ordinal,
     parse_instruction,
@@ -709,8 +710,10 @@ class LearnedReader:
         after = [w.strip(",.;:!?\"'").lower() for w in words[last + 1 :]]
         joined = next((i for i, w in enumerate(after) if w in _JOINERS), None)
         rest = after[joined + 1 :] if joined is not None else []
-        # (unless it says the side the reading goes to: "..., and stop on its right")
-        if POINTERS.intersection(rest) and not SIDES_SAID.intersection(rest):
+        # (unless it says the side the reading goes to, "..., and stop on its right", or only
+        # to go there, "..., and go there")
+        going = is_verb_phrase(" ".join(w for w in rest if w not in POINTERS))
+        if POINTERS.intersection(rest) and not SIDES_SAID.intersection(rest) and not going:
             raise ParseError(
                 text,
                 " ".join(words[last + 1 + joined :]),
