@@ -812,9 +812,12 @@ def test_a_description_cut_off_before_its_clause_and_a_place_far_from_a_thing_ar
     assert understand(
         "locate the middle of the cube and the ball and go there", reader=reader
     ).steps
-    if reader == "rules+learned":  # ("not far from" is near; the tagger reads no "not")
-        (step,) = understand("go to the mug not far from the ball", reader=reader).steps
-        assert step.action.goal.near[0].text == "ball"
+    # "not far (off) from" is near: a litotes negates no goal
+    for text in ["go to the mug not far from the ball", "go to the mug not far off from the ball"]:
+        (step,) = understand(text, reader=reader).steps
+        assert step.action.goal.near[0].text == "ball", text
+    with pytest.raises(ParseError, match="negated"):
+        understand("go to the mug not near the ball", reader=reader)
 
 
 @pytest.mark.parametrize("reader", ["rules", "learned", "rules+learned"])

@@ -409,6 +409,10 @@ def offers_alternatives(step: Step) -> str | None:
     return None
 
 
+def _plain(word: str) -> str:
+    return word.strip(",.;:!?\"'").lower()
+
+
 #: Words that join a second request to a first (after the last place named).
 _JOINERS = frozenset(("and", "then", "after", "afterwards", "next"))
 #: Words that say a side or "above" of a thing.
@@ -658,6 +662,14 @@ class LearnedReader:
                 "a thing ranks by size, height, left and right, or nearness ('the nearest "
                 f"mug'); {SOUND_RANK_WHY}",
             )
+        # "not far" (a litotes) says near, and negates no goal: the tagger reads the relation
+        litotes = {i for i, w in enumerate(words[:-1]) if _plain(w) == "not"
+                   and _plain(words[i + 1]) == "far"}  # fmt: skip
+        plain = [
+            w.strip(",.;:!?\"'").lower()
+            for i, (w, r) in enumerate(zip(words, roles, strict=True))
+            if r in ("O", "THEN", "REP") and i not in litotes
+        ]
         negated = [w for w in plain if is_negation(w)]
         if negated and (reading := self._after_courtesy(text, words, roles, robot)):
             return reading
