@@ -856,3 +856,15 @@ def test_words_that_name_a_region_and_no_thing_are_a_place(reader):
     (step,) = understand("go to the ball in the centre", reader=reader).steps
     assert step.action.goal.primary == Part("obj", "ball")
     assert step.action.goal.near == (Part("area", "centre"),)
+
+
+@pytest.mark.parametrize("reader", ["rules+spelling", "rules+learned"])
+def test_a_part_that_names_the_whole_table_narrows_nothing(reader):
+    # "on the table" had been a part of its own, which the map finds nothing of
+    (step,) = understand("go to where you heard the cat on the table", reader=reader).steps
+    assert step.action.goal == Goal(Part("sound", "cat"))
+    # the table asked for itself, or another surface, is not dropped
+    (step,) = understand("go to the table", reader=reader).steps
+    assert step.action.goal.primary.text == "table"
+    (step,) = understand("go to the ball near the cat on the floor", reader=reader).steps
+    assert Part("obj", "floor") in step.action.goal.near

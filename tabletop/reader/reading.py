@@ -347,6 +347,39 @@ _ALTERNATIVE = re.compile(r"\bor\b(?!\s+so\b)", re.IGNORECASE)
 _JOINED = re.compile(r"\band\b|&|\bplus\b", re.IGNORECASE)
 
 
+#: Words that name the table as a whole ("on the table", "the whole tabletop").
+_WHOLE_TABLE = frozenset(("table", "tabletop"))
+_WHOLE_TABLE_WORDS = _WHOLE_TABLE | {"the", "a", "top", "surface", "whole", "entire", "of"}
+
+
+def _whole_table_dropped(value):
+    """``value`` (steps, an action, a goal) without the narrowing parts that name the whole
+    table ("where the dog barked on the table"): every goal lies on it, so such a part
+    narrows nothing, and asked of the map it is its background, which finds nothing."""
+    if isinstance(value, Goal):
+        keep = tuple(
+            p
+            for p in value.near
+            if not (
+                p.kind in ("obj", "area")
+                and (said := set(re.findall(r"[a-z]+", p.text.lower())))
+                and said <= _WHOLE_TABLE_WORDS
+                and said & _WHOLE_TABLE
+            )
+        )
+        return value if keep == value.near else dataclasses.replace(value, near=keep)
+    if isinstance(value, tuple):
+        return tuple(_whole_table_dropped(v) for v in value)
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        changes = {
+            f.name: _whole_table_dropped(v)
+            for f in dataclasses.fields(value)
+            if isinstance(v := getattr(value, f.name), tuple) or dataclasses.is_dataclass(v)
+        }
+        return dataclasses.replace(value, **changes) if changes else value
+    return value
+
+
 def _regions_as_places(value):
     """``value`` (steps, an action, a goal, a part) with each thing's words that name no
     thing of the vocabulary and do name a region of the table ("the centre", "the far left")
@@ -467,7 +500,7 @@ def settle_references(text: str, steps: tuple[Step, ...]) -> tuple[Step, ...]:
     starts with an ordinal ("the 3rd mug from the left") is refused, ParseError naming the
     word. "no" and "without" describe and pass ("the mug with no handle"); a negation outside
     every reference is the reader's to read ("not far from" for near)."""
-    steps = _regions_as_places(fold_descriptions(steps))
+    steps = _regions_as_places(_whole_table_dropped(fold_descriptions(steps)))
     if (far := far_from(text)) is not None:
         raise ParseError(
             text,
