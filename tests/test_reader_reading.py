@@ -7,7 +7,7 @@ import pytest
 from tabletop.errors import ConfigError
 from tabletop.language import instruction_to_code
 from tabletop.reader import ParseError
-from tabletop.reader.plan import Between, Goal, GoTo, Part, Side
+from tabletop.reader.plan import BackAndForth, Between, Goal, GoTo, Part, Side
 from tabletop.reader.reading import READERS, get_reader, understand
 
 
@@ -868,3 +868,19 @@ def test_a_part_that_names_the_whole_table_narrows_nothing(reader):
     assert step.action.goal.primary.text == "table"
     (step,) = understand("go to the ball near the cat on the floor", reader=reader).steps
     assert Part("obj", "floor") in step.action.goal.near
+
+
+@pytest.mark.parametrize("reader", ["learned", "rules+learned"])
+def test_an_ordinal_of_a_time_and_back_and_forth_of_one_place_are_refused(reader):
+    # the ordinal had been dropped (or read as a repetition), and "forth" read as a place
+    for text, word in [
+        ("go to the third time you heard a cat", "third"),
+        ("go to the ball for the second time", "second"),
+    ]:
+        assert _fragment_refused(text, reader, "an ordinal picks") == word, text
+    with pytest.raises(ParseError, match="takes two places|takes 2 place"):
+        understand("go back and forth between the cube", reader=reader)
+    # a first step said with "first", and back and forth between two places, are read
+    assert len(understand("first, go to the ball, then to the cube", reader=reader).steps) == 2
+    (step,) = understand("go back and forth between the cube and the ball", reader=reader).steps
+    assert isinstance(step.action, BackAndForth)

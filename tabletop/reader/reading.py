@@ -41,7 +41,16 @@ from tabletop.reader.lexicon.words import (
 )
 from tabletop.reader.llm import LLMReader
 from tabletop.reader.places import PlaceReader, beneath_surface
-from tabletop.reader.plan import MOTIONS, Between, Goal, Part, Reading, Side, Step
+from tabletop.reader.plan import (
+    MOTIONS,
+    BackAndForth,
+    Between,
+    Goal,
+    Part,
+    Reading,
+    Side,
+    Step,
+)
 from tabletop.reader.rules import (
     GATHERING,
     MANNER,
@@ -573,14 +582,39 @@ def settle_references(text: str, steps: tuple[Step, ...]) -> tuple[Step, ...]:
         negated = negations(ref, describing=True)
         if negated:
             raise ParseError(text, negated[0], "the robot cannot honour a negated goal")
-        if (nth := ordinal(ref)) is not None:
+        if (nth := _ordinal_within(ref)) is not None:
+            raise ParseError(text, nth, ORDINAL_WHY)
+    for step in steps:  # "back and forth between the duck": one place, and a word for none
+        a = step.action
+        if isinstance(a, BackAndForth) and any(
+            set(re.findall(r"[a-z]+", g.primary.text.lower())) <= {"back", "forth", "and"}
+            for g in (a.a, a.b)
+        ):
             raise ParseError(
                 text,
-                nth,
-                "an ordinal picks one of several things by their order, which the map does not "
-                "rank; name the one meant by its colour, or by a thing near it",
+                step.text,
+                "'back and forth between' takes two places, and this step names one",
+                final=True,
             )
     return steps
+
+
+#: Why an ordinal is refused.
+ORDINAL_WHY = (
+    "an ordinal picks one of several things (or times) by their order, which the map does not "
+    "rank; name the one meant by its colour, or by a thing near it"
+)
+
+
+def _ordinal_within(words: str) -> str | None:
+    """The ordinal that starts ``words`` or any noun phrase in them after an article ("the
+    duck for the third time", "the second time you heard ..."), or None."""
+    if (nth := ordinal(words)) is not None:
+        return nth
+    for m in re.finditer(r"\b(?:the|a|an|my|your)\s", words, re.IGNORECASE):
+        if (nth := ordinal(words[m.start() :])) is not None:
+            return nth
+    return None
 
 
 #: Why a sound said with a superlative is refused.
@@ -703,6 +737,11 @@ class LearnedReader:
             for i, (w, r) in enumerate(zip(words, roles, strict=True))
             if r in ("O", "THEN", "REP") and i not in litotes
         ]
+        # an ordinal left out of the references ("the second time you heard a dog")
+        for i, r in enumerate(roles):
+            if r in ("O", "REP") and i and (nth := _ordinal_within(" ".join(words[i - 1 : i + 2]))):
+                if _plain(words[i]) == nth.split()[0].lower():
+                    raise ParseError(text, nth, ORDINAL_WHY)
         negated = [w for w in plain if is_negation(w)]
         if negated and (reading := self._after_courtesy(text, words, roles, robot)):
             return reading
