@@ -884,3 +884,17 @@ def test_an_ordinal_of_a_time_and_back_and_forth_of_one_place_are_refused(reader
     assert len(understand("first, go to the ball, then to the cube", reader=reader).steps) == 2
     (step,) = understand("go back and forth between the cube and the ball", reader=reader).steps
     assert isinstance(step.action, BackAndForth)
+
+
+def test_a_thing_placed_by_another_inside_one_things_words_is_refused():
+    from tabletop.reader.lexicon.words import placed_by
+    from tabletop.reader.spelling import head_nouns
+
+    heads = head_nouns()
+    assert placed_by("ball inside the tray", heads) == "inside the tray"
+    assert placed_by("cube beneath the teddy bear", heads) == "beneath the teddy bear"
+    # a thing's own parts, a likeness and a place word are no second thing
+    for ref in ["mug with the cube in it", "cube that looks like a ball", "ball in the corner"]:
+        assert placed_by(ref, heads) is None, ref
+    with pytest.raises(ParseError, match="places the thing by another"):
+        understand("go to the cube inside the tray", reader="rules+learned")

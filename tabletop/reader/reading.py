@@ -37,6 +37,7 @@ from tabletop.reader.lexicon.words import (
     SUPERLATIVES,
     breaks_off,
     far_from,
+    placed_by,
     superlative,
 )
 from tabletop.reader.llm import LLMReader
@@ -549,6 +550,15 @@ def settle_references(text: str, steps: tuple[Step, ...]) -> tuple[Step, ...]:
             raise ParseError(text, word, SEVERAL_WHY, final=True)
         if (word := count_in(ref, head_nouns())) is not None:  # "zero mugs", "mug #2"
             raise ParseError(text, word, COUNTED_WHY, final=True)
+        if (placed := placed_by(ref, head_nouns())) is not None:  # "the duck inside the mug"
+            raise ParseError(
+                text,
+                placed,
+                f"{placed!r} places the thing by another, and the reading kept both in one "
+                "thing's words; the robot reads a thing near another ('the duck near the mug') "
+                "and the sides of one ('behind the mug')",
+                final=True,
+            )
         if (word := breaks_off(ref)) is not None:  # "the duck, and (pick it up)"
             raise ParseError(
                 text,

@@ -21,6 +21,7 @@ __all__ = [
     "is_negation",
     "negations",
     "ordinal",
+    "placed_by",
     "relation_words",
     "superlative",
 ]
@@ -175,3 +176,26 @@ def far_from(text: str) -> str | None:
     """The words that ask for a place far from a thing, or None (see :data:`_FAR_FROM`)."""
     m = _FAR_FROM.search(str(text))
     return " ".join(m.group(0).split()) if m else None
+
+
+#: Prepositions that place one thing by another ("in", "inside", "on top of" ends in "of" and is
+#: read by the grammar).
+_PLACING = frozenset(
+    """in inside into within on onto atop under underneath beneath below behind beside above
+    over at by against among amid""".split()
+)
+
+
+def placed_by(ref: str, heads: frozenset[str] | set[str]) -> str | None:
+    """The words by which one thing's words ``ref`` place it by another thing, or None: a
+    preposition of place, an article and a phrase that ends in one of ``heads`` (a kind's
+    noun: "the duck inside the mug"). Such words relate two things, and one thing's words are
+    scored as one."""
+    words = [w.strip(",.;:!?\"'()").lower() for w in str(ref).split()]
+    for i in range(1, len(words) - 2):
+        if words[i] in _PLACING and words[i + 1] in ("the", "a", "an"):
+            rest = words[i + 2 : i + 5]
+            for j, w in enumerate(rest):
+                if w in heads:
+                    return " ".join(words[i : i + 3 + j])
+    return None
