@@ -34,8 +34,15 @@ def test_every_pair_of_modalities_fuses_sharp_primary_with_broad_constraint():
         "img": "the image ./a.png",
         "area": "the tray area",
     }
+    # (a thing near a thing of the same words is refused: the constraint names another one)
+    others = {
+        "obj": "the mug",
+        "sound": "the sound of a dog barking",
+        "img": "the image ./b.png",
+        "area": "the middle of the table",
+    }
     for k1, p1 in phrases.items():
-        for k2, p2 in phrases.items():
+        for k2, p2 in others.items():
             code = instruction_to_code(f"go to {p1} near {p2}")
             tree = ast.parse(code)
             calls = [

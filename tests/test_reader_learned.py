@@ -63,7 +63,7 @@ def test_a_motion_step_is_read_by_the_grammar_and_repetitions_counted():
 def test_a_step_without_the_references_its_relation_takes_is_refused():
     with pytest.raises(ParseError, match="names nothing"):
         _decode("go over there please")
-    with pytest.raises(ParseError, match="'between' takes 2 place"):
+    with pytest.raises(ParseError, match="'between' takes two places"):
         _decode("go between the/B-OBJ tray/I-OBJ and it", "between")
     with pytest.raises(ParseError, match="points back"):
         _decode("go between the/B-OBJ tray/I-OBJ and it/B-OBJ", "between")
@@ -154,7 +154,7 @@ def test_the_joint_reading_cuts_references_as_the_relation_takes():
     rels[:, RELATIONS.index("between")] = np.log(0.9)
     # the unconstrained roles join the two things into one: refused without the joint reading
     roles = best_roles(role_logp)
-    with pytest.raises(ParseError, match="'between' takes 2"):
+    with pytest.raises(ParseError, match="'between' takes two places"):
         decode(" ".join(words), words, roles, rels, "arm", parse_instruction)
     (step,) = decode(" ".join(words), words, roles, rels, "arm", parse_instruction, role_logp)
     assert step.action == Between(Goal(Part("obj", "red mug")), Goal(Part("obj", "duck")))

@@ -898,3 +898,28 @@ def test_a_thing_placed_by_another_inside_one_things_words_is_refused():
         assert placed_by(ref, heads) is None, ref
     with pytest.raises(ParseError, match="places the thing by another"):
         understand("go to the cube inside the tray", reader="rules+learned")
+
+
+@pytest.mark.parametrize("reader", ["rules+spelling", "learned", "rules+learned"])
+def test_a_question_a_place_below_a_thing_and_exclusions_are_refused(reader):
+    # each had been read as a move to the thing named (below: above it; "non-", "but": to it)
+    for text, word, why in [
+        ("where is the blue cube?", "where", "a question asks"),
+        ("go underneath the ball", "underneath", "inside it or the table"),
+        ("go to the non-blue cube", "non-blue", "negated"),
+        ("go to anything but the ball", "but", "negated"),
+    ]:
+        assert _fragment_refused(text, reader, why) == word, text
+    # (the grammar refuses "from" in a thing's words before reading it)
+    _fragment_refused("go to the cube farthest from the ball", reader, "far from|'from' cannot")
+    # a polite question asks to go, "non-stick" describes, and far from you is a side
+    assert understand("could you go to the cube?", reader=reader).steps
+    if reader != "learned":  # (the tagger alone refuses it as asking something else)
+        assert understand("go to the non-stick tray", reader=reader).steps
+    (step,) = understand("go to the side of the cube furthest from you", reader=reader).steps
+    assert step.action == Side("front", "cube")
+
+
+def test_half_a_character_is_named_not_a_traceback():
+    with pytest.raises(ParseError, match="lone surrogate"):
+        understand("go to the \ud800 cube")

@@ -463,6 +463,16 @@ def _relation(scores: np.ndarray) -> str:
     return RELATIONS[int(np.argmax(scores.sum(axis=0)))]
 
 
+#: How each relation is said, for messages.
+_RELATION_SAID = {
+    "goto": "going to a place",
+    "between": "'between'",
+    "backforth": "'back and forth between'",
+    "above": "'above'",
+    **{side: f"the {side} of a thing" for side in ("left", "right", "front", "behind")},
+}
+
+
 def _check(text: str, clause: str, relation: str, goals: list[Goal], times: int) -> None:
     """Refuse what the plan cannot honour, as the grammar does: a relation without the
     places it takes (or with more), a place named only by a pointing word, a side or above of
@@ -471,8 +481,12 @@ def _check(text: str, clause: str, relation: str, goals: list[Goal], times: int)
 
     need = 2 if relation in ("between", "backforth") else 1
     if len(goals) != need:
+        said = _RELATION_SAID.get(relation, relation)
         raise ParseError(
-            text, clause, f"'{relation}' takes {need} place(s); the step names {len(goals)}"
+            text,
+            clause,
+            f"{said} takes {'two places' if need == 2 else 'one place'}; the request names "
+            f"{len(goals)}" + (": join two places with 'then'" if need == 1 else ""),
         )
     for g in goals:
         for part in (g.primary, *g.near):

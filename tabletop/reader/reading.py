@@ -44,6 +44,7 @@ from tabletop.reader.llm import LLMReader
 from tabletop.reader.places import PlaceReader, beneath_surface
 from tabletop.reader.plan import (
     MOTIONS,
+    Above,
     BackAndForth,
     Between,
     Goal,
@@ -231,6 +232,7 @@ class RulesReader:
             raise ConfigError(f"an instruction must be a string, got {type(text).__name__}")
         text = normalise(text)
         refuse_non_words(text)
+        refuse_question(text)
         refuse_beneath_surface(text)
         refuse_relation_distance(text)
         read, fixes = self.speller.correct(text) if self.spelling else (text, ())
@@ -594,6 +596,25 @@ def settle_references(text: str, steps: tuple[Step, ...]) -> tuple[Step, ...]:
             raise ParseError(text, negated[0], "the robot cannot honour a negated goal")
         if (nth := _ordinal_within(ref)) is not None:
             raise ParseError(text, nth, ORDINAL_WHY)
+    for ref in _reference_texts(steps, ("obj",)):  # "go underneath the ball" as a thing
+        if (low := _BELOW.match(ref.strip())) and ref.split()[1:]:
+            raise ParseError(
+                text,
+                low.group(0),
+                f"a place {low.group(0)} a thing is inside it or the table, which the arm "
+                "cannot reach; it goes above a thing ('above the duck') or beside it",
+                final=True,
+            )
+    for step in steps:  # "go below the duck" read as above it: the word says the opposite
+        if isinstance(step.action, Above) and (low := _BELOW.search(step.text)):
+            if not _ABOVE_SAID.search(step.text):
+                raise ParseError(
+                    text,
+                    low.group(0),
+                    f"a place {low.group(0)} a thing is inside it or the table, which the arm "
+                    "cannot reach; it goes above a thing ('above the duck') or beside it",
+                    final=True,
+                )
     for step in steps:  # "back and forth between the duck": one place, and a word for none
         a = step.action
         if isinstance(a, BackAndForth) and any(
@@ -607,6 +628,26 @@ def settle_references(text: str, steps: tuple[Step, ...]) -> tuple[Step, ...]:
                 final=True,
             )
     return steps
+
+
+_BELOW = re.compile(r"\b(?:below|under|underneath|beneath)\b", re.IGNORECASE)
+_ABOVE_SAID = re.compile(r"\b(?:above|over|on\s+top|atop|hover\w*|up)\b", re.IGNORECASE)
+#: A question for information ("where is the red mug?"): no request to go anywhere.
+_QUESTION = re.compile(
+    r"^\s*(?:where|what|which|who|whose|why|how|when)(?:'s|\s)[^?]*\?\s*$", re.IGNORECASE
+)
+
+
+def refuse_question(text: str) -> None:
+    """Refuse a question for information ("where is the red mug?"): ParseError saying what
+    to ask instead (a reader would read its thing and move there)."""
+    if _QUESTION.match(text):
+        raise ParseError(
+            text,
+            text.split()[0],
+            "a question asks for information, and the robot answers by going to places: ask "
+            "it to go ('go to the red mug'), or query the map (tabletop query --obj ...)",
+        )
 
 
 #: Why an ordinal is refused.
@@ -688,6 +729,7 @@ class LearnedReader:
             raise ConfigError(f"an instruction must be a string, got {type(text).__name__}")
         text = normalise(text)
         refuse_non_words(text)
+        refuse_question(text)
         refuse_beneath_surface(text)
         refuse_relation_distance(text)
         refuse_nested_relation(text)  # the tagger would keep one relation of the two

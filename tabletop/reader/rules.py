@@ -259,6 +259,13 @@ def refuse_non_words(text: str) -> None:
             out_of_range=True,
         )
     for ch in text.strip():  # a line's own end is no line break inside it
+        if unicodedata.category(ch) == "Cs":  # half of a character, no character
+            raise ParseError(
+                text.encode("utf-8", "replace").decode("utf-8"),
+                f"U+{ord(ch):04X}",
+                "a request is text, and this one holds half of a character (a lone surrogate, "
+                f"U+{ord(ch):04X}); send it as UTF-8 text",
+            )
         if unicodedata.category(ch) == "Cc" or (
             unicodedata.category(ch) == "Cf" and ch != "\u200d"
         ):

@@ -11,6 +11,8 @@ from __future__ import annotations
 import re
 from typing import NamedTuple
 
+from tabletop.reader.lexicon.colour_names import COLOR_NAMES
+
 __all__ = [
     "AUXILIARIES",
     "NEGATIONS",
@@ -47,11 +49,30 @@ def is_negation(word: str) -> bool:
     return w.endswith("nt") and w[:-2] in _AUXILIARIES
 
 
+#: Words after which "but" excludes ("anything but the duck").
+_EXCEPT_AFTER = frozenset("anything everything anywhere everywhere any all".split())
+
+
 def negations(text: str, describing: bool = False) -> list[str]:
     """The negating words of ``text`` in order; ``describing``: without "no" and "without",
-    which also describe ("the mug with no handle")."""
-    words = re.findall(r"[a-z'\u2019]+", text.lower())
-    return [w for w in words if is_negation(w) and not (describing and w in ("no", "without"))]
+    which also describe ("the mug with no handle"), unless "no" opens the words ("no mug").
+    "non-" before a colour ("the non-red mug"; "non-stick" describes) and "but" after a word of
+    all ("anything but the duck") negate too."""
+    low = text.lower()
+    words = re.findall(r"[a-z'\u2019]+(?:-[a-z]+)*", low)
+    out = []
+    for i, w in enumerate(words):
+        if (w.startswith("non-") and w[4:] in COLOR_NAMES) or (
+            w == "but" and i and words[i - 1] in _EXCEPT_AFTER
+        ):
+            out.append(w)
+            continue
+        for part in w.split("-"):
+            if is_negation(part) and not (
+                describing and part in ("no", "without") and not (part == "no" and i == 0)
+            ):
+                out.append(part)
+    return out
 
 
 #: An ordinal at the start of a reference ("the 3rd mug", "the second duck from the left", "the
@@ -163,11 +184,15 @@ def breaks_off(ref: str) -> str | None:
     return None
 
 
-#: A place away from a thing ("far from the duck", "a long way from the mug"): a map scores
-#: nearness, and no reading may turn it into near. "not far from" is near.
+#: A place away from a thing ("far from the duck", "a long way from the mug", "the mug farthest
+#: from the duck"): a map scores nearness, and no reading may turn it into near. "not far
+#: from" is near, and far from the robot is a side.
 _FAR_FROM = re.compile(
     r"(?<!not )(?<!n't )(?<!not too )(?<!not that )(?<!not very )(?<!not so )"
-    r"\b(?:far(?:\s+away)?|a\s+long\s+way|well\s+away|miles)\s+from\b",
+    r"\b(?:(?:far|farther|farthest|further|furthest)(?:\s+away)?|a\s+long\s+way|well\s+away|"
+    r"miles)\s+from\b"
+    # (far from the robot is a side of a thing, or of the table: "its side furthest from you")
+    r"(?!\s+(?:the\s+)?(?:robot|you|me|us|arm|base|yourself)\b)",
     re.IGNORECASE,
 )
 
