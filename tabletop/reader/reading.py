@@ -364,69 +364,68 @@ _WHOLE_TABLE = frozenset(("table", "tabletop"))
 _WHOLE_TABLE_WORDS = _WHOLE_TABLE | {"the", "a", "top", "surface", "whole", "entire", "of"}
 
 
-def _whole_table_dropped(value):
-    """``value`` (steps, an action, a goal) without the narrowing parts that name the whole
-    table ("where the dog barked on the table"): every goal lies on it, so such a part
-    narrows nothing, and asked of the map it is its background, which finds nothing."""
+def _each_goal(value, change, skip: tuple[str, ...] = ()):
+    """``value`` (steps, an action, a goal) with every goal ``g`` in it replaced by
+    ``change(g)``; the fields named in ``skip`` are left as they are."""
     if isinstance(value, Goal):
-        keep = tuple(
-            p
-            for p in value.near
-            if not (
-                p.kind in ("obj", "area")
-                and (said := set(re.findall(r"[a-z]+", p.text.lower())))
-                and said <= _WHOLE_TABLE_WORDS
-                and said & _WHOLE_TABLE
-            )
-        )
-        return value if keep == value.near else dataclasses.replace(value, near=keep)
+        return change(value)
     if isinstance(value, tuple):
-        return tuple(_whole_table_dropped(v) for v in value)
+        return tuple(_each_goal(v, change, skip) for v in value)
     if dataclasses.is_dataclass(value) and not isinstance(value, type):
         changes = {
-            f.name: _whole_table_dropped(v)
+            f.name: _each_goal(v, change, skip)
             for f in dataclasses.fields(value)
-            if isinstance(v := getattr(value, f.name), tuple) or dataclasses.is_dataclass(v)
-        }
-        return dataclasses.replace(value, **changes) if changes else value
-    return value
-
-
-def _regions_as_places(value):
-    """``value`` (steps, an action, a goal, a part) with each thing's words that name no
-    thing of the vocabulary and do name a region of the table ("the centre", "the far left")
-    made a place: a reader that took them for a thing would look for a thing called so. A
-    side's or above's landmark is left as read."""
-    from tabletop.reader.place_words import parse_region
-
-    if isinstance(value, Part):
-        said = set(re.findall(r"[a-z]+", value.text.lower()))
-        if value.kind == "obj" and not said & name_words() and parse_region(value.text):
-            return Part("area", value.text)
-        return value
-    if isinstance(value, tuple):
-        return tuple(_regions_as_places(v) for v in value)
-    if dataclasses.is_dataclass(value) and not isinstance(value, type):
-        # (a side's landmark keeps its words: "the mug, on the far side" restates the side)
-        changes = {
-            f.name: _regions_as_places(v)
-            for f in dataclasses.fields(value)
-            if f.name != "landmark"
+            if f.name not in skip
             and (isinstance(v := getattr(value, f.name), tuple) or dataclasses.is_dataclass(v))
         }
         return dataclasses.replace(value, **changes) if changes else value
     return value
 
 
+def _names_whole_table(part: Part) -> bool:
+    said = set(re.findall(r"[a-z]+", part.text.lower()))
+    return part.kind in ("obj", "area") and bool(said & _WHOLE_TABLE) and said <= _WHOLE_TABLE_WORDS
+
+
+def _whole_table_dropped(value):
+    """``value`` (steps, an action, a goal) without the narrowing parts that name the whole
+    table ("where the dog barked on the table"): every goal lies on it, so such a part
+    narrows nothing, and asked of the map it is its background, which finds nothing."""
+
+    def drop(goal: Goal) -> Goal:
+        keep = tuple(p for p in goal.near if not _names_whole_table(p))
+        return goal if keep == goal.near else dataclasses.replace(goal, near=keep)
+
+    return _each_goal(value, drop)
+
+
+def _region_as_place(part: Part) -> Part:
+    from tabletop.reader.place_words import parse_region
+
+    said = set(re.findall(r"[a-z]+", part.text.lower()))
+    if part.kind == "obj" and not said & name_words() and parse_region(part.text):
+        return Part("area", part.text)
+    return part
+
+
+def _regions_as_places(value):
+    """``value`` (steps, an action, a goal) with each thing's words that name no thing of
+    the vocabulary and do name a region of the table ("the centre", "the far left") made a
+    place: a reader that took them for a thing would look for a thing called so. A side's or
+    above's landmark keeps its words ("the mug, on the far side" restates the side)."""
+
+    def places(goal: Goal) -> Goal:
+        near = tuple(_region_as_place(p) for p in goal.near)
+        return Goal(_region_as_place(goal.primary), near)
+
+    return _each_goal(value, places, skip=("landmark",))
+
+
 def _goals_in(value) -> list[Goal]:
     """Every goal of a plan value (steps, an action, a goal), landmarks included."""
-    if isinstance(value, Goal):
-        return [value]
-    if isinstance(value, tuple):
-        return [g for v in value for g in _goals_in(v)]
-    if dataclasses.is_dataclass(value) and not isinstance(value, type):
-        return [g for f in dataclasses.fields(value) for g in _goals_in(getattr(value, f.name))]
-    return []
+    found: list[Goal] = []
+    _each_goal(value, lambda g: found.append(g) or g)
+    return found
 
 
 def _same_goal(a: Goal, b: Goal) -> bool:
@@ -749,8 +748,15 @@ class LearnedReader:
         tagger = load_tagger(self.weights or DEFAULT_READER_WEIGHTS)
         role_logp, rels = tagger.scores(words)
         roles = best_roles(role_logp)
-        plain = [w.strip(",.;:!?\"'").lower() for w, r in zip(words, roles, strict=True)
-                 if r in ("O", "THEN", "REP")]  # fmt: skip
+        # the words left out of the references; "not far" (a litotes) says near, negates no
+        # goal, and is left to the tagger's relation
+        litotes = {i for i, w in enumerate(words[:-1]) if _plain(w) == "not"
+                   and _plain(words[i + 1]) == "far"}  # fmt: skip
+        plain = [
+            _plain(w)
+            for i, (w, r) in enumerate(zip(words, roles, strict=True))
+            if r in ("O", "THEN", "REP") and i not in litotes
+        ]
         for i, (w, r) in enumerate(zip(words, roles, strict=True)):
             # "all the cubes", "both ducks", "each side of the mug": a word left out of the
             # references that gathers several of what follows
@@ -759,7 +765,7 @@ class LearnedReader:
                 raise ParseError(text, w, SEVERAL_WHY)
             # "half a cube", "zero balls": a count left out of the thing's words
             counted = count_in(" ".join(words[i:]), head_nouns()) if r == "O" and follows else None
-            if counted is not None and counted == w.strip(",.;:!?\"'").lower():
+            if counted is not None and counted == _plain(w):
                 raise ParseError(text, w, COUNTED_WHY)
         ranks = [
             w
@@ -781,14 +787,6 @@ class LearnedReader:
                 "a thing ranks by size, height, left and right, or nearness ('the nearest "
                 f"mug'); {SOUND_RANK_WHY}",
             )
-        # "not far" (a litotes) says near, and negates no goal: the tagger reads the relation
-        litotes = {i for i, w in enumerate(words[:-1]) if _plain(w) == "not"
-                   and _plain(words[i + 1]) == "far"}  # fmt: skip
-        plain = [
-            w.strip(",.;:!?\"'").lower()
-            for i, (w, r) in enumerate(zip(words, roles, strict=True))
-            if r in ("O", "THEN", "REP") and i not in litotes
-        ]
         # an ordinal left out of the references ("the second time you heard a dog")
         for i, r in enumerate(roles):
             if r in ("O", "REP") and i and (nth := _ordinal_within(" ".join(words[i - 1 : i + 2]))):
@@ -843,7 +841,7 @@ class LearnedReader:
         # a second request after the last reference that the tagger left out ("..., and then
         # put it down"): a joining word, then words that point back at what was named
         last = max((i for i, r in enumerate(roles) if r not in ("O", "THEN", "REP")), default=-1)
-        after = [w.strip(",.;:!?\"'").lower() for w in words[last + 1 :]]
+        after = [_plain(w) for w in words[last + 1 :]]
         joined = next((i for i, w in enumerate(after) if w in _JOINERS), None)
         rest = after[joined + 1 :] if joined is not None else []
         # (unless it says the side the reading goes to, "..., and stop on its right", or only

@@ -163,6 +163,7 @@ def _number(v) -> str | None:
 #: floor against a thing with no evidence at all; not tuned on any suite).
 APART_MIN_RATIO = 0.1
 
+
 def _landmark_arg(v) -> str | None:
     if isinstance(v, Heatmap):
         return None

@@ -486,7 +486,7 @@ def _reading(words: list[str], where, keep_names: bool = False) -> tuple[str, st
 
 def _ish(word: str) -> str:
     """ "reddish" -> "red", "bluish" -> "blue", "greyish" -> "grey", a hedged compound led by a
-    basic colour term ("bluebellish" -> "blue"), the superlatives
+    basic colour term ("greenstoneish" -> "green"), the superlatives
     ("blackest" -> "black", "bluest" -> "blue") and the adjectives in "-y" of a colour name
     ("minty" -> "mint", "creamy" -> "cream", "chocolatey" -> "chocolate", "rosy" -> "rose",
     "grassy" -> "grass", "icy" -> "ice", "muddy" -> "mud" of the survey); other words
@@ -498,7 +498,7 @@ def _ish(word: str) -> str:
                 if cand in COLOR_NAMES:
                     return cand
     if word.endswith("ish") and word[:-3] not in survey_colours():
-        # a hedged compound that a basic colour term leads ("bluebell-ish", "greenstone-ish"):
+        # a hedged compound that a basic colour term leads ("greenstone-ish", "redcurrant-ish"):
         # the hedge says its colour is the compound's, and no list has the compound
         stem = word[:-3]
         for basic in BASIC_COLOURS:
