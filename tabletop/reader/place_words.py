@@ -47,7 +47,14 @@ import re
 
 from tabletop.mapping.table_regions import TableRegion
 
-__all__ = ["area_subject", "opposite_directions", "parse_region", "region_on_ground"]
+__all__ = [
+    "area_subject",
+    "directions",
+    "ground_phrases",
+    "opposite_directions",
+    "parse_region",
+    "region_on_ground",
+]
 
 _LEFT = r"left\s*hand|leftmost|left|port"
 _RIGHT = r"right\s*hand|rightmost|right|starboard"
@@ -114,6 +121,11 @@ def _geometry(text: str) -> tuple[dict[str, str], list[str]] | None:
     or None when it names two opposite directions ("left ... right")."""
     found, rest, clash = _directions(text)
     return None if clash else (found, rest)
+
+
+def directions(text: str) -> dict[str, str]:
+    """The geometric words ``text`` names ({"depth": "far", "lateral": "left"}; {} for none)."""
+    return _directions(text)[0]
 
 
 def opposite_directions(text: str) -> tuple[str, str] | None:
@@ -215,3 +227,38 @@ def area_subject(text: str) -> str | None:
     place = set(_PLACE_WORDS.split())
     rest = [w for w in words if w not in place]
     return " ".join(rest) or None
+
+
+#: Words that end the noun phrase a region is named on ("the left of the garden *by* the
+#: shed"): prepositions, relative words and the robot's own words (space-separated).
+_GROUND_ENDS = frozenset(
+    "of on in at by from to near with for toward towards past beyond over under along across "
+    "off up down around round where which that who whose as than nearest closest furthest "
+    "farthest and or but if so".split()
+)
+_GROUND_ARTICLES = frozenset("the a an my our your its this that these those their his her".split())
+_GROUND_AFTER = re.compile(r"\b(?:of|on|in|across|at)\b")
+
+
+def ground_phrases(text: str) -> list[str]:
+    """The noun phrases a region of ``text`` is named on: each phrase after "of", "on", "in",
+    "across" or "at", without its article, up to the next preposition, relative word, robot
+    word or direction ("the far corner of the room" -> ["room"]; "the left end of the desk by
+    you" -> ["desk"]; "the bit furthest from me" -> []). A phrase of place words alone ("the
+    end of the left side") is none; the table's own words are kept ("the table")."""
+    t = re.sub(r"[,;:()]", " , ", str(text).lower().replace("'s", " "))
+    t = re.sub(r"[^a-z, ]", " ", t)
+    filler = set(_FILLER.split()) - _SURFACE_FILLER
+    out = []
+    for m in _GROUND_AFTER.finditer(t):
+        words = []
+        for w in t[m.end() :].split():
+            if w in _GROUND_ARTICLES and not words:
+                continue
+            robot = re.fullmatch(_ROBOTS, w)
+            if w == "," or w in _GROUND_ENDS or robot or _directions(f" {w} ")[0]:
+                break
+            words.append(w)
+        if any(w not in filler for w in words) and (g := " ".join(words)) not in out:
+            out.append(g)
+    return out

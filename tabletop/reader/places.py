@@ -38,11 +38,14 @@ from tabletop.mapping.table_regions import AreaRef, TableRegion
 from tabletop.paths import DATA_DIR
 from tabletop.reader.place_words import (
     area_subject,
+    directions,
+    ground_phrases,
     opposite_directions,
     parse_region,
     region_on_ground,
 )
 from tabletop.reader.rules import refuse_relation_as_area
+from tabletop.reader.spelling import kind_words
 
 __all__ = [
     "DEFAULT_PLACE_WEIGHTS",
@@ -219,11 +222,19 @@ def _beneath_surface(words: str) -> str:
     return ""
 
 
+#: "off the table": a place that is not on the table's top.
+_OFF_TABLE = re.compile(r"\boff\s+(?:of\s+)?(?:the\s+|this\s+|that\s+)?(table(?:\s*top)?)\b", re.I)
+
+
 def beneath_surface(text: str) -> tuple[str, str] | None:
     """("under", "table") where ``text`` asks for a place beneath one of :data:`SURFACES`
-    ("go under the table"), None otherwise ("under the tray" is where the tray stands)."""
+    ("go under the table") or off the table ("off the table to the left": ("off",
+    "table")), None otherwise ("under the tray" is where the tray stands; "the bit off to your
+    left" is on the table)."""
     if (m := _BENEATH.search(text)) and (below := _beneath_surface(text[m.end() :])):
         return m.group(0), below
+    if m := _OFF_TABLE.search(text):
+        return "off", m.group(1)
     return None
 
 
@@ -250,8 +261,9 @@ class PlaceReader:
         if (under := beneath_surface(text)) is not None:
             # the map holds the table's top and what stands on it: a place beneath the table
             # or the floor is none of it (beneath a tray is where the tray stands: read on)
-            return AreaRef(text, how=f"{under[0]!r} the {under[1]}: a place beneath the "
-                           "table's top is off it, and the top is all this map holds")  # fmt: skip
+            off = "a place off it" if under[0] == "off" else "a place beneath the top is off it"
+            return AreaRef(text, how=f"{under[0]!r} the {under[1]}: {off}; the table's top "
+                           "is all this map holds")  # fmt: skip
         region = parse_region(text)
         if region is not None:
             return AreaRef(text, region=region, how="grammar")
@@ -261,6 +273,8 @@ class PlaceReader:
                            "and a region lies in one: name one of them")  # fmt: skip
         if self.learned and text.strip():
             clf = self.classifier()
+            if (off := self._elsewhere(clf, text)) is not None:
+                return off
             on = region_on_ground(text)
             if on is not None and clf.ground is not None:
                 region, ground = on
@@ -279,3 +293,23 @@ class PlaceReader:
                 return AreaRef(text, region=TableRegion(lateral, depth, text), how=how)
         subject = area_subject(text)
         return AreaRef(text, subject=subject, how="subject" if subject else "place words only")
+
+    @staticmethod
+    def _elsewhere(clf: PlaceClassifier, text: str) -> AreaRef | None:
+        """A region named on grounds the ground classifier takes, each, for somewhere other
+        than the work surface ("the far corner of the room": P(surface) below one minus its
+        threshold) is off this map: an :class:`AreaRef` with no region and the reason. None
+        where ``text`` names no direction or no ground, where one ground may be the surface,
+        or where one names a kind of thing the map knows."""
+        g = clf.ground
+        grounds = ground_phrases(text)
+        if g is None or not grounds or not directions(text):
+            return None
+        if any(w in kind_words() for gr in grounds for w in gr.split()):
+            return None  # "the left side of the mug": a side of a thing, looked up as one
+        p = g.probability(_text_encoder(clf.space).encode_text([f"the {w}" for w in grounds]))
+        if float(p.max()) >= 1.0 - g.threshold:
+            return None
+        return AreaRef(text, how=f"{grounds[0]!r} is not the table the arm works on (the work "
+                       f"surface at {float(p.max()):.2f}), and the table's top is all this map "
+                       "holds")  # fmt: skip
