@@ -926,3 +926,58 @@ def test_a_question_a_place_below_a_thing_and_exclusions_are_refused(reader):
 def test_half_a_character_is_named_not_a_traceback():
     with pytest.raises(ParseError, match="lone surrogate"):
         understand("go to the \ud800 cube")
+
+
+def _tagged(spec: str):
+    """Words and roles of 'word/ROLE ...' (a word without a role is plain)."""
+    words, roles = [], []
+    for tok in spec.split():
+        w, _, r = tok.partition("/")
+        words.append(w)
+        roles.append(r or "O")
+    return words, roles
+
+
+@pytest.mark.parametrize(
+    ("spec", "between"),
+    [
+        # one thing said to be near another by words that join nothing: the second narrows it
+        ("go to the/B-OBJ mug/I-OBJ practically hugging the/B-OBJ duck/I-OBJ", False),
+        ("go to the/B-OBJ mug/I-OBJ snug against where a/B-SOUND dog/I-SOUND barked", False),
+        # two things joined: a "between"
+        ("go between the/B-OBJ mug/I-OBJ and the/B-OBJ duck/I-OBJ", True),
+        ("stop midway from the/B-OBJ mug/I-OBJ to the/B-OBJ duck/I-OBJ", True),
+        ("aim for the/B-OBJ mug/I-OBJ , the/B-OBJ duck/I-OBJ , in the middle", True),
+        (
+            "between the/B-OBJ mug/I-OBJ by the/B-NOBJ tray/I-NOBJ and the/B-OBJ duck/I-OBJ",
+            True,
+        ),
+    ],
+)
+def test_a_between_needs_a_word_that_joins_its_two_things(spec, between):
+    from tabletop.reader.learned import decode
+    from tabletop.reader.reading import read_clause
+
+    words, roles = _tagged(spec)
+    (step,) = decode(" ".join(words), words, roles, ["between"] * len(words), "arm", read_clause)
+    if between:
+        assert isinstance(step.action, Between)
+    else:
+        assert isinstance(step.action, GoTo)
+        assert step.action.goal.primary == Part("obj", "mug") and len(step.action.goal.near) == 1
+
+
+def test_the_tagger_s_between_of_a_thing_and_the_whole_table_goes_to_the_thing():
+    from tabletop.reader.plan import Step
+    from tabletop.reader.reading import _whole_table_side_dropped
+
+    mug = Goal(Part("obj", "mug"), (Part("sound", "a dog barking"),))
+    for action in (Between(mug, Goal(Part("area", "the table"))),
+                   BackAndForth(Goal(Part("area", "the tabletop")), mug)):  # fmt: skip
+        (step,) = _whole_table_side_dropped((Step(action, 1, "x"),))
+        assert step.action == GoTo(mug)
+    kept = Between(mug, Goal(Part("area", "the left side of the table")))
+    assert _whole_table_side_dropped((Step(kept, 1, "x"),))[0].action == kept
+    # the grammar's "between" is read from its words and kept: the table is then not found
+    (step,) = get_reader("rules").understand("go between the mug and the table").steps
+    assert isinstance(step.action, Between)

@@ -50,3 +50,39 @@ def test_seeded_and_held_out_pools_refused(texts):
     assert [t.text for t in reader_texts(("tune",), 20, seed=4)] != [t.text for t in texts[:20]]
     with pytest.raises(ConfigError, match="never read for training"):
         reader_texts((HELDOUT_POOLS[0],), n_per_pool=1)
+
+
+def test_noise_people_add_keeps_the_labels():
+    import re
+
+    from tabletop.eval.reader_texts import _plain_words, _templates
+
+    t = _templates()
+    rows = reader_texts(("tune", "tune-2"), n_per_pool=1500, seed=5)
+    # a side's part named by a word of its own ("the left flank of"): the side still decides
+    plain = set(_plain_words())
+    parts = [
+        r for r in rows
+        if (m := re.search(r"\bthe (left|right|front|back) ([a-z]+) of\b", r.text))
+        and m.group(2) in plain
+    ]  # fmt: skip
+    assert len(parts) >= 5
+    side = {"left": "left", "right": "right", "front": "front", "back": "behind"}
+    for r in parts:
+        m = re.search(r"\bthe (left|right|front|back) ([a-z]+) of\b", r.text)
+        i = r.words.index(m.group(2)) if m.group(2) in r.words else None
+        if i is not None and r.roles[i] == "O":  # a step's own side, not inside a place's words
+            assert r.relations[i] in (side[m.group(1)], "none"), r
+    # the whole table said after a thing is plain words, and hedges before a near word too
+    whole = [r for r in rows for w in t["whole_table"] if f" {w} " in f" {r.text} "]
+    assert whole and all(
+        r.roles[r.words.index("table")] == "O" for r in whole if "table" in r.words
+        and "AREA" not in " ".join(r.roles)
+    )  # fmt: skip
+    hedged = [r for r in rows if any(f" {h} near " in f" {r.text} " for h in t["hedges"])]
+    assert hedged
+    for r in hedged:
+        k = r.words.index("near")
+        assert r.roles[k] == "O" and r.roles[k - 1] == "O"
+    # the words put in carry no structure of their own
+    assert not plain & {"left", "right", "not", "mug", "red", "near", "three", "biggest"}

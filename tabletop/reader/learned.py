@@ -691,6 +691,34 @@ def _between_said(text: str, clause: str, words: list[str], roles: list[str]) ->
         )
 
 
+#: Words that join the two goals of a "between" or a "back and forth": "A and B", "from A to
+#: B", "A or B", "A, B", "A as well as B" (space-separated).
+_COORDINATORS = frozenset("and & plus n to from or as till until , + vs versus".split())
+
+
+def _coordinated(words: list[str], roles: list[str]) -> bool:
+    """Whether a word joins the step's first two goals: among the plain words between the
+    end of the first goal's own words and the start of the second's (references as
+    :func:`_spans` cuts them; a goal's constraints are not goals). "the mug rubbing shoulders
+    with the duck" joins none: one thing said to be near another, not two things to go
+    between."""
+    runs: list[tuple[int, int, str]] = []  # (start, end, body) of each reference
+    for i, r in enumerate(roles):
+        body = r[2:] if r[:2] in ("B-", "I-") else ""
+        if body and runs and runs[-1][1] == i and runs[-1][2] == body:
+            runs[-1] = (runs[-1][0], i + 1, body)
+        elif body:
+            runs.append((i, i + 1, body))
+    goals = [(a, b) for a, b, body in runs if not body.startswith("N")]
+    if len(goals) < 2:
+        return True
+    for i in range(goals[0][1], goals[1][0]):
+        w = words[i].lower()
+        if roles[i] == "O" and (w.strip(",.;:") in _COORDINATORS or w.endswith(",")):
+            return True
+    return False
+
+
 def decode(text: str, words: list[str], roles: list[str], relations, robot: str,
            rules, role_logp: np.ndarray | None = None,
            margin: float = JOINT_MARGIN) -> tuple[Step, ...]:  # fmt: skip
@@ -743,6 +771,11 @@ def decode(text: str, words: list[str], roles: list[str], relations, robot: str,
         if not goals:
             raise ParseError(text, clause, "the step names nothing to go to")
         goals, relation = _side_as_region(goals, relation)
+        if relation == "between" and len(goals) == 2:
+            step_words = [words[i] for i in idx]
+            if not _coordinated(step_words, step_roles):  # the second thing narrows the first
+                a, b = goals
+                goals, relation = [Goal(a.primary, (*a.near, b.primary, *b.near))], "goto"
         if relation in ("between", "backforth") and len(goals) > 2:
             goals = _two_at_and([words[i] for i in idx], step_roles) or goals
         _check(text, clause, relation, goals, times)

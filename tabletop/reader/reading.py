@@ -48,6 +48,7 @@ from tabletop.reader.plan import (
     BackAndForth,
     Between,
     Goal,
+    GoTo,
     Part,
     Reading,
     Side,
@@ -397,6 +398,24 @@ def _whole_table_dropped(value):
         return goal if keep == goal.near else dataclasses.replace(goal, near=keep)
 
     return _each_goal(value, drop)
+
+
+def _whole_table_side_dropped(steps: tuple[Step, ...]) -> tuple[Step, ...]:
+    """``steps`` with a "between" or a "back and forth" one of whose two goals is the whole
+    table alone read as going to the other: the tagger's reading of a thing said to be on the
+    table ("the mug near where the dog barked, on the table") as two goals; the table is no
+    one place to go between or to and from. The learned reader's only: a grammar that read
+    "between" read it from the words."""
+    out = []
+    for step in steps:
+        a = step.action
+        if isinstance(a, (Between, BackAndForth)):
+            whole = [g for g in (a.a, a.b) if not g.near and _names_whole_table(g.primary)]
+            if len(whole) == 1:
+                other = a.b if whole[0] is a.a else a.a
+                step = dataclasses.replace(step, action=GoTo(other))
+        out.append(step)
+    return tuple(out)
 
 
 def _region_as_place(part: Part) -> Part:
@@ -808,8 +827,12 @@ class LearnedReader:
                 "it stands, 'the mug left of the duck', is not read): ask for the place, 'go to "
                 "the left of the duck', or the thing near another, 'go to the mug near the duck'",
             )
+        # the tagger's "between" of a thing and the whole table is one thing said to be on it
         steps = settle_references(
-            text, decode(text, words, roles, rels, robot, read_clause, role_logp)
+            text,
+            _whole_table_side_dropped(
+                decode(text, words, roles, rels, robot, read_clause, role_logp)
+            ),
         )
         # a side word left out of the references where no step goes to a side ("..., the
         # one in yellow's right" read as the duck): the reading would drop the side asked for
