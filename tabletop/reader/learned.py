@@ -764,7 +764,13 @@ def decode(text: str, words: list[str], roles: list[str], relations, robot: str,
 
             if negated := negations(clause):  # "the mug that is not red": say why, by name
                 raise ParseError(text, negated[0], "the robot cannot honour a negated goal")
-            raise ParseError(text, clause, "the arm goes to places; this step asks something else")
+            raise ParseError(
+                text,
+                clause,
+                "the robot goes to places (a thing, a sound, a place on the table, between two "
+                "things, a side of one or above it); this step asks something else, such as "
+                "an action on a thing, a condition or a question: e.g. 'go to the red mug'",
+            )
         if relation == "motion":
             steps.extend(rules(clause, robot))
             continue

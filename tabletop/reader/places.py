@@ -310,6 +310,6 @@ class PlaceReader:
         p = g.probability(_text_encoder(clf.space).encode_text([f"the {w}" for w in grounds]))
         if float(p.max()) >= 1.0 - g.threshold:
             return None
-        return AreaRef(text, how=f"{grounds[0]!r} is not the table the arm works on (the work "
+        return AreaRef(text, how=f"{grounds[0]!r} is not the table the robot works on (the work "
                        f"surface at {float(p.max()):.2f}), and the table's top is all this map "
                        "holds")  # fmt: skip

@@ -619,7 +619,7 @@ def settle_references(text: str, steps: tuple[Step, ...]) -> tuple[Step, ...]:
             raise ParseError(
                 text,
                 low.group(0),
-                f"a place {low.group(0)} a thing is inside it or the table, which the arm "
+                f"a place {low.group(0)} a thing is inside it or the table, which the robot "
                 "cannot reach; it goes above a thing ('above the duck') or beside it",
                 final=True,
             )
@@ -629,7 +629,7 @@ def settle_references(text: str, steps: tuple[Step, ...]) -> tuple[Step, ...]:
                 raise ParseError(
                     text,
                     low.group(0),
-                    f"a place {low.group(0)} a thing is inside it or the table, which the arm "
+                    f"a place {low.group(0)} a thing is inside it or the table, which the robot "
                     "cannot reach; it goes above a thing ('above the duck') or beside it",
                     final=True,
                 )
@@ -874,7 +874,7 @@ class LearnedReader:
             raise ParseError(
                 text,
                 " ".join(words[last + 1 + joined :]),
-                "a second request after the place was not read: the arm goes to places, and a "
+                "a second request after the place was not read: the robot goes to places, and a "
                 "second place is joined with 'then' ('go to the mug, then to the duck')",
             )
         manner = tuple(w for w in plain if w in MANNER)

@@ -982,7 +982,7 @@ class _Parser:
             self.fail(
                 clause,
                 f"'{said} {rest}' asks to do something with {rest!r}, not to go to a place; "
-                "the arm goes to places (e.g. 'go to the mug', 'move behind the duck')",
+                "the robot goes to places (e.g. 'go to the mug', 'move behind the duck')",
                 final=True,  # no other reader reads the thing done to as the goal
             )
         return Step(self.action(rest, clause), times, self._restore(clause))
@@ -1001,7 +1001,7 @@ class _Parser:
             self.fail(
                 clause,
                 "turning on the spot and driving forward or back are a mobile base's motions; "
-                "the arm moves to places (e.g. 'move 10 cm north')",
+                "the robot moves to places (e.g. 'move 10 cm north')",
             )
         if m_face:
             return Face(self.landmark(m_face.group(1), "face"))
