@@ -402,6 +402,19 @@ def test_a_suite_file_that_is_a_directory_is_named_a_directory(tmp_path, capsys)
         assert "is a directory, not a file" in err and "does not exist" not in err, err
 
 
+def test_a_suite_file_without_a_suite_to_score_is_refused(tmp_path, capsys):
+    # the ninth probe: --suite-file without --suite was left unread without a word
+    from tabletop.cli import main
+
+    path = tmp_path / "suite.toml"
+    path.write_text("not read")
+    assert main(["parse", "go to the mug", "--suite-file", str(path)]) == 2
+    assert "give --suite too" in capsys.readouterr().err
+    assert main(["run", "some_map.npz", "go to the mug", "--suite-file", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert "give --suite or the map 'reference'" in err and "some_map" not in err
+
+
 def _default_scene_with(**changes) -> dict:
     """The shipped default scene's data with the first object's fields changed."""
     import tomllib

@@ -105,3 +105,17 @@ def test_judge_and_image_target_name_a_wrong_argument():
     for size in ((64,), (0, 48), ("a", "b")):
         with pytest.raises(ConfigError, match="image_size must be"):
             m.image_target(np.eye(4), K, size)
+    # the ninth probe: a pose that is no rigid transform, and intrinsics with no focal length
+    sheared, mirrored = np.eye(4), np.diag([1.0, 1.0, -1.0, 1.0])
+    sheared[0, 1] = 0.5
+    for T in (sheared, mirrored, 2 * np.eye(4)):
+        with pytest.raises(ConfigError, match="T_world_cam must be a rigid transform"):
+            m.image_target(T, K, (64, 48))
+    for bad in (np.zeros((3, 3)), np.diag([500.0, -500.0, 1.0])):
+        with pytest.raises(ConfigError, match="K must be pinhole intrinsics"):
+            m.image_target(np.eye(4), bad, (64, 48))
+    # and a decay asked with a word for a boolean
+    for major in ("yes", 1, None):
+        with pytest.raises(ConfigError, match=r"decay\(major=...\): major takes True or False"):
+            m.decay(major)
+    assert m.decay(True) == m.config.major_decay and m.decay(False) == m.config.aux_decay

@@ -83,6 +83,11 @@ def cmd_parse(args: argparse.Namespace) -> int:
         )
     if args.json and not args.suite:
         raise ConfigError("--json is the suite's report: give --suite too (or leave --json out)")
+    if args.suite_file is not None and not args.suite:
+        raise ConfigError(
+            f"--suite-file {args.suite_file!r} is the suite --suite scores: give --suite too "
+            "(or leave --suite-file out)"
+        )
     if args.suite:
         return _suite_on_reference(args)
     if not args.instruction:
@@ -206,6 +211,12 @@ def cmd_run(args: argparse.Namespace) -> int:
     if args.image_dir is not None and not Path(args.image_dir).is_dir():
         what = "is not a directory" if Path(args.image_dir).exists() else "does not exist"
         raise ConfigError(f"--image-dir {str(args.image_dir)!r} {what}")
+    if args.suite_file is not None and not (args.suite or args.map == REFERENCE):
+        raise ConfigError(
+            f"--suite-file {args.suite_file!r} is the suite --suite scores, or whose reference "
+            f"map '{REFERENCE}' names: give --suite or the map '{REFERENCE}' (or leave "
+            "--suite-file out)"
+        )
     llm_config = _llm_config(args)  # its flags and file, before the map and the robot
     suite = load_suite(args.suite_file) if (args.suite or args.map == REFERENCE) else None
     m = _load_map(args.map, suite)
@@ -451,6 +462,7 @@ def cmd_train_reader(args: argparse.Namespace) -> int:
     return 0
 
 
-#: Generated requests per tune pool, and the pools a first network is measured on unseen.
+#: Generated requests per tune pool, and the pools a first network is measured on unseen (the
+#: two newest tune pools: the last writers' words, read only after their report).
 READER_TEXTS_PER_POOL = 1000
-READER_VAL_POOLS = ("heldout-10", "heldout-11", "heldout-12")
+READER_VAL_POOLS = ("heldout-26", "heldout-27")

@@ -502,7 +502,11 @@ class AVLMap:
     # ------------------------------------------------------------------ queries
     def decay(self, major: bool) -> float:
         """The decay [1/m] of a primary (``major``) or auxiliary heatmap."""
-        return self.config.major_decay if major else self.config.aux_decay
+        return (
+            self.config.major_decay
+            if check_bool("decay", "major", major)
+            else self.config.aux_decay
+        )
 
     def judge(self, modality: str, margin: float) -> tuple[float, bool]:
         """(calibrated confidence, found) of a query of ``modality`` whose best match beats
@@ -729,6 +733,20 @@ class AVLMap:
                 raise ConfigError(f"image_target: {name} must be a {shape} matrix, got {got}")
             if not np.isfinite(a).all():
                 raise ConfigError(f"image_target: {name} holds a value that is not finite")
+        T, k = np.asarray(T_world_cam, float), np.asarray(K, float)
+        R = T[:3, :3]
+        if not (np.allclose(R @ R.T, np.eye(3), atol=1e-4) and np.linalg.det(R) > 0
+                and np.allclose(T[3], (0, 0, 0, 1), atol=1e-6)):  # fmt: skip
+            raise ConfigError(
+                "image_target: T_world_cam must be a rigid transform (an orthonormal rotation "
+                "with determinant +1, last row 0 0 0 1)"
+            )
+        if not (k[0, 0] > 0 and k[1, 1] > 0 and np.allclose(k[2], (0, 0, 1), atol=1e-9)):
+            raise ConfigError(
+                "image_target: K must be pinhole intrinsics: focal lengths fx = K[0,0] and "
+                f"fy = K[1,1] > 0, last row 0 0 1; got fx {k[0, 0]:g}, fy {k[1, 1]:g}, last "
+                f"row {k[2].tolist()}"
+            )
         size = np.asarray(image_size) if not isinstance(image_size, (str, bytes)) else None
         if (
             size is None
