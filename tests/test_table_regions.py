@@ -87,6 +87,12 @@ from tabletop.reader.place_words import parse_region
         ("the stretch beyond the middle away from the base", None, "far"),
         ("the bit past the centre", None, "far"),
         ("the part this side of the middle", None, "near"),
+        # a direction made an adjective or hedged, and the side across from the robot
+        ("the lefty corner", "left", None),
+        ("the right-ish half", "right", None),
+        ("the centre-ish bit", "middle", "middle"),
+        ("the part of the table across from the robot", None, "far"),
+        ("the edge across the table from you", None, "far"),
     ],
 )
 def test_geometric_phrasings(text, lateral, depth):

@@ -67,6 +67,7 @@ _ROBOT_AT = rf"(?:where\s+)?{_ROBOT}\s+(?:is|are|stands?|sits?|(?:is|are)\s+{_SE
 #: The robot's own (side): "your side", "the arm's end" ("'s" is dropped before reading).
 _ROBOTS = rf"(?:{_ROBOT}|your|yours)"
 _FAR = (
+    rf"across\s+(?:the\s+\w+\s+)?from\s+(?:{_ROBOT_AT})|"
     rf"(?:far(?:thest|ther)?|furthest|further)(?:\s+(?:end|side|part))?\s+(?:away\s+)?from\s+"
     rf"(?:{_ROBOT_AT})|away\s+from\s+(?:{_ROBOT_AT})|opposite\s+(?:to\s+|from\s+)?{_ROBOT}|"
     r"far\s+(?:side|end)|front\s*most|front|forward|far(?:thest|ther)?|furthest|further|"
@@ -139,6 +140,9 @@ def _directions(text: str) -> tuple[dict[str, str], list[str], tuple[str, str] |
     directions it names or None)."""
     t = " " + re.sub(r"[^a-z ]", " ", str(text).lower().replace("'s", " ")) + " "
     t = re.sub(r"\s+", " ", t)
+    # a direction made an adjective or hedged keeps its direction: "lefty", "right-ish"
+    t = re.sub(r" (left|right)(?:y|ie)(?= )", r" \1", t)
+    t = re.sub(rf" ({_LEFT}|{_RIGHT}|{_MID}|front|back|far|near) ?ish(?= )", r" \1", t)
     t = _JUST_AHEAD.sub(" near the robot ", t)
     t = _AHEAD.sub(" front ", t)
     t = _STRESSED_MID.sub(" ", t)  # "right in the middle": no right side
