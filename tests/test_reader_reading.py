@@ -981,3 +981,35 @@ def test_the_tagger_s_between_of_a_thing_and_the_whole_table_goes_to_the_thing()
     # the grammar's "between" is read from its words and kept: the table is then not found
     (step,) = get_reader("rules").understand("go between the mug and the table").steps
     assert isinstance(step.action, Between)
+
+
+@pytest.mark.parametrize(
+    "text",
+    [
+        "no rush, go to the mug",
+        "don't worry, just go to the mug",
+        "without delay go to the mug",
+        "not sure where it is, but go to the mug",
+    ],
+)
+def test_an_aside_whose_negation_stays_inside_it_leaves_the_request(text):
+    (step,) = understand(text).steps
+    assert step.action == GoTo(Goal(Part("obj", "mug")))
+
+
+@pytest.mark.parametrize(
+    "text",
+    [
+        "don't go to the mug",
+        "no need to go to the mug",
+        "never go to the mug",
+        "do not, under any circumstances, go to the mug",
+        "without going near the duck, go to the mug",
+        "not the duck, go to the mug",
+        "no ducks, go to the mug",
+        "no rush, don't go to the mug",
+    ],
+)
+def test_a_negation_of_the_request_or_of_a_thing_is_still_refused(text):
+    with pytest.raises(ParseError, match="negated"):
+        understand(text)

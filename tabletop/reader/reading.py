@@ -38,6 +38,7 @@ from tabletop.reader.lexicon.words import (
     breaks_off,
     far_from,
     placed_by,
+    relation_words,
     superlative,
 )
 from tabletop.reader.llm import LLMReader
@@ -62,6 +63,7 @@ from tabletop.reader.rules import (
     SEVERAL_WHY,
     STRUCTURE_WORDS,
     ends_in_determiner,
+    is_motion_verb,
     is_negation,
     is_verb_phrase,
     negations,
@@ -175,6 +177,43 @@ def is_courtesy(clause: str) -> bool:
     return not any(
         _NOUN_PHRASE.match(w) or w in names or w in STRUCTURE_WORDS for w in words
     )  # ("if that helps's right": the side of the thing before it, no courtesy)
+
+
+#: Words that make a lead a condition, not an aside.
+_CONDITIONS = frozenset("if unless when whenever once until till whether provided".split())
+#: Words after a negation that carry it on past the aside ("do not, ...", "never under any
+#: circumstances ...", "not ever"): it then negates what follows.
+_REACHES_ON = frozenset(", under in at on by ever even until till to for any again yet".split())
+
+
+def is_negated_aside(lead: str) -> bool:
+    """Whether ``lead``, the words before a request, is an aside whose negation stays inside
+    it ("no rush,", "don't worry,", "without delay", "not sure where it is, but"): every
+    negating word is followed, inside the aside, by a word of its own before any comma (so
+    not "do not, under any circumstances,"); the aside names nothing of the vocabulary, no
+    relation, side or structure word, and does not end in a word that governs what follows
+    ("no need to", "don't", "never": those negate the request) and holds no verb of going
+    ("don't go ..." negates the request itself)."""
+    words = re.findall(r"[a-z]+(?:['\u2019][a-z]+)?|,", lead.lower())
+    plain = [w for w in words if w != ","]
+    if not plain or not any(is_negation(w) for w in plain) or set(plain) & _CONDITIONS:
+        return False  # (a condition is a courtesy's or a refusal's: "if you don't see ...")
+    last = plain[-1]
+    if last in AUXILIARIES or is_negation(last) or last in ("to", "and", "or"):
+        return False
+    for i, w in enumerate(words):
+        if is_negation(w) and (i + 1 >= len(words) or words[i + 1] in _REACHES_ON):
+            return False  # "do not, ...", "never under any ...": the negation reaches on
+    names = name_words()
+    return not any(
+        w in names
+        or w.rstrip("s") in names
+        or w in STRUCTURE_WORDS
+        or w in SIDES_SAID
+        or relation_words(w)
+        or is_motion_verb(w)  # "don't go | to the mug": the request's own verb, negated
+        for w in plain
+    )
 
 
 def refuse_not_english(text: str, read: str) -> None:
@@ -883,13 +922,18 @@ class LearnedReader:
 
     def _after_courtesy(self, text: str, words: list[str], roles: list[str], robot: str):
         """The reading of what follows a courtesy that runs into the request with no comma
-        ("if you wouldn't mind heading to the mug"): the longest courtesy
-        (:func:`is_courtesy`) among the words before the first reference whose rest reads;
-        None where none does."""
+        ("if you wouldn't mind heading to the mug") or an aside whose negation stays inside it
+        ("no rush, go to the mug", :func:`is_negated_aside`): the longest such lead among the
+        words before the first reference whose rest reads; None where none does."""
         lead = next((i for i, r in enumerate(roles) if r != "O"), 0)
-        for k in range(lead, 2, -1):
+        for k in range(lead, 0, -1):
             before, rest = " ".join(words[:k]), " ".join(words[k:])
-            if not is_courtesy(before) or any(w.endswith((",", ";")) for w in words[k:lead]):
+            if is_negated_aside(before):
+                if k < lead and any(is_negation(_plain(w)) for w in words[k:lead]):
+                    continue  # the request after the aside negates too
+            elif k < 3 or not is_courtesy(before):
+                continue
+            elif any(w.endswith((",", ";")) for w in words[k:lead]):
                 continue  # (a cut inside a clause: "if you don't hear | anything, go ...")
             try:
                 reading = self.understand(rest, robot)

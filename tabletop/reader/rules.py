@@ -483,6 +483,14 @@ _DETERMINER = re.compile(
 _DEFINITE = re.compile(r"^(?:the|my|our|your|his|her|their|this|that|these|those)\s")
 
 
+def is_motion_verb(word: str) -> bool:
+    """Whether ``word`` is a verb of going ("go", "head", "nip"), in any of its forms."""
+    w = str(word).lower().strip(" ,.;:!?")
+    stems = {w, w[:-1], w[:-2], w[:-3], w[:-4], w[:-2] + "e", w[:-3] + "e"}  # goes, nipping, moved
+    pattern = re.compile(rf"(?:{_MOTION_VERBS})")
+    return any(s and pattern.fullmatch(s) for s in stems)
+
+
 def is_verb_phrase(text: str) -> bool:
     """Whether ``text`` is all a request's verb phrase, a polite head before it ("go to",
     "could you head over to", "please reach"): it says to go, and nothing of where."""
