@@ -620,14 +620,11 @@ def add_commands(sub) -> None:
         "'paraphrase-heldout-4', 'paraphrase-heldout-5', 'paraphrase-heldout-6', "
         "'paraphrase-heldout-7', 'paraphrase-heldout-8', 'paraphrase-heldout-9', "
         "'paraphrase-heldout-10', 'paraphrase-heldout-11', 'paraphrase-heldout-12', "
-        "'paraphrase-heldout-16' (goals asked as people ask, to tune on; all but the first "
+        "'paraphrase-heldout-16', 'paraphrase-heldout-18' ... "
+        "'paraphrase-heldout-27' (goals asked as people ask, to tune on; all but the first "
         "two were held out until their report), 'paraphrase-heldout-13', "
         "'paraphrase-heldout-14', 'paraphrase-heldout-15', 'paraphrase-heldout-17', "
-        "'paraphrase-heldout-18', 'paraphrase-heldout-19', 'paraphrase-heldout-20', "
-        "'paraphrase-heldout-21', 'paraphrase-heldout-22', 'paraphrase-heldout-23', "
-        "'paraphrase-heldout-24', 'paraphrase-heldout-25', 'paraphrase-heldout-26', "
-        "'paraphrase-heldout-27' (held "
-        "out: each run once for a report, never read), "
+        "'paraphrase-heldout-28' (held out: each run once for a report, never read), "
         "'clutter' (dense tables: goals on, beside and between objects), "
         "'mobile' (a wheeled base in rooms, 1 m success radius)",
     )
