@@ -151,7 +151,7 @@ def test_a_region_on_a_ground_gives_the_region_and_the_ground():
         ("the far end of the banquet table", (None, "far")),
         ("the left of the computer table", ("left", None)),
         ("the right of the bedside table", ("right", None)),
-        ("the middle of the serving counter", ("middle", "middle")),
+        ("the middle of the buffet counter", ("middle", "middle")),
     ],
 )
 def test_a_region_of_a_work_surface_no_list_names_is_a_region_of_the_table(text, region):
