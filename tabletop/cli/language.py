@@ -450,7 +450,7 @@ def cmd_train_reader(args: argparse.Namespace) -> int:
 
         torch.set_num_threads(int(args.threads))
     texts = reader_texts(TUNE_POOLS, n_per_pool=READER_TEXTS_PER_POOL, seed=0)
-    tagger = train_reader(texts, out, val_pools=READER_VAL_POOLS, seed=0)
+    tagger = train_reader(texts, out, val_pools=READER_VAL_POOLS, seed=0, refit=True)
     v = tagger.meta.get("validation", {})
     print(f"reader written: {out} ({len(texts)} texts from {len(TUNE_POOLS)} tune pools)")
     if v:

@@ -14,7 +14,11 @@ words (letters dropped, doubled, swapped or replaced) and slips that sound like 
 (another common English word with the same Metaphone key: "rite" for "right", "there" for
 "their"), all keeping their labels. A side's template is sometimes recast the way people recast
 any of them: its landmark made a possessive ("the left side of {a}" -> "{a}'s left side") or
-put first and pointed back to ("{a} - go to the left of it", "{a}: go to its left side").
+put first and pointed back to ("{a} - go to the left of it", "{a}: go to its left side"), or
+its part named by a common English word of no structure ("the left <word> of {a}": the side
+word decides, whatever part is named). A near word is sometimes hedged ("roughly next to"),
+and a thing is sometimes said to be where the whole map is ("on the table"), which narrows
+nothing.
 """
 
 from __future__ import annotations
@@ -133,8 +137,12 @@ class _Maker:
             wraps = list(self.b.instructions.get("sound", ())) + self.t["sound"]
             before, _, after = self.pick(wraps).partition("{s}")
             out = [(before, None), (self.sound(), n + "SOUND"), (after, None)]
+        if kind == "obj" and self.chance(0.06):  # "the mug on the table": the whole map
+            out.append((self.pick(self.t["whole_table"]), None))
         if not near and kind == "obj" and self.chance(0.3):
             word = self.pick(list(self.b.instructions.get("near", ())) + self.t["near"])
+            if self.chance(0.15):
+                word = f"{self.pick(self.t['hedges'])} {word}"
             out += [(word, None), *self.goal(True, ("sound", "sound", "obj", "area"))]
         return out
 
@@ -189,7 +197,12 @@ class _Maker:
         """A one-landmark template as people recast it: the landmark made a possessive, or
         put first and pointed back to (see the module docstring); else as it is."""
         r = self.rng.random()
-        if r < 0.15:
+        if r < 0.08 and (m := _OF_A.search(tpl)):
+            # the part named by a word of its own ("the left flank of"): the side word decides
+            part = m.group(1).split()
+            part = [*part[: max(len(part) - 1, 1)], self.pick(_plain_words())]
+            return tpl[: m.start()] + "the " + " ".join(part) + " of {a}" + tpl[m.end() :]
+        if r < 0.2:
             m = _OF_A.search(tpl)
             if m:
                 return tpl[: m.start()] + "{a}'s " + m.group(1) + tpl[m.end() :]
@@ -220,6 +233,34 @@ class _Maker:
             for _ in range(int(self.rng.integers(1, 5)))
         ]
         return [(" ".join(words), None)]
+
+
+@functools.cache
+def _plain_words() -> tuple[str, ...]:
+    """Common English words that name nothing here and carry no structure (not among the 400
+    commonest words, which carry it; no side, negation, count, colour, relation or thing's
+    name): words a person may put where the generator has its own."""
+    from tabletop.reader.lexicon.colour_words import colour_word
+    from tabletop.reader.lexicon.counts import COUNT_WORDS
+    from tabletop.reader.lexicon.words import is_negation, relation_words, superlative
+    from tabletop.reader.spelling import english_words, head_nouns
+    from tabletop.relations import SIDES
+
+    skip = set(head_nouns()) | set(SIDES) | set(COUNT_WORDS) | {"side", "sides", "table"}
+    common = sorted(english_words().items(), key=lambda kv: (-kv[1], kv[0]))[400:4000]
+    return tuple(
+        sorted(
+            w
+            for w, _ in common
+            if w.isalpha()
+            and 4 <= len(w) <= 9
+            and w not in skip
+            and not is_negation(w)
+            and not colour_word(w)
+            and not relation_words(w)
+            and not superlative(w)
+        )
+    )
 
 
 def _typo(word: str, rng: np.random.Generator) -> str:

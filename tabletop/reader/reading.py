@@ -179,6 +179,11 @@ def is_courtesy(clause: str) -> bool:
     )  # ("if that helps's right": the side of the thing before it, no courtesy)
 
 
+#: "not far from", "not too far off from", "not that far away from": near.
+_LITOTES = re.compile(
+    r"(^|[\s,(])not\s+(?:(?:too|that|so|very|all\s+that)\s+)?far\s+(?:(?:off|away)\s+)?from\b",
+    re.IGNORECASE,
+)
 #: Words that make a lead a condition, not an aside.
 _CONDITIONS = frozenset("if unless when whenever once until till whether provided".split())
 #: Words after a negation that carry it on past the aside ("do not, ...", "never under any
@@ -800,20 +805,20 @@ class LearnedReader:
         refuse_not_english(text, read)
         refuse_nested_relation(read)
         read, polite = courtesy(read)
+        # "not far from" (a litotes) says near: read as the word it means, so that neither
+        # its negation nor its "far" (a side's word elsewhere) is taken at face value
+        read = _LITOTES.sub(lambda m: m.group(1) + "near", read)
         words = words_of(read)
         if not words:
             raise ParseError(text, text, "the instruction is empty")
         tagger = load_tagger(self.weights or DEFAULT_READER_WEIGHTS)
         role_logp, rels = tagger.scores(words)
         roles = best_roles(role_logp)
-        # the words left out of the references; "not far" (a litotes) says near, negates no
-        # goal, and is left to the tagger's relation
-        litotes = {i for i, w in enumerate(words[:-1]) if _plain(w) == "not"
-                   and _plain(words[i + 1]) == "far"}  # fmt: skip
+        # the words left out of the references
         plain = [
             _plain(w)
             for i, (w, r) in enumerate(zip(words, roles, strict=True))
-            if r in ("O", "THEN", "REP") and i not in litotes
+            if r in ("O", "THEN", "REP")
         ]
         for i, (w, r) in enumerate(zip(words, roles, strict=True)):
             # "all the cubes", "both ducks", "each side of the mug": a word left out of the
