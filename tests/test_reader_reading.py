@@ -1013,3 +1013,11 @@ def test_an_aside_whose_negation_stays_inside_it_leaves_the_request(text):
 def test_a_negation_of_the_request_or_of_a_thing_is_still_refused(text):
     with pytest.raises(ParseError, match="negated"):
         understand(text)
+
+
+def test_a_region_narrowing_a_side_s_landmark_is_a_place():
+    # "on the far side" after the thing a side is taken of: a region of the table, not a thing
+    (step,) = understand("go behind the duck, on the left side").steps
+    assert isinstance(step.action, Side) and step.action.side == "behind"
+    (near,) = step.action.landmark.near
+    assert near.kind == "area" and near.text.startswith("left side"), near

@@ -409,6 +409,10 @@ _WHOLE_TABLE = frozenset(("table", "tabletop"))
 _WHOLE_TABLE_WORDS = _WHOLE_TABLE | {"the", "a", "top", "surface", "whole", "entire", "of"}
 
 
+#: The fields of the plan's actions that hold goals.
+_GOAL_FIELDS = frozenset(("goal", "a", "b", "landmark"))
+
+
 def _each_goal(value, change, skip: tuple[str, ...] = ()):
     """``value`` (steps, an action, a goal) with every goal ``g`` in it replaced by
     ``change(g)``; the fields named in ``skip`` are left as they are."""
@@ -475,13 +479,18 @@ def _regions_as_places(value):
     """``value`` (steps, an action, a goal) with each thing's words that name no thing of
     the vocabulary and do name a region of the table ("the centre", "the far left") made a
     place: a reader that took them for a thing would look for a thing called so. A side's or
-    above's landmark keeps its words ("the mug, on the far side" restates the side)."""
+    above's landmark keeps its own words ("the mug, on the far side" restates the side), and
+    a region narrowing it becomes a place ("in front of the ball, on the far side")."""
 
     def places(goal: Goal) -> Goal:
         near = tuple(_region_as_place(p) for p in goal.near)
         return Goal(_region_as_place(goal.primary), near)
 
-    return _each_goal(value, places, skip=("landmark",))
+    def narrowing(goal: Goal) -> Goal:  # "in front of the ball, on the far side": a place
+        return Goal(goal.primary, tuple(_region_as_place(p) for p in goal.near))
+
+    value = _each_goal(value, places, skip=("landmark",))
+    return _each_goal(value, narrowing, skip=tuple(_GOAL_FIELDS - {"landmark"}))
 
 
 def _goals_in(value) -> list[Goal]:
