@@ -314,8 +314,11 @@ def test_a_place_is_a_thing_only_where_its_own_words_name_one(avlmap):
     )
     assert avlmap._unnamed("tray") == "" and avlmap._unnamed("serving tray") == ""
     assert avlmap._unnamed("something red") == ""  # no content words: any object
-    h = avlmap.area_heatmap(_place("the far end of the playground"))
+    h = avlmap.area_heatmap(_place("the playground"))
     assert not h.found and "(as a thing: " in h.reason
+    # a region of it is off the map before the map is asked: its ground is no work surface
+    h = avlmap.area_heatmap(_place("the far end of the playground"))
+    assert not h.found and "'playground' is not the table" in h.reason
 
 
 def test_a_place_is_a_sound_only_where_its_words_are_nearer_a_sound_than_any_thing(avlmap):

@@ -51,6 +51,7 @@ __all__ = [
     "area_subject",
     "directions",
     "ground_phrases",
+    "ground_preposition",
     "opposite_directions",
     "parse_region",
     "region_on_ground",
@@ -242,6 +243,12 @@ _GROUND_ENDS = frozenset(
 )
 _GROUND_ARTICLES = frozenset("the a an my our your its this that these those their his her".split())
 _GROUND_AFTER = re.compile(r"\b(?:of|on|in|across|at)\b")
+
+
+def ground_preposition(text: str) -> re.Match | None:
+    """The first "of", "on", "in", "across" or "at" of ``text`` (lower-cased), after which a
+    region's ground may be named; None where it has none."""
+    return _GROUND_AFTER.search(str(text).lower())
 
 
 def ground_phrases(text: str) -> list[str]:

@@ -40,6 +40,7 @@ from tabletop.reader.place_words import (
     area_subject,
     directions,
     ground_phrases,
+    ground_preposition,
     opposite_directions,
     parse_region,
     region_on_ground,
@@ -271,6 +272,9 @@ class PlaceReader:
             # no classifier's guess picks one of the two: the words contradict each other
             return AreaRef(text, how=f"{clash[0]!r} and {clash[1]!r} are opposite directions, "
                            "and a region lies in one: name one of them")  # fmt: skip
+        if not directions(text) and area_subject(text) is None:
+            # place words alone ("the area over there") name no one place: no classifier asked
+            return AreaRef(text, how="place words only")
         if self.learned and text.strip():
             clf = self.classifier()
             if (off := self._elsewhere(clf, text)) is not None:
@@ -299,11 +303,15 @@ class PlaceReader:
         """A region named on grounds the ground classifier takes, each, for somewhere other
         than the work surface ("the far corner of the room": P(surface) below one minus its
         threshold) is off this map: an :class:`AreaRef` with no region and the reason. None
-        where ``text`` names no direction or no ground, where one ground may be the surface,
-        or where one names a kind of thing the map knows."""
+        where ``text`` does not start with a region followed by what it is named on ("the far
+        corner | of the room"; not "the spot near the sound of a hen"), where one ground may be
+        the surface, or where one names a kind of thing the map knows."""
         g = clf.ground
+        at = ground_preposition(text)
+        if g is None or at is None or parse_region(text[: at.start()]) is None:
+            return None  # no region said right before what it is named on
         grounds = ground_phrases(text)
-        if g is None or not grounds or not directions(text):
+        if not grounds:
             return None
         if any(w in kind_words() for gr in grounds for w in gr.split()):
             return None  # "the left side of the mug": a side of a thing, looked up as one
