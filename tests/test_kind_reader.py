@@ -283,6 +283,7 @@ def test_the_head_refuses_a_thing_of_no_kind_the_cosine_lets_through():
         assert mod.heatmap(name, 10.0, judge_at(0.2)).found, name
 
 
+@pytest.mark.slow  # leave-one-pool-out refits on 25 pools: over two minutes of CPU
 def test_training_reproduces_the_committed_reader(tmp_path, monkeypatch):
     from tabletop.eval import paraphrase
     from tabletop.eval.harness import map_config
