@@ -26,7 +26,7 @@ FAMILIES = {
 COSTS = {
     "test_avlmap.py": 228,
     "test_eval_runner.py": 208,
-    "test_eval_parallel.py": 90,  # with test_scan.py, test_ground_truth.py: their fast scan
+    "test_eval_parallel.py": 10,  # its serial-against-parallel runs are marked slow
     "test_kind_reader.py": 12,  # its refit reproducing the committed reader is marked slow
     "test_encoders_registry.py": 105,
     "test_instance_eval.py": 90,  # marked slow: run by scripts/test -m slow

@@ -101,6 +101,7 @@ def _same(a: dict, b: dict) -> None:
     assert b["by_type"]["object"]["success_rate"] == 1.0 and b["contacts"] == 0
 
 
+@pytest.mark.slow  # a serial eval and a parallel one of the same tasks: two minutes of CPU
 def test_two_workers_give_the_serial_results(serial, tmp_path, capfd):
     files, first, cache = serial
     (rec,) = cache.glob("rec-*")  # the recording; the workers build the maps
@@ -202,6 +203,7 @@ def _stop_cluster(proc: subprocess.Popen, tmp: Path) -> None:
     shutil.rmtree(tmp, ignore_errors=True)
 
 
+@pytest.mark.slow  # a local Ray cluster running the serial eval's tasks
 def test_ray_tasks_give_the_serial_results(serial, ray_cluster, tmp_path, capfd):
     files, first, cache = serial
     shutil.copytree(cache, tmp_path / "cache")  # the recording and the maps: the goals run
