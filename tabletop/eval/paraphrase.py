@@ -110,12 +110,13 @@ POOLS = (
     "heldout-26",
     "heldout-27",
     "heldout-28",
+    "heldout-29",
 )
 #: Held-out pools: evaluated once, for a report ("heldout-13", "heldout-14", "heldout-15",
-#: "heldout-17" and "heldout-28"), written without reading the parser, the lexicons or the other
-#: pools; their suites generated unread. heldout-28's misses were read after its report; it stays
-#: out of training until the readers are next refitted, so that the committed ones reproduce
-#: (:data:`READ_HELDOUT_POOLS`). A held-out pool whose suites
+#: "heldout-17", "heldout-28" and "heldout-29", the next judge), written without reading the
+#: parser, the lexicons or the other pools; their suites generated unread. heldout-28's misses
+#: were read after its report; it stays out of training until the readers are next refitted,
+#: so that the committed ones reproduce (:data:`READ_HELDOUT_POOLS`). A held-out pool whose suites
 #: were read after its report ("heldout", "heldout-2" ... "heldout-12", "heldout-16", and
 #: "heldout-18" ... "heldout-27": :data:`READ_HELDOUT_POOLS`) is tuned on from then on, like a
 #: tune pool, and every newer held-out pool must differ from it and from every training text
@@ -126,6 +127,7 @@ HELDOUT_POOLS: tuple[str, ...] = (
     "heldout-15",
     "heldout-17",
     "heldout-28",
+    "heldout-29",
 )
 TUNE_POOLS = tuple(p for p in POOLS if p not in HELDOUT_POOLS)
 #: Held-out pools read after their report, judged once each before that; from heldout-18 on
@@ -153,7 +155,8 @@ SUITE_DIRS = {p: f"paraphrase-{p}" for p in POOLS}
 #: ``seed * 100_000 + i``: 0-219) or its held-out layouts (from 9,000,000). In use here: 750-752,
 #: 760-762, 800-803 ... 890-893 (by tens), 910-913, 920-923, 930-933, 940-943, 960-963,
 #: 970-973, 980-983, 990, 992-994 (991 gave no multimodal goal), 995-998, 1010-1013,
-#: 1020-1023, 1030-1033, 1040-1043, 1050-1053, 1060-1063, 1070-1073, 1080-1083 and 1090-1093.
+#: 1020-1023, 1030-1033, 1040-1043, 1050-1053, 1060-1063, 1070-1073, 1080-1083, 1090-1093
+#: and 1100-1103.
 TUNE_SEEDS = (750, 751, 752)
 HELDOUT_SEEDS = (800, 801, 802, 803)
 POOL_SEEDS = {
@@ -187,6 +190,7 @@ POOL_SEEDS = {
     "heldout-26": (1070, 1071, 1072, 1073),
     "heldout-27": (1080, 1081, 1082, 1083),
     "heldout-28": (1090, 1091, 1092, 1093),
+    "heldout-29": (1100, 1101, 1102, 1103),
 }
 
 #: Absent goals per scene: objects outside the catalog, catalog kinds the scene lacks, a colour
