@@ -1021,3 +1021,18 @@ def test_a_region_narrowing_a_side_s_landmark_is_a_place():
     assert isinstance(step.action, Side) and step.action.side == "behind"
     (near,) = step.action.landmark.near
     assert near.kind == "area" and near.text.startswith("left side"), near
+
+
+@pytest.mark.parametrize("reader", ["learned", "rules+learned"])
+def test_a_side_named_by_where_the_robot_is_and_no_side_at_all(reader):
+    # "the side of <a long description> nearest you": the near side, whatever the tagger says
+    for text, side in [
+        ("go over to the side of the fat little cylinder that looks kind of red nearest you",
+         "behind"),
+        ("go over to the side of the fat little cylinder that looks kind of red furthest from "
+         "the robot", "front"),
+    ]:  # fmt: skip
+        (step,) = understand(text, reader=reader).steps
+        assert isinstance(step.action, Side) and step.action.side == side, text
+    with pytest.raises(ParseError, match="no word says which side"):
+        understand("move to the side of the fat little cylinder", reader=reader)

@@ -448,6 +448,33 @@ def _whole_table_dropped(value):
     return _each_goal(value, drop)
 
 
+#: Words that name a side themselves (the tagger's side is then taken).
+_SIDE_WORDS = frozenset((*SIDES, "back", "rear", "front", "behind"))
+
+
+def _side_from_words(text: str, steps: tuple[Step, ...], plain: list[str]) -> tuple[Step, ...]:
+    """The tagger's one side step checked against the words outside its references
+    (``plain``): where they name no side word, the side is the one they place by the robot
+    ("the side of the mug nearest you": behind it; "... furthest from you": in front; "the
+    left-hand ... side" is named), and where they place none either ("the side of the mug"),
+    the request is refused: no word says which side."""
+    sides = [s for s in steps if isinstance(s.action, Side)]
+    if len(steps) != 1 or len(sides) != 1 or _SIDE_WORDS & set(plain):
+        return steps
+    from tabletop.reader.place_words import directions
+
+    found = directions(" ".join(plain))
+    side = found.get("lateral") or {"near": "behind", "far": "front"}.get(found.get("depth", ""))
+    if side not in SIDES:
+        raise ParseError(
+            text,
+            steps[0].text,
+            "no word says which side of the thing to go to: say 'left', 'right', 'in front "
+            "of' or 'behind' (e.g. 'the left side of the mug')",
+        )
+    return (dataclasses.replace(steps[0], action=dataclasses.replace(sides[0].action, side=side)),)
+
+
 def _whole_table_side_dropped(steps: tuple[Step, ...]) -> tuple[Step, ...]:
     """``steps`` with a "between" or a "back and forth" one of whose two goals is the whole
     table alone read as going to the other: the tagger's reading of a thing said to be on the
@@ -887,6 +914,7 @@ class LearnedReader:
                 decode(text, words, roles, rels, robot, read_clause, role_logp)
             ),
         )
+        steps = _side_from_words(text, steps, plain)
         # a side word left out of the references where no step goes to a side ("..., the
         # one in yellow's right" read as the duck): the reading would drop the side asked for
         said = {s.action.side for s in steps if isinstance(s.action, Side)}
