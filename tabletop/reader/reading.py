@@ -601,6 +601,17 @@ def refuse_unused_numbers(text: str, read: str, steps: tuple[Step, ...]) -> None
         raise ParseError(text, unused[0], UNUSED_NUMBER_WHY, final=True)
 
 
+def _below_refused(text: str, below: str) -> ParseError:
+    """The refusal of a place below a thing (``below``: the word that says so)."""
+    return ParseError(
+        text,
+        below,
+        f"a place {below} a thing is inside it or the table, which the robot cannot reach; it "
+        "goes above a thing ('above the duck') or beside it",
+        final=True,
+    )
+
+
 def settle_references(text: str, steps: tuple[Step, ...]) -> tuple[Step, ...]:
     """What every reader does to the references of the steps it read: parts that describe a
     thing are folded into its words (:func:`fold_descriptions`); a "between" of one thing and
@@ -696,23 +707,11 @@ def settle_references(text: str, steps: tuple[Step, ...]) -> tuple[Step, ...]:
             raise ParseError(text, nth, ORDINAL_WHY)
     for ref in _reference_texts(steps, ("obj",)):  # "go underneath the ball" as a thing
         if (low := _BELOW.match(ref.strip())) and ref.split()[1:]:
-            raise ParseError(
-                text,
-                low.group(0),
-                f"a place {low.group(0)} a thing is inside it or the table, which the robot "
-                "cannot reach; it goes above a thing ('above the duck') or beside it",
-                final=True,
-            )
+            raise _below_refused(text, low.group(0))
     for step in steps:  # "go below the duck" read as above it: the word says the opposite
         if isinstance(step.action, Above) and (low := _BELOW.search(step.text)):
             if not _ABOVE_SAID.search(step.text):
-                raise ParseError(
-                    text,
-                    low.group(0),
-                    f"a place {low.group(0)} a thing is inside it or the table, which the robot "
-                    "cannot reach; it goes above a thing ('above the duck') or beside it",
-                    final=True,
-                )
+                raise _below_refused(text, low.group(0))
     for step in steps:  # "back and forth between the duck": one place, and a word for none
         a = step.action
         if isinstance(a, BackAndForth) and any(

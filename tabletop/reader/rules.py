@@ -483,12 +483,14 @@ _DETERMINER = re.compile(
 _DEFINITE = re.compile(r"^(?:the|my|our|your|his|her|their|this|that|these|those)\s")
 
 
+_MOTION_VERB = re.compile(rf"(?:{_MOTION_VERBS})")
+
+
 def is_motion_verb(word: str) -> bool:
     """Whether ``word`` is a verb of going ("go", "head", "nip"), in any of its forms."""
     w = str(word).lower().strip(" ,.;:!?")
     stems = {w, w[:-1], w[:-2], w[:-3], w[:-4], w[:-2] + "e", w[:-3] + "e"}  # goes, nipping, moved
-    pattern = re.compile(rf"(?:{_MOTION_VERBS})")
-    return any(s and pattern.fullmatch(s) for s in stems)
+    return any(s and _MOTION_VERB.fullmatch(s) for s in stems)
 
 
 def is_verb_phrase(text: str) -> bool:
