@@ -685,6 +685,25 @@ def test_a_side_the_tagger_leaves_out_is_refused_and_a_courtesy_holds_no_side():
     assert courtesy("go to the duck, if that's ok with you")[1] == "if that's ok with you"
 
 
+def test_right_as_a_degree_adverb_before_a_place_is_no_side():
+    from tabletop.reader.lexicon.words import degree_adverb
+
+    words = "go to the duck right next to the mug".split()
+    assert degree_adverb(words, 4)
+    assert not degree_adverb("go right of the mug".split(), 1)
+    assert not degree_adverb("the mug on the right side".split(), 4)
+    assert not degree_adverb("go to the mug, right, by the duck".split(), 4)
+    assert not degree_adverb("go left behind the mug".split(), 1)  # only "right" is one
+    # the tagger's reading of a sound near a thing keeps going to the thing
+    action = understand(
+        "go to the rubber duck right next door to where you heard a cow", reader="rules+learned"
+    ).steps[0].action
+    assert action == GoTo(Goal(Part("obj", "rubber duck"), (Part("sound", "cow"),)))
+    # a side said after the reading's last reference is still refused
+    with pytest.raises(ParseError, match="says a side"):
+        understand("go to the mug, right", reader="rules+learned")
+
+
 @pytest.mark.parametrize("reader", ["learned", "rules+learned"])
 def test_an_opening_right_and_a_nearest_to_another_thing_are_no_side_or_rank(reader):
     # "Right, ..." opens a request; "closest ... to X" and "nearest you" relate, not rank

@@ -624,8 +624,9 @@ def add_commands(sub) -> None:
         "'paraphrase-heldout-27' (goals asked as people ask, to tune on; all but the first "
         "two were held out until their report), 'paraphrase-heldout-13', "
         "'paraphrase-heldout-14', 'paraphrase-heldout-15', 'paraphrase-heldout-17', "
-        "'paraphrase-heldout-28', 'paraphrase-heldout-29' (held out: each run once for a "
-        "report; heldout-28's misses were read after it), "
+        "'paraphrase-heldout-28', 'paraphrase-heldout-29', 'paraphrase-heldout-30' (held out: "
+        "each run once for a report; the misses of heldout-28 and heldout-29 were read after "
+        "it), "
         "'clutter' (dense tables: goals on, beside and between objects), "
         "'mobile' (a wheeled base in rooms, 1 m success radius)",
     )

@@ -465,4 +465,4 @@ def cmd_train_reader(args: argparse.Namespace) -> int:
 #: Generated requests per tune pool, and the pools a first network is measured on unseen (the
 #: two newest tune pools: the last writers' words, read only after their report).
 READER_TEXTS_PER_POOL = 1000
-READER_VAL_POOLS = ("heldout-26", "heldout-27")
+READER_VAL_POOLS = ("heldout-28", "heldout-29")

@@ -36,6 +36,7 @@ from tabletop.reader.lexicon.words import (
     AUXILIARIES,
     SUPERLATIVES,
     breaks_off,
+    degree_adverb,
     far_from,
     placed_by,
     relation_words,
@@ -924,6 +925,7 @@ class LearnedReader:
             and (side := w.strip(",.;:!?\"'").lower()) in SIDES
             and side not in said
             and not _interjection(words, i)  # "Right, off you go to the mug"
+            and not degree_adverb(words, i)  # "right behind the mug": exactly there
         ]
         if sides and not any(isinstance(s.action, MOTIONS) for s in steps):
             raise ParseError(

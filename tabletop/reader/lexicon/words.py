@@ -19,6 +19,7 @@ __all__ = [
     "SUPERLATIVES",
     "Superlative",
     "breaks_off",
+    "degree_adverb",
     "far_from",
     "is_negation",
     "negations",
@@ -209,6 +210,29 @@ _PLACING = frozenset(
     """in inside into within on onto atop under underneath beneath below behind beside above
     over at by against among amid""".split()
 )
+
+
+#: Words that open a place phrase after a degree adverb ("right behind the mug", "right next
+#: to it", "right in front"): the prepositions that place a thing, and the other openers of
+#: a place.
+_PLACE_OPENERS = _PLACING | frozenset(
+    """next near close beside between alongside around across past beyond opposite off
+    outside toward towards to up down there here where""".split()
+)
+#: Side words that English also uses as degree adverbs ("right": exactly, immediately).
+_DEGREE_SIDES = frozenset({"right"})
+
+
+def degree_adverb(words: list[str], i: int) -> bool:
+    """Whether the word at ``i`` of ``words`` is a side word used as a degree adverb: "right"
+    directly before a word that opens a place phrase ("right behind the mug", "right next to
+    it"), not before "of", "side" or "hand" ("right of the mug") and not cut off by
+    punctuation."""
+    word = words[i]
+    if word.strip(",.;:!?\"'").lower() not in _DEGREE_SIDES or word.endswith((",", ";", ".")):
+        return False
+    after = words[i + 1].strip(",.;:!?\"'").lower() if i + 1 < len(words) else ""
+    return after in _PLACE_OPENERS
 
 
 def placed_by(ref: str, heads: frozenset[str] | set[str]) -> str | None:
