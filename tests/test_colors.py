@@ -72,6 +72,10 @@ def test_lab_of_reference_colours():
         ("the tiny cube", "", "the tiny cube"),
         ("the spotty domino", "", "the spotty domino"),
         ("the fluffy navy bear", "navy", "the fluffy bear"),
+        # ... with the suffix hyphenated, or on a word that has one already
+        ("the minty-ish brick", "mint", "the brick"),
+        ("the navy-y cube", "navy", "the cube"),
+        ("the tree-y cube", "", "the treey cube"),
         # a thing likened in size or shape to a fruit is not of its colour
         ("the ball about the size of an orange", "", "the ball about the size of an orange"),
         ("a block shaped like a lemon", "", "a block shaped like a lemon"),

@@ -53,8 +53,14 @@ _WORD = re.compile(r"[a-z]+(?:-[a-z]+)*")
 
 
 def _plain_words(text: str) -> list[str]:
-    """``text``'s lower-case words, hyphens as spaces."""
-    return _WORD.findall(str(text).lower().replace("-ish", "ish").replace("-", " "))
+    """``text``'s lower-case words, hyphens as spaces (a hyphen that joins a suffix, "-ish",
+    "-y", "-ey", joins: "moss-y" is "mossy")."""
+    return _WORD.findall(_suffixes_joined(text).replace("-", " "))
+
+
+def _suffixes_joined(text: str) -> str:
+    """``text`` in lower case, a hyphen that joins a suffix ("-ish", "-y", "-ey") dropped."""
+    return re.sub(r"-(ish|e?y)\b", r"\1", str(text).lower())
 
 
 def _places(words: list[str], name: str):
@@ -151,6 +157,10 @@ def named_colour(word: str) -> tuple[int, int, int] | None:
     where no list has it. Never a test of whether the word *is* a colour."""
     more = _more_colours()
     w = str(word).lower()
+    for suffix in ("-ish", "-y", "-ey"):  # "quince-y": the hyphen only joins the suffix
+        if w.endswith(suffix) and len(w) > len(suffix) + 2:
+            w = w[: -len(suffix)]
+            break
     for cand in (w, w[:-3] if w.endswith("ish") else "", w[:-1] if w.endswith("y") else ""):
         if cand and cand in more:
             return more[cand]
@@ -400,7 +410,7 @@ def heads(text: str, name: str) -> bool:
 def _colour_positions(text: str, extra: frozenset[str]) -> tuple[list[str], list[int]]:
     """The query's words (hyphenated colour compounds one word, others split) and the
     positions of its colour words (lexicon names and ``extra``)."""
-    raw = _WORD.findall(str(text).lower().replace("-ish", "ish"))
+    raw = _WORD.findall(_suffixes_joined(text))
     words: list[str] = []
     shades: set[int] = set()
     for j, w in enumerate(raw):
@@ -489,14 +499,24 @@ def _ish(word: str) -> str:
     basic colour term ("greenstoneish" -> "green"), the superlatives
     ("blackest" -> "black", "bluest" -> "blue") and the adjectives in "-y" of a colour name
     ("minty" -> "mint", "creamy" -> "cream", "chocolatey" -> "chocolate", "rosy" -> "rose",
-    "grassy" -> "grass", "icy" -> "ice", "muddy" -> "mud" of the survey); other words
-    unchanged."""
+    "grassy" -> "grass", "icy" -> "ice", "muddy" -> "mud" of the survey), also with the suffix
+    hyphenated and on a word that already has one ("moss-y", "minty-ish" -> "mint"); other
+    words unchanged."""
+    for suffix in ("-ish", "-y", "-ey"):
+        stem = word[: -len(suffix)]
+        if word.endswith(suffix) and len(stem) > 2 and stem.isalpha():
+            if stem in COLOR_NAMES or stem in survey_colours():
+                return stem
+            if (inner := _ish(stem)) != stem:
+                return inner
     for suffix in ("ish", "est"):
         if word.endswith(suffix) and len(word) > 5:
             stem = word[:-3]
             for cand in (stem, stem[:-1], stem + "e"):  # redd-ish, blu-ish, purpl-ish
                 if cand in COLOR_NAMES:
                     return cand
+            if suffix == "ish" and (inner := _ish(stem)) != stem:  # "minty-ish": mint
+                return inner
     if word.endswith("ish") and word[:-3] not in survey_colours():
         # a hedged compound that a basic colour term leads ("greenstone-ish", "redcurrant-ish"):
         # the hedge says its colour is the compound's, and no list has the compound
