@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import itertools
 import logging
+import math
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -69,6 +70,18 @@ SELF_COLLISION_DISABLED: frozenset[frozenset[str]] = frozenset(
         ("panda_link5", "panda_link7"),
     ]
 )
+
+
+_F64 = np.dtype(np.float64)
+
+
+def _arm_q(q: object) -> np.ndarray:
+    """``as_arm_q(q)`` with a fast path for a finite float64 (7,) array (a copy, as there)."""
+    if type(q) is np.ndarray and q.dtype == _F64 and q.shape == (7,):
+        # a sum of finite values is finite or overflows to inf: both fall back
+        if math.isfinite(sum(q.tolist())):
+            return q.copy()
+    return as_arm_q(q)
 
 
 def _read_obj_vertices(path: Path) -> np.ndarray:
@@ -209,7 +222,17 @@ class CollisionChecker:
         self._self_j = np.array([j for _, j in self.self_pairs], dtype=np.int64)
         self._lever = self._lever_arms()
         self._req = fcl.DistanceRequest(enable_nearest_points=False, enable_signed_distance=True)
+        # fcl.distance copies the nearest points into a result whose min_distance is larger
+        # than the query's; one that starts at -inf is never written (the distance is returned)
+        self._res = fcl.DistanceResult(-np.inf)
         self._placed = [not np.allclose(lk.placement.homogeneous, np.eye(4)) for lk in self._links]
+        self._tfs = [fcl.Transform() for _ in self._links]
+        # per link, the query that last set its transform (link0 is fixed: set here, once)
+        self._stamp = 0
+        self._link_tf_stamp = [0] * len(self._links)
+        self._self_ij = (self._self_i.tolist(), self._self_j.tolist())
+        #: Narrow-phase (FCL) distance queries made so far, by every method.
+        self.narrow_queries = 0
         #: The temporal bounds are used while no robot point can have moved more than this [m]
         #: since the previous query (beyond it the spatial bounds are the tighter ones).
         self.coherence_limit = 0.25 * self.max_distance
@@ -339,25 +362,20 @@ class CollisionChecker:
             return None
         return self._prev_bounds - self._closing @ dq
 
-    def _nearest(self, bound: np.ndarray, distance) -> tuple[float, int | None]:
-        """Branch and bound: (smallest distance capped at max_distance, its pair or None).
-        ``bound`` [m] holds a lower bound per pair; the pairs are computed in increasing order
-        of their bounds while a bound is below the smallest distance so far, and each pair
-        computed gets its exact distance (``distance(p)``) written into ``bound``.
-
-        A bound that is not positive says nothing: two bodies that may overlap can overlap by
-        more than either's bounding sphere, so such a pair is always computed."""
-        best, arg = self.max_distance, None
-        values = bound.tolist()
-        for p in bound.argsort().tolist():
-            b = values[p]
-            if b >= best and b > 0.0:
-                break
-            d = distance(p)
-            bound[p] = d
-            if d < best:
-                best, arg = d, p
-        return best, arg
+    def _place(self, i: int, oMi) -> None:
+        """Move link i's collision object to its pose in ``oMi`` (the joints' placements)."""
+        lk = self._links[i]
+        if self._placed[i]:
+            M = oMi[lk.joint] * lk.placement
+        elif lk.joint:
+            M = oMi[lk.joint]
+        else:  # on the fixed base: at the identity, where it was made, for good
+            return
+        H = M.homogeneous
+        tf = self._tfs[i]
+        tf.setRotation(H[:3, :3])
+        tf.setTranslation(H[:3, 3])
+        lk.obj.setTransform(tf)
 
     def _set_tf(self, i: int, oMi, done: set[int]) -> fcl.CollisionObject:
         lk = self._links[i]
@@ -368,39 +386,73 @@ class CollisionChecker:
         return lk.obj
 
     def _distance(self, a: fcl.CollisionObject, b: fcl.CollisionObject) -> float:
-        return float(fcl.distance(a, b, self._req, fcl.DistanceResult()))
+        self.narrow_queries += 1
+        return float(fcl.distance(a, b, self._req, self._res))
 
     def clearance(self, q: object) -> Clearance:
         """Robot-environment and robot-robot clearance [m] at arm configuration ``q`` [rad]."""
         t0 = time.perf_counter()
-        q = as_arm_q(q)
+        q = _arm_q(q)
         pin.forwardKinematics(self.model.model, self._data, q)
         oMi = self._data.oMi
         bounds = self._temporal_bounds(q)
         if bounds is None:
             bounds = self._spatial_bounds(oMi)
-        done: set[int] = set()
         n_obs, n_env = len(self._obs_objs), self._n_env
-        links, obs = self._links, self._obs_objs
-
-        def env_distance(p: int) -> float:
-            i, k = divmod(p, n_obs)
-            return self._distance(self._set_tf(i, oMi, done), obs[k])
-
-        def self_distance(p: int) -> float:
-            i, j = int(self._self_i[p]), int(self._self_j[p])
-            return self._distance(self._set_tf(i, oMi, done), self._set_tf(j, oMi, done))
-
-        env, slf = self.max_distance, self.max_distance
+        links, cap = self._links, self.max_distance
+        # Branch and bound, per kind: the pairs in increasing order of their bounds while a
+        # bound is below the smallest distance so far; each pair computed gets its exact
+        # distance written into ``bounds``. A bound that is not positive says nothing (two
+        # bodies that may overlap can overlap by more than either's bounding sphere), so such
+        # a pair is always computed. Each link's transform is set at most once per query.
+        placed = self._link_tf_stamp
+        stamp = self._stamp = self._stamp + 1
+        req, res, distance = self._req, self._res, fcl.distance
+        narrow = 0
+        env, slf = cap, cap
         env_pair = slf_pair = None
         if n_env:
-            env, p = self._nearest(bounds[:n_env], env_distance)
-            if p is not None:
-                env_pair = (links[p // n_obs].name, self._obs_names[p % n_obs])
+            env_b = bounds[:n_env]
+            values = env_b.tolist()
+            obs = self._obs_objs
+            for p in env_b.argsort().tolist():
+                b = values[p]
+                if b >= env and b > 0.0:
+                    break
+                i, k = divmod(p, n_obs)
+                if placed[i] != stamp:
+                    self._place(i, oMi)
+                    placed[i] = stamp
+                d = distance(links[i].obj, obs[k], req, res)
+                narrow += 1
+                env_b[p] = d
+                if d < env:
+                    env, env_pair = d, p
+            if env_pair is not None:
+                env_pair = (links[env_pair // n_obs].name, self._obs_names[env_pair % n_obs])
         if self.self_collision and len(bounds) > n_env:
-            slf, p = self._nearest(bounds[n_env:], self_distance)
-            if p is not None:
-                slf_pair = (links[self._self_i[p]].name, links[self._self_j[p]].name)
+            slf_b = bounds[n_env:]
+            values = slf_b.tolist()
+            si, sj = self._self_ij
+            for p in slf_b.argsort().tolist():
+                b = values[p]
+                if b >= slf and b > 0.0:
+                    break
+                i, j = si[p], sj[p]
+                if placed[i] != stamp:
+                    self._place(i, oMi)
+                    placed[i] = stamp
+                if placed[j] != stamp:
+                    self._place(j, oMi)
+                    placed[j] = stamp
+                d = distance(links[i].obj, links[j].obj, req, res)
+                narrow += 1
+                slf_b[p] = d
+                if d < slf:
+                    slf, slf_pair = d, p
+            if slf_pair is not None:
+                slf_pair = (links[si[slf_pair]].name, links[sj[slf_pair]].name)
+        self.narrow_queries += narrow
         self._prev_q, self._prev_bounds = q, bounds
         self.timings_s.append(time.perf_counter() - t0)
         if env <= slf:
