@@ -117,6 +117,28 @@ def test_step_checks_the_target_pose_like_as_transform(model, ik):
             ik.step(HOME_Q, pose)
     # within as_transform's tolerances: accepted, as before
     assert ik.step(HOME_Q, T @ np.diag([1.0, 1.0, 1.0 + 4e-6, 1.0])).solved
+    # a pose with the rotation of the step before skips the rotation checks, not the others
+    assert ik.step(HOME_Q, T).solved
+    for message, change in [
+        ("non-finite", (0, 3, np.nan)),
+        ("non-finite", (2, 3, np.inf)),
+        ("last row must be", (3, 2, 1e-6)),
+        ("last row must be", (3, 3, 1.0 + 1e-3)),
+    ]:
+        pose = T.copy()
+        pose[change[:2]] = change[2]
+        with pytest.raises(ConfigError, match=message):
+            ik.step(HOME_Q, pose)
+    with pytest.raises(ConfigError, match="non-finite"):
+        ik.step(np.array([*HOME_Q[:6], np.nan]), T)
+    # the target follows the pose: each step as from a controller that saw no pose before
+    T2 = make_transform(top_down_rotation(0.5), [0.45, 0.05, 0.2])
+    q = HOME_Q.copy()
+    for pose in [T, T, T2, T2, T, T2]:
+        fresh = MinkDiffIK(model, ik.obstacles).step(q, pose).q
+        step = ik.step(q, pose).q
+        np.testing.assert_allclose(step, fresh, rtol=0, atol=1e-12)  # (warm starts differ)
+        q = step
 
 
 def test_collision_rows_match_minks(model):

@@ -66,6 +66,19 @@ _ORTHO_OFF_TOL = 0.999 * 1e-5
 _ORTHO_DIAG_TOL = 0.999 * 2e-5
 
 
+_F64 = np.dtype(np.float64)
+_LAST_ROW = [0.0, 0.0, 0.0, 1.0]
+
+
+def _arm_q(q: object) -> np.ndarray:
+    """``as_arm_q(q)`` with a fast path for a finite float64 (7,) array (a copy, as there)."""
+    if type(q) is np.ndarray and q.dtype == _F64 and q.shape == (7,):
+        # a sum of finite values is finite or overflows to inf: both fall back
+        if math.isfinite(sum(q.tolist())):
+            return q.copy()
+    return as_arm_q(q)
+
+
 def _checked_pose(T: object) -> np.ndarray:
     """``as_transform(T)``'s checks, done on Python floats for a (4, 4) float64 array (which is
     returned as is: the step only reads it); any other input, or one near or past a limit,
@@ -294,6 +307,29 @@ class MinkDiffIK:
         self._jac1 = np.empty((3, nv))
         self._jac2 = np.empty((3, nv))
         self._target = None  # the frame task's target, written in place by step()
+        self._target_quat = self._target_pos = None  # views of its wxyz and xyz
+        self._rot: tuple | None = None  # the rotation block of the pose last checked
+        # The frame task's residual, as mink's FrameTask computes it with its native Lie ops
+        # (the same calls on the same arrays, so the same numbers), without its Python layers.
+        try:
+            from mink.lie import _lie_ops_c as native
+        except ImportError:  # mink without its native ops: its own residual
+            native = None
+        ft, data = self.frame_task, self.configuration.data
+        self._native = native
+        self._tcp_body = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, ft.frame_name)
+        self._direct = self._direct and ft.frame_type == "body" and self._tcp_body >= 0
+        self._tcp_xpos = data.xpos[self._tcp_body]
+        self._tcp_xmat = data.xmat[self._tcp_body]
+        self._jac6 = np.empty((6, nv))
+        self._jac_p, self._jac_r = self._jac6[:3], self._jac6[3:]
+        self._ft_cost = np.asarray(ft.cost, dtype=np.float64)
+        self._ft_cost_col = self._ft_cost[:, None]
+        self._ft_neg_gain = -float(ft.gain)
+        self._ft_lm = float(ft.lm_damping)
+        self._qpos = data.qpos
+        self._geom_xpos = data.geom_xpos
+        self._neq = m.neq
         self._active: tuple[tuple[int, ...], tuple[int, ...], tuple[int, ...]] | None = None
         self._mj = mujoco
         from scipy.linalg import lapack
@@ -308,19 +344,29 @@ class MinkDiffIK:
     def step(self, q: object, T_world_target: object) -> DiffIKStep:
         """One QP step from ``q`` towards the TCP pose ``T_world_target`` (4, 4)."""
         t0 = time.perf_counter()
-        q = as_arm_q(q)
-        T = _checked_pose(T_world_target)
+        q = _arm_q(q)
+        T, rot = self._pose(T_world_target)
         if not self._direct:
             return self._step_mink(q, T, t0)
         mujoco = self._mj
-        conf = self.configuration
-        conf.update(q)
+        m, data = self.mj_model, self.configuration.data
+        # Configuration.update(q): forward kinematics, and the com positions for Jacobians
+        self._qpos[:] = q
+        mujoco.mj_kinematics(m, data)
+        mujoco.mj_comPos(m, data)
+        if self._neq > 0:
+            mujoco.mj_makeConstraint(m, data)
         target = self.frame_task.transform_target_to_world
         if target is None or target is not self._target:  # set elsewhere: own it again
             self.frame_task.set_target(self._mink.SE3.identity())
             self._target = target = self.frame_task.transform_target_to_world
-        mujoco.mju_mat2Quat(target.wxyz_xyz[:4], T[:3, :3].ravel())  # as SE3.from_matrix
-        target.wxyz_xyz[4:] = T[:3, 3]
+            self._target_quat, self._target_pos = target.wxyz_xyz[:4], target.wxyz_xyz[4:]
+            self._rot = None
+        if rot is None or rot != self._rot:  # as SE3.from_matrix (else already there)
+            self._rot = None
+            mujoco.mju_mat2Quat(self._target_quat, T[:3, :3].ravel())
+            self._rot = rot
+        self._target_pos[:] = T[:3, 3]
         H, c = self._objective(q)
         lb, ub, G, h, rows = self._constraints(q)
         x = self._solve(H, c, lb, ub, G, h, rows)
@@ -334,10 +380,36 @@ class MinkDiffIK:
         self.timings_s.append(dt)
         return DiffIKStep(q=q_next, solved=True, solve_time_s=dt)
 
+    def _pose(self, T: object) -> tuple[np.ndarray, tuple | None]:
+        """(``_checked_pose(T)``, its rotation block as a tuple, or None). The rotation of the
+        target written last (``_rot``) has passed the checks: a pose with that rotation needs
+        only its translation and last row checked."""
+        if type(T) is np.ndarray and T.shape == (4, 4) and T.dtype == _F64:
+            r0, r1, r2, last = T.tolist()
+            rot = (r0[0], r0[1], r0[2], r1[0], r1[1], r1[2], r2[0], r2[1], r2[2])
+            if rot == self._rot and last == _LAST_ROW and math.isfinite(r0[3] + r1[3] + r2[3]):
+                return T, rot
+            return _checked_pose(T), rot  # raises for a bad pose; a copy of T near a limit
+        return _checked_pose(T), None
+
     def _objective(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(H, c) of the QP: the frame task's weighted residual plus the posture task's (its
         Jacobian is the identity, so its part is diagonal), as ``mink.solve_ik`` sums them."""
-        W, e, mu = self.frame_task.compute_qp_residual(self.configuration)
+        native = self._native
+        if native is None:
+            W, e, mu = self.frame_task.compute_qp_residual(self.configuration)
+        else:  # FrameTask.compute_qp_residual, the same operations in the same order
+            frame = native.xmat_xpos_to_wxyz_xyz(self._tcp_xmat, self._tcp_xpos)
+            self._mj.mj_jacBody(
+                self.mj_model, self.configuration.data, self._jac_p, self._jac_r, self._tcp_body
+            )
+            jac = native.se3_rotation_adjoint_from_xmat(self._tcp_xmat) @ self._jac6
+            target = self._target.wxyz_xyz
+            error = native.se3_rminus(target, frame)
+            jac = -native.se3_jlog(native.se3_inverse_multiply(target, frame)) @ jac
+            e = self._ft_cost * (self._ft_neg_gain * error)
+            W = self._ft_cost_col * jac
+            mu = self._ft_lm * float(e @ e)
         # the posture task's weighted error is cost * -gain * (q ⊖ target); q ⊖ target = q - target
         e_post = (q - self.posture_task.target_q) * self._posture_neg_gain
         H = W.T @ W
