@@ -257,6 +257,39 @@ def best_roles(logp: np.ndarray) -> list[str]:
     return [ROLES[i] for i in reversed(path)]
 
 
+def k_best_roles(logp: np.ndarray, k: int) -> list[tuple[float, list[str]]]:
+    """The ``k`` most likely role sequences of a request's words under the same rule as
+    :func:`best_roles`, most likely first, each with its log-probability (list Viterbi: the
+    ``k`` best paths into each role at each word). The first equals :func:`best_roles`'s."""
+    if len(logp) == 0 or k < 1:
+        return []
+    n_roles = len(ROLES)
+    ok = np.where(_allowed(), 0.0, -np.inf)  # (prev, cur)
+    first_ok = np.array([not r.startswith("I-") for r in ROLES])
+    # score[r, j]: the j-th best path ending in role r; only the first is set at the start
+    score = np.full((n_roles, k), -np.inf)
+    score[:, 0] = np.where(first_ok, logp[0], -np.inf)
+    backs = []
+    for t in range(1, len(logp)):
+        cand = score[:, :, None] + ok[:, None, :] + logp[t][None, None, :]  # (prev, j, cur)
+        flat = cand.reshape(n_roles * k, n_roles)
+        order = np.argsort(-flat, axis=0, kind="stable")[:k]  # (k, cur): (prev, j) indices
+        score = np.take_along_axis(flat, order, axis=0).T  # (cur, k)
+        backs.append(order.T)  # (cur, k)
+    flat_end = score.reshape(-1)
+    out = []
+    for idx in np.argsort(-flat_end, kind="stable")[:k]:
+        if not np.isfinite(flat_end[idx]):
+            break
+        role, rank = divmod(int(idx), k)
+        path = [role]
+        for back in reversed(backs):
+            role, rank = divmod(int(back[role, rank]), k)
+            path.append(role)
+        out.append((float(flat_end[idx]), [ROLES[i] for i in reversed(path)]))
+    return out
+
+
 @functools.cache
 def _starts() -> tuple[np.ndarray, np.ndarray]:
     """(R, R) bool: role j after role i begins a new reference (as :func:`_spans` cuts them),

@@ -799,6 +799,12 @@ def _interjection(words: list[str], i: int) -> bool:
     return first and (words[i].endswith((",", ";", "!", ".")) or after in ("then", "so", "then,"))
 
 
+#: How many labellings of the tagger the learned reader tries when the best is refused, and
+#: how far below the best one's log-probability (nats) one may be (measured on read pools).
+ALTERNATIVE_READINGS = 8
+ALTERNATIVE_MARGIN = 4.0
+
+
 class LearnedReader:
     """The learned tagger (:mod:`tabletop.reader.learned`) on the words after the spelling
     pass; a step it labels as a motion (compass moves, a base's own motions) is read by the
@@ -818,7 +824,7 @@ class LearnedReader:
         from tabletop.reader.learned import (
             DEFAULT_READER_WEIGHTS,
             best_roles,
-            decode,
+            k_best_roles,
             load_tagger,
             words_of,
         )
@@ -850,6 +856,30 @@ class LearnedReader:
         tagger = load_tagger(self.weights or DEFAULT_READER_WEIGHTS)
         role_logp, rels = tagger.scores(words)
         roles = best_roles(role_logp)
+        try:
+            return self._read(text, read, fixes, polite, words, roles, rels, role_logp, robot)
+        except ParseError as first:
+            # constrained decoding: the most likely labelling that the checks below accept,
+            # among the few nearly as likely as the best; the best one's refusal otherwise
+            ranked = k_best_roles(role_logp, ALTERNATIVE_READINGS)
+            for logp, other in ranked[1:]:
+                if logp < ranked[0][0] - ALTERNATIVE_MARGIN:
+                    break
+                try:
+                    return self._read(
+                        text, read, fixes, polite, words, other, rels, role_logp, robot, True
+                    )
+                except ParseError:
+                    continue
+            raise first
+
+    def _read(
+        self, text, read, fixes, polite, words, roles, rels, role_logp, robot, other=False
+    ) -> Reading:
+        """The reading of ``words`` with the tagger's ``roles``, or ParseError where a check
+        finds that it drops, ranks, negates or adds what the words say. ``other``: the roles
+        are not the tagger's best, and a negation left out of the references is refused
+        outright (no courtesy or aside around it is looked for)."""
         # the words left out of the references
         plain = [
             _plain(w)
@@ -892,7 +922,7 @@ class LearnedReader:
                 if _plain(words[i]) == nth.split()[0].lower():
                     raise ParseError(text, nth, ORDINAL_WHY)
         negated = [w for w in plain if is_negation(w)]
-        if negated and (reading := self._after_courtesy(text, words, roles, robot)):
+        if negated and not other and (reading := self._after_courtesy(text, words, roles, robot)):
             return reading
         if negated:  # the tagger refuses these too; a word that reverses a goal never slips
             raise ParseError(text, " ".join(negated), "the robot cannot honour a negated goal")
@@ -907,6 +937,8 @@ class LearnedReader:
                 "it stands, 'the mug left of the duck', is not read): ask for the place, 'go to "
                 "the left of the duck', or the thing near another, 'go to the mug near the duck'",
             )
+        from tabletop.reader.learned import decode
+
         # the tagger's "between" of a thing and the whole table is one thing said to be on it
         steps = settle_references(
             text,
