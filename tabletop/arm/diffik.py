@@ -295,7 +295,7 @@ class MinkDiffIK:
             "kij,kj->ki", R, m.geom_aabb[wg, :3]
         )
         self._bp_half[:n_fixed] = np.einsum("kij,kj->ki", np.abs(R), m.geom_aabb[wg, 3:])
-        self._bp_moving = slice(n_fixed, None)
+        self._bp_centre_moving = self._bp_centre[n_fixed:]
         self._bp_b = g2[moving]  # the other geom of each moving pair
         reach = rb[self._bp_a] + distmax
         reach[n_fixed:] += rb[self._bp_b]
@@ -324,12 +324,17 @@ class MinkDiffIK:
         self._jac6 = np.empty((6, nv))
         self._jac_p, self._jac_r = self._jac6[:3], self._jac6[3:]
         self._ft_cost = np.asarray(ft.cost, dtype=np.float64)
-        self._ft_cost_col = self._ft_cost[:, None]
-        self._ft_neg_gain = -float(ft.gain)
+        self._ft_neg_cost_col = -self._ft_cost[:, None]
+        self._ft_gain = float(ft.gain)
         self._ft_lm = float(ft.lm_damping)
         self._qpos = data.qpos
         self._geom_xpos = data.geom_xpos
         self._neq = m.neq
+        self._H = np.empty((nv, nv))  # the QP's Hessian, written in place by _objective
+        self._H_diag = self._H.reshape(-1)[:: nv + 1]
+        self._ones3 = np.ones(3)
+        # geoms on a body that moves (else welded to the world: a zero Jacobian)
+        self._geom_moves = (m.body_weldid[m.geom_bodyid] != 0).tolist()
         self._active: tuple[tuple[int, ...], tuple[int, ...], tuple[int, ...]] | None = None
         self._mj = mujoco
         from scipy.linalg import lapack
@@ -367,9 +372,9 @@ class MinkDiffIK:
             mujoco.mju_mat2Quat(self._target_quat, T[:3, :3].ravel())
             self._rot = rot
         self._target_pos[:] = T[:3, 3]
-        H, c = self._objective(q)
+        H, g = self._objective(q)
         lb, ub, G, h, rows = self._constraints(q)
-        x = self._solve(H, c, lb, ub, G, h, rows)
+        x = self._solve(H, g, lb, ub, G, h, rows)
         if x is None:
             dt = time.perf_counter() - t0
             self.timings_s.append(dt)
@@ -393,34 +398,44 @@ class MinkDiffIK:
         return _checked_pose(T), None
 
     def _objective(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(H, c) of the QP: the frame task's weighted residual plus the posture task's (its
-        Jacobian is the identity, so its part is diagonal), as ``mink.solve_ik`` sums them."""
+        """(H, g) of the QP, g = -c: the frame task's weighted residual plus the posture
+        task's (its Jacobian is the identity, so its part is diagonal), as ``mink.solve_ik``
+        sums them. With mink's native Lie ops, the operations of
+        ``FrameTask.compute_qp_residual`` on the same arrays, signs moved where that is exact
+        (-(a) @ b = -(a @ b), and the residual's sign cancels in H and in e @ e)."""
         native = self._native
+        H = self._H
         if native is None:
             W, e, mu = self.frame_task.compute_qp_residual(self.configuration)
-        else:  # FrameTask.compute_qp_residual, the same operations in the same order
+            ep = -e
+        else:
             frame = native.xmat_xpos_to_wxyz_xyz(self._tcp_xmat, self._tcp_xpos)
             self._mj.mj_jacBody(
                 self.mj_model, self.configuration.data, self._jac_p, self._jac_r, self._tcp_body
             )
-            jac = native.se3_rotation_adjoint_from_xmat(self._tcp_xmat) @ self._jac6
+            jac = native.se3_rotation_adjoint_from_xmat(self._tcp_xmat).dot(self._jac6)
             target = self._target.wxyz_xyz
             error = native.se3_rminus(target, frame)
-            jac = -native.se3_jlog(native.se3_inverse_multiply(target, frame)) @ jac
-            e = self._ft_cost * (self._ft_neg_gain * error)
-            W = self._ft_cost_col * jac
-            mu = self._ft_lm * float(e @ e)
+            jac = native.se3_jlog(native.se3_inverse_multiply(target, frame)).dot(jac)
+            # W = cost * -(jlog @ jac); ep = -e = cost * (gain * error)
+            W = self._ft_neg_cost_col * jac
+            ep = self._ft_cost * (error if self._ft_gain == 1.0 else self._ft_gain * error)
+            mu = self._ft_lm * float(ep.dot(ep))
         # the posture task's weighted error is cost * -gain * (q ⊖ target); q ⊖ target = q - target
-        e_post = (q - self.posture_task.target_q) * self._posture_neg_gain
-        H = W.T @ W
+        if self._posture_neg_gain == -1.0:
+            e_post = self.posture_task.target_q - q
+        else:
+            e_post = (q - self.posture_task.target_q) * self._posture_neg_gain
+        np.dot(W.T, W, out=H)
         H += self._H_const  # diag(posture cost², damping)
         if self._posture_lm:
-            mu += self._posture_lm * float(e_post * e_post @ self._posture_w2)
+            mu += self._posture_lm * float((e_post * e_post).dot(self._posture_w2))
         if mu:
-            H.flat[:: len(q) + 1] += mu
-        c = -(e @ W)
-        c -= self._posture_w2 * e_post
-        return H, c
+            self._H_diag += mu
+        # c = -(e @ W) - posture_w2 * e_post, so g = -c = posture_w2 * e_post - ep @ W
+        g = self._posture_w2 * e_post
+        g -= ep.dot(W)
+        return H, g
 
     def _constraints(self, q: np.ndarray):
         """(lb, ub, G, h, pairs): the joint position and velocity limits as one box
@@ -432,27 +447,42 @@ class MinkDiffIK:
         mujoco = self._mj
         m, data = self.mj_model, self.configuration.data
         col = self._col
-        xpos = data.geom_xpos
-        centre = self._bp_centre
-        centre[self._bp_moving] = xpos[self._bp_b]
-        gap = np.abs(xpos[self._bp_a] - centre)
+        xpos = self._geom_xpos
+        np.take(xpos, self._bp_b, axis=0, out=self._bp_centre_moving)
+        gap = xpos[self._bp_a]
+        gap -= self._bp_centre
+        np.abs(gap, out=gap)
         gap -= self._bp_half
         np.maximum(gap, 0.0, out=gap)
-        near = self._bp_idx[np.einsum("ij,ij->i", gap, gap) <= self._bp_reach2].tolist()
+        gap *= gap
+        near = self._bp_idx[gap.dot(self._ones3) <= self._bp_reach2].tolist()
+        if self._always:
+            near = self._always + near
+        if not near:
+            return lb, ub, None, None, near
         distmax = col.collision_detection_distance
         min_dist = col.minimum_distance_from_collisions
         fromto, normal, jac1, jac2 = self._fromto, self._normal, self._jac1, self._jac2
+        body, moved = self._geom_body, self._geom_moves
         rows, hs, ids = [], [], []
-        for idx in self._always + near if self._always else near:
+        for idx in near:
             g1, g2 = self._pairs[idx]
             dist = mujoco.mj_geomDistance(m, data, g1, g2, distmax, fromto)
             if abs(dist - distmax) < 1e-12:
                 continue
             normal[:] = fromto[3:] - fromto[:3]
             mujoco.mju_normalize3(normal)
-            mujoco.mj_jac(m, data, jac2, None, fromto[3:], self._geom_body[g2])
-            mujoco.mj_jac(m, data, jac1, None, fromto[:3], self._geom_body[g1])
-            row = normal @ (jac2 - jac1)
+            # normal @ (jac2 - jac1), either Jacobian zero for a geom welded to the world
+            if not moved[g2]:
+                mujoco.mj_jac(m, data, jac1, None, fromto[:3], body[g1])
+                row = -normal.dot(jac1)
+            elif not moved[g1]:
+                mujoco.mj_jac(m, data, jac2, None, fromto[3:], body[g2])
+                row = normal.dot(jac2)
+            else:
+                mujoco.mj_jac(m, data, jac2, None, fromto[3:], body[g2])
+                mujoco.mj_jac(m, data, jac1, None, fromto[:3], body[g1])
+                row = normal.dot(jac2 - jac1)
             bound = col.gain * (dist - min_dist) / self.config.dt if dist > min_dist else 0.0
             rows.append(-row if dist >= 0 else row)
             hs.append(bound + col.bound_relaxation)
@@ -461,15 +491,22 @@ class MinkDiffIK:
             return lb, ub, None, None, ids
         return lb, ub, np.array(rows), np.array(hs), ids
 
-    def _solve(self, H, c, lb, ub, G, h, rows) -> np.ndarray | None:
-        """The QP's minimiser (None when it has none): unconstrained, warm, else daqp."""
-        _, x, info = self._posv(H, -c)  # Cholesky: H is positive definite with damping > 0
+    def _solve(self, H, g, lb, ub, G, h, rows) -> np.ndarray | None:
+        """The QP's minimiser (None when it has none): unconstrained, warm, else daqp.
+        ``g`` is the negated linear term (-c)."""
+        _, x, info = self._posv(H, g)  # Cholesky: H is positive definite with damping > 0
         if info != 0:  # not positive definite (no damping, no posture cost): daqp decides
-            return self._solve_daqp(H, c, lb, ub, G, h, rows)
-        if (x <= ub).all() and (x >= lb).all() and (G is None or (G @ x <= h).all()):
+            return self._solve_daqp(H, -g, lb, ub, G, h, rows)
+        nv = len(x)
+        if (
+            np.count_nonzero(x <= ub) == nv
+            and np.count_nonzero(x >= lb) == nv
+            and (G is None or np.count_nonzero(G.dot(x) <= h) == len(h))
+        ):
             self._active = None
             self.qp_paths["unconstrained"] += 1
             return x
+        c = -g
         if self._active is not None:
             x = self._solve_active(H, c, lb, ub, G, h, rows, *self._active)
             if x is not None:
