@@ -341,10 +341,19 @@ def test_a_map_whose_encoder_fields_were_edited_is_refused(built, default_map, t
     def rebuild(h):
         h["rebuild"]["labels"]["4"] = "blue_mug"
 
+    def version(h):  # it loaded without a word, as a map of another version
+        h["version"] = 4
+
+    def scene(h):  # ... and as a map of another scene
+        h["source"]["scene"] = "random"
+
+    whole = "its header does not match the fingerprint written with the map"
     for change, words in (
         (to_default, "'encoder_set' is 'default' but its encoders are 'oracle"),
         (rename, "do not match the fingerprint written with the map"),
         (rebuild, "do not match the fingerprint written with the map"),
+        (version, whole),
+        (scene, whole),
     ):
         edited = _with_header(built[1], tmp_path / f"{change.__name__}.npz", change)
         rc, out = run(capsys, "query", edited, "--obj", "red mug")

@@ -64,7 +64,8 @@ def test_save_load_round_trip_and_corrupted_visual_arrays(avlmap, queries, tmp_p
     # A version 1 file (before the visual module) loads; its image goals are not found.
     header = json.loads(arrays["header"].tobytes())
     v1 = {k: v for k, v in arrays.items() if not k.startswith("visual_")}
-    v1_header = {k: v for k, v in header.items() if k != "visual"} | {"version": 1}
+    v1_header = {k: v for k, v in header.items() if k not in ("visual", "fingerprints")}
+    v1_header |= {"version": 1}
     v1["header"] = np.frombuffer(json.dumps(v1_header).encode(), np.uint8)
     np.savez(tmp_path / "v1.npz", **v1)
     old = AVLMap.load(tmp_path / "v1.npz")

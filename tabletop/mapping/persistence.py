@@ -48,6 +48,7 @@ __all__ = [
     "check_map_output",
     "check_map_scene",
     "encoder_fingerprint",
+    "header_fingerprint",
     "read_map_file",
     "read_map_preview",
     "save_map",
@@ -71,6 +72,13 @@ def _digest(obj) -> str:
     """A short content hash of a JSON-serialisable value (keys sorted)."""
     text = json.dumps(obj, sort_keys=True, separators=(",", ":"), default=str)
     return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+def header_fingerprint(header: dict) -> str:
+    """The fingerprint of a whole map header but its ``fingerprints`` (each of which guards
+    its own part): any field edited after the save (its version, scene, source, config,
+    segments) changes it."""
+    return _digest({k: v for k, v in header.items() if k != "fingerprints"})
 
 
 def scene_fingerprint(scene: dict) -> str | None:
@@ -192,6 +200,14 @@ def check_map_fingerprints(path: str | Path, h: dict) -> None:
             f"{path}: header field 'calibration' does not match the fingerprint written with "
             "the map: it was edited after the build (its confidences and found decisions would "
             "not be the ones it was built with); build the map again (tabletop build-map)"
+        )
+    whole = prints.get("header")  # (maps written before it carry none)
+    if whole is not None and whole != header_fingerprint(h):
+        raise MapFormatError(
+            f"{path}: its header does not match the fingerprint written with the map: a field "
+            "(its version, scene, source, config or segments) was edited after the build, so "
+            "the map would not answer as it was built to; build the map again (tabletop "
+            "build-map)"
         )
     saved = prints.get("weights") or {}
     now = weights_fingerprints(h["encoder_set"], h["rebuild"])
@@ -442,6 +458,7 @@ def save_map(m, path: str | Path, *, rebuild: dict | None = None) -> Path:
     if m.visual is not None:
         header["visual"], visual = m.visual.state()
         arrays.update({f"visual_{k}": v for k, v in visual.items()})
+    header["fingerprints"]["header"] = header_fingerprint(header)
     arrays["header"] = np.frombuffer(json.dumps(header).encode(), dtype=np.uint8)
     with atomic_path(path) as tmp, open(tmp, "wb") as f:
         np.savez(f, **arrays)
