@@ -25,10 +25,10 @@ FAMILIES = {
 #: approximate cost [CPU s] of the heaviest files (``--durations``, one math thread)
 COSTS = {
     "test_avlmap.py": 228,
-    "test_eval_runner.py": 208,
+    "test_eval_runner.py": 171,  # its robustness sweep is marked slow
     "test_eval_parallel.py": 10,  # its serial-against-parallel runs are marked slow
     "test_kind_reader.py": 12,  # its refit reproducing the committed reader is marked slow
-    "test_encoders_registry.py": 105,
+    "test_encoders_registry.py": 71,  # its default map build is marked slow
     "test_instance_eval.py": 90,  # marked slow: run by scripts/test -m slow
     "test_franky_driver.py": 40,  # franky-sim in real time and a reach; robot_scan's map
     "test_scan.py": 77,  # with test_ground_truth.py: one scan for both

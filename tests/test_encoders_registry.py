@@ -68,6 +68,7 @@ def test_missing_weights_are_named(tmp_path):
         make_encoders("default", options={"vision_weights": str(tmp_path / "nope.pt")})
 
 
+@pytest.mark.slow  # a whole default map of a 500-frame scan (34 s): scripts/test -m slow
 def test_default_map_builds_saves_and_loads(rec, tmp_path):
     m = build_map(rec, "default")
     assert m.encoder_set == "default"

@@ -311,6 +311,7 @@ def test_eval_map_refuses_zero_seeds():
         run_map_eval(0)
 
 
+@pytest.mark.slow  # a robustness sweep end to end (37 s): scripts/test -m slow
 def test_noise_is_applied_to_the_cached_clean_scan_and_its_map_is_kept_apart(run, tmp_path):
     from tabletop.eval.robustness import run_robustness
 
