@@ -358,9 +358,9 @@ class CollisionChecker:
         if self._prev_q is None:
             return None
         dq = np.abs(q - self._prev_q)
-        if dq @ self._lever > self.coherence_limit:  # max_displacement
+        if dq.dot(self._lever) > self.coherence_limit:  # max_displacement
             return None
-        return self._prev_bounds - self._closing @ dq
+        return self._prev_bounds - self._closing.dot(dq)
 
     def _place(self, i: int, oMi) -> None:
         """Move link i's collision object to its pose in ``oMi`` (the joints' placements)."""

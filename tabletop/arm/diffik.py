@@ -330,6 +330,7 @@ class MinkDiffIK:
         self._qpos = data.qpos
         self._geom_xpos = data.geom_xpos
         self._neq = m.neq
+        self._dt = float(self.config.dt)
         self._H = np.empty((nv, nv))  # the QP's Hessian, written in place by _objective
         self._H_diag = self._H.reshape(-1)[:: nv + 1]
         self._ones3 = np.ones(3)
@@ -379,8 +380,12 @@ class MinkDiffIK:
             dt = time.perf_counter() - t0
             self.timings_s.append(dt)
             return DiffIKStep(q=q, solved=False, solve_time_s=dt)
-        v = x / self.config.dt  # mink's velocity, integrated as mj_integratePos does
-        q_next = np.minimum(np.maximum(q + v * self.config.dt, self._q_lower), self._q_upper)
+        # mink's velocity x / dt, integrated as mj_integratePos does: q + v dt, then clipped
+        q_next = x / self._dt
+        q_next *= self._dt
+        q_next += q
+        np.maximum(q_next, self._q_lower, out=q_next)
+        np.minimum(q_next, self._q_upper, out=q_next)
         dt = time.perf_counter() - t0
         self.timings_s.append(dt)
         return DiffIKStep(q=q_next, solved=True, solve_time_s=dt)
@@ -448,7 +453,7 @@ class MinkDiffIK:
         m, data = self.mj_model, self.configuration.data
         col = self._col
         xpos = self._geom_xpos
-        np.take(xpos, self._bp_b, axis=0, out=self._bp_centre_moving)
+        xpos.take(self._bp_b, axis=0, out=self._bp_centre_moving)
         gap = xpos[self._bp_a]
         gap -= self._bp_centre
         np.abs(gap, out=gap)
