@@ -196,3 +196,33 @@ def test_self_collision_can_be_switched_between_queries(model):
     q = q + 0.001
     on = ch.clearance(q)
     assert on.self_distance < ch.max_distance and on == ch.clearance_all_pairs(q)
+
+
+def test_hulls_placed_on_their_joint_are_where_the_urdf_puts_them(model):
+    # The hand's and the fingers' hulls are stored in joint 7's frame; the same distances as
+    # the mesh-frame hulls moved by the URDF's placement (to FCL's GJK precision).
+    import fcl
+    import pinocchio as pin
+
+    from tabletop.arm.collision import _fcl_convex
+
+    box = Box([0.5, 0.0, 0.1], [0.05, 0.05, 0.05], name="b")
+    ch = CollisionChecker(model, [box], max_distance=1.0)
+    ob = ch._obs_objs[0]
+    data = model.model.createData()
+    rng = np.random.default_rng(3)
+    placed = [i for i, lk in enumerate(ch._links) if lk.name in ("panda_hand", "panda_leftfinger")]
+    worst = 0.0
+    for _ in range(30):
+        q = model.random_q(rng)
+        pin.forwardKinematics(model.model, data, q)
+        for i in placed:
+            lk = ch._links[i]
+            M = data.oMi[lk.joint] * lk.placement
+            ref = fcl.CollisionObject(
+                _fcl_convex(*ch.hull(lk.name)), fcl.Transform(M.rotation, M.translation)
+            )
+            want = fcl.distance(ref, ob, ch._req, fcl.DistanceResult())
+            got = ch._distance(ch._set_tf(i, data.oMi, set()), ob)
+            worst = max(worst, abs(got - want))
+    assert worst < 1e-3

@@ -201,12 +201,16 @@ class CollisionChecker:
             c = (lo + hi) / 2
             r = float(np.linalg.norm(verts - c, axis=1).max())
             pl = go.placement
+            # the hull in its joint's frame (the hand and the fingers are placed on joint 7),
+            # so that a link's pose is its joint's, shared by the links on that joint
+            placed = not np.allclose(pl.homogeneous, np.eye(4))
+            in_joint = verts @ pl.rotation.T + pl.translation if placed else verts
             self._links.append(
                 _Link(
                     name=link,
                     joint=int(go.parentJoint),
                     placement=pl,
-                    obj=fcl.CollisionObject(_fcl_convex(verts, tris), fcl.Transform()),
+                    obj=fcl.CollisionObject(_fcl_convex(in_joint, tris), fcl.Transform()),
                     center_local=pl.rotation @ c + pl.translation,
                     radius=r,
                 )
@@ -225,10 +229,11 @@ class CollisionChecker:
         # fcl.distance copies the nearest points into a result whose min_distance is larger
         # than the query's; one that starts at -inf is never written (the distance is returned)
         self._res = fcl.DistanceResult(-np.inf)
-        self._placed = [not np.allclose(lk.placement.homogeneous, np.eye(4)) for lk in self._links]
-        self._tfs = [fcl.Transform() for _ in self._links]
-        # per link, the query that last set its transform (link0 is fixed: set here, once)
+        # per joint, its pose and the query that last set it; per link, the query that last
+        # moved it (links on joint 0, the fixed base, stay where they were made)
+        self._joint_tfs = [fcl.Transform() for _ in range(self.model.model.njoints)]
         self._stamp = 0
+        self._joint_tf_stamp = [0] * len(self._joint_tfs)
         self._link_tf_stamp = [0] * len(self._links)
         self._self_ij = (self._self_i.tolist(), self._self_j.tolist())
         #: Narrow-phase (FCL) distance queries made so far, by every method.
@@ -363,24 +368,24 @@ class CollisionChecker:
         return self._prev_bounds - self._closing.dot(dq)
 
     def _place(self, i: int, oMi) -> None:
-        """Move link i's collision object to its pose in ``oMi`` (the joints' placements)."""
+        """Move link i's collision object to its joint's pose in ``oMi`` (each joint's pose
+        converted once per query)."""
         lk = self._links[i]
-        if self._placed[i]:
-            M = oMi[lk.joint] * lk.placement
-        elif lk.joint:
-            M = oMi[lk.joint]
-        else:  # on the fixed base: at the identity, where it was made, for good
+        j = lk.joint
+        if not j:  # on the fixed base: at the identity, where it was made, for good
             return
-        H = M.homogeneous
-        tf = self._tfs[i]
-        tf.setRotation(H[:3, :3])
-        tf.setTranslation(H[:3, 3])
+        tf = self._joint_tfs[j]
+        if self._joint_tf_stamp[j] != self._stamp:
+            H = oMi[j].homogeneous
+            tf.setRotation(H[:3, :3])
+            tf.setTranslation(H[:3, 3])
+            self._joint_tf_stamp[j] = self._stamp
         lk.obj.setTransform(tf)
 
     def _set_tf(self, i: int, oMi, done: set[int]) -> fcl.CollisionObject:
         lk = self._links[i]
         if i not in done:
-            M = oMi[lk.joint] * lk.placement if self._placed[i] else oMi[lk.joint]
+            M = oMi[lk.joint]
             lk.obj.setTransform(fcl.Transform(M.rotation, M.translation))
             done.add(i)
         return lk.obj
@@ -413,13 +418,12 @@ class CollisionChecker:
         env_pair = slf_pair = None
         if n_env:
             env_b = bounds[:n_env]
-            values = env_b.tolist()
             obs = self._obs_objs
-            for p in env_b.argsort().tolist():
-                b = values[p]
+            for p in env_b.argsort():  # numpy scalars: only the first few are taken
+                b = env_b[p]
                 if b >= env and b > 0.0:
                     break
-                i, k = divmod(p, n_obs)
+                i, k = divmod(int(p), n_obs)
                 if placed[i] != stamp:
                     self._place(i, oMi)
                     placed[i] = stamp
@@ -432,12 +436,12 @@ class CollisionChecker:
                 env_pair = (links[env_pair // n_obs].name, self._obs_names[env_pair % n_obs])
         if self.self_collision and len(bounds) > n_env:
             slf_b = bounds[n_env:]
-            values = slf_b.tolist()
             si, sj = self._self_ij
-            for p in slf_b.argsort().tolist():
-                b = values[p]
+            for p in slf_b.argsort():
+                b = slf_b[p]
                 if b >= slf and b > 0.0:
                     break
+                p = int(p)
                 i, j = si[p], sj[p]
                 if placed[i] != stamp:
                     self._place(i, oMi)
