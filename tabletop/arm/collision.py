@@ -3,7 +3,9 @@
 Each link's collision mesh (from the URDF, through Pinocchio's geometry model) is replaced by
 its convex hull: distance queries between hulls are exact for the hulls, fast (a few
 microseconds), and the hulls contain the meshes, so a positive hull clearance is a safe
-clearance. The checker answers three questions for an arm configuration ``q``:
+clearance. The hulls are held in their joint's frame (the hand's and the fingers' URDF
+placement applied to their vertices), so each joint's pose is handed to FCL once per query.
+The checker answers three questions for an arm configuration ``q``:
 
 - how far the robot is from the environment (table, objects, occupied map voxels),
 - how far it is from itself, over the link pairs that can meet (adjacent links and links on
@@ -330,7 +332,9 @@ class CollisionChecker:
         return self._lever.copy()
 
     def hull(self, link: str) -> tuple[np.ndarray, np.ndarray]:
-        """(V, 3) vertices [m] in the link frame's parent joint frame and (F, 3) triangles."""
+        """(V, 3) vertices [m] in the mesh's frame (on the parent joint by the link's URDF
+        collision placement; the identity but for the hand and the fingers) and (F, 3)
+        triangles."""
         v, t = self._hulls[link]
         return v.copy(), t.copy()
 
