@@ -799,6 +799,17 @@ def _interjection(words: list[str], i: int) -> bool:
     return first and (words[i].endswith((",", ";", "!", ".")) or after in ("then", "so", "then,"))
 
 
+def _keeps_named_words(fragment: str, steps: tuple[Step, ...]) -> bool:
+    """Whether a reading keeps, in its references, the words a refusal named (one or two
+    words: "nearest", "all"): another labelling that reads past the word a check stopped at
+    must read it, not drop it. A longer fragment names no word in particular."""
+    named = [w for w in (_plain(w) for w in str(fragment).split()) if w]
+    if not named or len(named) > 2:
+        return True
+    kept = {_plain(w) for ref in _reference_texts(steps) for w in str(ref).split()}
+    return all(w in kept for w in named)
+
+
 #: How many labellings of the tagger the learned reader tries when the best is refused, and
 #: how far below the best one's log-probability (nats) one may be (measured on read pools).
 ALTERNATIVE_READINGS = 8
@@ -866,11 +877,13 @@ class LearnedReader:
                 if logp < ranked[0][0] - ALTERNATIVE_MARGIN:
                     break
                 try:
-                    return self._read(
+                    reading = self._read(
                         text, read, fixes, polite, words, other, rels, role_logp, robot, True
                     )
                 except ParseError:
                     continue
+                if _keeps_named_words(first.fragment, reading.steps):
+                    return reading
             raise first
 
     def _read(
