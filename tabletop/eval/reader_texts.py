@@ -16,10 +16,9 @@ words (letters dropped, doubled, swapped or replaced) and slips that sound like 
 any of them: its landmark made a possessive ("the left side of {a}" -> "{a}'s left side") or
 put first and pointed back to ("{a} - go to the left of it", "{a}: go to its left side"), or
 its part named by a common English word of no structure ("the left <word> of {a}": the side
-word decides, whatever part is named). A near word, and the relation word of a between, a
-side or an above, is sometimes hedged ("roughly next to", "right behind"); near is sometimes
-said as a small distance named by any common English word ("a <word> away from"); and a thing
-is sometimes said to be where the whole map is ("on the table"), which narrows nothing.
+word decides, whatever part is named). A near word is sometimes hedged ("roughly next to"),
+and a thing is sometimes said to be where the whole map is ("on the table"), which narrows
+nothing.
 """
 
 from __future__ import annotations
@@ -50,11 +49,6 @@ _SIDE_KEYS = {r.name: r.side for r in RELATIONS if r.side is not None}
 _OF_A = re.compile(r"\bthe ([a-z-]+|[a-z-]+ (?:[a-z]+ )?side) of \{a\}")
 #: How a landmark put first is joined to the rest ("{t}": the template pointing back to it).
 _FRONTED = ("{a} - {t}", "{a}, {t}", "{a}: {t}", "{a}... {t}", "see {a}? {t}", "{a} - {t} please")
-#: The relation words of a template that a hedge may go before ("right behind {a}").
-_HEDGEABLE = re.compile(
-    r"\b(?:between|behind|in front of|beside|next to|near|above|over|on top of|past|beyond|"
-    r"(?:to|on) the (?:left|right|far|near|front|back)|left of|right of)\b"
-)
 _AREA_NAMES = {"left": "the left side of the table", "right": "the right side of the table",
                "front": "the far side of the table", "back": "the near side of the table",
                "center": "the middle of the table"}  # fmt: skip
@@ -147,31 +141,10 @@ class _Maker:
             out.append((self.pick(self.t["whole_table"]), None))
         if not near and kind == "obj" and self.chance(0.3):
             word = self.pick(list(self.b.instructions.get("near", ())) + self.t["near"])
-            if self.chance(0.08):  # "a <word> away from": near, whatever the word
-                word = self.pick(self.t["near_by_measure"]).replace("{w}", self.measure())
-            elif self.chance(0.2):
+            if self.chance(0.15):
                 word = f"{self.pick(self.t['hedges'])} {word}"
             out += [(word, None), *self.goal(True, ("sound", "sound", "obj", "area"))]
         return out
-
-    def measure(self) -> str:
-        """A common English word naming a small amount in "a <word> away from" (none that
-        makes the phrase say far: "a long way", "miles")."""
-        from tabletop.reader.lexicon.words import far_from
-
-        while far_from(f"a {(word := self.pick(_plain_words()))} from the mug"):
-            pass
-        return word
-
-    def hedge(self, template: str, side: str | None = None) -> str:
-        """``template`` with a hedge or degree adverb before its relation word, sometimes
-        ("go right behind {a}"); a left or right side gets no side word as its hedge."""
-        m = _HEDGEABLE.search(template)
-        if m is None or not self.chance(0.12):
-            return template
-        sides = set(_SIDE_KEYS.values()) if side in ("left", "right") else set()
-        word = self.pick([h for h in self.t["hedges"] if h not in sides])
-        return f"{template[: m.start()]}{word} {template[m.start() :]}"
 
     def fill(self, template: str, goals: dict) -> list:
         out: list = []
@@ -197,9 +170,7 @@ class _Maker:
         if r < 0.42:
             return self.fill(self.pick(t["fronted"]), {"a": self.goal()}), "goto"
         if r < 0.56:
-            tpl = self.hedge(
-                self.pick(list(ins.get("between", ())) or ["go between {a} and {b}"])
-            )
+            tpl = self.pick(list(ins.get("between", ())) or ["go between {a} and {b}"])
             kinds = ("obj", "obj", "obj", "sound", "area")
             return self.fill(tpl, {"a": self.goal(kinds=kinds), "b": self.goal(kinds=kinds)}), (
                 "between"
@@ -207,11 +178,9 @@ class _Maker:
         if r < 0.74:
             key = self.pick(sorted(_SIDE_KEYS))
             tpl = self.pick(list(ins.get(key, ())) or ["go to the {key} of {a}"])
-            tpl = self.hedge(self.recast(tpl), side=_SIDE_KEYS[key])
-            return self.fill(tpl, {"a": self.goal(kinds=("obj",))}), _SIDE_KEYS[key]
+            return self.fill(self.recast(tpl), {"a": self.goal(kinds=("obj",))}), _SIDE_KEYS[key]
         if r < 0.80:
-            tpl = self.hedge(self.pick(t["above"]))
-            return self.fill(tpl, {"a": self.goal(kinds=("obj",))}), "above"
+            return self.fill(self.pick(t["above"]), {"a": self.goal(kinds=("obj",))}), "above"
         if r < 0.86:
             goals = {"a": self.goal(), "b": self.goal()}
             return self.fill(self.pick(t["backforth"]), goals), "backforth"
