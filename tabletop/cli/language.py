@@ -432,7 +432,6 @@ def cmd_train_reader(args: argparse.Namespace) -> int:
     minutes on two cores; MiniLM's word states cached under out/cache)."""
     from pathlib import Path
 
-    from tabletop.eval.paraphrase import TUNE_POOLS
     from tabletop.eval.reader_texts import reader_texts
     from tabletop.train.reader import train_reader
 
@@ -449,10 +448,11 @@ def cmd_train_reader(args: argparse.Namespace) -> int:
         import torch
 
         torch.set_num_threads(int(args.threads))
-    texts = reader_texts(TUNE_POOLS, n_per_pool=READER_TEXTS_PER_POOL, seed=0)
+    pools = reader_pools()
+    texts = reader_texts(pools, n_per_pool=READER_TEXTS_PER_POOL, seed=0)
     tagger = train_reader(texts, out, val_pools=READER_VAL_POOLS, seed=0, refit=True)
     v = tagger.meta.get("validation", {})
-    print(f"reader written: {out} ({len(texts)} texts from {len(TUNE_POOLS)} tune pools)")
+    print(f"reader written: {out} ({len(texts)} texts from {len(pools)} tune pools)")
     if v:
         print(
             f"on pools it never saw ({', '.join(v['pools'])}): plans right "
@@ -463,6 +463,19 @@ def cmd_train_reader(args: argparse.Namespace) -> int:
 
 
 #: Generated requests per tune pool, and the pools a first network is measured on unseen (the
-#: two newest tune pools: the last writers' words, read only after their report).
+#: two newest pools it trains on: the last writers' words, read only after their report).
 READER_TEXTS_PER_POOL = 1000
-READER_VAL_POOLS = ("heldout-28", "heldout-29")
+READER_VAL_POOLS = ("heldout-26", "heldout-27")
+#: The tagger's pools (:func:`reader_pools`): the tune pools through heldout-27 (the shipped
+#: tagger's, 42ad637). heldout-28 and heldout-29 joined the kind and place readers; a tagger
+#: refitted with them by the same recipe read their instructions no better (its first
+#: network, which saw neither, 39 of 48 as the shipped one) and changed four readings the
+#: tests hold, so it was not shipped.
+READER_LEFT_OUT = ("heldout-28", "heldout-29")
+
+
+def reader_pools() -> tuple[str, ...]:
+    """The tune pools the tagger is trained on (all but :data:`READER_LEFT_OUT`)."""
+    from tabletop.eval.paraphrase import TUNE_POOLS
+
+    return tuple(p for p in TUNE_POOLS if p not in READER_LEFT_OUT)
