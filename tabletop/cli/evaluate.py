@@ -625,7 +625,7 @@ def add_commands(sub) -> None:
         "two were held out until their report), 'paraphrase-heldout-13', "
         "'paraphrase-heldout-14', 'paraphrase-heldout-15', 'paraphrase-heldout-17', "
         "'paraphrase-heldout-28', 'paraphrase-heldout-29', 'paraphrase-heldout-30' (held out: "
-        "each run once for a report; the misses of heldout-28 and heldout-29 were read after "
+        "each run once for a report; the misses of heldout-28 ... heldout-30 were read after "
         "it), "
         "'clutter' (dense tables: goals on, beside and between objects), "
         "'mobile' (a wheeled base in rooms, 1 m success radius)",

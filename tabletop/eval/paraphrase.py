@@ -114,11 +114,13 @@ POOLS = (
     "heldout-30",
 )
 #: Held-out pools: evaluated once, for a report ("heldout-13", "heldout-14", "heldout-15",
-#: "heldout-17" and "heldout-30", the next judge), written without reading the parser, the
-#: lexicons or the other pools; their suites generated unread. A held-out pool whose suites
-#: were read after its report ("heldout", "heldout-2" ... "heldout-12", "heldout-16", and
-#: "heldout-18" ... "heldout-29": :data:`READ_HELDOUT_POOLS`) is tuned on from then on, like a
-#: tune pool, and every newer held-out pool must differ from it and from every training text
+#: "heldout-17" and "heldout-30"), written without reading the parser, the lexicons or the other
+#: pools; their suites generated unread. heldout-30's misses were read after its report; it
+#: stays out of training until the readers are next refitted, so that the committed ones
+#: reproduce (:data:`READ_HELDOUT_POOLS`); the next judge is a new pool. A held-out pool whose
+#: suites were read after its report ("heldout", "heldout-2" ... "heldout-12", "heldout-16",
+#: and "heldout-18" ... "heldout-29": :data:`READ_HELDOUT_POOLS`) is tuned on from then on,
+#: like a tune pool, and every newer held-out pool must differ from it and from every training text
 #: (tests/test_paraphrase.py names the entries that do not, by index only).
 HELDOUT_POOLS: tuple[str, ...] = (
     "heldout-13",
@@ -145,6 +147,7 @@ READ_HELDOUT_POOLS: tuple[str, ...] = (
     "heldout-27",
     "heldout-28",
     "heldout-29",
+    "heldout-30",
 )
 BANK_DIR = DATA_DIR / "paraphrases"
 SUITE_DIRS = {p: f"paraphrase-{p}" for p in POOLS}
