@@ -13,7 +13,12 @@ import pytest
 
 #: files that share a cached scan or map: they run on one worker, one after another
 FAMILIES = {
-    "fast_scan": ("test_scan.py", "test_ground_truth.py", "test_eval_parallel.py"),
+    "fast_scan": (
+        "test_scan.py",
+        "test_ground_truth.py",
+        "test_eval_parallel.py",
+        "test_encoders_registry.py",
+    ),
     "robot_scan": ("test_robot_api.py", "test_robot_obstacles.py", "test_franky_driver.py"),
     "visual_scene": (
         "test_visual_database.py",
@@ -28,7 +33,7 @@ COSTS = {
     "test_eval_runner.py": 171,  # its robustness sweep is marked slow
     "test_eval_parallel.py": 10,  # its serial-against-parallel runs are marked slow
     "test_kind_reader.py": 12,  # its refit reproducing the committed reader is marked slow
-    "test_encoders_registry.py": 71,  # its default map build is marked slow
+    "test_encoders_registry.py": 10,  # fast_scan's; its default map build is marked slow
     "test_instance_eval.py": 90,  # marked slow: run by scripts/test -m slow
     "test_franky_driver.py": 40,  # franky-sim in real time and a reach; robot_scan's map
     "test_scan.py": 77,  # with test_ground_truth.py: one scan for both

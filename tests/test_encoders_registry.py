@@ -13,14 +13,15 @@ from tabletop.mapping.encoders.base import (
     check_same_space,
 )
 from tabletop.mapping.encoders.registry import ENCODER_SETS, make_encoders
-from tabletop.sim.scan import ScanConfig, run_scan
-from tabletop.sim.scene import load_scene_spec
 
 
 @pytest.fixture(scope="module")
 def rec():
-    cfg = ScanConfig(seed=5, speed=0.6, episodes=2, episode_s=2.0, repeat_sounds=0)
-    return run_scan(load_scene_spec("default"), cfg)[0]
+    """The session's cached scan of the default scene (``helpers.fast_scan``, shared with the
+    other files of its family in tests/conftest.py)."""
+    from helpers import fast_scan
+
+    return fast_scan()[0]
 
 
 def test_unknown_set_names_the_valid_ones():
