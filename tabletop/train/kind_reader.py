@@ -119,7 +119,25 @@ def train_kind_reader(
     (:class:`~tabletop.mapping.kind_reader.RefusalHead`): each pool's texts are matched by an
     object module whose reader was fitted without that pool, so the head learns from readings
     of authors the reader had not seen; its own figures come from fitting it without each
-    pool in turn, beside the fixed rules' on the same readings."""
+    pool in turn, beside the fixed rules' on the same readings.
+
+    It runs on one thread (torch, BLAS and OpenMP), whatever the caller set: the fit's sums
+    differ in their last bits with the thread count, and the refusal head is fitted on
+    readings made at thresholds, so one and two threads gave heads 0.03 apart; one thread
+    gives the same reader on every machine (the slow test holds the committed one to it)."""
+    import torch
+    from threadpoolctl import threadpool_limits
+
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    try:
+        with threadpool_limits(limits=1):
+            return _train(out, rows, l2, threshold, cross_validate, vocabulary, descriptions)
+    finally:
+        torch.set_num_threads(threads)
+
+
+def _train(out, rows, l2, threshold, cross_validate, vocabulary, descriptions) -> Path:
     from tabletop.mapping.encoders.minilm import MINILM_SPACE, MiniLMTextEncoder
 
     t0 = time.monotonic()
