@@ -241,20 +241,8 @@ def _allowed() -> np.ndarray:
 def best_roles(logp: np.ndarray) -> list[str]:
     """The most likely roles of a request's words, (T, R) log-probabilities in, under the rule
     that a reference's later words (``I-``) follow its first (Viterbi)."""
-    if len(logp) == 0:
-        return []
-    ok = _allowed()
-    first_ok = np.array([not r.startswith("I-") for r in ROLES])
-    score = np.where(first_ok, logp[0], -np.inf)
-    back = []
-    for t in range(1, len(logp)):
-        cand = np.where(ok, score[:, None], -np.inf)  # (prev, cur)
-        back.append(cand.argmax(axis=0))
-        score = cand.max(axis=0) + logp[t]
-    path = [int(score.argmax())]
-    for b in reversed(back):
-        path.append(int(b[path[-1]]))
-    return [ROLES[i] for i in reversed(path)]
+    best = k_best_roles(logp, 1)
+    return best[0][1] if best else []
 
 
 def k_best_roles(logp: np.ndarray, k: int) -> list[tuple[float, list[str]]]:

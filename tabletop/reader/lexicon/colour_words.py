@@ -502,13 +502,8 @@ def _ish(word: str) -> str:
     "grassy" -> "grass", "icy" -> "ice", "muddy" -> "mud" of the survey), also with the suffix
     hyphenated and on a word that already has one ("moss-y", "minty-ish" -> "mint"); other
     words unchanged."""
-    for suffix in ("-ish", "-y", "-ey"):
-        stem = word[: -len(suffix)]
-        if word.endswith(suffix) and len(stem) > 2 and stem.isalpha():
-            if stem in COLOR_NAMES or stem in survey_colours():
-                return stem
-            if (inner := _ish(stem)) != stem:
-                return inner
+    if (joined := _suffixes_joined(word)) != word.lower():  # "moss-y" is "mossy"
+        return inner if (inner := _ish(joined)) != joined else word
     for suffix in ("ish", "est"):
         if word.endswith(suffix) and len(word) > 5:
             stem = word[:-3]
