@@ -1056,3 +1056,15 @@ def test_a_side_named_by_where_the_robot_is_and_no_side_at_all(reader):
         assert isinstance(step.action, Side) and step.action.side == side, text
     with pytest.raises(ParseError, match="no word says which side"):
         understand("move to the side of the fat little cylinder", reader=reader)
+
+
+def test_next_to_after_a_side_restates_it_and_next_as_a_joiner_still_joins():
+    # "next" joins steps ("..., and next go to"); in "next to" it says nearness: an
+    # after-thought that the goal is beside the same thing is no second request
+    side = understand("move to the left of the mug, next to it")
+    assert [s.action for s in side.steps] == [Side("left", "mug")]
+    two = understand("go to the mug, and next go to the duck")
+    assert [s.action for s in two.steps] == [
+        GoTo(Goal(Part("obj", "mug"))),
+        GoTo(Goal(Part("obj", "duck"))),
+    ]

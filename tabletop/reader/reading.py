@@ -559,6 +559,13 @@ def _plain(word: str) -> str:
 
 #: Words that join a second request to a first (after the last place named).
 _JOINERS = frozenset(("and", "then", "after", "afterwards", "next"))
+
+
+def _next_to(words: list[str], i: int) -> bool:
+    """Whether ``words[i]`` is the "next" of "next to" (a word of nearness, not a step's)."""
+    return words[i] == "next" and i + 1 < len(words) and words[i + 1] == "to"
+
+
 #: Words that say a side or "above" of a thing.
 SIDES_SAID = frozenset((*SIDES, "back", "above", "over", "top"))
 #: Why a reference that counts or numbers its thing is refused.
@@ -992,7 +999,9 @@ class LearnedReader:
         # put it down"): a joining word, then words that point back at what was named
         last = max((i for i, r in enumerate(roles) if r not in ("O", "THEN", "REP")), default=-1)
         after = [_plain(w) for w in words[last + 1 :]]
-        joined = next((i for i, w in enumerate(after) if w in _JOINERS), None)
+        joined = next(
+            (i for i, w in enumerate(after) if w in _JOINERS and not _next_to(after, i)), None
+        )
         rest = after[joined + 1 :] if joined is not None else []
         # (unless it says the side the reading goes to, "..., and stop on its right", or only
         # to go there, "..., and go there")
