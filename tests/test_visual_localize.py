@@ -230,3 +230,36 @@ def test_query_command_with_an_image(avlmap, queries, rec, tmp_path, capsys):
     assert main(["query", str(path), "--img", str(tmp_path / "blank.png")]) == 1
     out = capsys.readouterr().out
     assert "NOT FOUND (blank image" in out and "target:   none" in out
+
+
+def test_upright_pictures_are_matched_only_as_they_are(databases, queries, monkeypatch):
+    import dataclasses
+
+    from tabletop.mapping.visual import localize as loc_mod
+
+    db = databases["xfeat"]  # not rotation-invariant: it tries quarter turns unless upright
+    tried: list[int] = []
+    real = loc_mod._TurnedQuery
+
+    class Counted(real):  # the real query, its turns noted
+        def __init__(self, database, backend, rgb, k):
+            tried.append(k)
+            super().__init__(database, backend, rgb, k)
+
+    monkeypatch.setattr(loc_mod, "_TurnedQuery", Counted)
+    g, label = queries[0]
+    turned = np.ascontiguousarray(np.rot90(g.image, 1))
+    four = db.config
+    try:
+        db.config = dataclasses.replace(four, upright=True)
+        localize_image(db, g.image)
+        localize_image(db, turned)
+        assert set(tried) == {0}  # the picture as it is, never turned (a wrist camera rolls:
+        # the arm's maps keep the turns, which the pose below needs)
+        db.config = four
+        tried.clear()
+        loc = localize_image(db, turned)  # a rolled wrist picture: the turns find it
+        assert loc.ok and np.linalg.norm(loc.position - g.T_world_cam[:3, 3]) <= 0.08
+        assert len(set(tried)) > 1
+    finally:
+        db.config = four

@@ -30,6 +30,16 @@ def _machine() -> dict:
 
 
 def cmd_bench(args: argparse.Namespace) -> int:
+    if args.room_images:
+        from tabletop.eval.room_bench import run_room_image_benchmark
+
+        with stdout_to_stderr() if args.json else contextlib.nullcontext():
+            results = {"machine": _machine(), **run_room_image_benchmark()}
+        if args.json:
+            print(json.dumps(results, indent=1))
+        else:
+            _print_room_images(results)
+        return 0
     if args.viewer:
         with stdout_to_stderr() if args.json else contextlib.nullcontext():
             results = {"machine": _machine(), **_viewer_bench(None)}
@@ -115,6 +125,20 @@ def _viewer_bench(map_path) -> dict:
     _, m = scene_map(load_scene_spec("default"), VIEWER_SCAN, "oracle", cache_dir=DEFAULT_CACHE_DIR)
     with tempfile.TemporaryDirectory() as tmp:
         return time_to_first_picture(m.save(Path(tmp) / "default-1cm.npz"))
+
+
+def _print_room_images(r: dict) -> None:
+    print(f"machine: {r['machine']}")
+    print(f"room image queries (oracle map of a short default-room scan; panoramas once: "
+          f"{r['room_image_panoramas_s']} s):")  # fmt: skip
+    for name, what in (("upright", "upright pictures (the room's setting)"),
+                       ("four_turns", "four quarter turns (reference)")):  # fmt: skip
+        print(
+            f"  {what}: {r[f'room_image_{name}_s_median']} s median, "
+            f"{r[f'room_image_{name}_s_max']} s max; found at "
+            f"{r[f'room_image_{name}_error_m']} m from where each was taken"
+        )
+    print(f"  ratio upright / four turns: {r['room_image_ratio']} (aim: <= 2 s a query)")
 
 
 def _print_viewer(r: dict) -> None:
@@ -216,5 +240,11 @@ def add_commands(sub) -> None:
         action="store_true",
         help="only the viewer's time to first picture (1 cm map of the default table, headless "
         "chromium; the viewer extra)",
+    )
+    p.add_argument(
+        "--room-images",
+        action="store_true",
+        help="only image queries on a room map (a short scan of the default room, three "
+        "pictures taken off its path), upright-only matching against all four turns",
     )
     p.set_defaults(func=cmd_bench)

@@ -76,6 +76,8 @@ def room_map_settings(
             "target": "camera",
             "localization": {
                 "require_look_down": False,
+                # the base's pictures and the goals' are taken upright: no quarter turns
+                "upright": True,
                 "max_depth_m": 5.0,
                 "min_agreement": 0.5,
                 # an image taken a metre or two off the scan's path matches few features

@@ -71,6 +71,10 @@ class VisualLocalizationConfig:
     """A pose must look down at the table (its optical axis meets the plane z = 0 in front
     of it): a wrist camera over a table does; a mobile base's mast camera looking across a
     room need not (False)."""
+    upright: bool = False
+    """Query images are taken upright (a mast camera, a person standing in a room): feature
+    matching tries the image as it is, not its quarter turns as well (a wrist camera rolls, so
+    the arm's maps try all four). The map search is upright either way."""
     min_kappa: float = 0.3
     """With a :class:`PhotometricCheck`: smallest agreement beyond chance (Cohen's kappa). On
     the eval-map image goals the true camera poses scored 0.39-0.89 (a view of plain table

@@ -273,7 +273,7 @@ def localize_image(
     if grey_std < config.min_image_std:
         return fail(f"blank image (grey std {grey_std:.2f} < {config.min_image_std})")
     backend = _backend(config.matcher)
-    turns = (0,) if backend.rotation_invariant else (0, 1, 2, 3)
+    turns = (0,) if backend.rotation_invariant or config.upright else (0, 1, 2, 3)
     queries: dict[int, _TurnedQuery] = {}
 
     def turned(k: int) -> _TurnedQuery:  # features extracted once, when first needed
