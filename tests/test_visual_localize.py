@@ -247,7 +247,7 @@ def test_upright_pictures_are_matched_only_as_they_are(databases, queries, monke
             super().__init__(database, backend, rgb, k)
 
     monkeypatch.setattr(loc_mod, "_TurnedQuery", Counted)
-    g, label = queries[0]
+    g, _ = queries[0]
     turned = np.ascontiguousarray(np.rot90(g.image, 1))
     four = db.config
     try:
