@@ -22,6 +22,7 @@ TRAIN_OUT = {
     "audio (--backbone effnet-lite0 or small)": Path("out/weights/audio.pt"),
     "vision": Path("out/weights/vision_dense_effnet.pt"),
     "vision (--backbone small)": Path("out/weights/vision_dense.pt"),
+    "vision (--rooms)": Path("out/weights/vision_dense_room.pt"),
     "shape": Path("out/weights/shape_prior.json"),
     "kind-reader": Path("out/weights/kind_reader.json"),
     "places": Path("out/weights/place_reader.json"),
@@ -342,6 +343,8 @@ def cmd_train(args: argparse.Namespace) -> int:
         out = Path(args.out)
     elif args.what == "vision" and backbone == "small":
         out = TRAIN_OUT["vision (--backbone small)"]
+    elif args.what == "vision" and args.rooms:
+        out = TRAIN_OUT["vision (--rooms)"]
     elif args.what == "audio":
         out = TRAIN_OUT["audio (--backbone effnet-lite0 or small)"]
     else:
@@ -349,6 +352,8 @@ def cmd_train(args: argparse.Namespace) -> int:
     # every flag and the output before training, not after it
     if args.what == "audio" and args.max_minutes is not None:
         raise ConfigError(f"--max-minutes {args.max_minutes}: for vision only")
+    if args.rooms and (args.what != "vision" or backbone == "small"):
+        raise ConfigError("--rooms: for vision's effnet-lite0 encoder only")
     if args.what == "vision" and args.device != "cpu":
         raise ConfigError(f"--device {args.device!r}: for audio only (vision trains on the CPU)")
     if args.max_minutes is not None and not (
@@ -371,6 +376,10 @@ def cmd_train(args: argparse.Namespace) -> int:
 
         if args.max_minutes is not None:
             opts["max_minutes"] = args.max_minutes
+        if args.rooms:
+            from tabletop.train.vision import room_recipe
+
+            opts = {**room_recipe(), **opts}
         path = train_vision(VisionTrainConfig(out=out, backbone=backbone, **opts), backend=backend)
     print(f"weights written: {path}")
     return 0
@@ -447,6 +456,12 @@ def add_commands(sub) -> None:
         default="cpu",
         help="audio: where the network trains (default cpu; the committed weights reproduce "
         "on a CPU)",
+    )
+    p.add_argument(
+        "--rooms",
+        action="store_true",
+        help="vision: the room-aware encoder (vision_dense_room.pt): the shipped table encoder "
+        "fine-tuned on table renders and on generated rooms seen from the mobile base's mast",
     )
     p.add_argument(
         "--max-minutes",

@@ -107,6 +107,23 @@ _STUFF_PHRASES_MORE = {
 }
 _COLOUR_TEMPLATES_MORE = ("the {} one", "an object that is {}", "a {} thing")
 STUFF = ("table", "robot", "other")
+#: What a room adds to the vocabulary (``vision_classes(rooms=True)``): its furniture by
+#: category, its walls and its floor. With them "other" loses its floor phrasings.
+ROOM_STUFF = ("floor", "wall", "shelf", "cabinet", "sofa")
+_ROOM_PHRASES = {
+    "floor": ("floor", "the floor", "the ground", "a floor"),
+    "wall": ("wall", "the wall", "a wall", "a room wall"),
+    "shelf": ("shelf", "the shelf", "a shelf", "a shelving unit"),
+    "cabinet": ("cabinet", "the cabinet", "a cabinet", "a cupboard"),
+    "sofa": ("sofa", "the sofa", "a sofa", "a couch"),
+}
+_ROOM_PHRASES_MORE = {
+    "floor": ("the floor of the room", "floor tiles"),
+    "wall": ("the wall of the room", "a painted wall"),
+    "shelf": ("a tall shelf", "the shelving"),
+    "cabinet": ("a wooden cabinet", "the cupboard"),
+    "sofa": ("a fabric sofa", "the couch"),
+}
 
 BACKBONES = ("effnet-lite0", "small")
 """``VisionTrainConfig.backbone`` values: the ImageNet-pretrained EfficientNet-Lite0 with an
@@ -128,9 +145,10 @@ TABLE_PALETTE: tuple[tuple[float, float, float], ...] = (
 )
 
 
-def vision_classes() -> list[dict]:
+def vision_classes(rooms: bool = False) -> list[dict]:
     """The vocabulary: one dict per class with ``name`` (the canonical text), ``kind``
-    (catalog kind, or "table"/"robot"/"other"), ``color`` (None when the class has none)."""
+    (catalog kind, or "table"/"robot"/"other"), ``color`` (None when the class has none).
+    ``rooms``: :data:`ROOM_STUFF` follows, so the table's classes keep their indices."""
     from tabletop.sim.catalog import OBJECT_KINDS
 
     out = []
@@ -141,7 +159,7 @@ def vision_classes() -> list[dict]:
         else:
             for c in kind.colors:
                 out.append({"name": f"{c} {kind.label}", "kind": k, "color": c})
-    for s in STUFF:
+    for s in STUFF + (ROOM_STUFF if rooms else ()):
         out.append({"name": s, "kind": s, "color": None})
     return out
 
@@ -238,6 +256,24 @@ class VisionTrainConfig:
     """See :class:`RenderVariety`."""
     prompt_ensemble: bool = True
     """More phrasings per class, and half the steps contrast against the mean of all of them."""
+    room_layouts: int = 0
+    """Generated rooms rendered for training (:mod:`tabletop.train.vision_rooms`: the mast
+    camera's view, furniture, walls and floor as classes); 0 = the table alone."""
+    room_views: int = 16
+    """Camera poses rendered per training room."""
+    room_share: float = 0.5
+    """With rooms: the fraction of each batch drawn from the room renders."""
+    room_scale: int = 1
+    """With rooms: the room renders are enlarged this many times (objects metres away then look
+    as large as on the table), as a room map's encoder enlarges its frames
+    (``MapConfig.image_scale``)."""
+    eval_rooms: int = 6
+    """With rooms: held-out rooms measured after training."""
+    eval_room_views: int = 8
+    """With rooms: camera poses per held-out room."""
+    init: str | None = None
+    """A weights file of the same network to start from instead of the ImageNet backbone (a
+    fine-tune; the file's own recipe is how it was made)."""
     n_threads: int = 1
     """torch threads (the machine is shared; 1 keeps training polite)."""
     max_minutes: float = 75.0
@@ -249,6 +285,15 @@ class VisionTrainConfig:
         for name in ("train_layouts", "views_per_layout", "steps", "batch_size", "n_threads"):
             if getattr(self, name) < 1:
                 raise ConfigError(f"VisionTrainConfig.{name} must be >= 1")
+        for name in ("room_layouts", "room_views", "eval_rooms", "eval_room_views"):
+            if getattr(self, name) < 0:
+                raise ConfigError(f"VisionTrainConfig.{name} must be >= 0")
+        if self.room_scale not in (1, 2):
+            raise ConfigError(f"room_scale must be 1 or 2, got {self.room_scale!r}")
+        if not 0.0 <= self.room_share < 1.0:
+            raise ConfigError(f"room_share must be in [0, 1), got {self.room_share}")
+        if self.init is not None and not Path(self.init).is_file():
+            raise ConfigError(f"init weights {self.init!r} are not a file")
         if self.crop[0] % 16 or self.crop[1] % 16:
             raise ConfigError(f"crop {self.crop} must be multiples of 16 px")
         if self.backbone not in BACKBONES:
@@ -270,6 +315,26 @@ class VisionTrainConfig:
 
 
 EVAL_SEED_BASE = 9_000_000
+
+
+def room_recipe() -> dict:
+    """:class:`VisionTrainConfig` fields of the room-aware encoder (``tabletop train vision
+    --rooms``, ``vision_dense_room.pt``): the committed table encoder fine-tuned on half
+    table, half room renders enlarged twice (:mod:`tabletop.train.vision_rooms`), as room maps
+    enlarge their frames (``MapConfig.image_scale``)."""
+    from tabletop.mapping.encoders.lseg import EFFNET_WEIGHTS_PATH
+
+    return {
+        "init": str(EFFNET_WEIGHTS_PATH),
+        "train_layouts": 80,
+        "views_per_layout": 12,
+        "room_layouts": 60,
+        "room_views": 16,
+        "room_share": 0.5,
+        "room_scale": 2,
+        "steps": 1200,
+        "lr": 1.5e-3,
+    }
 
 
 # --------------------------------------------------------------------------- rendering
@@ -545,24 +610,31 @@ def render_dataset(
 
 
 # --------------------------------------------------------------------------- text side
-def training_texts(ensemble: bool = False) -> dict:
+def training_texts(ensemble: bool = False, rooms: bool = False) -> dict:
     """The phrasings training contrasts against: ``cls`` (one list per class of
     :func:`vision_classes`), ``kind`` (per kind of ``kinds``), ``col`` (per colour of
-    ``colours``). ``ensemble`` adds the extra templates of the prompt ensemble."""
+    ``colours``). ``ensemble`` adds the extra templates of the prompt ensemble; ``rooms`` the
+    classes of :data:`ROOM_STUFF` (and "other" loses its floor phrasings)."""
     from tabletop.sim.catalog import COLORS, OBJECT_KINDS
 
     obj_t = _OBJECT_TEMPLATES + (_OBJECT_TEMPLATES_MORE if ensemble else ())
     col_t = _COLOUR_TEMPLATES + (_COLOUR_TEMPLATES_MORE if ensemble else ())
+    floorish = ("floor", "ground")
 
     def stuff(k):
-        return list(_STUFF_PHRASES[k]) + (list(_STUFF_PHRASES_MORE[k]) if ensemble else [])
+        if k in _ROOM_PHRASES:
+            return list(_ROOM_PHRASES[k]) + (list(_ROOM_PHRASES_MORE[k]) if ensemble else [])
+        out = list(_STUFF_PHRASES[k]) + (list(_STUFF_PHRASES_MORE[k]) if ensemble else [])
+        if rooms and k == "other":
+            out = [p for p in out if not any(w in p for w in floorish)]
+        return out
 
-    classes = vision_classes()
+    classes = vision_classes(rooms)
     phr = [
-        stuff(c["kind"]) if c["kind"] in _STUFF_PHRASES else [t.format(c["name"]) for t in obj_t]
+        [t.format(c["name"]) for t in obj_t] if c["kind"] in OBJECT_KINDS else stuff(c["kind"])
         for c in classes
     ]
-    kinds = sorted(OBJECT_KINDS) + list(STUFF)
+    kinds = sorted(OBJECT_KINDS) + list(STUFF) + (list(ROOM_STUFF) if rooms else [])
     kind_phr = [
         [t.format(OBJECT_KINDS[k].label) for t in obj_t] if k in OBJECT_KINDS else stuff(k)
         for k in kinds
@@ -572,10 +644,10 @@ def training_texts(ensemble: bool = False) -> dict:
     return {"cls": phr, "kind": kind_phr, "kinds": kinds, "col": col_phr, "colours": colours}
 
 
-def _text_tables(encoder, ensemble: bool = False) -> dict:
+def _text_tables(encoder, ensemble: bool = False, rooms: bool = False) -> dict:
     """MiniLM embeddings of :func:`training_texts`: per entry a (P, 384) stack of phrasings,
     with the normalised mean of the stack appended as one more row when ``ensemble``."""
-    texts = training_texts(ensemble)
+    texts = training_texts(ensemble, rooms)
 
     def embed(groups):
         out = []
@@ -637,7 +709,8 @@ def _build_net(cfg: VisionTrainConfig):
     bb = net.backbone
     if not cfg.pretrained:
         return net, [(list(net.parameters()), 1.0)], EFFNET_INPUT_MEAN, EFFNET_INPUT_STD
-    load_imagenet_backbone(bb)
+    if cfg.init is None:  # else the init weights replace every parameter (train_vision)
+        load_imagenet_backbone(bb)
     n_frozen = sum(r for *_, r in LITE0_STAGES[: cfg.freeze_stages])
     frozen = [*bb.stem.parameters()] if cfg.freeze_stages > 0 else []
     for blk in list(bb.blocks)[:n_frozen]:
@@ -655,6 +728,20 @@ def _build_net(cfg: VisionTrainConfig):
         for p in trainable:
             p.requires_grad_(False)
     return net, groups, EFFNET_INPUT_MEAN, EFFNET_INPUT_STD
+
+
+def _load_init(net, path) -> None:
+    """Start ``net`` from the weights file at ``path`` (the same architecture)."""
+    import torch
+
+    ckpt = torch.load(path, map_location="cpu", weights_only=True)
+    if ckpt.get("arch") != net.arch or dict(ckpt.get("arch_config", {})) != dict(net.arch_config):
+        raise ConfigError(
+            f"init weights {path} are {ckpt.get('arch')!r} {ckpt.get('arch_config')}; "
+            f"this run trains {net.arch!r} {dict(net.arch_config)}"
+        )
+    net.load_state_dict({k: v.float() for k, v in ckpt["state_dict"].items()})
+    log.info("starting from %s", path)
 
 
 def _set_train_mode(net, cfg: VisionTrainConfig) -> None:
@@ -686,7 +773,7 @@ def train_vision(
 
     cfg = config or VisionTrainConfig()
     out = Path(cfg.out) if cfg.out is not None else default_vision_out(cfg.backbone)
-    if cfg.backbone == "effnet-lite0" and cfg.pretrained:
+    if cfg.backbone == "effnet-lite0" and cfg.pretrained and cfg.init is None:
         from tabletop.mapping.encoders.effnet import imagenet_weights_path
 
         imagenet_weights_path()  # fail before rendering when the `train` extra is missing
@@ -707,11 +794,22 @@ def train_vision(
             variety=cfg.variety,
             backend=backend,
         )
-        t_render = time.monotonic() - t0
-        log.info("rendered %d images in %.0f s", len(rgbs), t_render)
+        rooms = cfg.room_layouts > 0
+        room_rgbs = room_labels = None
+        if rooms:
+            from tabletop.train.vision_rooms import ROOM_SEED_BASE, render_room_dataset
 
-        classes = vision_classes()
-        tables = _text_tables(MiniLMTextEncoder(), ensemble=cfg.prompt_ensemble)
+            room_seeds = [ROOM_SEED_BASE + cfg.seed * 1000 + i for i in range(cfg.room_layouts)]
+            log.info("rendering %d rooms x %d views", len(room_seeds), cfg.room_views)
+            room_rgbs, room_labels = render_room_dataset(
+                room_seeds, cfg.room_views, seed=cfg.seed, backend=backend, scale=cfg.room_scale
+            )
+        t_render = time.monotonic() - t0
+        n_img = len(rgbs) + (0 if room_rgbs is None else len(room_rgbs))
+        log.info("rendered %d images in %.0f s", n_img, t_render)
+
+        classes = vision_classes(rooms)
+        tables = _text_tables(MiniLMTextEncoder(), ensemble=cfg.prompt_ensemble, rooms=rooms)
         C = len(classes)
         held_idx = [
             i for i, c in enumerate(classes) if (c["kind"], c["color"]) in set(HELDOUT_COMBOS)
@@ -724,10 +822,14 @@ def train_vision(
             [tables["colours"].index(c["color"]) if c["color"] else -1 for c in classes]
         )
         counts = np.bincount(labels.ravel(), minlength=C).astype(np.float64)
+        if rooms:
+            counts += np.bincount(room_labels.ravel(), minlength=C)
         w_cls = 1.0 / np.sqrt(np.maximum(counts[train_cls], 1.0))
         w_cls = torch.tensor(w_cls / w_cls.mean(), dtype=torch.float32)
 
         net, groups, in_mean, in_std = _build_net(cfg)
+        if cfg.init is not None:
+            _load_init(net, cfg.init)
         opt = torch.optim.AdamW(
             [{"params": ps, "lr": cfg.lr * m} for ps, m in groups], weight_decay=cfg.weight_decay
         )
@@ -736,7 +838,10 @@ def train_vision(
         )
         mean = torch.tensor(in_mean).view(1, 3, 1, 1)
         std = torch.tensor(in_std).view(1, 3, 1, 1)
-        N, H, W = labels.shape
+        n_room = round(cfg.batch_size * cfg.room_share) if rooms else 0
+        parts = [(rgbs, labels, cfg.batch_size - n_room)]
+        if n_room:
+            parts.append((room_rgbs, room_labels, n_room))
         cw, ch = cfg.crop
         s = int(net.stride)
         _set_train_mode(net, cfg)
@@ -756,29 +861,29 @@ def train_vision(
 
         step = 0
         for step in range(cfg.steps):
-            idx = rng.integers(0, N, cfg.batch_size)
-            x0s = rng.integers(0, W - cw + 1, cfg.batch_size)
-            y0s = rng.integers(0, H - ch + 1, cfg.batch_size)
-            flip = rng.random(cfg.batch_size) < 0.5
-            xb = np.stack(
-                [
-                    rgbs[i, y : y + ch, x : x + cw][:, :: -1 if f else 1]
-                    for i, x, y, f in zip(idx, x0s, y0s, flip, strict=True)
-                ]
-            )
-            h2 = s // 2  # the label at each output cell's centre
-            yb = np.stack(
-                [
-                    labels[i, y + h2 : y + ch : s, x + h2 : x + cw : s][:, :: -1 if f else 1]
-                    for i, x, y, f in zip(idx, x0s, y0s, flip, strict=True)
-                ]
-            )
+            xs, ys = [], []
+            for imgs, labs, n in parts:  # the table's draws come first, as without rooms
+                N, H, W = labs.shape
+                idx = rng.integers(0, N, n)
+                x0s = rng.integers(0, W - cw + 1, n)
+                y0s = rng.integers(0, H - ch + 1, n)
+                flip = rng.random(n) < 0.5
+                h2 = s // 2  # the label at each output cell's centre
+                for i, x, y, f in zip(idx, x0s, y0s, flip, strict=True):
+                    xs.append(imgs[i, y : y + ch, x : x + cw][:, :: -1 if f else 1])
+                    ys.append(
+                        labs[i, y + h2 : y + ch : s, x + h2 : x + cw : s][:, :: -1 if f else 1]
+                    )
+            xb, yb = np.stack(xs), np.stack(ys)
             x = torch.from_numpy(xb).float().div_(255).permute(0, 3, 1, 2)
             x = (_augment(x, rng, torch) - mean) / std
             y = torch.from_numpy(yb.astype(np.int64))
             emb = net(x)  # (B, D, h, w)
             f = emb.permute(0, 2, 3, 1).reshape(-1, emb.shape[1])
             yf = y.reshape(-1)
+            if rooms:  # rooms are not repainted: their held-out colour-kind pairs train nothing
+                keep = torch.from_numpy(remap)[yf] >= 0
+                f, yf = f[keep], yf[keep]
             scale = net.logit_scale.exp().clamp(max=100)
             use_mean = cfg.prompt_ensemble and bool(rng.random() < 0.5)
             T_cls = pick(tables["cls"], use_mean)[torch.from_numpy(train_cls)]
@@ -840,6 +945,14 @@ def train_vision(
         metrics = evaluate_vision(
             weights=out, layouts=cfg.eval_layouts, views=cfg.eval_views, seed=cfg.seed
         )
+        if rooms and cfg.eval_rooms:
+            from tabletop.train.vision_rooms import evaluate_room_vision
+
+            metrics.update(
+                evaluate_room_vision(
+                    out, rooms=cfg.eval_rooms, views=cfg.eval_room_views, upscale=cfg.room_scale
+                )
+            )
         ckpt["metrics"] = metrics
         with atomic_path(out) as tmp:
             torch.save(ckpt, tmp)
