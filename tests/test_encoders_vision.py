@@ -285,6 +285,62 @@ def test_cli_train_vision_picks_the_backbone_and_its_output(tmp_path, monkeypatc
     assert seen[0].backbone == "effnet-lite0" and seen[0].n_threads == 1
     assert (seen[1].backbone, seen[1].steps, seen[1].n_threads) == ("small", 5, 2)
     assert backends == [None, None]  # rendered in this process unless --workers or --ray
+    assert main(["train", "vision", "--rooms", "--steps", "7"]) == 0
+    rooms = seen[-1]
+    assert rooms.out == Path("out/weights/vision_dense_room.pt") and rooms.steps == 7
+    assert rooms.room_layouts > 0 and rooms.room_scale == 2
+    assert Path(rooms.init).name == "vision_dense_effnet.pt"
+    capsys.readouterr()
+    assert main(["train", "vision", "--rooms", "--backbone", "small"]) != 0
+    assert "--rooms" in capsys.readouterr().err
     with pytest.raises(SystemExit):
         main(["train", "vision", "--backbone", "resnet"])
     assert "invalid choice: 'resnet'" in capsys.readouterr().err
+
+
+def test_an_enlarged_image_gives_finer_cells_and_maps_ask_for_it(effnet_encoder, image):
+    from tabletop.mapping import AVLMap, MapConfig
+    from tabletop.mapping.encoders.registry import make_encoders_from_rebuild
+
+    rgb, _ = image
+    big = LSegEncoder(EFFNET_WEIGHTS_PATH, upscale=2)
+    assert big.stride == effnet_encoder.stride // 2
+    d = big.encode_dense(rgb)
+    assert d.shape == (240 // big.stride, 320 // big.stride, 384)
+    # the same network on the image enlarged by hand
+    import cv2
+
+    by_hand = effnet_encoder.encode_dense(cv2.resize(rgb, (640, 480), cv2.INTER_LINEAR))
+    np.testing.assert_allclose(d, by_hand, atol=1e-4)
+    for bad in (0, 3, True, 1.5):
+        with pytest.raises(ConfigError, match="upscale"):
+            LSegEncoder(EFFNET_WEIGHTS_PATH, upscale=bad)
+    with pytest.raises(ConfigError, match="image_scale"):
+        MapConfig(image_scale=3)
+    rec = _tiny_recording(rgb)
+    m = AVLMap.empty(rec, MapConfig(image_scale=2), encoders="default")
+    assert m.dense.stride == big.stride and m.rebuild_info["vision_upscale"] == 2
+    assert "x2" in m.encoder_names["dense"]
+    again = make_encoders_from_rebuild("default", m.rebuild_info)
+    assert again.dense.stride == big.stride
+    assert AVLMap.empty(rec, MapConfig(), encoders="default").dense.stride == 4
+    # a room map names the room-aware network; its file's fingerprint is what the map records
+    room = AVLMap.empty(rec, MapConfig(image_network="room", image_scale=2), encoders="default")
+    assert room.rebuild_info["vision_network"] == "room"
+    assert "vision_dense_room.pt" in room.encoder_names["dense"]
+    with pytest.raises(ConfigError, match="image_network"):
+        MapConfig(image_network="kitchen")
+
+
+def _tiny_recording(rgb):
+    from tabletop.recording import Recording
+
+    return Recording(
+        timestamps=np.zeros(1),
+        rgb=rgb[None],
+        depth=np.full((1, 240, 320), 0.5, np.float32),
+        joint_positions=np.zeros((1, 7)),
+        T_world_hand=np.eye(4)[None],
+        K=np.array([[200.0, 0, 160], [0, 200.0, 120], [0, 0, 1]]),
+        T_hand_cam=np.eye(4),
+    )

@@ -65,6 +65,10 @@ def room_map_settings(
                 "above_table_m": 0.012,
             }
         },
+        # the room-aware image network; objects metres away are a few dozen pixels, so it sees
+        # each frame enlarged twice, as it was trained (tabletop train vision --rooms)
+        "image_network": "room",
+        "image_scale": 2,
         "registration": {"enabled": False},
         "self_filter_margin": None,
         # a room is about five times a table's size: heat spreads five times as far

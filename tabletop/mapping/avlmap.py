@@ -289,9 +289,13 @@ class AVLMap:
         from tabletop.mapping.encoders.registry import make_encoders
 
         recording = _as_recording(recording)
+        config = config or MapConfig()
+        if encoders == "default":  # the config's image network and scale, unless told others
+            chosen = {"vision_upscale": config.image_scale, "vision_network": config.image_network}
+            encoder_options = {**chosen, **(encoder_options or {})}
         enc = make_encoders(encoders, recording, encoder_options)
         m = cls(
-            config or MapConfig(),
+            config,
             enc.text,
             enc.dense,
             enc.global_image,

@@ -40,6 +40,13 @@ class MapConfig:
     camera sees several times; use 1 for 5 mm voxels or distant views."""
     frame_step: int = 1
     """Encode and fuse every ``frame_step``-th frame (voxels and area-module embeddings)."""
+    image_network: str = "table"
+    """The default set's committed image network: "table" (trained on the wrist's views) or
+    "room" (also on rooms seen from the mobile base's mast). Other encoder sets ignore it."""
+    image_scale: int = 1
+    """The default image encoder enlarges each frame this many times (1 or 2) before its
+    network: a room's objects seen from metres away then look as large as a table's from
+    the wrist (about four times the encoding time at 2). Other encoder sets ignore it."""
     categories: tuple[str, ...] = BACKGROUND
     """The map's vocabulary: the object names it is asked about (the scene's catalog, passed
     in by whoever builds the map) and the background concepts, "other" among them. The robot
@@ -75,6 +82,12 @@ class MapConfig:
             v = getattr(self, name)
             if not isinstance(v, int) or isinstance(v, bool) or v < 1:
                 raise ConfigError(f"{name} must be an integer >= 1, got {v!r}")
+        if self.image_network not in ("table", "room"):
+            raise ConfigError(
+                f"image_network must be one of ['table', 'room'], got {self.image_network!r}"
+            )
+        if self.image_scale not in (1, 2) or isinstance(self.image_scale, bool):
+            raise ConfigError(f"image_scale must be 1 or 2, got {self.image_scale!r}")
         object.__setattr__(self, "categories", tuple(self.categories))
         if not isinstance(self.descriptions, Mapping):
             raise ConfigError(f"descriptions must map names to texts, got {self.descriptions!r}")

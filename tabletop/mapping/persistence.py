@@ -131,13 +131,16 @@ def _weight_files(encoder_set: str, rebuild: dict) -> dict[str, Path]:
     """The weights files the encoder set ``encoder_set`` with ``rebuild`` loads, by role."""
     if encoder_set == "default":
         from tabletop.mapping.encoders.audio import DEFAULT_AUDIO_WEIGHTS
-        from tabletop.mapping.encoders.lseg import EFFNET_WEIGHTS_PATH
+        from tabletop.mapping.encoders.registry import vision_network_path
         from tabletop.mapping.encoders.yamnet_audio import DEFAULT_HEAD_WEIGHTS
 
         kind = rebuild.get("audio_encoder") or "melcnn"
         audio = DEFAULT_HEAD_WEIGHTS if kind == "yamnet" else DEFAULT_AUDIO_WEIGHTS
         return {
-            "vision": Path(rebuild.get("vision_weights") or EFFNET_WEIGHTS_PATH),
+            "vision": Path(
+                rebuild.get("vision_weights")
+                or vision_network_path(rebuild.get("vision_network") or "table")
+            ),
             "audio": Path(rebuild.get("audio_weights") or audio),
         }
     if encoder_set == "openclip":

@@ -36,6 +36,8 @@ __all__ = [
     "ARCHS",
     "BACKENDS",
     "EFFNET_WEIGHTS_PATH",
+    "ROOM_WEIGHTS_PATH",
+    "VISION_NETWORKS",
     "VISION_WEIGHTS_PATH",
     "LSegEncoder",
     "LSegNet",
@@ -52,6 +54,14 @@ without a path."""
 EFFNET_WEIGHTS_PATH = DATA_DIR / "weights" / "vision_dense_effnet.pt"
 """Where the committed weights of the EfficientNet-Lite0 image encoder live."""
 
+ROOM_WEIGHTS_PATH = DATA_DIR / "weights" / "vision_dense_room.pt"
+"""The room-aware EfficientNet-Lite0 encoder: the table encoder fine-tuned on table renders
+and on rooms seen from the mobile base's mast, enlarged twice (``tabletop train vision
+--rooms``)."""
+
+VISION_NETWORKS = {"table": EFFNET_WEIGHTS_PATH, "room": ROOM_WEIGHTS_PATH}
+"""The default set's committed image networks by name (``MapConfig.image_network``)."""
+
 _MEAN, _STD = IMAGENET_MEAN, IMAGENET_STD
 
 ARCHS = ("lseg-small", "effnet-lite0-fpn")
@@ -61,6 +71,8 @@ BACKENDS = ("auto", "torch", "int8")
 """How :class:`LSegEncoder` runs its network: ``"auto"`` (onnxruntime when it can, else
 torch), ``"torch"``, or ``"int8"`` (onnxruntime on the statically quantised graph: faster,
 embeddings not equal to the others; falls back to ``"auto"``)."""
+UPSCALES = (1, 2)
+"""``LSegEncoder(upscale=...)``: how many times an image is enlarged before the network."""
 
 
 def build_vision_net(arch: str, arch_config: dict):
@@ -224,6 +236,7 @@ class LSegEncoder:
         *,
         num_threads: int | None = 1,
         backend: str = "auto",
+        upscale: int = 1,
     ) -> None:
         if num_threads is not None and (int(num_threads) != num_threads or num_threads < 1):
             raise ConfigError(f"num_threads must be a positive integer or None: {num_threads!r}")
@@ -238,7 +251,13 @@ class LSegEncoder:
         :func:`~.base.torch_threads`)."""
         self.weights = Path(weights) if weights is not None else VISION_WEIGHTS_PATH
         self._net, ckpt, self.arch, self._mean, self._std = _load(str(self.weights))
-        self.stride: int = int(self._net.stride)
+        net_stride = int(self._net.stride)
+        if isinstance(upscale, bool) or upscale not in UPSCALES or net_stride % upscale:
+            raise ConfigError(f"upscale must be one of {list(UPSCALES)}, got {upscale!r}")
+        self.upscale = int(upscale)
+        """The image is enlarged this many times before the network sees it (finer cells for
+        small, far objects; about ``upscale``² the time)."""
+        self.stride: int = net_stride // self.upscale
         """Output stride [px]: one embedding per ``stride`` x ``stride`` pixel cell."""
         self.metrics: dict = dict(ckpt.get("metrics", {}))
         """Held-out figures recorded when the weights were trained."""
@@ -276,6 +295,11 @@ class LSegEncoder:
         """(H/s, W/s, dim) float32 C-contiguous L2-normalised cell embeddings of a checked
         image."""
         rgb = self._check(rgb)
+        if self.upscale > 1:
+            import cv2
+
+            H, W = rgb.shape[:2]
+            rgb = cv2.resize(rgb, (W * self.upscale, H * self.upscale), cv2.INTER_LINEAR)
         sess = self._session(rgb)
         if sess is not None:
             return sess.run(None, {"rgb": np.ascontiguousarray(rgb)})[0][0]

@@ -45,6 +45,8 @@ def _check_name(name: str) -> None:
 def make_encoders(name: str, recording=None, options: dict | None = None) -> EncoderSet:
     """The named encoder set. The oracle reads the recording's ground truth; ``options``
     (default set: ``vision_weights``, ``audio_weights`` paths override the committed weights;
+    ``vision_upscale`` (1 or 2) enlarges images before the network (``MapConfig.image_scale``);
+    ``vision_network`` names the committed network, "table" or "room" (``MapConfig.image_network``);
     ``audio_encoder`` is one of :data:`AUDIO_ENCODERS`, default ``"yamnet"``;
     ``vision_backend`` is one of :data:`~tabletop.mapping.encoders.lseg.BACKENDS`, default
     ``"auto"``)."""
@@ -119,12 +121,14 @@ def make_encoders_from_rebuild(name: str, rebuild: dict) -> EncoderSet:
             {"labels": {str(k): v for k, v in labels.items()}, "sound_events": events},
         )
     if name == "default":
-        from tabletop.mapping.encoders.lseg import EFFNET_WEIGHTS_PATH, LSegEncoder
+        from tabletop.mapping.encoders.lseg import LSegEncoder
 
-        vision_w = rebuild.get("vision_weights") or str(EFFNET_WEIGHTS_PATH)
+        network = rebuild.get("vision_network") or "table"  # MapConfig.image_network
+        vision_w = rebuild.get("vision_weights") or str(vision_network_path(network))
         # "int8": the quantised graph (faster, other embeddings); recorded only when asked
         backend = rebuild.get("vision_backend") or "auto"
-        image = LSegEncoder(vision_w, backend=backend)  # dense and global from one network
+        upscale = rebuild.get("vision_upscale") or 1  # MapConfig.image_scale
+        image = LSegEncoder(vision_w, backend=backend, upscale=upscale)  # dense and global
         # a map saved before the YAMNet head recorded no audio encoder: it heard with the CNN
         kind = rebuild.get("audio_encoder") or "melcnn"
         audio, audio_w, audio_name = _default_audio(kind, rebuild.get("audio_weights"))
@@ -137,7 +141,8 @@ def make_encoders_from_rebuild(name: str, rebuild: dict) -> EncoderSet:
                 "set": "default (embedded learned encoders)",
                 "text": "minilm-l6-v2",
                 "dense": f"lseg-style {image.arch} ({_short(vision_w)})"
-                + (", int8" if backend == "int8" else ""),
+                + (", int8" if backend == "int8" else "")
+                + (f", images x{upscale}" if upscale != 1 else ""),
                 "global_image": f"lseg-style {image.arch}, mean of cell embeddings",
                 "audio": f"{audio_name} ({_short(audio_w)})",
             },
@@ -147,11 +152,23 @@ def make_encoders_from_rebuild(name: str, rebuild: dict) -> EncoderSet:
                 "audio_weights": rebuild.get("audio_weights"),
                 "audio_encoder": kind,
                 **({"vision_backend": backend} if backend != "auto" else {}),
+                **({"vision_upscale": upscale} if upscale != 1 else {}),
+                **({"vision_network": network} if network != "table" else {}),
             },
         )
     if name == "openclip":
         return _openclip_set(rebuild)
     raise AssertionError(name)  # _check_name guards
+
+
+def vision_network_path(name: str):
+    """The committed weights of the default set's image network ``name`` (one of
+    :data:`~tabletop.mapping.encoders.lseg.VISION_NETWORKS`)."""
+    from tabletop.mapping.encoders.lseg import VISION_NETWORKS
+
+    if name not in VISION_NETWORKS:
+        raise ConfigError(f"unknown image network {name!r}; valid: {list(VISION_NETWORKS)}")
+    return VISION_NETWORKS[name]
 
 
 def _default_audio(kind: str, weights: str | None) -> tuple[object, str, str]:
