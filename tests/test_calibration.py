@@ -179,3 +179,25 @@ def test_the_operating_point_sits_in_the_gap_below_the_kept_right_answers():
     # a wrong margin above the quantile does not move it up; none below: the quantile itself
     assert operating_point(right, np.array([0.95])) == np.quantile(right, 0.05, method="lower")
     assert operating_point(right, np.array([])) == np.quantile(right, 0.05, method="lower")
+
+
+def test_room_maps_read_their_own_calibration_where_one_was_fitted(tmp_path, capsys):
+    from tabletop.eval.harness import committed_calibration, map_config
+    from tabletop.mapping.calibration import CALIBRATION_DIR
+
+    table = committed_calibration("default", map_config())
+    assert table.thresholds == load_calibration("default").thresholds
+    room = committed_calibration("default", map_config(image_network="room", image_scale=2))
+    if (CALIBRATION_DIR / "default-room.json").is_file():
+        assert room.report.get("rooms") is True
+        assert room.thresholds["object"] != table.thresholds["object"]
+    else:
+        assert room.thresholds == table.thresholds
+    # the oracle is one encoder whatever the network: the set's own file
+    assert committed_calibration("oracle", map_config(image_network="room")).encoder_set == "oracle"
+    from tabletop.cli import main
+
+    out = tmp_path / "r.json"
+    assert main(["calibrate", "--rooms", "--scenes", "2", "--out", str(out)]) == 2
+    assert "--rooms" in capsys.readouterr().err and not out.exists()
+    assert main(["calibrate", "--rooms", "--encoders", "oracle", "--out", str(out)]) == 2

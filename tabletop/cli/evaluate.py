@@ -583,10 +583,30 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
             f"--scenes {args.scenes}: a count of calibration scenes, valid 1..{n} (the first N); "
             f"leave it out for all {n}"
         )
+    if args.rooms and (args.encoders != "default" or args.scenes is not None):
+        raise ConfigError(
+            "--rooms: the default set's room-aware network on the calibration rooms; it takes "
+            "neither another --encoders nor --scenes"
+        )
     _cache_flags(args)
-    out = args.out if args.out is not None else CALIBRATION_OUT_DIR / f"{args.encoders}.json"
+    stem = f"{args.encoders}-room" if args.rooms else args.encoders
+    out = args.out if args.out is not None else CALIBRATION_OUT_DIR / f"{stem}.json"
     check_output_flag("--out", out)
     _check_calibration_output(Path(out))
+    if args.rooms:
+        from tabletop.eval.calibration import ROOM_CALIBRATION_SEEDS, run_room_calibration
+
+        print(f"calibrating room maps on rooms {list(ROOM_CALIBRATION_SEEDS)} ...", file=sys.stderr)
+        cal = run_room_calibration(
+            progress=lambda seed, s: print(f"  room {seed}: {len(s)} queries", file=sys.stderr),
+            cache_dir=None if args.no_cache else args.cache_dir,
+        )
+        if keep_prior:
+            cal = cal.keep_prior(keep_prior)
+        path = cal.save(out)
+        print(json.dumps(cal.to_json(), indent=1))
+        print(f"written {path}", file=sys.stderr)
+        return 0
     seeds = list(CALIBRATION_SEEDS)[: args.scenes or n]
     print(f"calibrating {args.encoders!r} on scenes {seeds} ...", file=sys.stderr)
     cal = run_calibration(
@@ -755,4 +775,10 @@ def add_commands(sub) -> None:
         help=f"recordings and maps reused across runs (default: {DEFAULT_CACHE_DIR})",
     )
     p.add_argument("--no-cache", action="store_true", help="scan and map afresh, keep nothing")
+    p.add_argument(
+        "--rooms",
+        action="store_true",
+        help="the default set as room maps run it (the room-aware image network, frames "
+        "enlarged twice), on generated rooms the wheeled base scans; writes SET-room.json",
+    )
     p.set_defaults(func=cmd_calibrate)

@@ -254,3 +254,46 @@ def run_calibration(
     cal.report["seeds_fit"] = seeds[:half]
     cal.report["seeds_heldout"] = seeds[half:]
     return cal
+
+
+#: Generator seeds of the rooms the room-aware network's calibration is fitted and measured on
+#: (apart from the suites' rooms and the image network's training and held-out rooms).
+ROOM_CALIBRATION_SEEDS = (30000, 30001, 30002)
+#: The rooms' scan: the suites' (three sound episodes, each sound played again once).
+ROOM_CALIBRATION_SCAN = {"episodes": 3, "repeat_sounds": 1}
+
+
+def run_room_calibration(
+    encoder_set: str = "default", seeds=ROOM_CALIBRATION_SEEDS, progress=None, cache_dir=None
+) -> Calibration:
+    """:func:`run_calibration` for room maps (``tabletop calibrate --rooms``): a generated room
+    per seed, scanned by the wheeled base and mapped with the room's settings
+    (:func:`~tabletop.eval.room.room_map_settings`: the room-aware image network, frames
+    enlarged twice), its objects, sounds and areas queried (no image goals); fitted on the
+    first rooms, reported on the last (one room in three)."""
+    from tabletop.eval.harness import cached_map
+    from tabletop.eval.room import cached_room_recording, room_map_settings, room_recording_key
+    from tabletop.sim.room import generate_room
+
+    seeds = [int(s) for s in seeds]
+    if len(seeds) < 2:
+        raise ConfigError("calibration needs at least 2 room seeds (fit and held-out rooms)")
+    per_room = []
+    for seed in seeds:
+        spec = generate_room(seed)
+        scan = {"seed": seed, **ROOM_CALIBRATION_SCAN}
+        name = f"calib-room-{seed}"
+        rec, _, _ = cached_room_recording(name, scan, spec, cache_dir)
+        key = room_recording_key(spec, scan)
+        m, _, _ = cached_map(name, room_map_settings(spec), rec, encoder_set, cache_dir, key, None)
+        per_room.append(calibration_samples(m, GroundTruth.of(rec)))
+        if progress is not None:
+            progress(seed, per_room[-1])
+    fit = (len(per_room) + 1) // 2
+    train = [s for room in per_room[:fit] for s in room]
+    test = [s for room in per_room[fit:] for s in room]
+    cal = fit_calibration(encoder_set, train, test)
+    cal.report["seeds_fit"] = seeds[:fit]
+    cal.report["seeds_heldout"] = seeds[fit:]
+    cal.report["rooms"] = True
+    return cal

@@ -106,17 +106,32 @@ def catalog_descriptions(path: Path = DESCRIPTIONS_PATH) -> dict[str, tuple[str,
     return {k: tuple(v) for k, v in d.items()}
 
 
+def committed_calibration(encoders: str, config):
+    """The committed calibration of the encoder set ``encoders`` as ``config`` (a
+    :class:`~tabletop.mapping.MapConfig`) runs it: the default set with the room-aware image
+    network is another encoder, with its own calibration (``calibration/default-room.json``,
+    ``tabletop calibrate --rooms``) where one was fitted."""
+    from tabletop.mapping import load_calibration
+    from tabletop.mapping.calibration import CALIBRATION_DIR
+
+    if encoders == "default" and config.image_network != "table":
+        path = CALIBRATION_DIR / f"{encoders}-{config.image_network}.json"
+        if path.is_file():
+            return load_calibration(encoders, path)
+    return load_calibration(encoders)
+
+
 def build_map_online(
     recording, encoders: str, config=None, *, rate=1.0, drop="none", progress=None
 ):
     """(map, :class:`~tabletop.mapping.online.ReplayReport`): ``recording`` replayed into a
     map as a camera delivers it (:func:`~tabletop.mapping.online.replay_online`), with the
     encoders, calibration and self-filter of :func:`build_map`."""
-    from tabletop.mapping import AVLMap, load_calibration
+    from tabletop.mapping import AVLMap
     from tabletop.mapping.online import replay_online
 
     config = config or map_config()
-    calibration = load_calibration(encoders)
+    calibration = committed_calibration(encoders, config)
     m = AVLMap.empty(recording, config, encoders, None, calibration, _self_filter(config))
     report = replay_online(m, recording, rate=rate, drop=drop, progress=progress)
     return m, report
@@ -126,7 +141,7 @@ def build_map(recording, encoders: str, config=None, progress=None, **kwargs):
     """The map of ``recording`` with encoder set ``encoders``, its committed calibration and the
     Panda's self-filter (``config``: :func:`map_config` by default; ``kwargs``: the rest of
     :meth:`AVLMap.build`'s options)."""
-    from tabletop.mapping import AVLMap, load_calibration
+    from tabletop.mapping import AVLMap
 
     config = config or map_config()
     return AVLMap.build(
@@ -134,7 +149,7 @@ def build_map(recording, encoders: str, config=None, progress=None, **kwargs):
         config,
         encoders=encoders,
         progress=progress,
-        calibration=kwargs.pop("calibration", None) or load_calibration(encoders),
+        calibration=kwargs.pop("calibration", None) or committed_calibration(encoders, config),
         self_filter=_self_filter(config),
         **kwargs,
     )
@@ -316,12 +331,12 @@ def cached_map(
 
 
 def _load_or_build_map(name: str, config, rec, encoders: str, path: Path | None, progress):
-    from tabletop.mapping import AVLMap, load_calibration
+    from tabletop.mapping import AVLMap
 
     if path is not None and path.is_file():
         try:
             m = AVLMap.load(path, encoders=encoders)
-            m.calibration = load_calibration(encoders)  # the committed one, as built today
+            m.calibration = committed_calibration(encoders, config)  # the committed one, today's
             m.set_descriptions(config.descriptions)  # today's
             return m, 0.0, True
         except TabletopError as e:
