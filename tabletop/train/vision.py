@@ -40,6 +40,8 @@ import numpy as np
 from tabletop.atomic import atomic_path
 from tabletop.errors import ConfigError, SceneError
 from tabletop.parallel import Backend
+from tabletop.train.vision_render import ROOM_STUFF, STUFF, vision_classes
+from tabletop.train.vision_render import render_lit as _render_lit
 
 __all__ = [
     "BACKBONES",
@@ -106,10 +108,6 @@ _STUFF_PHRASES_MORE = {
     "other": ("an unknown object", "some other object", "the ground", "nothing of interest"),
 }
 _COLOUR_TEMPLATES_MORE = ("the {} one", "an object that is {}", "a {} thing")
-STUFF = ("table", "robot", "other")
-#: What a room adds to the vocabulary (``vision_classes(rooms=True)``): its furniture by
-#: category, its walls and its floor. With them "other" loses its floor phrasings.
-ROOM_STUFF = ("floor", "wall", "shelf", "cabinet", "sofa")
 _ROOM_PHRASES = {
     "floor": ("floor", "the floor", "the ground", "a floor"),
     "wall": ("wall", "the wall", "a wall", "a room wall"),
@@ -143,25 +141,6 @@ TABLE_PALETTE: tuple[tuple[float, float, float], ...] = (
     (0.30, 0.40, 0.58),  # blue-grey
     (0.84, 0.77, 0.62),  # beige
 )
-
-
-def vision_classes(rooms: bool = False) -> list[dict]:
-    """The vocabulary: one dict per class with ``name`` (the canonical text), ``kind``
-    (catalog kind, or "table"/"robot"/"other"), ``color`` (None when the class has none).
-    ``rooms``: :data:`ROOM_STUFF` follows, so the table's classes keep their indices."""
-    from tabletop.sim.catalog import OBJECT_KINDS
-
-    out = []
-    for k in sorted(OBJECT_KINDS):
-        kind = OBJECT_KINDS[k]
-        if kind.keep_texture:
-            out.append({"name": kind.label, "kind": k, "color": None})
-        else:
-            for c in kind.colors:
-                out.append({"name": f"{c} {kind.label}", "kind": k, "color": c})
-    for s in STUFF + (ROOM_STUFF if rooms else ()):
-        out.append({"name": s, "kind": s, "color": None})
-    return out
 
 
 @dataclass(frozen=True)
@@ -478,42 +457,6 @@ def _texture(rgb: np.ndarray, mask: np.ndarray, rng: np.random.Generator) -> np.
     out = rgb.astype(np.float32)
     out[mask] *= gain[mask][:, None]
     return np.clip(out, 0, 255).astype(np.uint8)
-
-
-def _render_lit(world, T_world_cam: np.ndarray, rng: np.random.Generator, others=()):
-    """Render like :meth:`SimWorld.render` with a random light (direction, colour, strength).
-
-    Uses the world's PyBullet client directly: ``SimWorld.render`` has a fixed light. Bodies
-    in ``others`` (distractors the world does not know) are labelled as nothing ("other").
-    """
-    from tabletop.sim.camera import gl_view_matrix
-
-    pb, cam = world._pb, world.camera
-    W, H = cam.width, cam.height
-    d = np.array([rng.uniform(-1, 1), rng.uniform(-1, 1), rng.uniform(0.3, 1.5)])
-    renderer = pb.ER_BULLET_HARDWARE_OPENGL if world.renderer == "egl" else pb.ER_TINY_RENDERER
-    _, _, rgba, _, seg = pb.getCameraImage(
-        W,
-        H,
-        gl_view_matrix(T_world_cam),
-        world._projection,
-        renderer=renderer,
-        lightDirection=d.tolist(),
-        lightColor=(1.0 - rng.uniform(0, 0.15, 3)).tolist(),
-        lightDistance=2.0,
-        lightAmbientCoeff=float(rng.uniform(0.4, 0.8)),
-        lightDiffuseCoeff=float(rng.uniform(0.25, 0.6)),
-        lightSpecularCoeff=float(rng.uniform(0.0, 0.3)),
-        shadow=int(rng.random() < 0.5),
-        physicsClientId=world._client,
-    )
-    rgb = np.asarray(rgba, dtype=np.uint8).reshape(H, W, 4)[..., :3].copy()
-    seg = np.asarray(seg, dtype=np.int64).reshape(H, W)
-    lut = world._seg_lut
-    inst = np.where(seg >= 0, lut[np.clip(seg, 0, len(lut) - 1)], 0)
-    if len(others):
-        inst[np.isin(seg, list(others))] = 0  # INSTANCE_NONE
-    return rgb, inst
 
 
 def render_dataset(

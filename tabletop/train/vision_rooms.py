@@ -161,7 +161,7 @@ def render_room_dataset(
         return np.concatenate([r for r, _ in out]), np.concatenate([lab for _, lab in out])
     from tabletop.sim.room import generate_room
     from tabletop.sim.room_world import RoomWorld
-    from tabletop.train.vision import _render_lit, vision_classes
+    from tabletop.train.vision_render import render_lit, vision_classes
 
     classes = vision_classes(rooms=True)
     index = {(c["kind"], c["color"]): i for i, c in enumerate(classes)}
@@ -176,7 +176,7 @@ def render_room_dataset(
             for _ in range(views):
                 T = room_camera(rng, spec, free, cell)
                 if lit:
-                    rgb, inst = _render_lit(world, T, rng)
+                    rgb, inst = render_lit(world, T, rng)
                 else:
                     img = world.render(T)
                     rgb, inst = img.rgb, img.segmentation
@@ -203,7 +203,7 @@ def evaluate_room_vision(
     from tabletop.mapping.encoders.lseg import LSegEncoder
     from tabletop.mapping.encoders.minilm import MiniLMTextEncoder
     from tabletop.sim.catalog import OBJECT_KINDS
-    from tabletop.train.vision import vision_classes
+    from tabletop.train.vision_render import vision_classes
 
     enc = encoder if encoder is not None else LSegEncoder(weights, upscale=upscale)
     classes = vision_classes(rooms=True)
