@@ -593,28 +593,24 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     out = args.out if args.out is not None else CALIBRATION_OUT_DIR / f"{stem}.json"
     check_output_flag("--out", out)
     _check_calibration_output(Path(out))
+    cache_dir = None if args.no_cache else args.cache_dir
     if args.rooms:
         from tabletop.eval.calibration import ROOM_CALIBRATION_SEEDS, run_room_calibration
 
         print(f"calibrating room maps on rooms {list(ROOM_CALIBRATION_SEEDS)} ...", file=sys.stderr)
         cal = run_room_calibration(
             progress=lambda seed, s: print(f"  room {seed}: {len(s)} queries", file=sys.stderr),
-            cache_dir=None if args.no_cache else args.cache_dir,
+            cache_dir=cache_dir,
         )
-        if keep_prior:
-            cal = cal.keep_prior(keep_prior)
-        path = cal.save(out)
-        print(json.dumps(cal.to_json(), indent=1))
-        print(f"written {path}", file=sys.stderr)
-        return 0
-    seeds = list(CALIBRATION_SEEDS)[: args.scenes or n]
-    print(f"calibrating {args.encoders!r} on scenes {seeds} ...", file=sys.stderr)
-    cal = run_calibration(
-        args.encoders,
-        seeds,
-        progress=lambda seed, s: print(f"  scene {seed}: {len(s)} queries", file=sys.stderr),
-        cache_dir=None if args.no_cache else args.cache_dir,
-    )
+    else:
+        seeds = list(CALIBRATION_SEEDS)[: args.scenes or n]
+        print(f"calibrating {args.encoders!r} on scenes {seeds} ...", file=sys.stderr)
+        cal = run_calibration(
+            args.encoders,
+            seeds,
+            progress=lambda seed, s: print(f"  scene {seed}: {len(s)} queries", file=sys.stderr),
+            cache_dir=cache_dir,
+        )
     if keep_prior:
         cal = cal.keep_prior(keep_prior)
     path = cal.save(out)
