@@ -40,7 +40,7 @@ import numpy as np
 from tabletop.atomic import atomic_path
 from tabletop.errors import ConfigError, SceneError
 from tabletop.parallel import Backend
-from tabletop.train.vision_render import ROOM_STUFF, STUFF, vision_classes
+from tabletop.train.vision_render import ROOM_STUFF, STUFF, predict_pixels, vision_classes
 from tabletop.train.vision_render import render_lit as _render_lit
 
 __all__ = [
@@ -963,13 +963,7 @@ def evaluate_vision(
     syn_ok = syn_n = syn_px_ok = syn_px_n = 0
     syn_emb: dict[str, np.ndarray] = {}
     for rgb, lab in zip(rgbs, labels, strict=True):
-        dense = enc.encode_dense(rgb)  # (h, w, D): pixel (y, x) takes cell (y // s, x // s)
-        s = enc.stride
-        H, W = lab.shape
-        if dense.shape[0] * s < H or dense.shape[1] * s < W:
-            raise ConfigError(f"dense output {dense.shape[:2]} x stride {s} < image {W}x{H}")
-        rows, cols = np.arange(H) // s, np.arange(W) // s
-        pred = (dense @ T.T).argmax(-1)[rows[:, None], cols[None, :]]  # (H, W) class per pixel
+        dense, rows, cols, pred = predict_pixels(enc, rgb, T, *lab.shape)
         present[np.unique(lab)] = True
         conf = np.bincount((lab.astype(np.int64) * C + pred).ravel(), minlength=C * C)
         conf = conf.reshape(C, C)  # [truth, prediction] pixel counts

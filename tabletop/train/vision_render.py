@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["ROOM_STUFF", "STUFF", "render_lit", "vision_classes"]
+__all__ = ["ROOM_STUFF", "STUFF", "predict_pixels", "render_lit", "vision_classes"]
 
 STUFF = ("table", "robot", "other")
 #: What a room adds to the vocabulary (``vision_classes(rooms=True)``): its furniture by
@@ -67,3 +67,18 @@ def render_lit(world, T_world_cam: np.ndarray, rng: np.random.Generator, others=
     if len(others):
         inst[np.isin(seg, list(others))] = 0  # INSTANCE_NONE
     return rgb, inst
+
+
+def predict_pixels(encoder, rgb: np.ndarray, T: np.ndarray, H: int, W: int):
+    """(cell embeddings (h, w, D), each pixel row's and column's cell, the (H, W) class of the
+    best dot product with the class texts ``T`` (C, D)): how the held-out measures read a
+    dense encoder on an image labelled at H x W."""
+    from tabletop.errors import ConfigError
+
+    dense = encoder.encode_dense(rgb)  # pixel (y, x) takes cell (y // s, x // s)
+    s = encoder.stride
+    if dense.shape[0] * s < H or dense.shape[1] * s < W:
+        raise ConfigError(f"dense output {dense.shape[:2]} x stride {s} < image {W}x{H}")
+    rows, cols = np.arange(H) // s, np.arange(W) // s
+    pred = (dense @ T.T).argmax(-1)[rows[:, None], cols[None, :]]
+    return dense, rows, cols, pred

@@ -203,7 +203,7 @@ def evaluate_room_vision(
     from tabletop.mapping.encoders.lseg import LSegEncoder
     from tabletop.mapping.encoders.minilm import MiniLMTextEncoder
     from tabletop.sim.catalog import OBJECT_KINDS
-    from tabletop.train.vision_render import vision_classes
+    from tabletop.train.vision_render import predict_pixels, vision_classes
 
     enc = encoder if encoder is not None else LSegEncoder(weights, upscale=upscale)
     classes = vision_classes(rooms=True)
@@ -216,11 +216,7 @@ def evaluate_room_vision(
     kind_of = np.array([c["kind"] for c in classes])
     obj_ok = kind_ok = obj_n = stuff_ok = stuff_n = inst_ok = inst_n = 0
     for rgb, lab in zip(rgbs, labels, strict=True):
-        dense = enc.encode_dense(rgb)
-        s = enc.stride
-        H, W = lab.shape
-        rows, cols = np.arange(H) // s, np.arange(W) // s
-        pred = (dense @ T.T).argmax(-1)[rows[:, None], cols[None, :]]
+        dense, rows, cols, pred = predict_pixels(enc, rgb, T, *lab.shape)
         objm = is_obj[lab]
         obj_ok += int(np.sum((pred == lab) & objm))
         kind_ok += int(np.sum((kind_of[pred] == kind_of[lab]) & objm))
