@@ -69,7 +69,6 @@ def room_camera(rng: np.random.Generator, spec, free: np.ndarray, cell: float) -
         target = furn[int(rng.integers(len(furn)))] + np.array([*rng.normal(0, 0.2, 2), 0.0])
     else:
         target = np.array([rng.uniform(0, sx), rng.uniform(0, sy), rng.uniform(0.0, 1.5)])
-    cells = np.argwhere(free)
     eye_xy = None
     for _ in range(60):
         d = rng.uniform(*_DISTANCE)
@@ -80,6 +79,7 @@ def room_camera(rng: np.random.Generator, spec, free: np.ndarray, cell: float) -
             eye_xy = xy
             break
     if eye_xy is None:  # nowhere free at that range: any free cell
+        cells = np.argwhere(free)
         i, j = cells[int(rng.integers(len(cells)))]
         eye_xy = np.array([(i + 0.5) * cell, (j + 0.5) * cell])
     lo_hi = _MAST_HEIGHT if rng.random() < 0.7 else _OTHER_HEIGHT
