@@ -181,6 +181,24 @@ def test_the_operating_point_sits_in_the_gap_below_the_kept_right_answers():
     assert operating_point(right, np.array([])) == np.quantile(right, 0.05, method="lower")
 
 
+def test_the_balanced_operating_point_refuses_wrong_answers_among_weak_right_ones():
+    from tabletop.eval.calibration import operating_point
+
+    # weak right answers scattered among the wrong ones, the rest well clear of them
+    right = np.concatenate([np.linspace(0.05, 0.4, 6), np.linspace(0.8, 1.0, 30)])
+    wrong = np.concatenate([np.linspace(0.0, 0.3, 30), [0.9]])
+    keep = operating_point(right, wrong)
+    t = operating_point(right, wrong, rule="balanced")
+    # keeping 95 % of the right answers accepts most wrong ones; balanced refuses all but one
+    assert np.mean(wrong < keep) < 0.5 and np.mean(wrong < t) == 30 / 31
+    assert np.mean(right >= t) == 32 / 36
+    # the best share kept + share refused is at the right answer 0.33 (of 0.05 ... 0.40, by
+    # 0.07), moved to the middle of the gap to the highest wrong answer under it (0.30)
+    assert t == pytest.approx((0.33 + 0.30) / 2)
+    with pytest.raises(ConfigError, match="valid"):
+        operating_point(right, wrong, rule="median")
+
+
 def test_room_maps_read_their_own_calibration_where_one_was_fitted(tmp_path, capsys):
     from tabletop.eval.harness import committed_calibration, map_config
     from tabletop.mapping.calibration import CALIBRATION_DIR

@@ -202,6 +202,20 @@ def test_calibration_samples_label_every_modality(avlmap, queries, rec):
     }
     # every area named by what is there is queried once
     assert {x["query"] for x in by["area"]} == {a["name"] for a in named_by_content}
+    # an operating point that refuses every object changes no label: the calibration sees where
+    # each refused query's target would be, and the map keeps its own calibration afterwards
+    from dataclasses import replace
+
+    own = avlmap.calibration
+    avlmap.calibration = replace(own, thresholds={**own.thresholds, "object": 2.0})
+    try:
+        assert not avlmap.object_heatmap(sorted(labels)[0]).found
+        refused = calibration_samples(avlmap, GroundTruth.of(rec))
+        assert avlmap.calibration.thresholds["object"] == 2.0
+    finally:
+        avlmap.calibration = own
+    objects = [(x["query"], x["correct"]) for x in by["object"]]
+    assert [(x["query"], x["correct"]) for x in refused if x["modality"] == "object"] == objects
 
 
 def test_query_command_with_an_image(avlmap, queries, rec, tmp_path, capsys):

@@ -8,8 +8,6 @@ experiment that produces it, so it may use the simulator and the evaluation's go
 
 from __future__ import annotations
 
-from dataclasses import replace
-
 import numpy as np
 
 from tabletop.arm.success import SUCCESS_RADIUS_M
@@ -38,21 +36,46 @@ GATED = ("image", "area")
 
 
 def calibration_samples(
-    m, ground_truth: GroundTruth, image_goals=(), foreign_images=()
+    m,
+    ground_truth: GroundTruth,
+    image_goals=(),
+    foreign_images=(),
+    radius: float = SUCCESS_RADIUS_M,
 ) -> list[dict]:
     """Labelled queries of one map: ``{"modality", "query", "margin", "correct"}`` each.
 
+    An answer is right when it lands within ``radius`` [m] of the truth: the success radius
+    of the robot the map serves (the arm's 10 cm by default; a base's 1 m in a room).
     Objects: every object label and every kind name present (right when the target lands
-    within 10 cm of an object carrying it), every catalog kind absent from the scene and,
+    near an object carrying it), every catalog kind absent from the scene and,
     for each present kind, a colour it may take that none of its objects has (always wrong).
-    Sounds: the caption of every inserted category (right within 10 cm of the column above a
+    Sounds: the caption of every inserted category (right near the column above a
     place it was inserted, up to where it was heard) and of sound-bank categories never
-    inserted (always wrong). Areas: each named table area (right within
-    10 cm of its rectangle, up to :data:`AREA_HEIGHT_M`). Images: ``image_goals``
+    inserted (always wrong). Areas: each named table area (right near its rectangle, up to
+    :data:`AREA_HEIGHT_M`). Images: ``image_goals``
     (:class:`~tabletop.eval.map_goals.MapGoal` of kind ``"image"``, pictures of this scene:
-    right when found and within 10 cm of the truth) and ``foreign_images`` ((H, W, 3) uint8
-    pictures of other scenes: always wrong).
+    right when found and near the truth) and ``foreign_images`` ((H, W, 3) uint8
+    pictures of other scenes: always wrong). The map's operating point is set aside while it
+    is queried: every object and sound query is answered, and ``found`` is the gated
+    modalities' own decision.
     """
+    previous = m.calibration
+    # Every query answers with its heatmap, whatever the map's operating point: a query the
+    # committed threshold refuses is zero everywhere and could not be labelled, so every
+    # refused query would count as wrong and a refit would only confirm the threshold.
+    m.calibration = Calibration(
+        previous.encoder_set,
+        previous.models,
+        previous.report,
+        {mod: -np.inf for mod in MODALITIES if mod not in GATED},
+    )
+    try:
+        return _calibration_samples(m, ground_truth, image_goals, foreign_images, radius)
+    finally:
+        m.calibration = previous
+
+
+def _calibration_samples(m, ground_truth, image_goals, foreign_images, radius) -> list[dict]:
     from tabletop.eval.map_goals import heard_column
     from tabletop.sim.catalog import OBJECT_KINDS
     from tabletop.sim.sound_bank import SoundBank
@@ -66,13 +89,9 @@ def calibration_samples(
             margin, ok = -1.0, False  # nothing matched at all: the weakest evidence there is
         else:
             margin = float(h.evidence)
-            # The label is where the target would be were the query accepted: the calibration
-            # decides acceptance, so it must see the refused queries' targets too.
-            ok = (
-                bool(truth)
-                and h.peak > 0
-                and min(truth(m.get_max_pos_3d(replace(h, found=True)))) <= SUCCESS_RADIUS_M
-            )
+            # The label is where the target is with every query accepted: the calibration
+            # decides acceptance, so it must see the targets of queries a threshold refuses.
+            ok = bool(truth) and h.peak > 0 and min(truth(m.get_max_pos_3d(h))) <= radius
         out.append(
             {
                 "modality": modality,
@@ -131,7 +150,7 @@ def calibration_samples(
     def add_image(query, h, truth) -> None:
         # a refused pose is no answer at all: the weakest evidence there is
         margin = float(h.evidence) if h.found else -1.0
-        right = h.found and truth is not None and min(truth(h.target)) <= SUCCESS_RADIUS_M
+        right = h.found and truth is not None and min(truth(h.target)) <= radius
         out.append(
             {"modality": "image", "query": query, "margin": margin, "correct": right}
             | {"found": h.found}
@@ -151,22 +170,49 @@ def calibration_samples(
     return out
 
 
-def operating_point(right: np.ndarray, wrong: np.ndarray, keep_right: float = 0.95) -> float:
-    """The smallest margin reported as found: the threshold that keeps ``keep_right`` of the
-    ``right`` answers' margins, moved down to the middle of the gap below it (halfway to the
-    highest ``wrong`` margin under it), so that right answers slightly weaker than the fit's
-    are still kept where nothing wrong scored."""
-    t = float(np.quantile(right, 1 - keep_right, method="lower"))
+#: How an operating point is chosen (:func:`operating_point`).
+OPERATING_RULES = ("keep", "balanced")
+
+
+def operating_point(
+    right: np.ndarray, wrong: np.ndarray, keep_right: float = 0.95, rule: str = "keep"
+) -> float:
+    """The smallest margin reported as found.
+
+    ``rule="keep"``: the threshold that keeps ``keep_right`` of the ``right`` answers'
+    margins, moved down to the middle of the gap below it (halfway to the highest ``wrong``
+    margin under it), so that right answers slightly weaker than the fit's are still kept where
+    nothing wrong scored. Right for an encoder whose right answers stand clear of its wrong ones.
+
+    ``rule="balanced"``: the threshold with the largest share of right answers kept plus share
+    of wrong ones refused (Youden's J; the lowest such threshold, moved to the middle of the gap
+    below it). Right where an encoder's weak right answers score among its wrong ones (a small
+    object seen from 2 m): keeping 95 % of the right answers would then also accept most wrong
+    ones, and a query of something absent would be found.
+    """
+    if rule not in OPERATING_RULES:
+        raise ConfigError(f"operating rule {rule!r}: valid {list(OPERATING_RULES)}")
+    right, wrong = np.asarray(right, float), np.asarray(wrong, float)
+    if rule == "keep" or not len(wrong):
+        t = float(np.quantile(right, 1 - keep_right, method="lower"))
+    else:
+        cands = np.unique(right)
+        j = [np.mean(right >= c) + np.mean(wrong < c) for c in cands]
+        t = float(cands[int(np.argmax(j))])
     below = wrong[wrong < t]
     return (t + float(below.max())) / 2 if len(below) else t
 
 
 def fit_calibration(
-    encoder_set: str, train: list[dict], test: list[dict], keep_right: float = 0.95
+    encoder_set: str,
+    train: list[dict],
+    test: list[dict],
+    keep_right: float = 0.95,
+    rule: str = "keep",
 ) -> Calibration:
     """Platt parameters per modality fitted on ``train``, and an operating point
-    (:func:`operating_point`): a margin threshold that keeps ``keep_right`` of the right
-    answers of ``train`` reported as found
+    (:func:`operating_point` by ``rule``; by default a margin threshold that keeps
+    ``keep_right`` of the right answers of ``train`` reported as found
     (a query of something present is rarely refused; what a weak encoder cannot tell apart
     is then reported with a low confidence instead). The report holds ``test`` figures:
     samples, expected calibration error (fitted and uncalibrated prior), share of right
@@ -181,7 +227,7 @@ def fit_calibration(
         models[mod] = f
         right = np.array([s["margin"] for s in tr if s["correct"]])
         wrong = np.array([s["margin"] for s in tr if not s["correct"]])
-        t = operating_point(right, wrong, keep_right)
+        t = operating_point(right, wrong, keep_right, rule)
         if mod not in GATED:
             thresholds[mod] = t
         if te:
@@ -259,6 +305,10 @@ def run_calibration(
 #: Generator seeds of the rooms the room-aware network's calibration is fitted and measured on
 #: (apart from the suites' rooms and the image network's training and held-out rooms).
 ROOM_CALIBRATION_SEEDS = (30000, 30001, 30002)
+#: How the room maps' operating points are chosen: a small object 2 m from the mast scores
+#: among the wrong answers, so the arm's rule (keep 95 % of the right answers) would accept
+#: most queries of absent things (:func:`operating_point`).
+ROOM_OPERATING_RULE = "balanced"
 #: The rooms' scan: the suites' (three sound episodes, each sound played again once).
 ROOM_CALIBRATION_SCAN = {"episodes": 3, "repeat_sounds": 1}
 
@@ -269,8 +319,9 @@ def run_room_calibration(
     """:func:`run_calibration` for room maps (``tabletop calibrate --rooms``): a generated room
     per seed, scanned by the wheeled base and mapped with the room's settings
     (:func:`~tabletop.eval.room.room_map_settings`: the room-aware image network, frames
-    enlarged twice), its objects, sounds and areas queried (no image goals); fitted on the
-    first rooms, reported on the last (one room in three)."""
+    enlarged twice), its objects, sounds and areas queried (no image goals) and labelled by
+    the base's success radius; fitted on the first rooms, reported on the last (one room in
+    three)."""
     from tabletop.eval.harness import cached_map
     from tabletop.eval.room import cached_room_recording, room_map_settings, room_recording_key
     from tabletop.sim.room import generate_room
@@ -292,7 +343,8 @@ def run_room_calibration(
     fit = (len(per_room) + 1) // 2
     train = [s for room in per_room[:fit] for s in room]
     test = [s for room in per_room[fit:] for s in room]
-    cal = fit_calibration(encoder_set, train, test)
+    cal = fit_calibration(encoder_set, train, test, rule=ROOM_OPERATING_RULE)
+    cal.report["operating_rule"] = ROOM_OPERATING_RULE
     cal.report["seeds_fit"] = seeds[:fit]
     cal.report["seeds_heldout"] = seeds[fit:]
     cal.report["rooms"] = True
