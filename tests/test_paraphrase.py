@@ -35,15 +35,15 @@ from tabletop.eval.suites import to_toml
 from tabletop.eval.tasks import GOAL_TYPES, SceneRef, load_tasks
 from tabletop.eval.truth import resolve_truth
 from tabletop.paths import DATA_DIR
-from tabletop.sim.catalog import COLORS, OBJECT_KINDS, object_kind
+from tabletop.sim.catalog import COLORS, OBJECT_KINDS
 from tabletop.sim.ground_truth import (
     AreaTruth,
     GroundTruth,
-    ObjectTruth,
     SoundEventTruth,
     TableTruth,
 )
 from tabletop.sim.sound_bank import CAPTIONS, SoundBank
+from tabletop.sim.world import object_truth
 
 BANKS = {pool: load_bank(pool) for pool in POOLS}
 
@@ -211,25 +211,10 @@ def spec_ground_truth(seed: int, sounds: int = 6, repeats: int = 1) -> GroundTru
     """The generated scene's ground truth from its spec (no scan), with ``sounds`` synthetic
     sound events of held-out-split categories (the first ``repeats`` heard twice)."""
     spec = SceneRef(random={"seed": seed, "count": 9, "duplicates": 2}).load()
-    objs = []
-    for i, o in enumerate(spec.objects):
-        lo, hi = o.aabb()
-        objs.append(
-            ObjectTruth(
-                name=o.name,
-                kind=o.kind,
-                label=o.label,
-                category=object_kind(o.kind).label,
-                color=o.color,
-                instance_id=4 + i,
-                position=o.position,
-                yaw_deg=o.yaw_deg,
-                T_world_obj=o.T_world_obj,
-                aabb_min=lo,
-                aabb_max=hi,
-                center=(lo + hi) / 2,
-            )
-        )
+    objs = [
+        object_truth(o, 4 + i, o.T_world_obj, o.position, o.yaw_deg, o.aabb())
+        for i, o in enumerate(spec.objects)
+    ]
     bank = SoundBank.default()
     rng = np.random.default_rng([seed, 99])
     usable = [c for c in bank.categories if bank.clips(category=c, split="heldout")]

@@ -34,8 +34,8 @@ from tabletop.base import (
 from tabletop.base.description import BASE_FRAME, MIC_FRAME, WHEEL_JOINTS
 from tabletop.errors import ConfigError, SimulationError
 from tabletop.sim.camera import WristCameraConfig, gl_projection_matrix
-from tabletop.sim.catalog import object_kind, pybullet_data_dir
-from tabletop.sim.ground_truth import AreaTruth, FurnitureTruth, GroundTruth, ObjectTruth
+from tabletop.sim.catalog import pybullet_data_dir
+from tabletop.sim.ground_truth import AreaTruth, FurnitureTruth, GroundTruth
 from tabletop.sim.room import FURNITURE_MODELS, FurnitureSpec, RoomSpec
 from tabletop.sim.world import (
     RENDERERS,
@@ -43,7 +43,7 @@ from tabletop.sim.world import (
     PyBulletClient,
     _quiet_stdout,
     create_object_body,
-    render_camera,
+    object_truth,
 )
 from tabletop.transforms import make_transform, quat_from_matrix, quat_to_matrix, rotation_about
 
@@ -297,15 +297,7 @@ class RoomWorld(PyBulletClient):
     def render(self, T_world_cam: np.ndarray | None = None) -> CameraImage:
         """Render the mast camera (or a camera at ``T_world_cam``, OpenCV optical frame)."""
         T = self.T_world_cam() if T_world_cam is None else np.asarray(T_world_cam)
-        return render_camera(
-            self._pb,
-            self._client,
-            self.camera,
-            self._projection,
-            self.renderer,
-            T,
-            self._seg_lut,
-        )
+        return self._render_at(T)
 
     # ------------------------------------------------------------------ ground truth
     def ground_truth(self) -> GroundTruth:
@@ -314,22 +306,15 @@ class RoomWorld(PyBulletClient):
         those it inserts)."""
         objects = []
         for f, obj in self.spec.objects:
-            lo, hi = f.object_aabb(obj)
             T = f.T_world_obj(obj)
             objects.append(
-                ObjectTruth(
-                    name=obj.name,
-                    kind=obj.kind,
-                    label=obj.label,
-                    category=object_kind(obj.kind).label,
-                    color=obj.color,
-                    instance_id=self.object_instance[obj.name],
-                    position=T[:2, 3],
-                    yaw_deg=float(np.degrees(math.atan2(T[1, 0], T[0, 0]))),
-                    T_world_obj=T,
-                    aabb_min=lo,
-                    aabb_max=hi,
-                    center=(lo + hi) / 2,
+                object_truth(
+                    obj,
+                    self.object_instance[obj.name],
+                    T,
+                    T[:2, 3],
+                    float(np.degrees(math.atan2(T[1, 0], T[0, 0]))),
+                    f.object_aabb(obj),
                     table=f.name,
                 )
             )

@@ -30,7 +30,7 @@ from tabletop.sim.camera import (
 )
 from tabletop.sim.catalog import COLORS, load_mesh_geometry, object_kind, pybullet_data_dir
 from tabletop.sim.ground_truth import AreaTruth, GroundTruth, ObjectTruth, TableTruth
-from tabletop.sim.scene import SceneSpec
+from tabletop.sim.scene import ObjectSpec, SceneSpec
 from tabletop.transforms import make_transform, quat_from_matrix, quat_to_matrix
 
 __all__ = [
@@ -46,6 +46,7 @@ __all__ = [
     "create_object_body",
     "egl_holder",
     "load_egl_plugin",
+    "object_truth",
     "render_camera",
 ]
 
@@ -187,6 +188,38 @@ def create_object_body(pb, client: int, kind_name: str, color: str, T_world_obj:
     )
 
 
+def object_truth(
+    obj: ObjectSpec,
+    instance_id: int,
+    T_world_obj: np.ndarray,
+    position,
+    yaw_deg: float,
+    aabb: tuple[np.ndarray, np.ndarray],
+    table: str | None = None,
+) -> ObjectTruth:
+    """The ground truth of one placed object: its spec's name, kind, label and colour, the
+    catalog's category, with where it stands given by the caller (the table's and the rooms'
+    worlds place objects in different frames): ``T_world_obj`` (4, 4) [m], ``position`` (x, y)
+    [m], ``yaw_deg`` [deg], ``aabb`` (lower, upper corner) [m], all in the world frame, and
+    ``table``, the furniture it stands on (None on the arm's table)."""
+    lo, hi = aabb
+    return ObjectTruth(
+        name=obj.name,
+        kind=obj.kind,
+        label=obj.label,
+        category=object_kind(obj.kind).label,
+        color=obj.color,
+        instance_id=instance_id,
+        position=position,
+        yaw_deg=yaw_deg,
+        T_world_obj=T_world_obj,
+        aabb_min=lo,
+        aabb_max=hi,
+        center=(lo + hi) / 2,
+        table=table,
+    )
+
+
 def render_camera(
     pb,
     client: int,
@@ -257,6 +290,20 @@ class PyBulletClient:
                 raise SimulationError("EGL renderer produced an empty image")
             log.warning("EGL renderer produced an empty image; falling back to TinyRenderer")
             self.renderer = "tiny"
+
+    def _render_at(self, T_world_cam: np.ndarray) -> CameraImage:
+        """Render RGB, metric depth and instance segmentation from an OpenCV camera pose
+        ``T_world_cam`` (4, 4) [m] with the world's camera, projection and segmentation
+        lookup (``self.camera``, ``self._projection``, ``self._seg_lut``, set by the world)."""
+        return render_camera(
+            self._pb,
+            self._client,
+            self.camera,
+            self._projection,
+            self.renderer,
+            T_world_cam,
+            self._seg_lut,
+        )
 
     def __exit__(self, *exc: object) -> None:
         self.close()
@@ -421,39 +468,23 @@ class SimWorld(PyBulletClient):
     # ------------------------------------------------------------------ rendering
     def render(self, T_world_cam: np.ndarray) -> CameraImage:
         """Render RGB, metric depth and instance segmentation from an OpenCV camera pose."""
-        return render_camera(
-            self._pb,
-            self._client,
-            self.camera,
-            self._projection,
-            self.renderer,
-            T_world_cam,
-            self._seg_lut,
-        )
+        return self._render_at(T_world_cam)
 
     # ------------------------------------------------------------------ ground truth
     def ground_truth(self) -> GroundTruth:
         """The scene's ground truth: objects, table, areas and segmentation instances (no
         sound events: :func:`~tabletop.sim.scan.run_scan` adds those it inserts)."""
-        objects = []
-        for obj in self.spec.objects:
-            lo, hi = obj.aabb()
-            objects.append(
-                ObjectTruth(
-                    name=obj.name,
-                    kind=obj.kind,
-                    label=obj.label,
-                    category=object_kind(obj.kind).label,
-                    color=obj.color,
-                    instance_id=self.object_instance[obj.name],
-                    position=obj.position,
-                    yaw_deg=obj.yaw_deg,
-                    T_world_obj=obj.T_world_obj,
-                    aabb_min=lo,
-                    aabb_max=hi,
-                    center=(lo + hi) / 2,
-                )
+        objects = [
+            object_truth(
+                obj,
+                self.object_instance[obj.name],
+                obj.T_world_obj,
+                obj.position,
+                obj.yaw_deg,
+                obj.aabb(),
             )
+            for obj in self.spec.objects
+        ]
         t = self.spec.table
         return GroundTruth(
             scene=self.spec.to_dict(),
