@@ -47,7 +47,7 @@ import numpy as np
 from tabletop.base import TABLETOP_BASE
 from tabletop.errors import SceneError
 from tabletop.sim.catalog import OBJECT_KINDS, load_mesh_geometry, object_kind
-from tabletop.sim.scene import ObjectSpec, read_spec_file, shipped_spec_path, shipped_specs
+from tabletop.sim.scene import ObjectSpec, SpecFiles
 from tabletop.transforms import make_transform, rotation_about, transform_points
 
 __all__ = [
@@ -569,20 +569,13 @@ def _to_toml(d: dict) -> str:
     return "\n".join(lines)
 
 
-def load_room_spec(path: str | Path) -> RoomSpec:
-    """Load a room spec from a ``.toml`` or ``.json`` file, or a shipped room by name."""
-    data, path = read_spec_file(path, "rooms", "room")
-    return RoomSpec.from_dict(data, source=str(path))
-
-
-def list_default_rooms() -> list[str]:
-    """Names of the room specs shipped in ``tabletop/data/rooms``."""
-    return shipped_specs("rooms")
-
-
-def default_room_path(name: str = "default") -> Path:
-    """Path of a shipped room spec by name."""
-    return shipped_spec_path("rooms", "room", name)
+ROOM_FILES = SpecFiles("rooms", "room", RoomSpec.from_dict)
+#: Load a room spec from a ``.toml`` or ``.json`` file, or a shipped room by name.
+load_room_spec = ROOM_FILES.load
+#: Names of the room specs shipped in ``tabletop/data/rooms``.
+list_default_rooms = ROOM_FILES.names
+#: Path of a shipped room spec by name (default: ``"default"``).
+default_room_path = ROOM_FILES.path
 
 
 # ---------------------------------------------------------------------------- generator

@@ -31,8 +31,10 @@ from __future__ import annotations
 
 import json
 import tomllib
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Generic, TypeVar
 
 import numpy as np
 
@@ -46,12 +48,15 @@ __all__ = [
     "ObjectSpec",
     "RandomSpec",
     "SceneSpec",
+    "SpecFiles",
     "TableSpec",
     "default_areas",
     "default_scene_path",
     "list_default_scenes",
     "load_scene_spec",
 ]
+
+SpecT = TypeVar("SpecT")
 
 #: The robot base's footprint on the table top [m], world frame: the Panda's ``link0``
 #: (collision mesh bounds x -0.154..0.072, y -0.095..0.095), rounded out. No object may stand on it.
@@ -509,20 +514,37 @@ def read_spec_file(path: str | Path, folder: str, what: str) -> tuple[dict, Path
     return data, path
 
 
-def load_scene_spec(path: str | Path) -> SceneSpec:
-    """Load a scene spec from a ``.toml`` or ``.json`` file, or a shipped scene by name."""
-    data, path = read_spec_file(path, "scenes", "scene")
-    return SceneSpec.from_dict(data, source=str(path))
+@dataclass(frozen=True)
+class SpecFiles(Generic[SpecT]):
+    """One kind of spec file ("scene", "room"): the specs shipped in
+    ``tabletop/data/<folder>`` and how a file's data becomes a spec (``parse(data, source)``,
+    the spec class's ``from_dict``). The table's scenes and the rooms load through one."""
+
+    folder: str
+    what: str
+    parse: Callable[..., SpecT]
+
+    def load(self, path: str | Path) -> SpecT:
+        """Load a spec from a ``.toml`` or ``.json`` file, or a shipped one by name."""
+        data, path = read_spec_file(path, self.folder, self.what)
+        return self.parse(data, source=str(path))
+
+    def names(self) -> list[str]:
+        """Names of the specs shipped in ``tabletop/data/<folder>``."""
+        return shipped_specs(self.folder)
+
+    def path(self, name: str = "default") -> Path:
+        """Path of a shipped spec by name."""
+        return shipped_spec_path(self.folder, self.what, name)
 
 
-def list_default_scenes() -> list[str]:
-    """Names of the scene specs shipped in ``tabletop/data/scenes``."""
-    return shipped_specs("scenes")
-
-
-def default_scene_path(name: str = "default") -> Path:
-    """Path of a shipped scene spec by name."""
-    return shipped_spec_path("scenes", "scene", name)
+SCENE_FILES = SpecFiles("scenes", "scene", SceneSpec.from_dict)
+#: Load a scene spec from a ``.toml`` or ``.json`` file, or a shipped scene by name.
+load_scene_spec = SCENE_FILES.load
+#: Names of the scene specs shipped in ``tabletop/data/scenes``.
+list_default_scenes = SCENE_FILES.names
+#: Path of a shipped scene spec by name (default: ``"default"``).
+default_scene_path = SCENE_FILES.path
 
 
 def _check_table_keys(table, where: str, valid, source: str) -> None:
