@@ -29,9 +29,16 @@ from pathlib import Path
 
 import numpy as np
 
-from tabletop.eval.suites import _the, draw, to_toml
-from tabletop.eval.tasks import FORMAT_NAME, FORMAT_VERSION, Truth, parse_tasks
-from tabletop.eval.truth import resolve_truth, sound_occurrences
+from tabletop.eval.suites import (
+    _the,
+    draw,
+    relation_goal,
+    relation_truth_point,
+    sound_object_pairs,
+    to_toml,
+)
+from tabletop.eval.tasks import FORMAT_NAME, FORMAT_VERSION, parse_tasks
+from tabletop.eval.truth import sound_occurrences
 from tabletop.paths import DATA_DIR
 from tabletop.sim.ground_truth import GroundTruth
 
@@ -51,6 +58,12 @@ def _generated(seed: int, goal_seed: int) -> tuple[dict, dict, int]:
     return {"random": {"seed": seed}}, {"seed": seed, "episodes": 3, "repeat_sounds": 1}, goal_seed
 
 
+def _heldout_pair(n: int) -> dict:
+    """Held-out suites ``room-heldout-<n>`` and ``room-heldout-<n + 1>``: rooms of generator
+    seeds 9100 + n on, goals of seeds 9300 + n on."""
+    return {f"room-heldout-{k}": _generated(9100 + k, 9300 + k) for k in (n, n + 1)}
+
+
 #: The shipped mobile suites: name -> ([room] section, [scan] section, goal seed).
 ROOM_SUITES = {
     "room-default": ({"name": "default"}, {"seed": 0, "episodes": 3, "repeat_sounds": 1}, 300),
@@ -58,28 +71,16 @@ ROOM_SUITES = {
 }
 #: Held-out mobile suites: rooms drawn with generator seeds that neither the room settings'
 #: tuning nor any test used, goals drawn with seeds of their own.
-HELDOUT_ROOM_SUITES = {
-    "room-heldout-1": _generated(9101, 9301),
-    "room-heldout-2": _generated(9102, 9302),
-}
+HELDOUT_ROOM_SUITES = _heldout_pair(1)
 #: A second held-out pair, drawn when the first had been looked at (its figures reported once,
 #: then its image goals' pictures studied): for figures after that study.
-HELDOUT_ROOM_SUITES_2 = {
-    "room-heldout-3": _generated(9103, 9303),
-    "room-heldout-4": _generated(9104, 9304),
-}
+HELDOUT_ROOM_SUITES_2 = _heldout_pair(3)
 #: A third held-out pair, drawn when the second had been run once and its two missed image
 #: goals diagnosed: for figures after that.
-HELDOUT_ROOM_SUITES_3 = {
-    "room-heldout-5": _generated(9105, 9305),
-    "room-heldout-6": _generated(9106, 9306),
-}
+HELDOUT_ROOM_SUITES_3 = _heldout_pair(5)
 #: A fourth held-out pair, drawn when the third had been run once and its missed spatial goals
 #: traced to two touching objects of one colour segmented as one: for figures after that.
-HELDOUT_ROOM_SUITES_4 = {
-    "room-heldout-7": _generated(9107, 9307),
-    "room-heldout-8": _generated(9108, 9308),
-}
+HELDOUT_ROOM_SUITES_4 = _heldout_pair(7)
 #: Where each set of suites is written, under ``tabletop/data/tasks/``.
 SUITE_DIRS = {
     "mobile": ROOM_SUITES,
@@ -215,39 +216,20 @@ def generate_room_suite(
     spatial = []
     for i, a in enumerate(objs):
         for b in objs[i + 1 :]:
-            t = Truth(
-                "relation",
-                relation="between",
-                of=(Truth("object", object=a.name), Truth("object", object=b.name)),
-            )
-            p = resolve_truth(t, gt).center
+            p = relation_truth_point(gt, "between", a, b)
             if _free(occ, cell, p) and np.linalg.norm(np.subtract(a.center, b.center)) >= 1.5:
                 spatial.append((a, b))
     for a, b in pick(spatial, counts["spatial"]):
-        add(
-            f"spatial-between-{a.name}-{b.name}",
-            "spatial",
-            f"between the {a.label} and the {b.label}",
-            {"relation": "between", "of": [{"object": a.name}, {"object": b.name}]},
-            relation="between",
-            landmarks=[{"obj": a.label}, {"obj": b.label}],
-        )
-    mm = []
-    for e in unique:
-        for o in objs:
-            mid = (np.array(e.table_point) + np.array(o.center)) / 2
-            d = np.linalg.norm(np.subtract(e.table_point[:2], o.center[:2]))
-            if _free(occ, cell, mid) and d >= 1.5:
-                mm.append((e, o))
+        marks = [("object", a.name, "obj", a.label), ("object", b.name, "obj", b.label)]
+        text = f"between the {a.label} and the {b.label}"
+        gid = f"spatial-between-{a.name}-{b.name}"
+        goals.append(relation_goal(gid, "spatial", text, "between", marks))
+    mm = sound_object_pairs(unique, objs, functools.partial(_free, occ, cell), 1.5, math.inf)
     for e, o in pick(mm, counts["multimodal_spatial"]):
-        add(
-            f"mm-between-{e.category}-{o.name}",
-            "multimodal_spatial",
-            f"between {e.caption} and the {o.label}",
-            {"relation": "between", "of": [{"sound": e.category}, {"object": o.name}]},
-            relation="between",
-            landmarks=[{"sound": e.caption}, {"obj": o.label}],
-        )
+        marks = [("sound", e.category, "sound", e.caption), ("object", o.name, "obj", o.label)]
+        text = f"between {e.caption} and the {o.label}"
+        gid = f"mm-between-{e.category}-{o.name}"
+        goals.append(relation_goal(gid, "multimodal_spatial", text, "between", marks))
     # instructions in free text, through the instruction parser
     inst = [(("object", o), {"object": o.name}) for o in objs]
     inst += [(("sound", first[c]), {"sound": c}) for c in dict.fromkeys(cats) if cats.count(c) == 1]

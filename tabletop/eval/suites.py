@@ -186,6 +186,44 @@ def _view(rng, target_xy) -> dict:
     }
 
 
+def relation_truth_point(gt: GroundTruth, relation: str, *landmarks: ObjectTruth) -> np.ndarray:
+    """The truth point (3,) [m] of ``relation`` ("between", a side relation) to the objects
+    ``landmarks`` of ``gt``: where a spatial goal's truth lies, checked before it is asked."""
+    of = tuple(Truth("object", object=o.name) for o in landmarks)
+    return resolve_truth(Truth("relation", relation=relation, of=of), gt).center
+
+
+def sound_object_pairs(
+    events, objects, free, near: float, far: float
+) -> list[tuple[SoundEventTruth, ObjectTruth]]:
+    """(sound event, object) pairs, events first, whose midpoint is free (``free(point)``:
+    table, or floor a base can stand on) and whose distance [m] in the plane is in
+    [``near``, ``far``]: the landmarks of "between a sound and an object" goals."""
+    pairs = []
+    for e in events:
+        for o in objects:
+            mid = (np.array(e.table_point) + np.array(o.center)) / 2
+            d = np.linalg.norm(np.subtract(e.table_point[:2], o.center[:2]))
+            if free(mid) and near <= d <= far:
+                pairs.append((e, o))
+    return pairs
+
+
+def relation_goal(gid: str, gtype: str, text: str, relation: str, landmarks) -> dict:
+    """A spatial or multimodal spatial goal (``gtype``): ``text`` asks for the point in
+    ``relation`` to ``landmarks``, each (what, name, key, words): what the truth names
+    ("object", "sound") and its name in the ground truth, the query's key ("obj", "sound")
+    and the words that ask for it."""
+    return {
+        "id": gid,
+        "type": gtype,
+        "text": text,
+        "relation": relation,
+        "landmarks": [{key: words} for _, _, key, words in landmarks],
+        "truth": {"relation": relation, "of": [{what: name} for what, name, _, _ in landmarks]},
+    }
+
+
 def draw(rng: np.random.Generator, seq, n: int) -> list:
     """``n`` items of ``seq`` drawn with ``rng``, in their order (all of them when it has no
     more than ``n``)."""
@@ -393,20 +431,14 @@ def generate_suite(
     spatial = []
     for i, a in enumerate(objs):
         for b in objs[i + 1 :]:
-            t = Truth(
-                "relation",
-                relation="between",
-                of=(Truth("object", object=a.name), Truth("object", object=b.name)),
-            )
-            p = resolve_truth(t, gt).center
+            p = relation_truth_point(gt, "between", a, b)
             if (
                 _xy_clear(p, gt.objects, margin=clear_between)
                 and 0.12 <= np.linalg.norm(np.subtract(a.center, b.center)) <= 0.45
             ):
                 spatial.append(("between", [a, b]))
         for rel in SIDE_RELATIONS:
-            t = Truth("relation", relation=rel, of=(Truth("object", object=a.name),))
-            p = resolve_truth(t, gt).center
+            p = relation_truth_point(gt, rel, a)
             if _reachable(p) and _xy_clear(p, gt.objects, margin=clear_beside):
                 spatial.append((rel, [a]))
     words = RELATION_WORDS
@@ -417,39 +449,27 @@ def generate_suite(
             if rel == "between"
             else f"{words[rel]} {_the(qs[0])}"
         )
-        add(
-            f"spatial-{rel}-" + "-".join(o.name for o in os_),
-            "spatial",
-            text,
-            {"relation": rel, "of": [{"object": o.name} for o in os_]},
-            relation=rel,
-            landmarks=[{"obj": q} for q in qs],
-        )
+        gid = f"spatial-{rel}-" + "-".join(o.name for o in os_)
+        marks = [("object", o.name, "obj", q) for o, q in zip(os_, qs, strict=True)]
+        goals.append(relation_goal(gid, "spatial", text, rel, marks))
     # multimodal spatial: between a sound and an object; beside an object found by a sound
-    mm = []
-    for e in unique_events:
-        for o in objs:
-            mid = (np.array(e.table_point) + np.array(o.center)) / 2
-            d = np.linalg.norm(np.subtract(e.table_point[:2], o.center[:2]))
-            if _xy_clear(mid, gt.objects) and 0.12 <= d <= 0.45:
-                mm.append(("between-sound", e, o))
+    free = functools.partial(_xy_clear, objects=gt.objects)
+    mm = [
+        ("between-sound", e, o)
+        for e, o in sound_object_pairs(unique_events, objs, free, 0.12, 0.45)
+    ]
     for o, e in amb:
         for rel in SIDE_RELATIONS:
-            t = Truth("relation", relation=rel, of=(Truth("object", object=o.name),))
-            p = resolve_truth(t, gt).center
+            p = relation_truth_point(gt, rel, o)
             if _reachable(p) and _xy_clear(p, gt.objects, margin=0.05):
                 mm.append((rel, e, o))
     for kind, e, o in pick(mm, counts["mm_spatial"]):
         if kind == "between-sound":
             s, q = w.sound(e), w.object(o)
-            add(
-                f"mm-between-{e.category}-{o.name}",
-                "multimodal_spatial",
-                f"between {s} and {_the(q)}",
-                {"relation": "between", "of": [{"sound": e.category}, {"object": o.name}]},
-                relation="between",
-                landmarks=[{"sound": s}, {"obj": q}],
-            )
+            marks = [("sound", e.category, "sound", s), ("object", o.name, "obj", q)]
+            text = f"between {s} and {_the(q)}"
+            gid = f"mm-between-{e.category}-{o.name}"
+            goals.append(relation_goal(gid, "multimodal_spatial", text, "between", marks))
         else:
             k, s = w.kind(o), w.sound(e)
             add(
