@@ -43,6 +43,7 @@ from tabletop.sim.ground_truth import SoundEventTruth
 from tabletop.sim.noise import NoiseConfig, apply_noise
 from tabletop.sim.room import FurnitureSpec, RoomSpec
 from tabletop.sim.room_world import RoomWorld, mast_camera_config
+from tabletop.sim.scan import check_field_types
 
 __all__ = ["RoomScanConfig", "RoomScanStats", "base_pose_of", "run_room_scan", "scan_room"]
 
@@ -106,14 +107,7 @@ class RoomScanConfig:
     """Longest drive [s] to one viewpoint before the scan fails."""
 
     def __post_init__(self) -> None:
-        for f in fields(self):
-            v = getattr(self, f.name)
-            if f.type in ("int", "float") and (
-                isinstance(v, bool)
-                or not isinstance(v, (int, float) if f.type == "float" else int)
-                or not math.isfinite(v)
-            ):
-                raise ConfigError(f"room scan {f.name} must be a finite {f.type}, got {v!r}")
+        check_field_types(self, "room scan")
         object.__setattr__(self, "tables", tuple(self.tables))
         positive = ("rate_hz", "max_linear", "max_angular", "standoff", "timeout_s", "lookahead")
         for name in positive:

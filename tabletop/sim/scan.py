@@ -16,7 +16,7 @@ import logging
 import math
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
 
@@ -41,6 +41,23 @@ from tabletop.transforms import invert
 __all__ = ["ScanConfig", "ScanStats", "T_hand_tcp", "plan_scan", "run_scan"]
 
 log = logging.getLogger(__name__)
+
+
+def check_field_types(config, what: str, strings: bool = False) -> None:
+    """Refuse a scan config (a dataclass) whose ``int`` or ``float`` field is not a finite
+    number of that type (a bool is none), or, with ``strings``, whose ``str`` field is not a
+    string; fields in their order, the first wrong one named after ``what`` ("scan", "room
+    scan"). The table's and the rooms' scan configs check their fields through this."""
+    for f in fields(config):
+        v = getattr(config, f.name)
+        if f.type in ("int", "float") and (
+            isinstance(v, bool)
+            or not isinstance(v, (int, float) if f.type == "float" else int)
+            or not math.isfinite(v)
+        ):
+            raise ConfigError(f"{what} {f.name} must be a finite {f.type}, got {v!r}")
+        if strings and f.type == "str" and not isinstance(v, str):
+            raise ConfigError(f"{what} {f.name} must be a string, got {v!r}")
 
 
 @dataclass(frozen=True)
@@ -77,8 +94,6 @@ class ScanConfig:
     """"auto" (EGL if it works), "egl" or "tiny"."""
 
     def __post_init__(self) -> None:
-        from dataclasses import fields
-
         if isinstance(self.noise, dict):  # from a task file or JSON
             object.__setattr__(self, "noise", NoiseConfig.from_dict(self.noise, "scan noise"))
         if isinstance(self.camera, dict):
@@ -86,16 +101,7 @@ class ScanConfig:
                 object.__setattr__(self, "camera", WristCameraConfig(**self.camera))
             except TypeError as e:
                 raise ConfigError(f"scan camera: {e}") from None
-        for f in fields(self):
-            v = getattr(self, f.name)
-            if f.type in ("int", "float") and (
-                isinstance(v, bool)
-                or not isinstance(v, (int, float) if f.type == "float" else int)
-                or not math.isfinite(v)
-            ):
-                raise ConfigError(f"scan {f.name} must be a finite {f.type}, got {v!r}")
-            if f.type == "str" and not isinstance(v, str):
-                raise ConfigError(f"scan {f.name} must be a string, got {v!r}")
+        check_field_types(self, "scan", strings=True)
         if not isinstance(self.noise, NoiseConfig):
             raise ConfigError(f"scan noise must be a table of noise settings, got {self.noise!r}")
         if not isinstance(self.camera, WristCameraConfig):
