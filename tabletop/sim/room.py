@@ -274,16 +274,7 @@ class FurnitureSpec:
             d["size"] = list(self.size)
             d["color"] = list(self.color)
         if self.objects:
-            d["objects"] = [
-                {
-                    "name": o.name,
-                    "kind": o.kind,
-                    "color": o.color,
-                    "position": [float(v) for v in o.position],
-                    "yaw_deg": float(o.yaw_deg),
-                }
-                for o in self.objects
-            ]
+            d["objects"] = [o.to_dict() for o in self.objects]
         return d
 
 

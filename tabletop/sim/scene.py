@@ -137,6 +137,17 @@ class ObjectSpec:
         """Natural-language label with colour, e.g. ``"red mug"``."""
         return f"{self.color} {object_kind(self.kind).label}"
 
+    def to_dict(self) -> dict:
+        """The object as a spec file writes it (position [m] and yaw [deg] as plain floats),
+        in a table's scene and on a room's furniture alike."""
+        return {
+            "name": self.name,
+            "kind": self.kind,
+            "color": self.color,
+            "position": [float(v) for v in self.position],
+            "yaw_deg": float(self.yaw_deg),
+        }
+
     @property
     def T_world_obj(self) -> np.ndarray:
         """(4, 4) pose of the object frame (bottom centre) in the world."""
@@ -429,16 +440,7 @@ class SceneSpec:
                 "height": t.height,
                 "color": list(t.color),
             },
-            "objects": [
-                {
-                    "name": o.name,
-                    "kind": o.kind,
-                    "color": o.color,
-                    "position": [float(v) for v in o.position],
-                    "yaw_deg": float(o.yaw_deg),
-                }
-                for o in self.objects
-            ],
+            "objects": [o.to_dict() for o in self.objects],
             "areas": [
                 {"name": a.name, "x": list(a.x), "y": list(a.y), "aliases": list(a.aliases)}
                 for a in self.areas
