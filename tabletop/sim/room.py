@@ -560,6 +560,7 @@ def _to_toml(d: dict) -> str:
     return "\n".join(lines)
 
 
+#: The room specs: those shipped in ``tabletop/data/rooms``, read by :meth:`RoomSpec.from_dict`.
 ROOM_FILES = SpecFiles("rooms", "room", RoomSpec.from_dict)
 #: Load a room spec from a ``.toml`` or ``.json`` file, or a shipped room by name.
 load_room_spec = ROOM_FILES.load

@@ -540,6 +540,7 @@ class SpecFiles(Generic[SpecT]):
         return shipped_spec_path(self.folder, self.what, name)
 
 
+#: The scene specs: those shipped in ``tabletop/data/scenes``, read by :meth:`SceneSpec.from_dict`.
 SCENE_FILES = SpecFiles("scenes", "scene", SceneSpec.from_dict)
 #: Load a scene spec from a ``.toml`` or ``.json`` file, or a shipped scene by name.
 load_scene_spec = SCENE_FILES.load
