@@ -81,7 +81,7 @@ def test_bad_robot_and_room_sections_are_named(changes, words):
 
 def test_an_arm_file_may_not_choose_an_embodiment():
     arm = _doc(robot={"embodiment": "flyer"}, room=None, scene={"name": "default"}, scan={})
-    with pytest.raises(TaskFileError, match="embodiment is for a mobile base"):
+    with pytest.raises(TaskFileError, match="the arm robot has no obstacle embodiments to choose"):
         parse_tasks(arm)
 
 

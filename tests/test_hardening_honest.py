@@ -184,7 +184,7 @@ def test_every_primitive_names_a_wrong_argument_and_a_closed_robot_refuses(built
             assert str(e.value).startswith(f"{call}(") and "must be" in str(e.value)
         # every declared primitive of the arm goes through the one check
         for p in PRIMITIVES:
-            if "arm" not in p.robots or not p.params:
+            if not p.available_to("arm") or not p.params:
                 continue
             bad = {n: object() for n in p.params[:1]}
             with pytest.raises(PrimitiveArgumentError, match=f"{p.params[0]} must be"):

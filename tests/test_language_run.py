@@ -77,7 +77,7 @@ def test_every_traced_motion_goes_to_its_declared_target(ref_map):
     robot = PointRobot(ref_map, (0.3, 0.0, 0.3))
     args = {"name": "red mug", "a": "red mug", "b": "tray", "distance_m": 0.04}
     for p in PRIMITIVES:
-        if not p.moves or p.target is None or "arm" not in p.robots:
+        if not p.moves or p.target is None or not p.available_to("arm"):
             continue
         t = TracingRobot(robot, execute=False, start=(0.3, 0.0, 0.3))
         values = [args[n] for n in p.params]

@@ -332,7 +332,7 @@ def test_allowed_code_runs_in_order_and_counts_its_bounds():
 def test_the_allowed_api_is_the_robot_api():
     from tabletop.robot.wheeled import MobileRobot
 
-    shared = {p.name for p in PRIMITIVES if "arm" in p.robots}
+    shared = {p.name for p in PRIMITIVES if p.available_to("arm")}
     assert all(callable(getattr(RobotAPI, m, None)) for m in shared)
     assert all(callable(getattr(MobileRobot, m, None)) for m in ROBOT_METHODS)
     assert not {"close", "reset", "map", "controller", "history"} & ROBOT_METHODS

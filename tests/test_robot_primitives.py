@@ -31,8 +31,8 @@ def test_every_primitive_is_a_robot_api_method_with_the_declared_parameters(p):
     from tabletop.robot.wheeled import MobileRobot
 
     # a primitive of every robot is the shared API's; a base's own is the base's
-    cls = RobotAPI if set(p.robots) == {"arm", "mobile"} else MobileRobot
-    assert p.robots in (("arm", "mobile"), ("mobile",)), p.robots
+    cls = RobotAPI if p.shared else MobileRobot
+    assert p.robots in ((), ("mobile",)), p.robots
     assert callable(getattr(cls, p.name, None)), p.name
     assert _params(cls, p.name) == p.params
     assert p.kind in KINDS and p.summary and "\n" not in p.summary
@@ -61,7 +61,7 @@ def test_every_public_robot_api_method_is_declared_or_excluded():
     }
     from tabletop.robot.wheeled import MobileRobot
 
-    shared = {p.name for p in PRIMITIVES if set(p.robots) == {"arm", "mobile"}}
+    shared = {p.name for p in PRIMITIVES if p.shared}
     assert public == shared | (set(EXCLUDED) & public)
     assert undeclared_methods(RobotAPI) == ()
     assert signature_mismatches(RobotAPI) == ()
@@ -170,11 +170,11 @@ def test_the_prompt_lists_exactly_the_declared_primitives(robot):
 
     prompt = system_prompt(robot)
     listed = re.findall(r"^robot\.(\w+)\(", api_list(robot), flags=re.MULTILINE)
-    assert listed == [p.name for p in PRIMITIVES if robot in p.robots]
+    assert listed == [p.name for p in PRIMITIVES if p.available_to(robot)]
     assert api_list(robot) in prompt
     for p in PRIMITIVES:
         shown = f"{p.call}" in prompt and p.summary in prompt
-        assert shown == (robot in p.robots), p.name  # the arm's prompt has no base motions
+        assert shown == p.available_to(robot), p.name  # the arm's prompt has no base motions
     assert "robot.get_major_map(obj=, sound=, img=, area=, primary=)" in prompt
     assert "robot.move_north(distance_m)" in prompt
     assert SYSTEM_PROMPT == system_prompt("arm")

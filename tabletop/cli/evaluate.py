@@ -13,6 +13,7 @@ from pathlib import Path
 
 from tabletop.cli.output import check_output_flag, check_parents_are_directories, stdout_to_stderr
 from tabletop.cli.progress import ProgressBars
+from tabletop.embodiments import EMBODIMENTS
 from tabletop.errors import ConfigError
 from tabletop.eval.harness import DEFAULT_CACHE_DIR
 from tabletop.reader.reading import DEFAULT_READER, READERS
@@ -431,9 +432,7 @@ def cmd_eval_map(args: argparse.Namespace) -> int:
 def cmd_demo(args: argparse.Namespace) -> int:
     """The main job: scan the default scene, map it with the embedded default encoders, run
     the demo suite (a few goals of every type) with the simulated arm, print the table and
-    write the report."""
-    from tabletop.eval.runner import run_eval
-
+    write the report (``--robot``: another robot's demo, its embodiment's)."""
     _check_directory_flag("--out", args.out)  # before the scan, not after it
     out = Path(args.out)
     encoders = [e.strip() for e in args.encoders.split(",") if e.strip()]
@@ -443,15 +442,23 @@ def cmd_demo(args: argparse.Namespace) -> int:
         # refused before the banner that names them, not after it
         named = f"unknown encoder set {unknown[0]!r}" if encoders else "no encoder set named"
         raise ConfigError(f"--encoders: {named}; valid: {list(ENCODER_SETS)}")
-    if args.robot == "mobile":
-        if args.driver != "sim":
-            print(
-                f"tabletop demo: --driver {args.driver} moves the arm; the mobile base's demo "
-                "runs on 'sim'",
-                file=sys.stderr,
-            )
-            return 2
-        return _mobile_demo(out, encoders)
+    from tabletop.embodiments import embodiment
+
+    body = embodiment(args.robot)
+    if args.driver not in body.drivers:
+        print(
+            f"tabletop demo: --driver {args.driver} does not move the {body.name} robot; its "
+            f"demo runs on {' or '.join(repr(d) for d in body.drivers)}",
+            file=sys.stderr,
+        )
+        return 2
+    return body.load("demo")(out, encoders, args.driver)
+
+
+def _arm_demo(out: Path, encoders: list[str], driver: str) -> int:
+    """``tabletop demo`` (the arm's embodiment's demo): the Panda at the default table."""
+    from tabletop.eval.runner import run_eval
+
     print(
         "tabletop demo: default scene -> teleop scan with inserted sounds -> AVLMap with the "
         f"encoders {encoders} -> the demo suite (object, sound, image, area, ambiguous, "
@@ -462,9 +469,9 @@ def cmd_demo(args: argparse.Namespace) -> int:
         "'oracle' = the simulator's ground truth, an upper bound.\n",
         flush=True,
     )
-    if args.driver != "sim":
+    if driver != "sim":
         print(
-            f"--driver {args.driver}: every reach is sent through franky (libfranka's network "
+            f"--driver {driver}: every reach is sent through franky (libfranka's network "
             "protocol) to franky-sim's FR3 in MuJoCo, started on a loopback address; contacts "
             "are counted by replaying the measured joints in a PyBullet copy of the scene.\n",
             flush=True,
@@ -477,7 +484,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
             out_dir=out,
             cache_dir=out / "cache",
             progress=bars,
-            driver=args.driver,
+            driver=driver,
         )
     wall = time.perf_counter() - t0
     print()
@@ -517,8 +524,9 @@ def _print_view_command(maps: list[tuple[str, str]], eval_dir: Path | None) -> N
             return
 
 
-def _mobile_demo(out: Path, encoders: list[str]) -> int:
-    """``tabletop demo --robot mobile``: the wheeled base in the default room."""
+def _mobile_demo(out: Path, encoders: list[str], driver: str = "sim") -> int:
+    """``tabletop demo --robot mobile`` (the mobile embodiment's demo): the wheeled base in the
+    default room (its one driver, the simulator)."""
     from tabletop.eval.room_demo import run_room_demo
 
     print(
@@ -730,9 +738,10 @@ def add_commands(sub) -> None:
     p.add_argument("--out", default="out/demo", help="output directory (default: out/demo)")
     p.add_argument(
         "--robot",
-        choices=["arm", "mobile"],
+        choices=list(EMBODIMENTS),
         default="arm",
-        help="the Panda at the default table (default), or the wheeled base in the default room",
+        help="the Panda at the default table (default), or the wheeled base in the default room "
+        "(mobile); any robot registered in tabletop.embodiments with a demo",
     )
     p.add_argument(
         "--encoders",

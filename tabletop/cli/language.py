@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
+from tabletop.embodiments import EMBODIMENTS
 from tabletop.errors import ConfigError
 from tabletop.language.run import BACKENDS
 from tabletop.reader.reading import DEFAULT_READER, READERS
@@ -370,7 +371,7 @@ def add_commands(sub) -> None:
     _add_backend_args(p)
     p.add_argument(
         "--robot",
-        choices=["arm", "mobile"],
+        choices=list(EMBODIMENTS),
         default="arm",
         help="the robot the code is for: the arm (default) or a mobile base (turns, drives)",
     )

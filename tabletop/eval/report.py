@@ -79,17 +79,27 @@ class EvalResult:
             **top,
             "task_files": self.task_files,
             "success_radius_m": self.success_radius,
-            "robot": "mobile" if self.mobile else "arm",
+            "robot": self.robot,
             "reader": self.reader,
             "report": str(self.report_path) if self.report_path else None,
             "rows": rows,
         }
 
     @property
+    def robot(self) -> str:
+        """The robot the task files are for (:mod:`tabletop.embodiments`; "arm" when no task
+        ran), or "mixed"."""
+        kinds = {t.robot for r in self.runs for t in r.tasks}
+        return kinds.pop() if len(kinds) == 1 else ("mixed" if kinds else "arm")
+
+    @property
     def mobile(self) -> bool:
-        """Whether the task files are a mobile base's (success within a radius on the floor)."""
-        tasks = [t for r in self.runs for t in r.tasks]
-        return bool(tasks) and all(t.robot == "mobile" for t in tasks)
+        """Whether the task files are a robot's that works in rooms (success within a radius
+        on the floor; its embodiment's workspace is a room)."""
+        from tabletop.embodiments import EMBODIMENTS
+
+        body = EMBODIMENTS.get(self.robot)
+        return body is not None and body.workspace == "room"
 
     @property
     def success_radius(self) -> float:

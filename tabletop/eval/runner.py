@@ -407,18 +407,39 @@ def evaluate_task_file(
     protocol (:class:`~tabletop.robot.franky_arm.FrankySimArm`; its contacts are counted in a
     PyBullet mirror of the scene, and the run's ``tracking`` holds franky's tracking errors
     and the reflexes)."""
-    _check_driver(driver, tf.robot.kind)
-    if tf.robot.kind == "mobile":
-        return evaluate_room_task_file(
-            tf,
-            encoders,
-            cache_dir=cache_dir,
-            progress=progress,
-            map_overrides=map_overrides,
-            scan_overrides=scan_overrides,
-            noise=noise,
-        )
-    from tabletop.robot import SimArm
+    body = tf.robot.body
+    _check_driver(driver, body)
+    return body.load("evaluate")(
+        tf,
+        encoders,
+        cache_dir=cache_dir,
+        figures_dir=figures_dir,
+        progress=progress,
+        map_overrides=map_overrides,
+        scan_overrides=scan_overrides,
+        noise=noise,
+        reader=reader,
+        driver=driver,
+    )
+
+
+def evaluate_table_task_file(
+    tf: TaskFile,
+    encoders: str,
+    *,
+    cache_dir: Path | None = DEFAULT_CACHE_DIR,
+    figures_dir: Path | None = None,
+    progress: Progress | None = None,
+    map_overrides: dict | None = None,
+    scan_overrides: dict | None = None,
+    noise: dict | None = None,
+    reader: str = DEFAULT_READER,
+    driver: str = "sim",
+) -> TaskRun:
+    """:func:`evaluate_task_file` for a robot over a table (the arm's embodiment's
+    ``evaluate``): scan the scene with the arm's teleop sweeps (or reuse the scan), map it,
+    and run every goal with the embodiment's robot class (``robot_class(map, scene)``), or
+    franky-sim's FR3 for ``driver="franky-sim"``."""
     from tabletop.sim.noise import NoiseConfig, apply_noise
 
     spec = tf.scene.load()
@@ -447,9 +468,9 @@ def evaluate_task_file(
 
         robot = FrankySimArm(m, spec)
     else:
-        robot = SimArm(m, spec)
+        robot = tf.robot.body.load("robot_class")(m, spec)
     robot.reader = reader  # every goal's words, instructions and queries alike
-    ctx = _Context(robot, m, spec, rec)
+    ctx = _Context(robot, m, spec, rec, radius=tf.robot.success_radius)
     if figures_dir is not None:
         ctx.keep_heatmaps = _heatmap_goals(tf)
     results: list[GoalResult] = []
@@ -472,6 +493,8 @@ def evaluate_task_file(
             map_s=map_s,
             cached=rec_cached and map_cached,
             encoder_names=dict(m.encoder_names),
+            robot=tf.robot.kind,
+            success_radius=tf.robot.success_radius,
             noise=sensor.to_dict() if sensor.any else {},
             map_path=_path_str(map_path),
             recording_path=_path_str(rec_path),
@@ -490,15 +513,19 @@ def evaluate_task_file(
     return run
 
 
-#: What can move the arm in an evaluation: the PyBullet simulator, or franky-sim's FR3.
+#: What can move a robot in an evaluation: the PyBullet simulator, or franky-sim's FR3 (each
+#: embodiment says which of them move it: :attr:`~tabletop.embodiments.Embodiment.drivers`).
 DRIVERS = ("sim", "franky-sim")
 
 
-def _check_driver(driver: str, robot: str) -> None:
+def _check_driver(driver: str, body) -> None:
     if driver not in DRIVERS:
         raise ConfigError(f"driver must be one of {list(DRIVERS)}, got {driver!r}")
-    if driver != "sim" and robot != "arm":
-        raise ConfigError(f"driver {driver!r} moves the arm; the {robot} suites run on 'sim'")
+    if driver not in body.drivers:
+        raise ConfigError(
+            f"driver {driver!r} does not move the {body.name} robot; its suites run on "
+            f"{' or '.join(repr(d) for d in body.drivers)}"
+        )
 
 
 def _tracking(robot) -> dict:
@@ -554,10 +581,15 @@ def evaluate_room_task_file(
     map_overrides: dict | None = None,
     scan_overrides: dict | None = None,
     noise: dict | None = None,
+    reader: str = DEFAULT_READER,
+    figures_dir: Path | None = None,
+    driver: str = "sim",
 ) -> TaskRun:
-    """:func:`evaluate_task_file` for a mobile base's task file: scan the room with the wheeled
-    base (or reuse the scan), map it with the room's settings
-    (:func:`~tabletop.eval.room.room_map_settings`), then run every goal with a
+    """:func:`evaluate_task_file` for a mobile base's task file (its embodiment's ``evaluate``;
+    no heatmap figures: ``figures_dir`` draws a table, and is not used here): scan the room with
+    the wheeled base (or reuse the scan), map it with the room's settings
+    (:func:`~tabletop.eval.room.room_map_settings`), then run every goal, its words read by the
+    reader called ``reader``, with a
     :class:`~tabletop.robot.wheeled.MobileRobot` on the room's physics (the ground base) or
     an ideal unicycle (the flyer, which no physics of ours can fly); a goal is reached when
     the base's centre ends within the task file's success radius of the truth, on the floor."""
@@ -593,7 +625,9 @@ def evaluate_room_task_file(
         else:
             world.reset_base()
             driver = world.driver
-        return MobileRobot(m, driver, embodiment=FLYER if flyer else GROUND_BASE)
+        robot = MobileRobot(m, driver, embodiment=FLYER if flyer else GROUND_BASE)
+        robot.reader = reader  # every goal's words, instructions and queries alike
+        return robot
 
     results: list[GoalResult] = []
     try:
@@ -616,7 +650,7 @@ def evaluate_room_task_file(
             map_s=map_s,
             cached=rec_cached and map_cached,
             encoder_names=dict(m.encoder_names),
-            robot="mobile",
+            robot=tf.robot.kind,
             success_radius=tf.robot.success_radius,
             map_path=_path_str(map_path),
             recording_path=_path_str(
@@ -671,6 +705,7 @@ def run_eval(
     An encoder set that cannot be built here is a row marked unavailable with the reason (no
     scan is wasted on it). Returns an :class:`~tabletop.eval.report.EvalResult`.
     """
+    from tabletop.embodiments import embodiment
     from tabletop.eval.report import EvalResult
     from tabletop.parallel import Backend
 
@@ -680,14 +715,14 @@ def run_eval(
     kinds = sorted({tf.robot.kind for tf in files})
     if len(kinds) > 1:
         raise ConfigError(
-            f"the task files are for different robots ({kinds}): evaluate the arm's and the "
-            "mobile base's suites apart (their success radii differ)"
+            f"the task files are for different robots ({kinds}): evaluate each robot's suites "
+            "apart (their success radii differ)"
         )
     names = [encoders] if isinstance(encoders, str) else list(encoders)
     if not names:
         raise ConfigError("give at least one encoder set")
     get_reader(reader)  # an unknown reader is refused before anything runs
-    _check_driver(driver, kinds[0] if kinds else "arm")
+    _check_driver(driver, embodiment(kinds[0] if kinds else "arm"))
     cb: Progress | None = progress or None
     out = Path(out_dir) if out_dir is not None else None
     if not backend.serial:

@@ -24,7 +24,8 @@ A mobile-base task file has ``[robot] kind = "mobile"`` and a ``[room]`` (name, 
 ``random = { seed = N }``) instead of ``[scene]``; its ``[scan]`` holds
 :class:`tabletop.sim.room_scan.RoomScanConfig` fields. ``[robot]`` may set ``success_radius``
 [m] (0.10 for the arm's TCP, 1.0 for a base, the paper's radius) and, for a base,
-``embodiment`` ("ground" or "flyer").
+``embodiment`` ("ground" or "flyer"). Each robot's kind, defaults, workspace section and scan
+settings are its :class:`~tabletop.embodiments.Embodiment`'s.
 
 Goal types: object, sound, image, area, ambiguous, spatial, multimodal_spatial, instruction,
 absent. A *query* goal (every type but spatial ones and instructions) names map queries by modality
@@ -56,7 +57,6 @@ __all__ = [
     "GOAL_TYPES",
     "MODALITIES",
     "RELATIONS",
-    "ROBOT_KINDS",
     "Goal",
     "ImageView",
     "Landmark",
@@ -92,12 +92,7 @@ ABSENT_MODALITIES = ("obj", "sound", "area")
 #: Spatial relations and how many landmarks each takes.
 RELATIONS = {r.name: r.landmarks for r in _RELATIONS}
 _TRUTH_KINDS = ("object", "sound", "area", "point", "box", "camera", "relation", "absent")
-_SCAN_FIELDS = ("seed", "speed", "episodes", "episode_s", "repeat_sounds", "clip_split", "snr_db")
 _MAP_FIELDS = ("frame_step", "pixel_step", "voxel_size")
-#: What a task file's robot may be, and its default success radius [m].
-ROBOT_KINDS = {"arm": 0.10, "mobile": 1.0}
-#: A mobile base's embodiments (``[robot].embodiment``).
-EMBODIMENTS = ("ground", "flyer")
 
 
 class TaskFileError(ConfigError):
@@ -256,12 +251,21 @@ class RobotRef:
     """The robot a task file's goals are for (``[robot]``)."""
 
     kind: str = "arm"
-    """"arm" (the Panda over a table) or "mobile" (a wheeled base in a room)."""
+    """A registered robot (:mod:`tabletop.embodiments`): "arm" (the Panda over a table),
+    "mobile" (a wheeled base in a room), or one added since."""
     success_radius: float = 0.10
     """A goal is reached within this distance [m]: of the TCP (arm), of the base's centre on
     the floor, in x and y (mobile)."""
-    embodiment: str = "ground"
-    """A mobile base's obstacles: "ground" or "flyer" (see :mod:`tabletop.robot.wheeled`)."""
+    embodiment: str | None = None
+    """Its obstacle embodiment, of those it declares (a mobile base's "ground" or "flyer",
+    :mod:`tabletop.robot.wheeled`); None for a robot with none to choose."""
+
+    @property
+    def body(self):
+        """Its :class:`~tabletop.embodiments.Embodiment`."""
+        from tabletop.embodiments import embodiment
+
+        return embodiment(self.kind)
 
 
 @dataclass(frozen=True)
@@ -537,20 +541,25 @@ def room_ref(sc: object, source: str = "<tasks>", base_dir: Path | None = None) 
 
 
 def robot_ref(d: object, source: str = "<tasks>") -> RobotRef:
-    """A task file's ``[robot]`` section as a :class:`RobotRef`."""
+    """A task file's ``[robot]`` section as a :class:`RobotRef`: its kind is a registered
+    robot (:mod:`tabletop.embodiments`), whose success radius and obstacle embodiments are the
+    defaults and the valid choices."""
+    from tabletop.embodiments import EMBODIMENTS
+
     where = f"{source} [robot]"
     d = _keys(d, where, (), ("kind", "success_radius", "embodiment"))
     kind = d.get("kind", "arm")
-    if kind not in ROBOT_KINDS:
-        raise _err(where, f"kind must be one of {list(ROBOT_KINDS)}, got {kind!r}")
-    r = d.get("success_radius", ROBOT_KINDS[kind])
+    if not isinstance(kind, str) or kind not in EMBODIMENTS:
+        raise _err(where, f"kind must be one of {list(EMBODIMENTS)}, got {kind!r}")
+    body = EMBODIMENTS[kind]
+    r = d.get("success_radius", body.success_radius_m)
     if isinstance(r, bool) or not isinstance(r, (int, float)) or not 0 < r < math.inf:
         raise _err(where, f"success_radius must be a number > 0 [m], got {r!r}")
-    emb = d.get("embodiment", "ground")
-    if emb not in EMBODIMENTS:
-        raise _err(where, f"embodiment must be one of {list(EMBODIMENTS)}, got {emb!r}")
-    if kind != "mobile" and "embodiment" in d:
-        raise _err(where, 'embodiment is for a mobile base (kind = "mobile")')
+    if "embodiment" in d and not body.obstacles:
+        raise _err(where, f"embodiment: the {kind} robot has no obstacle embodiments to choose")
+    emb = d.get("embodiment", body.default_obstacles)
+    if body.obstacles and emb not in body.obstacles:
+        raise _err(where, f"embodiment must be one of {list(body.obstacles)}, got {emb!r}")
     return RobotRef(kind, float(r), emb)
 
 
@@ -584,13 +593,14 @@ def parse_tasks(data: dict, source: str = "<tasks>", base_dir: Path | None = Non
             source, f"version {d['version']!r} is not supported; supported: {FORMAT_VERSION}"
         )
     robot = robot_ref(d.get("robot", {}), source)
-    place = "room" if robot.kind == "mobile" else "scene"
+    place = robot.body.workspace
     other = "scene" if place == "room" else "room"
     if place not in d or other in d:
         raise _err(
             source,
             f"a task file for the {robot.kind} robot needs a [{place}] section and no "
-            f"[{other}] (the arm works at a table [scene], a mobile base in a [room])",
+            f"[{other}] (a robot works at a table [scene] or in a [room], as its embodiment "
+            "declares)",
         )
     if place == "room":
         scene = room_ref(d["room"], source, base_dir)
@@ -652,41 +662,20 @@ def parse_tasks(data: dict, source: str = "<tasks>", base_dir: Path | None = Non
 
 def _scan_fields(kind: str) -> tuple[str, ...]:
     """The ``[scan]`` keys a task file for robot ``kind`` may set."""
-    if kind != "mobile":
-        return _SCAN_FIELDS
     from dataclasses import fields
 
-    from tabletop.sim.room_scan import RoomScanConfig
+    from tabletop.embodiments import embodiment
 
-    return tuple(f.name for f in fields(RoomScanConfig) if f.name in _ROOM_SCAN_FIELDS)
-
-
-#: What a mobile task file's ``[scan]`` may set (of :class:`RoomScanConfig`'s fields).
-_ROOM_SCAN_FIELDS = (
-    "seed",
-    "rate_hz",
-    "max_linear",
-    "max_angular",
-    "views_per_table",
-    "standoff",
-    "look_s",
-    "pan_rad",
-    "look_around",
-    "episodes",
-    "episode_s",
-    "repeat_sounds",
-    "clip_split",
-    "snr_db",
-)
+    body = embodiment(kind)
+    names = tuple(f.name for f in fields(body.load("scan_config")))
+    return names if body.scan_fields is None else tuple(n for n in names if n in body.scan_fields)
 
 
 def _check_scan(scan: dict, kind: str = "arm") -> None:
-    if kind == "mobile":
-        from tabletop.sim.room_scan import RoomScanConfig as Config
-    else:
-        from tabletop.sim.scan import ScanConfig as Config
+    from tabletop.embodiments import embodiment
+
     try:
-        Config(**scan)
+        embodiment(kind).load("scan_config")(**scan)
     except TypeError as e:
         raise ConfigError(str(e)) from None
 

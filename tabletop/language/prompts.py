@@ -7,13 +7,17 @@ has to carry the pattern over rather than copy an answer.
 
 from __future__ import annotations
 
-from tabletop.errors import ConfigError
-from tabletop.robot.primitives import PRIMITIVES
+from dataclasses import dataclass
+
+from tabletop.robot.primitives import primitives_of
 
 __all__ = [
+    "ARM_PROMPT",
     "EXAMPLES",
     "MOBILE_EXAMPLES",
+    "MOBILE_PROMPT",
     "SYSTEM_PROMPT",
+    "PromptParts",
     "api_list",
     "prompt_messages",
     "prompt_text",
@@ -57,27 +61,36 @@ heatmap.
 """
 
 
+@dataclass(frozen=True)
+class PromptParts:
+    """What a robot's prompt says besides its API list (an embodiment's ``prompt``,
+    :mod:`tabletop.embodiments`): the rules before the list, the conventions after it, and the
+    few-shot examples ((instruction, code) pairs)."""
+
+    preamble: str
+    conventions: str
+    examples: tuple[tuple[str, str], ...]
+
+
+def _parts(robot: str) -> PromptParts:
+    from tabletop.embodiments import embodiment
+
+    return embodiment(robot).load("prompt")  # names the valid robots
+
+
 def api_list(robot: str = "arm") -> str:
-    """The prompt's API list for ``robot`` ("arm" or "mobile"), one line per declared
-    primitive that robot has (:data:`PRIMITIVES`)."""
+    """The prompt's API list for ``robot`` (an :mod:`~tabletop.embodiments` name), one line
+    per declared primitive that robot has (:data:`PRIMITIVES`)."""
     width = 40
-    return "".join(
-        f"{p.call:<{width - 1}} -> {p.summary}\n" for p in PRIMITIVES if robot in p.robots
-    )
+    return "".join(f"{p.call:<{width - 1}} -> {p.summary}\n" for p in primitives_of(robot))
 
 
 def system_prompt(robot: str = "arm") -> str:
     """The system message for ``robot``: the rules, the API list generated from the
     declaration, conventions."""
-    if robot == "mobile":
-        return f"{_MOBILE_PREAMBLE}\n{api_list(robot)}\n{_MOBILE_CONVENTIONS}"
-    if robot != "arm":
-        raise ConfigError(f"robot must be 'arm' or 'mobile', got {robot!r}")
-    return f"{_PREAMBLE}\n{api_list(robot)}\n{_CONVENTIONS}"
+    parts = _parts(robot)
+    return f"{parts.preamble}\n{api_list(robot)}\n{parts.conventions}"
 
-
-SYSTEM_PROMPT = system_prompt("arm")
-"""The arm's system message (:func:`system_prompt`)."""
 
 #: (instruction, code) pairs, in the order they are shown to the model.
 EXAMPLES: tuple[tuple[str, str], ...] = (
@@ -175,8 +188,17 @@ MOBILE_EXAMPLES: tuple[tuple[str, str], ...] = (
 )
 
 
+#: The arm's prompt (:data:`tabletop.embodiments.ARM`).
+ARM_PROMPT = PromptParts(_PREAMBLE, _CONVENTIONS, EXAMPLES)
+#: A mobile base's prompt (:data:`tabletop.embodiments.MOBILE`).
+MOBILE_PROMPT = PromptParts(_MOBILE_PREAMBLE, _MOBILE_CONVENTIONS, MOBILE_EXAMPLES)
+
+SYSTEM_PROMPT = system_prompt("arm")
+"""The arm's system message (:func:`system_prompt`)."""
+
+
 def _examples(robot: str):
-    return MOBILE_EXAMPLES if robot == "mobile" else EXAMPLES
+    return _parts(robot).examples
 
 
 def prompt_text(instruction: str, robot: str = "arm") -> str:
@@ -187,7 +209,7 @@ def prompt_text(instruction: str, robot: str = "arm") -> str:
 
 def prompt_messages(instruction: str, robot: str = "arm") -> list[dict]:
     """Chat messages: the API description, the examples as user/assistant turns, the query
-    (for ``robot``: "arm" or "mobile")."""
+    (for ``robot``, an :mod:`~tabletop.embodiments` name)."""
     messages = [{"role": "system", "content": system_prompt(robot)}]
     for q, code in _examples(robot):
         messages.append({"role": "user", "content": f"# {q}"})

@@ -30,7 +30,7 @@ import functools
 import re
 import unicodedata
 
-from tabletop.errors import ConfigError
+from tabletop.embodiments import embodiment
 from tabletop.reader.errors import ParseError
 from tabletop.reader.lexicon.words import NEGATIONS, is_negation, negations, ordinal, superlative
 from tabletop.reader.plan import (
@@ -76,9 +76,9 @@ __all__ = [
 
 MAX_REPEAT = 20
 """Most repetitions of one step ("20 times")."""
-MAX_DISTANCE_M = 1.0
-"""Longest compass move [m]: the table is about a metre across."""
-MAX_DRIVE_M = 20.0
+MAX_DISTANCE_M = embodiment("arm").max_move_m
+"""Longest compass move of the arm [m]: the table is about a metre across."""
+MAX_DRIVE_M = embodiment("mobile").max_move_m
 """Longest move of a mobile base [m] (forward, back, compass): a room is a few metres."""
 
 
@@ -887,8 +887,7 @@ class _Parser:
     def __init__(self, instruction: str, robot: str = "arm") -> None:
         if not isinstance(instruction, str) or not instruction.strip():
             raise ParseError(str(instruction), str(instruction), "the instruction is empty")
-        if robot not in ("arm", "mobile"):
-            raise ConfigError(f"robot must be 'arm' or 'mobile', got {robot!r}")
+        self.body = embodiment(robot)  # names the valid robots
         self.robot = robot
         self.instruction = instruction
         self.paths: list[str] = []
@@ -935,7 +934,7 @@ class _Parser:
         text = re.sub(r"\bwhere\s+there\s+(?:was|were|is)\b", "where", text)
         text = _WAS_HEARD.sub(r"where you heard \1", text)
         text = _IMAGE_PLACE.sub(r"the image \1", text)
-        if self.robot == "arm":  # one table: "on the left" is its left side
+        if self.body.workspace == "scene":  # one table: "on the left" is its left side
             text = _SHORT_SIDE.sub(r"on the \1 side of the table", text)
         text = self._hide_areas(text)
         clauses = [c.strip(" ,") for c in _STEP_SPLIT.split(text)]
@@ -979,7 +978,7 @@ class _Parser:
                 "go to, move to, reach, approach, head to, navigate to, return to, move back "
                 "and forth between"
             )
-            if self.robot == "mobile":  # a base also drives and turns on the spot
+            if self.body.drives:  # a base also drives and turns on the spot
                 verbs += "; or a base's own move: drive 2 m forward, turn left 90 degrees, face X"
             self.fail(clause, f"a step starts with a motion verb: {verbs}")
         rest = body[m.end() :].strip()
@@ -1002,12 +1001,10 @@ class _Parser:
         instructions never have one: asked of the arm, it is refused by name."""
         m_turn, m_face = _TURN.match(body), _FACE.match(body)
         # the arm reads "move forward 10 cm" as a compass move (north: away from the robot)
-        m_drive = (
-            (_DRIVE.match(body) or _DRIVE_LEAD.match(body)) if self.robot == "mobile" else None
-        )
+        m_drive = (_DRIVE.match(body) or _DRIVE_LEAD.match(body)) if self.body.drives else None
         if not (m_turn or m_face or m_drive):
             return None
-        if self.robot != "mobile":
+        if not self.body.drives:
             self.fail(
                 clause,
                 "turning on the spot and driving forward or back are a mobile base's motions; "
@@ -1035,9 +1032,9 @@ class _Parser:
         if num is None:
             self.fail(clause, "say how far, e.g. 'move forward 1 m' or 'back up 50 cm'")
         d = self.number(num, clause) * unit_metres(unit)
-        if not 0 < d <= MAX_DRIVE_M:
+        if not 0 < d <= self.body.max_move_m:
             self.out_of_range(
-                clause, f"a base drives more than 0 and at most {MAX_DRIVE_M:g} m at once"
+                clause, f"a base drives more than 0 and at most {self.body.max_move_m:g} m at once"
             )
         back = way is None or way.startswith(("back", "in"))
         return Forward(round(-d if back else d, 6))
@@ -1059,12 +1056,12 @@ class _Parser:
                 else:
                     num, unit, direction = g
                 d = self.number(num, clause) * unit_metres(unit)
-                limit = MAX_DRIVE_M if self.robot == "mobile" else MAX_DISTANCE_M
+                limit = self.body.max_move_m
                 if not 0 < d <= limit:
                     self.out_of_range(
                         rest, f"a compass move goes more than 0 and at most {limit} m"
                     )
-                if self.robot == "mobile" and direction in ("left", "right"):
+                if self.body.drives and direction in ("left", "right"):
                     self.fail(
                         rest,
                         "a base does not move sideways: 'turn left, then move forward 1 m', "
@@ -1327,6 +1324,7 @@ def _a(noun: str) -> str:
 
 
 def parse_instruction(instruction: str, robot: str = "arm") -> tuple[Step, ...]:
-    """The steps of ``instruction`` for ``robot`` ("arm", or "mobile": a base that also turns
-    and drives forward and back); :class:`ParseError` names what was not understood."""
+    """The steps of ``instruction`` for ``robot`` (an :mod:`~tabletop.embodiments` name:
+    "arm", or "mobile", a base that also turns and drives forward and back);
+    :class:`ParseError` names what was not understood."""
     return _Parser(instruction, robot).parse()

@@ -110,11 +110,12 @@ def check_on_map(grid, method: str, target) -> None:
 
 
 def compass_limit_m(robot_kind: str) -> float:
-    """The longest compass move [m] of a robot kind: the reader's limits (a table about a
-    metre across for the arm and the table's base, a room for a mobile base)."""
-    from tabletop.reader.rules import MAX_DISTANCE_M, MAX_DRIVE_M
+    """The longest compass move [m] of a robot kind: its embodiment's
+    (:attr:`~tabletop.embodiments.Embodiment.max_move_m`: a table about a metre across
+    for the arm, a room for a mobile base), which the reader holds instructions to as well."""
+    from tabletop.embodiments import embodiment
 
-    return MAX_DRIVE_M if robot_kind == "mobile" else MAX_DISTANCE_M
+    return embodiment(robot_kind).max_move_m
 
 
 def check_compass_distance(name: str, distance_m, robot_kind: str, *, limit: bool = True) -> None:
@@ -355,8 +356,9 @@ class RobotAPI(abc.ABC):
     """
 
     robot_kind = "arm"
-    """Which robot's primitives and prompt it takes ("arm": the shared API with the table's
-    conventions; "mobile": a base in a room, :class:`~tabletop.robot.wheeled.MobileRobot`)."""
+    """Which robot it is (an :mod:`~tabletop.embodiments` name: "arm", the shared API
+    with the table's conventions; "mobile", a base in a room,
+    :class:`~tabletop.robot.wheeled.MobileRobot`): its primitives, prompt and limits."""
 
     reader = DEFAULT_READER
     """The reader (:data:`tabletop.reader.READERS`) that reads each ``obj=``/``sound=``/

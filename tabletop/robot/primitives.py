@@ -37,18 +37,16 @@ __all__ = [
     "EXCLUDED",
     "KINDS",
     "PRIMITIVES",
-    "ROBOTS",
     "Primitive",
     "motion_to",
     "primitive",
+    "primitives_of",
     "signature_mismatches",
     "undeclared_methods",
 ]
 
 #: The kinds of primitive: a map or robot query, a target point (no motion), a motion.
 KINDS = ("query", "target", "motion")
-#: The robots a primitive may be for: the arm over a table, a mobile base in a room.
-ROBOTS = ("arm", "mobile")
 
 
 @dataclass(frozen=True)
@@ -72,16 +70,17 @@ class Primitive:
     argument, a distance [m], scales it into the ``offset`` target's (dx, dy)."""
     keywords: bool = False
     """The parameters are optional keywords (``obj=``, ``sound=``, ...), given by name."""
-    robots: tuple[str, ...] = ROBOTS
-    """The robots that have it: every one by default; a mobile base's own motions
-    (``move_forward``, ``turn``, ``face``) only ``("mobile",)``."""
+    robots: tuple[str, ...] = ()
+    """The robots that have it (:mod:`tabletop.embodiments` names): empty, the
+    default, for every robot (the shared API); a mobile base's own motions (``move_forward``,
+    ``turn``, ``face``) only ``("mobile",)``."""
     rotates: bool = False
     """Motion only: it turns the robot on the spot (no target point: the robot stays where it
     is)."""
 
     def __post_init__(self) -> None:
-        if not self.robots or not set(self.robots) <= set(ROBOTS):
-            raise ConfigError(f"{self.name}: robots must be some of {list(ROBOTS)}")
+        if not all(isinstance(r, str) and r.isidentifier() for r in self.robots):
+            raise ConfigError(f"{self.name}: robots must be robot names, got {self.robots!r}")
         if self.rotates and (self.kind != "motion" or self.target is not None):
             raise ConfigError(f"{self.name}: a rotation is a motion without a target")
         if not self.name.isidentifier() or self.name.startswith("_"):
@@ -92,6 +91,15 @@ class Primitive:
             raise ConfigError(f"{self.name}: only a motion has a target or a direction")
         if self.direction is not None and (self.target != "offset" or len(self.params) != 1):
             raise ConfigError(f"{self.name}: a compass motion takes one distance to 'offset'")
+
+    @property
+    def shared(self) -> bool:
+        """Whether every robot has it (the shared API)."""
+        return not self.robots
+
+    def available_to(self, robot: str) -> bool:
+        """Whether the robot called ``robot`` has it."""
+        return self.shared or robot in self.robots
 
     @property
     def moves(self) -> bool:
@@ -237,6 +245,15 @@ def primitive(name: str) -> Primitive:
         ) from None
 
 
+def primitives_of(robot: str) -> tuple[Primitive, ...]:
+    """The declared primitives the robot called ``robot`` has (an
+    :mod:`~tabletop.embodiments` name), in the prompt's order."""
+    from tabletop.embodiments import embodiment
+
+    embodiment(robot)  # names the valid robots
+    return tuple(p for p in PRIMITIVES if p.available_to(robot))
+
+
 def motion_to(target: str) -> Primitive:
     """The motion primitive that moves to target primitive ``target`` (``"left_of"`` ->
     ``move_to_left``); :class:`ConfigError` if there is none."""
@@ -267,14 +284,14 @@ def undeclared_methods(cls: type) -> tuple[str, ...]:
 def signature_mismatches(cls: type, robot: str | None = None) -> tuple[str, ...]:
     """One line per declared primitive that ``cls`` lacks or whose parameter names (without
     ``self``) differ from the declaration: the primitives every robot has (``robot`` None:
-    the shared API), or those of ``robot`` ("arm", "mobile")."""
-    if robot is not None and robot not in ROBOTS:
-        raise ConfigError(f"robot must be one of {list(ROBOTS)}, got {robot!r}")
+    the shared API), or those of ``robot`` (a :mod:`~tabletop.embodiments` name)."""
+    if robot is not None:
+        from tabletop.embodiments import embodiment
+
+        embodiment(robot)  # names the valid robots
     problems = []
     for p in PRIMITIVES:
-        if (robot is None and set(p.robots) != set(ROBOTS)) or (
-            robot is not None and robot not in p.robots
-        ):
+        if (robot is None and not p.shared) or (robot is not None and not p.available_to(robot)):
             continue
         attr = inspect.getattr_static(cls, p.name, None)
         if attr is None:
