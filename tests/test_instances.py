@@ -82,6 +82,47 @@ def test_touching_objects_of_one_colour_split_where_the_features_alone_change():
     assert len(_segment(one)) == 1
 
 
+def _brick_and_ball(cos: float, ball_x: float = 0.19):
+    """A voxel map of a 6 x 6 x 3 cm brick and a ball of radius 3 cm leaning on its face
+    (centre ``ball_x``), one colour, features whose cosine is ``cos``."""
+    brick = box_points((0.10, -0.03, 0.01), (0.16, 0.03, 0.04))
+    cube = box_points((ball_x - 0.03, -0.03, 0.01), (ball_x + 0.03, 0.03, 0.07))
+    ball = cube[np.linalg.norm(cube - (ball_x, 0.0, 0.04), axis=1) <= 0.03]
+    table = box_points((0.0, -0.3, 0.0), (0.6, 0.3, 0.01), 0.01)
+    dim = 8
+    f = np.zeros((3, dim), np.float32)
+    f[0, 0] = 1.0  # the table
+    f[1, 1] = 1.0  # the brick
+    f[2, 1], f[2, 2] = cos, np.sqrt(1 - cos**2)  # the ball: cosine ``cos`` to the brick
+    vm = VoxelMap(GRID, dim)
+    pts = np.concatenate([table, brick, ball])
+    which = np.repeat([0, 1, 2], [len(table), len(brick), len(ball)])
+    rgb = np.where(which[:, None] == 0, 128, np.array(BLUE)).astype(np.uint8)
+    vm.integrate(pts, f, rgb, feature_index=which)
+    boxes = {
+        "brick": ((0.10, -0.03, 0.01), (0.16, 0.03, 0.04), BLUE),
+        "ball": ((ball_x - 0.03, -0.03, 0.01), (ball_x + 0.03, 0.03, 0.07), BLUE),
+    }
+    return vm, boxes
+
+
+def test_touching_objects_of_one_colour_and_alike_features_split_where_their_shapes_fold():
+    vm, boxes = _brick_and_ball(cos=0.8)  # too alike for the features alone (0.6)
+    assert len(_segment(vm)) == 1  # shape off (the default): one instance
+    shape = InstanceConfig(split_crease_m=0.015)
+    assert sorted(_which(_segment(vm, shape), boxes)) == ["ball", "brick"]
+    # the fold between them is sharp: a crease threshold well above it cuts nothing
+    assert len(_segment(vm, InstanceConfig(split_crease_m=0.08))) == 1
+    # features that agree keep one object's folds joined (an arm against a belly)
+    same, _ = _brick_and_ball(cos=1.0)
+    assert len(_segment(same, shape)) == 1
+    # one convex object has no crease, whatever its features
+    ball_only = coloured_voxels({"blue ball": ((0.16, -0.03, 0.01), (0.22, 0.03, 0.07), BLUE)})
+    assert len(_segment(ball_only, InstanceConfig(split_crease_m=0.015, split_cos_shape=1.0))) == 1
+    with pytest.raises(ConfigError, match="split_crease_m must be > 0"):
+        InstanceConfig(split_crease_m=0.0)
+
+
 def test_specks_are_dropped_and_no_table_means_no_instances():
     vm = coloured_voxels({"red mug": BOXES["red mug"]})
     vm.integrate(np.array([[0.5, 0.2, 0.05]]), np.zeros((1, vm.dim), np.float32), np.zeros((1, 3)))

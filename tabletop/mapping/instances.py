@@ -10,7 +10,9 @@
    below ``split_cos``) — two objects that touch — or where the features alone change
    strongly (cosine below ``split_cos_alone``: two touching objects of one colour, which
    colour cannot tell apart; one object's two colours, a soccer ball's panels, keep their
-   features alike and stay joined), and fragments smaller than
+   features alike and stay joined), or, with ``split_crease_m``, where the top surface folds
+   upwards between two columns (a flat top meeting a rising flank) and the features change
+   somewhat (cosine below ``split_cos_shape``), and fragments smaller than
    ``min_voxels`` rejoin the neighbour they touch most; components smaller than
    ``min_voxels`` are dropped (specks, sensor noise).
 
@@ -72,6 +74,15 @@ class InstanceConfig:
     split_cos_alone: float = 0.6
     """Neighbouring voxels whose fused features' cosine is below this belong to different
     objects whatever their colours (two objects of one colour that touch); -1: never."""
+    split_crease_m: float | None = None
+    """Neighbouring voxels whose columns meet in a crease of the top surface — the column
+    heights' second difference across their boundary above this [m]: a flat top meeting a
+    rising flank, where one object leans on another — belong to different objects when their
+    fused features' cosine is also below :attr:`split_cos_shape` (two touching objects of one
+    colour whose features alone are too alike to cut); None: shape never cuts."""
+    split_cos_shape: float = 0.9
+    """...the fused features' cosine below which a crease cuts (a crease inside one object,
+    a teddy bear's arm against its belly, keeps its features alike and stays joined)."""
     supports: str = "table"
     """What objects stand on: "table" (the map's one fitted table: a tabletop scan) or
     "surfaces" (every horizontal surface :data:`min_support_height_m` above the lowest one,
@@ -109,6 +120,12 @@ class InstanceConfig:
                 f"split_delta_e must be > 0 and split_cos in [-1, 1], got "
                 f"{self.split_delta_e}, {self.split_cos}"
             )
+        if self.split_crease_m is not None and not self.split_crease_m > 0:
+            raise ConfigError(
+                f"split_crease_m must be > 0 [m] or None, got {self.split_crease_m!r}"
+            )
+        if not -1 <= self.split_cos_shape <= 1:
+            raise ConfigError(f"split_cos_shape must be in [-1, 1], got {self.split_cos_shape!r}")
         if not -1 <= self.split_cos_alone <= self.split_cos:
             raise ConfigError(
                 f"split_cos_alone must be in [-1, split_cos={self.split_cos}], got "
@@ -237,6 +254,9 @@ def segment_instances(
     de = delta_e(lab[a], lab[b])
     cos = np.einsum("ij,ij->i", feats[a], feats[b])
     cut = ((de > config.split_delta_e) & (cos < config.split_cos)) | (cos < config.split_cos_alone)
+    if config.split_crease_m is not None:
+        crease = _creases(sub, z[cand], a, b) > config.split_crease_m
+        cut |= crease & (cos < config.split_cos_shape)
     keep = ~cut
     g = coo_matrix((np.ones(int(keep.sum())), (a[keep], b[keep])), shape=(len(cand),) * 2)
     _, frag = connected_components(g, directed=False)
@@ -248,6 +268,46 @@ def segment_instances(
     for k, f in enumerate(big):
         labels[cand[frag == f]] = k
     return instances_from_labels(voxels, labels)
+
+
+def _creases(sub: np.ndarray, z: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(pairs,) [m] how sharply the top surface folds upwards at or beside the columns of
+    voxels ``a`` and ``b`` (rows of ``sub``, (n, 3) grid indices; ``z`` (n,) [m] their
+    heights): the largest concavity of a column within one column of either, a column's
+    concavity being the largest second difference of the column tops H across it,
+    H(c - u) + H(c + u) - 2 H(c), over the four directions u (along the axes and the
+    diagonals, so that a fold running at any angle is seen). Positive where a
+    flat or falling surface meets a rising one (two objects leaning together); at most a
+    voxel's rounding on one convex object; -inf for a vertical pair, or where no direction has
+    both neighbouring columns seen (a hole or an edge is no crease)."""
+    cols = sub[:, :2]
+    lo = cols.min(axis=0) - 1
+    shape = tuple(cols.max(axis=0) - lo + 2)
+    top = np.full(shape, -np.inf)
+    np.maximum.at(top, tuple((cols - lo).T), z)
+    seen = np.isfinite(top)
+    fold = np.full(shape, -np.inf)
+    inner = (slice(1, -1), slice(1, -1))
+    for dx, dy in ((1, 0), (0, 1), (1, 1), (1, -1)):
+        before = top[1 - dx : shape[0] - 1 - dx, 1 - dy : shape[1] - 1 - dy]
+        after = top[1 + dx : shape[0] - 1 + dx, 1 + dy : shape[1] - 1 + dy]
+        with np.errstate(invalid="ignore"):
+            d = np.where(np.isfinite(before) & np.isfinite(after), before + after, -np.inf)
+            fold[inner] = np.maximum(
+                fold[inner], np.where(seen[inner], d - 2 * top[inner], -np.inf)
+            )
+    # a fold reaches the columns around it: where two objects meet only at a corner or along a
+    # low flank, the pairs there pass beside the folded columns, not through them
+    near = fold.copy()
+    for dx, dy in ((1, 0), (0, 1), (1, 1), (1, -1)):
+        for sx, sy in ((dx, dy), (-dx, -dy)):
+            src = fold[max(sx, 0) : shape[0] + min(sx, 0), max(sy, 0) : shape[1] + min(sy, 0)]
+            dst = near[max(-sx, 0) : shape[0] + min(-sx, 0), max(-sy, 0) : shape[1] + min(-sy, 0)]
+            np.maximum(dst, src, out=dst)
+    ca, cb = tuple((cols[a] - lo).T), tuple((cols[b] - lo).T)
+    out = np.maximum(near[ca], near[cb])
+    out[np.all(cols[a] == cols[b], axis=1)] = -np.inf  # one column: no fold between them
+    return out
 
 
 def _absorb_small(frag, a, b, min_voxels: int) -> np.ndarray:
