@@ -33,19 +33,12 @@ from tabletop.base import (
 )
 from tabletop.base.description import BASE_FRAME, MIC_FRAME, WHEEL_JOINTS
 from tabletop.errors import ConfigError, SimulationError
-from tabletop.sim.camera import WristCameraConfig, gl_projection_matrix
+from tabletop.sim.camera import WristCameraConfig
 from tabletop.sim.catalog import pybullet_data_dir
-from tabletop.sim.ground_truth import AreaTruth, FurnitureTruth, GroundTruth
+from tabletop.sim.ground_truth import AreaTruth, FurnitureTruth
 from tabletop.sim.room import FURNITURE_MODELS, FurnitureSpec, RoomSpec
-from tabletop.sim.world import (
-    RENDERERS,
-    CameraImage,
-    PyBulletClient,
-    _quiet_stdout,
-    create_object_body,
-    object_truth,
-)
-from tabletop.transforms import make_transform, quat_from_matrix, quat_to_matrix, rotation_about
+from tabletop.sim.world import PlacedObject, PyBulletWorld
+from tabletop.transforms import make_transform, quat_from_matrix, rotation_about
 
 __all__ = [
     "INSTANCE_FLOOR",
@@ -97,7 +90,7 @@ class Collision:
     """Contact point [m], world frame."""
 
 
-class RoomWorld(PyBulletClient):
+class RoomWorld(PyBulletWorld):
     """A PyBullet room built from a :class:`RoomSpec`, with the wheeled base at its start.
 
     Args:
@@ -108,6 +101,9 @@ class RoomWorld(PyBulletClient):
         drift: odometry drift of the :attr:`driver` (None: exact wheel odometry).
     """
 
+    camera_link = BASE_FRAME
+    truth_frame = "world = room frame; z up, floor at z = 0; metres"
+
     def __init__(
         self,
         spec: RoomSpec,
@@ -117,25 +113,22 @@ class RoomWorld(PyBulletClient):
         physics_hz: float = 240.0,
         drift: OdometryDrift | None = None,
     ) -> None:
-        import pybullet as pb
+        self._physics_hz, self._drift = physics_hz, drift
+        super().__init__(spec, camera, renderer)
 
-        if renderer not in RENDERERS:
-            raise ConfigError(f"unknown renderer {renderer!r}; valid: {list(RENDERERS)}")
+    def _configure(self) -> None:
+        physics_hz = self._physics_hz
         if not (isinstance(physics_hz, (int, float)) and 60 <= physics_hz <= 2000):
             raise ConfigError(f"physics_hz must be in [60, 2000], got {physics_hz!r}")
-        self.spec = spec
-        self.camera = camera or mast_camera_config()
-        self.intrinsics = self.camera.intrinsics
         self.description = load_base_description()
         self.physics_dt = 1.0 / physics_hz
-        self._pb = pb
-        self._client = pb.connect(pb.DIRECT)
-        self._projection = gl_projection_matrix(self.intrinsics, self.camera.near, self.camera.far)
-        self._start_renderer(renderer)
-        self._build()
-        self.driver = PyBulletBaseDriver(self, drift=drift)
+
+    def _default_camera(self) -> WristCameraConfig:
+        return mast_camera_config()
+
+    def _built(self) -> None:
+        self.driver = PyBulletBaseDriver(self, drift=self._drift)
         """The base's driver (one per world)."""
-        self._check_renderer(renderer)
 
     # ------------------------------------------------------------------ building
     def _box(self, half, center, yaw: float, rgba, visual: bool = True, collision: bool = True):
@@ -205,119 +198,59 @@ class RoomWorld(PyBulletClient):
         pb, cid = self._pb, self._client
         pb.setGravity(0, 0, -9.81, physicsClientId=cid)
         pb.setTimeStep(self.physics_dt, physicsClientId=cid)
-        self._body_instance: dict[int, int] = {}
-        self.instance_names = {
-            INSTANCE_NONE: "none",
-            INSTANCE_FLOOR: "floor",
-            INSTANCE_ROBOT: "robot",
-        }
+        self._start_bodies(
+            {
+                INSTANCE_NONE: "none",
+                INSTANCE_FLOOR: "floor",
+                INSTANCE_ROBOT: "robot",
+            }
+        )
         self.floor_id = pb.loadURDF(str(pybullet_data_dir() / "plane.urdf"), physicsClientId=cid)
-        self._body_instance[self.floor_id] = INSTANCE_FLOOR
+        self._add_body(self.floor_id, INSTANCE_FLOOR, "floor")
         inst = _FIRST_ITEM_INSTANCE
         self.item_instance: dict[str, int] = {}
-        self.body_name: dict[int, str] = {self.floor_id: "floor"}
         for f in self.spec.furniture:
             for body in self._build_item(f):
-                self._body_instance[body] = inst
-                self.body_name[body] = f.name
+                self._add_body(body, inst, f.name)
             self.item_instance[f.name] = inst
             self.instance_names[inst] = f.name
             inst += 1
         for w in self.spec.walls():
             body = self._box(w.half_extents, w.center, 0.0, [*self.spec.wall_color, 1.0])
-            self._body_instance[body] = inst
-            self.body_name[body] = w.name
+            self._add_body(body, inst, w.name)
             self.item_instance[w.name] = inst
             self.instance_names[inst] = w.name
             inst += 1
-        self.object_ids: dict[str, int] = {}
-        self.object_instance: dict[str, int] = {}
-        for f, obj in self.spec.objects:
-            body = create_object_body(pb, cid, obj.kind, obj.color, f.T_world_obj(obj))
-            self.object_ids[obj.name] = body
-            self.object_instance[obj.name] = inst
-            self._body_instance[body] = inst
-            self.body_name[body] = obj.name
-            self.instance_names[inst] = obj.name
-            inst += 1
+        self._add_objects(inst)
 
         sx, sy = self.spec.start.position
         q = quat_from_matrix(rotation_about("z", math.radians(self.spec.start.yaw_deg)))
-        self.robot_id = pb.loadURDF(
-            str(base_urdf_path()), [sx, sy, 0.0], q.tolist(), physicsClientId=cid
+        self._load_robot(
+            str(base_urdf_path()), BASE_FRAME, INSTANCE_ROBOT, [sx, sy, 0.0], q.tolist()
         )
-        self._body_instance[self.robot_id] = INSTANCE_ROBOT
-        self.body_name[self.robot_id] = "robot"
-        self._link_index: dict[str, int] = {BASE_FRAME: -1}
-        self._joint_index: dict[str, int] = {}
-        for j in range(pb.getNumJoints(self.robot_id, physicsClientId=cid)):
-            info = pb.getJointInfo(self.robot_id, j, physicsClientId=cid)
-            self._joint_index[info[1].decode()] = j
-            self._link_index[info[12].decode()] = j
-        self._seg_lut = np.zeros(max(self._body_instance) + 2, dtype=np.uint16)
-        for body, i in self._body_instance.items():
-            self._seg_lut[body] = i
+        self._finish_bodies()
 
-    def _egl_renders(self) -> bool:
-        with _quiet_stdout():  # the first EGL frame prints the GL vendor from C
-            img = self.render()
-        return bool(np.any(img.segmentation != INSTANCE_NONE))
+    def _placed_objects(self) -> list[PlacedObject]:
+        placed = []
+        for f, obj in self.spec.objects:
+            T = f.T_world_obj(obj)
+            yaw_deg = float(np.degrees(math.atan2(T[1, 0], T[0, 0])))
+            placed.append(PlacedObject(obj, T, T[:2, 3], yaw_deg, f.object_aabb(obj), f.name))
+        return placed
 
     # ------------------------------------------------------------------ state
-    def link_pose(self, link: str) -> np.ndarray:
-        """(4, 4) world pose of a link frame of the base (``base_footprint``,
-        ``camera_optical``, ``mic``, ...), as the simulator has it."""
-        try:
-            idx = self._link_index[link]
-        except KeyError:
-            raise ConfigError(f"no link {link!r}; links: {sorted(self._link_index)}") from None
-        pb, cid = self._pb, self._client
-        if idx == -1:
-            pos, quat = pb.getBasePositionAndOrientation(self.robot_id, physicsClientId=cid)
-        else:
-            st = pb.getLinkState(
-                self.robot_id, idx, computeForwardKinematics=True, physicsClientId=cid
-            )
-            pos, quat = st[4], st[5]
-        return make_transform(quat_to_matrix(quat), pos)
-
     def T_world_base(self) -> np.ndarray:
         """(4, 4) the true pose of ``base_footprint`` (with any tilt physics gives it)."""
         return self.link_pose(BASE_FRAME)
-
-    def T_world_cam(self) -> np.ndarray:
-        """(4, 4) the true pose of the mast camera's optical frame."""
-        return self.T_world_base() @ self.camera.T_hand_cam
 
     def T_world_mic(self) -> np.ndarray:
         """(4, 4) the true pose of the microphone."""
         return self.link_pose(MIC_FRAME)
 
-    # ------------------------------------------------------------------ rendering
-    def render(self, T_world_cam: np.ndarray | None = None) -> CameraImage:
-        """Render the mast camera (or a camera at ``T_world_cam``, OpenCV optical frame)."""
-        T = self.T_world_cam() if T_world_cam is None else np.asarray(T_world_cam)
-        return self._render_at(T)
-
     # ------------------------------------------------------------------ ground truth
-    def ground_truth(self) -> GroundTruth:
-        """Objects (room frame, with their table), furniture and walls (category, box), one
-        area per table (its top), the segmentation instances; no sound events (the scan adds
-        those it inserts)."""
-        objects = []
-        for f, obj in self.spec.objects:
-            T = f.T_world_obj(obj)
-            objects.append(
-                object_truth(
-                    obj,
-                    self.object_instance[obj.name],
-                    T,
-                    T[:2, 3],
-                    float(np.degrees(math.atan2(T[1, 0], T[0, 0]))),
-                    f.object_aabb(obj),
-                    table=f.name,
-                )
-            )
+    def _scene_truth(self) -> dict:
+        """Furniture and walls (category, box) and one area per table (its top); no table of
+        the arm's (the room's tables are among the furniture)."""
         furniture = []
         for f in self.spec.furniture:
             lo, hi = f.aabb()
@@ -359,15 +292,7 @@ class RoomWorld(PyBulletClient):
                         center=[*f.position, f.top_z or 0.0],
                     )
                 )
-        return GroundTruth(
-            scene=self.spec.to_dict(),
-            frame="world = room frame; z up, floor at z = 0; metres",
-            table=None,
-            objects=tuple(objects),
-            areas=tuple(areas),
-            instances=dict(sorted(self.instance_names.items())),
-            furniture=tuple(furniture),
-        )
+        return dict(table=None, areas=tuple(areas), furniture=tuple(furniture))
 
     def reset_base(self, pose: BasePose | None = None) -> None:
         """Put the base back at ``pose`` (default: the room's start) at rest, with its

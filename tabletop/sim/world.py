@@ -42,6 +42,8 @@ __all__ = [
     "INSTANCE_TABLE",
     "RENDERERS",
     "CameraImage",
+    "PlacedObject",
+    "PyBulletWorld",
     "SimWorld",
     "create_object_body",
     "egl_holder",
@@ -309,8 +311,195 @@ class PyBulletClient:
         self.close()
 
 
-class SimWorld(PyBulletClient):
+@dataclass(frozen=True)
+class PlacedObject:
+    """One object of a world's spec where the world puts it (all in the world frame): the
+    table's and the rooms' worlds build each object's body and its ground truth from this."""
+
+    obj: ObjectSpec
+    T_world_obj: np.ndarray  # (4, 4) [m], the object's bottom centre
+    position: object  # (x, y) [m]
+    yaw_deg: float  # [deg]
+    aabb: tuple[np.ndarray, np.ndarray]  # (lower, upper corner) [m]
+    table: str | None = None  # the furniture it stands on (None on the arm's table)
+
+
+class PyBulletWorld(PyBulletClient):
+    """What the table's and the rooms' worlds share: a PyBullet client with a renderer, a
+    spec's bodies built and numbered as segmentation instances, the robot's joints and links
+    indexed, a camera riding on a link of the robot, and ground truth assembled from the
+    placed objects.
+
+    A world says what differs as class data and hooks: ``camera_link`` (the link its camera
+    rides on), ``truth_frame`` (the ground truth's frame), ``_egl_probe`` (a pose and instance
+    an EGL frame must show), :meth:`_default_camera`, :meth:`_configure` (checks and settings
+    before the client connects), :meth:`_build` (its bodies), :meth:`_built` (after them),
+    :meth:`_placed_objects` and :meth:`_scene_truth` (the ground truth besides the objects).
+    """
+
+    camera_link: str
+    """The robot link whose frame is the camera's "hand" (``camera.T_hand_cam``)."""
+    truth_frame: str
+    """The ground truth's ``frame``."""
+    _egl_probe: tuple[np.ndarray | None, int | None] = (None, None)
+    """A camera pose (None: the robot's camera) and an instance (None: any) that a working
+    EGL renderer shows."""
+
+    def __init__(self, spec, camera: WristCameraConfig | None, renderer: str) -> None:
+        import pybullet as pb
+
+        if renderer not in RENDERERS:
+            raise ConfigError(f"unknown renderer {renderer!r}; valid: {list(RENDERERS)}")
+        self._configure()
+        self.spec = spec
+        self.camera = camera or self._default_camera()
+        self.intrinsics = self.camera.intrinsics
+        self._pb = pb
+        self._client = pb.connect(pb.DIRECT)
+        self._projection = gl_projection_matrix(self.intrinsics, self.camera.near, self.camera.far)
+        self._start_renderer(renderer)
+        self._build()
+        self._built()
+        self._check_renderer(renderer)
+
+    # ------------------------------------------------------------------ hooks
+    def _configure(self) -> None:
+        """Check and keep a world's own settings, before its client connects."""
+
+    def _default_camera(self) -> WristCameraConfig:
+        return WristCameraConfig()
+
+    def _build(self) -> None:
+        raise NotImplementedError
+
+    def _built(self) -> None:
+        """After the bodies are built, before the renderer is checked."""
+
+    def _placed_objects(self) -> list[PlacedObject]:
+        """The spec's objects where this world puts them, in the spec's order."""
+        raise NotImplementedError
+
+    def _scene_truth(self) -> dict:
+        """The ground truth's fields besides its scene, frame, objects and instances."""
+        raise NotImplementedError
+
+    # ------------------------------------------------------------------ building
+    def _start_bodies(self, instance_names: dict[int, str]) -> None:
+        """Begin the body bookkeeping with the fixed instances (id -> name)."""
+        self._body_instance: dict[int, int] = {}
+        self.instance_names = dict(instance_names)
+        self.body_name: dict[int, str] = {}
+        """Body id -> the name of what it belongs to (furniture, wall, object, ...)."""
+
+    def _add_body(self, body: int, instance: int, name: str) -> None:
+        """Record that ``body`` renders as ``instance`` and belongs to ``name``."""
+        self._body_instance[body] = instance
+        self.body_name[body] = name
+
+    def _add_objects(self, first_instance: int) -> int:
+        """Create a static body for each placed object, numbered from ``first_instance``;
+        return the next free instance."""
+        self.object_ids: dict[str, int] = {}
+        self.object_instance: dict[str, int] = {}
+        inst = first_instance
+        for p in self._placed_objects():
+            obj = p.obj
+            body = create_object_body(self._pb, self._client, obj.kind, obj.color, p.T_world_obj)
+            self.object_ids[obj.name] = body
+            self.object_instance[obj.name] = inst
+            self._add_body(body, inst, obj.name)
+            self.instance_names[inst] = obj.name
+            inst += 1
+        return inst
+
+    def _load_robot(self, urdf: str, base_link: str, instance: int, *args, **kwargs) -> None:
+        """Load the robot's URDF (``args`` and ``kwargs`` as ``pb.loadURDF`` takes them) as
+        ``self.robot_id``; index its joints and links (``base_link``: the base)."""
+        pb, cid = self._pb, self._client
+        self.robot_id = pb.loadURDF(urdf, *args, physicsClientId=cid, **kwargs)
+        self._add_body(self.robot_id, instance, "robot")
+        self._joint_index: dict[str, int] = {}
+        self._link_index: dict[str, int] = {base_link: -1}
+        for j in range(pb.getNumJoints(self.robot_id, physicsClientId=cid)):
+            info = pb.getJointInfo(self.robot_id, j, physicsClientId=cid)
+            self._joint_index[info[1].decode()] = j
+            self._link_index[info[12].decode()] = j
+
+    def _finish_bodies(self) -> None:
+        """The segmentation lookup (body id -> instance) of all bodies built."""
+        self._seg_lut = np.zeros(max(self._body_instance) + 2, dtype=np.uint16)
+        for body, inst in self._body_instance.items():
+            self._seg_lut[body] = inst
+
+    def _egl_renders(self) -> bool:
+        T, instance = self._egl_probe
+        with _quiet_stdout():  # the first EGL frame prints the GL vendor from C
+            img = self.render(T)
+        if instance is None:
+            return bool(np.any(img.segmentation != INSTANCE_NONE))
+        return bool(np.any(img.segmentation == instance))
+
+    # ------------------------------------------------------------------ state
+    def link_pose(self, link: str) -> np.ndarray:
+        """(4, 4) world pose of a robot link frame (the URDF link frame, not its CoM), as the
+        simulator has it."""
+        try:
+            idx = self._link_index[link]
+        except KeyError:
+            raise ConfigError(f"no link {link!r}; links: {sorted(self._link_index)}") from None
+        pb, cid = self._pb, self._client
+        if idx == -1:
+            pos, quat = pb.getBasePositionAndOrientation(self.robot_id, physicsClientId=cid)
+        else:
+            st = pb.getLinkState(
+                self.robot_id, idx, computeForwardKinematics=True, physicsClientId=cid
+            )
+            pos, quat = st[4], st[5]
+        return make_transform(quat_to_matrix(quat), pos)
+
+    def T_world_cam(self) -> np.ndarray:
+        """(4, 4) the true pose of the robot's camera (OpenCV optical frame)."""
+        return self.link_pose(self.camera_link) @ self.camera.T_hand_cam
+
+    # ------------------------------------------------------------------ rendering
+    def render(self, T_world_cam: np.ndarray | None = None) -> CameraImage:
+        """Render RGB, metric depth and instance segmentation from the robot's camera (or a
+        camera at ``T_world_cam``, OpenCV optical frame)."""
+        T = self.T_world_cam() if T_world_cam is None else np.asarray(T_world_cam)
+        return self._render_at(T)
+
+    # ------------------------------------------------------------------ ground truth
+    def ground_truth(self) -> GroundTruth:
+        """The spec's ground truth: its objects, what :meth:`_scene_truth` adds (table,
+        areas, furniture) and the segmentation instances; no sound events (a scan adds
+        those it inserts)."""
+        objects = [
+            object_truth(
+                p.obj,
+                self.object_instance[p.obj.name],
+                p.T_world_obj,
+                p.position,
+                p.yaw_deg,
+                p.aabb,
+                table=p.table,
+            )
+            for p in self._placed_objects()
+        ]
+        return GroundTruth(
+            scene=self.spec.to_dict(),
+            frame=self.truth_frame,
+            objects=tuple(objects),
+            instances=dict(sorted(self.instance_names.items())),
+            **self._scene_truth(),
+        )
+
+
+class SimWorld(PyBulletWorld):
     """A PyBullet scene built from a :class:`SceneSpec`, with a wrist camera on the Panda."""
+
+    camera_link = "panda_hand"
+    truth_frame = "world = robot base frame; table top at z = 0; metres"
+    _egl_probe = (make_transform(np.diag([1.0, -1.0, -1.0]), (0.4, 0.0, 0.8)), INSTANCE_TABLE)
 
     def __init__(
         self,
@@ -318,42 +507,25 @@ class SimWorld(PyBulletClient):
         camera: WristCameraConfig | None = None,
         renderer: str = "auto",
     ) -> None:
-        import pybullet as pb
-
-        if renderer not in RENDERERS:
-            raise ConfigError(f"unknown renderer {renderer!r}; valid: {list(RENDERERS)}")
-        self.spec = spec
-        self.camera = camera or WristCameraConfig()
-        self.intrinsics = self.camera.intrinsics
-        self._pb = pb
-        self._client = pb.connect(pb.DIRECT)
-        self._projection = gl_projection_matrix(self.intrinsics, self.camera.near, self.camera.far)
-        self._start_renderer(renderer)
-        self._build()
-        self._check_renderer(renderer)
+        super().__init__(spec, camera, renderer)
 
     # ------------------------------------------------------------------ building
-
-    def _egl_renders(self) -> bool:
-        T = make_transform(np.diag([1.0, -1.0, -1.0]), (0.4, 0.0, 0.8))
-        with _quiet_stdout():  # the first EGL frame prints the GL vendor from C
-            img = self.render(T)
-        return bool(np.any(img.segmentation == INSTANCE_TABLE))
 
     def _build(self) -> None:
         pb, cid = self._pb, self._client
         data = pybullet_data_dir()
         t = self.spec.table
-        self._body_instance: dict[int, int] = {}
-        self.instance_names = {
-            INSTANCE_NONE: "none",
-            INSTANCE_FLOOR: "floor",
-            INSTANCE_TABLE: "table",
-            INSTANCE_ROBOT: "robot",
-        }
+        self._start_bodies(
+            {
+                INSTANCE_NONE: "none",
+                INSTANCE_FLOOR: "floor",
+                INSTANCE_TABLE: "table",
+                INSTANCE_ROBOT: "robot",
+            }
+        )
 
         floor = pb.loadURDF(str(data / "plane.urdf"), [0, 0, -t.height], physicsClientId=cid)
-        self._body_instance[floor] = INSTANCE_FLOOR
+        self._add_body(floor, INSTANCE_FLOOR, "floor")
 
         half = [(t.x[1] - t.x[0]) / 2, (t.y[1] - t.y[0]) / 2, t.thickness / 2]
         center = [(t.x[0] + t.x[1]) / 2, (t.y[0] + t.y[1]) / 2, -t.thickness / 2]
@@ -362,7 +534,7 @@ class SimWorld(PyBulletClient):
         )
         col = pb.createCollisionShape(pb.GEOM_BOX, halfExtents=half, physicsClientId=cid)
         self.table_id = pb.createMultiBody(0, col, vis, center, physicsClientId=cid)
-        self._body_instance[self.table_id] = INSTANCE_TABLE
+        self._add_body(self.table_id, INSTANCE_TABLE, "table")
         # Table legs, so views past the edge look like a table and not a floating slab.
         for sx in (t.x[0] + 0.05, t.x[1] - 0.05):
             for sy in (t.y[0] + 0.05, t.y[1] - 0.05):
@@ -376,38 +548,27 @@ class SimWorld(PyBulletClient):
                 leg = pb.createMultiBody(
                     0, -1, lv, [sx, sy, -t.thickness - lh], physicsClientId=cid
                 )
-                self._body_instance[leg] = INSTANCE_TABLE
+                self._add_body(leg, INSTANCE_TABLE, "table")
 
-        self.robot_id = pb.loadURDF(
+        self._load_robot(
             str(panda_urdf_path()),
+            "panda_link0",
+            INSTANCE_ROBOT,
             [0, 0, 0],
             useFixedBase=True,
             flags=pb.URDF_USE_SELF_COLLISION_EXCLUDE_PARENT,
-            physicsClientId=cid,
         )
-        self._body_instance[self.robot_id] = INSTANCE_ROBOT
-        self._joint_index: dict[str, int] = {}
-        self._link_index: dict[str, int] = {"panda_link0": -1}
-        for j in range(pb.getNumJoints(self.robot_id, physicsClientId=cid)):
-            info = pb.getJointInfo(self.robot_id, j, physicsClientId=cid)
-            self._joint_index[info[1].decode()] = j
-            self._link_index[info[12].decode()] = j
         self._arm_joints = [self._joint_index[n] for n in ARM_JOINT_NAMES]
         self._finger_joints = [self._joint_index[n] for n in FINGER_JOINT_NAMES]
-
-        self.object_ids: dict[str, int] = {}
-        self.object_instance: dict[str, int] = {}
-        for i, obj in enumerate(self.spec.objects):
-            body = create_object_body(pb, cid, obj.kind, obj.color, obj.T_world_obj)
-            inst = _FIRST_OBJECT_INSTANCE + i
-            self.object_ids[obj.name] = body
-            self.object_instance[obj.name] = inst
-            self._body_instance[body] = inst
-            self.instance_names[inst] = obj.name
-        self._seg_lut = np.zeros(max(self._body_instance) + 2, dtype=np.uint16)
-        for body, inst in self._body_instance.items():
-            self._seg_lut[body] = inst
+        self._add_objects(_FIRST_OBJECT_INSTANCE)
+        self._finish_bodies()
         self.set_arm(HOME_Q)
+
+    def _placed_objects(self) -> list[PlacedObject]:
+        return [
+            PlacedObject(obj, obj.T_world_obj, obj.position, obj.yaw_deg, obj.aabb())
+            for obj in self.spec.objects
+        ]
 
     # ------------------------------------------------------------------ robot state
     def set_arm(self, q: np.ndarray, finger_opening: float = FINGER_OPENING) -> None:
@@ -427,28 +588,8 @@ class SimWorld(PyBulletClient):
         )
         return np.array([s[0] for s in states])
 
-    def link_pose(self, link: str) -> np.ndarray:
-        """(4, 4) world pose of a robot link frame (the URDF link frame, not its CoM)."""
-        try:
-            idx = self._link_index[link]
-        except KeyError:
-            raise ConfigError(f"no link {link!r}; links: {sorted(self._link_index)}") from None
-        if idx == -1:
-            pos, quat = self._pb.getBasePositionAndOrientation(
-                self.robot_id, physicsClientId=self._client
-            )
-        else:
-            st = self._pb.getLinkState(
-                self.robot_id, idx, computeForwardKinematics=True, physicsClientId=self._client
-            )
-            pos, quat = st[4], st[5]
-        return make_transform(quat_to_matrix(quat), pos)
-
     def T_world_hand(self) -> np.ndarray:
         return self.link_pose("panda_hand")
-
-    def T_world_cam(self) -> np.ndarray:
-        return self.T_world_hand() @ self.camera.T_hand_cam
 
     def min_clearance(self, max_distance: float = 0.05) -> float:
         """Smallest distance [m] between the robot and the table or any object.
@@ -465,35 +606,14 @@ class SimWorld(PyBulletClient):
                 best = min(best, c[8])
         return best
 
-    # ------------------------------------------------------------------ rendering
-    def render(self, T_world_cam: np.ndarray) -> CameraImage:
-        """Render RGB, metric depth and instance segmentation from an OpenCV camera pose."""
-        return self._render_at(T_world_cam)
-
     # ------------------------------------------------------------------ ground truth
-    def ground_truth(self) -> GroundTruth:
-        """The scene's ground truth: objects, table, areas and segmentation instances (no
-        sound events: :func:`~tabletop.sim.scan.run_scan` adds those it inserts)."""
-        objects = [
-            object_truth(
-                obj,
-                self.object_instance[obj.name],
-                obj.T_world_obj,
-                obj.position,
-                obj.yaw_deg,
-                obj.aabb(),
-            )
-            for obj in self.spec.objects
-        ]
+    def _scene_truth(self) -> dict:
+        """The table and its areas."""
         t = self.spec.table
-        return GroundTruth(
-            scene=self.spec.to_dict(),
-            frame="world = robot base frame; table top at z = 0; metres",
+        return dict(
             table=TableTruth(x=t.x, y=t.y, top_z=0.0, height=t.height),
-            objects=tuple(objects),
             areas=tuple(
                 AreaTruth(name=a.name, aliases=a.aliases, x=a.x, y=a.y, center=a.center)
                 for a in self.spec.areas
             ),
-            instances=dict(sorted(self.instance_names.items())),
         )
