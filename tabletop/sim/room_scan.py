@@ -23,7 +23,7 @@ import logging
 import math
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import dataclass, field, fields
 
 import numpy as np
 
@@ -37,13 +37,13 @@ from tabletop.base import (
 )
 from tabletop.base.description import BASE_FRAME, WHEEL_JOINTS
 from tabletop.errors import ConfigError, SimulationError
-from tabletop.recording import Recording, Segment
+from tabletop.recording import Recording
 from tabletop.sim.camera import WristCameraConfig
-from tabletop.sim.ground_truth import SoundEventTruth
-from tabletop.sim.noise import NoiseConfig, apply_noise
+from tabletop.sim.noise import NoiseConfig
 from tabletop.sim.room import FurnitureSpec, RoomSpec
 from tabletop.sim.room_world import RoomWorld, mast_camera_config
 from tabletop.sim.scan import check_field_types
+from tabletop.sim.scan_frames import FrameRecorder, FrameState, assemble_recording
 
 __all__ = ["RoomScanConfig", "RoomScanStats", "base_pose_of", "run_room_scan", "scan_room"]
 
@@ -276,51 +276,6 @@ class _OperatorView:
         self._driver.stop()
 
 
-class _Recorder:
-    """Captures a frame whenever the simulated time reaches the next frame time."""
-
-    def __init__(self, world: RoomWorld, rate_hz: float, progress) -> None:
-        self.world, self.rate = world, rate_hz
-        self.t0 = world.driver.time
-        self.frames: dict[str, list] = {
-            k: [] for k in ("rgb", "depth", "seg", "odo", "true", "wheels", "mic")
-        }
-        self.labels: list[tuple[str, str]] = []
-        self.segment = ("start", "transit")
-        self.render_s = 0.0
-        self.progress = progress
-
-    def __call__(self, t: float) -> None:
-        k = len(self.labels)
-        if t - self.t0 + 1e-9 < k / self.rate:
-            return
-        w, d = self.world, self.world.driver
-        T_true = w.T_world_base()
-        t1 = time.perf_counter()
-        img = w.render(T_true @ w.camera.T_hand_cam)
-        self.render_s += time.perf_counter() - t1
-        f = self.frames
-        f["rgb"].append(img.rgb)
-        f["depth"].append(img.depth)
-        f["seg"].append(img.segmentation)
-        f["odo"].append(d.read_odometry().as_matrix())
-        f["true"].append(T_true)
-        f["wheels"].append(d.wheel_angles())
-        f["mic"].append(w.T_world_mic()[:3, 3])
-        self.labels.append(self.segment)
-        if self.progress is not None:
-            self.progress(len(self.labels))
-
-    def segments(self) -> list[Segment]:
-        out, start = [], 0
-        for i in range(1, len(self.labels) + 1):
-            if i == len(self.labels) or self.labels[i] != self.labels[start]:
-                name, kind = self.labels[start]
-                out.append(Segment(name, kind, start, i))
-                start = i
-        return out
-
-
 def _check(result, what: str) -> None:
     if not result.reached:
         raise SimulationError(f"room scan: {what} failed ({result.reason})")
@@ -357,8 +312,6 @@ def scan_room(
         SimulationError: the base touched furniture, a wall or an object, or could not reach
             a viewpoint.
     """
-    from tabletop.sim.sound_insertion import insert_sounds
-
     config = config or RoomScanConfig()
     t_start = time.perf_counter()
     follow = config.follow_config()
@@ -373,7 +326,16 @@ def scan_room(
                 f"room scan: {config.episodes} audio episodes need as many tables to stand "
                 f"at; the scan visits {len(visits)}: {[v.table.name for v in visits]}"
             )
-        rec = _Recorder(world, config.rate_hz, progress)
+
+        def state() -> FrameState:
+            return FrameState(
+                base.read_odometry().as_matrix(),
+                world.T_world_base(),
+                base.wheel_angles(),
+                world.T_world_mic()[:3, 3],
+            )
+
+        rec = FrameRecorder(world, config.rate_hz, state, progress, t0=base.time)
         base.on_physics_step = rec
         rec(base.time)  # frame 0 where the base stands
         episode_places: list[FurnitureSpec] = []
@@ -440,41 +402,24 @@ def scan_room(
         collisions = base.collisions
 
     n = len(rec.labels)
-    # one frame list at a time becomes an array and is freed: a scan's images are gigabytes
-    f = {k: np.array(rec.frames.pop(k)) for k in list(rec.frames)}
-    timestamps = np.arange(n) / config.rate_hz
-    segments = rec.segments()
-    mic, true = f["mic"], f["true"]
-    audio, audio_rate, events = None, 16000, []
-    if config.episodes:
-        centres = [p.position for p in episode_places]
-        audio, audio_rate, events = insert_sounds(timestamps, mic, segments, centres, config)
+    f = rec.arrays()
+    true = f["true"]
+
+    def annotate(events: list[dict]) -> None:
         for e, place in zip(events, episode_places, strict=True):
             e["region_center"][2] = float(place.top_z or 0.0)
             e["place"] = place.name
-    ground_truth = replace(
-        ground_truth,
-        sound_events=tuple(
-            SoundEventTruth.from_dict(e, f"sound_events[{i}]") for i, e in enumerate(events)
-        ),
-    )
+
     distance = float(np.linalg.norm(np.diff(true[:, :2, 3], axis=0), axis=1).sum()) if n else 0.0
-    recording = Recording(
-        timestamps=timestamps,
-        rgb=f.pop("rgb"),
-        depth=f.pop("depth"),
-        joint_positions=f["wheels"],
-        T_world_hand=f["odo"],
+    recording = assemble_recording(
+        f,
+        config=config,
+        segments=rec.segments(),
+        episode_centers=[p.position for p in episode_places],
+        ground_truth=ground_truth,
         K=K,
         T_hand_cam=config.camera.T_hand_cam,
         T_hand_mic=T_hand_mic,
-        depth_resolution=config.camera.depth_resolution,
-        audio=audio,
-        audio_rate=audio_rate,
-        segments=tuple(segments),
-        segmentation=f.pop("seg"),
-        T_world_hand_true=true,
-        ground_truth=ground_truth.to_dict(),
         meta={
             "source": "tabletop.sim.room_scan",
             "robot": "mobile_base",
@@ -486,11 +431,11 @@ def scan_room(
             "distance_m": round(distance, 4),
             "odometry_drift": {k.name: getattr(config.drift, k.name) for k in fields(config.drift)},
         },
+        annotate_events=annotate,
+        T_world_hand_true=true,
         ee_frame=BASE_FRAME,
         joint_names=WHEEL_JOINTS,
     )
-    if config.noise.any:
-        recording = apply_noise(recording, config.noise)
     stats = RoomScanStats(
         frames=len(recording),
         simulated_s=n / config.rate_hz,

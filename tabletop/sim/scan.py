@@ -16,7 +16,7 @@ import logging
 import math
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import dataclass, field, fields
 
 import numpy as np
 
@@ -24,8 +24,8 @@ from tabletop.arm.model import TCP_FRAME
 from tabletop.errors import ConfigError, SimulationError
 from tabletop.recording import Recording, Segment
 from tabletop.sim.camera import WristCameraConfig
-from tabletop.sim.ground_truth import SoundEventTruth
-from tabletop.sim.noise import NoiseConfig, apply_noise
+from tabletop.sim.noise import NoiseConfig
+from tabletop.sim.scan_frames import FrameRecorder, FrameState, assemble_recording
 from tabletop.sim.scene import SceneSpec
 from tabletop.sim.teleop import (
     Keyframe,
@@ -280,8 +280,6 @@ def run_scan(
 
     ``progress(done, total)`` is called after each rendered frame.
     """
-    from tabletop.sim.sound_insertion import insert_sounds
-
     if not isinstance(spec, SceneSpec):
         raise ConfigError(
             f"run_scan scans a SceneSpec (tabletop.sim.scene.load_scene_spec('default')), got "
@@ -311,13 +309,14 @@ def run_scan(
             for (name, kind), a, b in zip(kinds, frames[:-1], frames[1:], strict=True)
         ]
         n = len(q_all)
-        H, W = config.camera.height, config.camera.width
-        rgb = np.empty((n, H, W, 3), np.uint8)
-        depth = np.empty((n, H, W), np.float32)
-        seg = np.empty((n, H, W), np.uint16)
-        T_world_hand = np.empty((n, 4, 4))
-        tcp_world = np.empty((n, 3))
-        render_s = 0.0
+
+        def state() -> FrameState:  # the joints the loop below has just set, q
+            T = world.T_world_hand()
+            return FrameState(T, T, q, world.link_pose(TCP_FRAME)[:3, 3])
+
+        recorder = FrameRecorder(
+            world, config.rate_hz, state, None if progress is None else lambda k: progress(k, n)
+        )
         for i, q in enumerate(q_all):
             world.set_arm(q)
             clearance = world.min_clearance(max_distance=config.min_clearance + 0.01)
@@ -326,46 +325,20 @@ def run_scan(
                     f"scan frame {i}: the arm comes {clearance * 1000:.1f} mm from the scene "
                     f"(minimum {config.min_clearance * 1000:.0f} mm)"
                 )
-            T_world_hand[i] = world.T_world_hand()
-            tcp_world[i] = world.link_pose(TCP_FRAME)[:3, 3]
-            t1 = time.perf_counter()
-            img = world.render(T_world_hand[i] @ T_hand_cam)
-            render_s += time.perf_counter() - t1
-            rgb[i], depth[i], seg[i] = img.rgb, img.depth, img.segmentation
-            if progress is not None:
-                progress(i + 1, n)
+            recorder.capture()
         ground_truth = world.ground_truth()
         renderer = world.renderer
         K = world.intrinsics.K
 
-    timestamps = np.arange(n) / config.rate_hz
-    audio, audio_rate, events = None, 16000, []
-    if config.episodes:
-        audio, audio_rate, events = insert_sounds(
-            timestamps, tcp_world, segments, plan.episode_centers, config
-        )
-    ground_truth = replace(
-        ground_truth,
-        sound_events=tuple(
-            SoundEventTruth.from_dict(e, f"sound_events[{i}]") for i, e in enumerate(events)
-        ),
-    )
-
-    rec_kwargs = dict(
-        timestamps=timestamps,
-        rgb=rgb,
-        depth=depth,
-        joint_positions=q_all,
-        T_world_hand=T_world_hand,
+    rec = assemble_recording(
+        recorder.arrays(),
+        config=config,
+        segments=segments,
+        episode_centers=plan.episode_centers,
+        ground_truth=ground_truth,
         K=K,
         T_hand_cam=T_hand_cam,
         T_hand_mic=T_hand_tcp(),  # the microphone rides at the tool centre point
-        depth_resolution=config.camera.depth_resolution,
-        audio=audio,
-        audio_rate=audio_rate,
-        segments=tuple(segments),
-        segmentation=seg,
-        ground_truth=ground_truth.to_dict(),  # the recording keeps the JSON form
         meta={
             "source": "tabletop.sim",
             "scene": spec.name,
@@ -374,14 +347,11 @@ def run_scan(
             "rate_hz": config.rate_hz,
         },
     )
-    rec = Recording(**rec_kwargs)
-    if config.noise.any:
-        rec = apply_noise(rec, config.noise)
     stats = ScanStats(
         frames=len(rec),
         simulated_s=float(n / config.rate_hz),
         wall_s=time.perf_counter() - t_start,
-        render_s=render_s,
+        render_s=recorder.render_s,
         ik_s=ik_s,
     )
     log.info("scan: %d frames in %.1f s (%.1f frames/s)", stats.frames, stats.wall_s, stats.fps)
