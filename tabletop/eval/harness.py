@@ -207,8 +207,19 @@ QUERY_TIME_SOURCES = frozenset(
 )
 
 
-#: Data files read only at query time (a cached map is given today's: :func:`cached_map`).
-QUERY_TIME_DATA = frozenset({"descriptions.toml", "sound_words.toml", "kind_reader.json"})
+#: Data files read only at query time (a cached map is given today's: :func:`cached_map`; the
+#: readers' and the shape prior's weights are loaded by the query code itself, which the map
+#: layer does not import at build time).
+QUERY_TIME_DATA = frozenset(
+    {
+        "descriptions.toml",
+        "sound_words.toml",
+        "kind_reader.json",
+        "reader.pt",
+        "place_reader.json",
+        "shape_prior.json",
+    }
+)
 
 
 def _fingerprint(*packages: str) -> str:
