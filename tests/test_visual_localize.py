@@ -136,6 +136,29 @@ def test_map_image_heatmap_peaks_on_what_the_image_shows(avlmap, queries, rec):
         np.testing.assert_allclose(h.values[:, :, 0], ref, atol=1e-5)
 
 
+def test_a_saved_map_keeps_what_its_image_goals_name(avlmap, queries, tmp_path):
+    from dataclasses import replace
+
+    from tabletop.mapping import AVLMap
+
+    g = queries[0][0]
+    view = avlmap.image_heatmap(g.image).target
+    own = (avlmap.config, avlmap.images.target)
+    avlmap.config = replace(own[0], visual=replace(own[0].visual, target="camera"))
+    avlmap.images.target = "camera"  # a room's map: where the picture was taken
+    try:
+        back = AVLMap.load(avlmap.save(tmp_path / "camera.npz"))
+    finally:
+        avlmap.config, avlmap.images.target = own
+    assert back.config.visual.target == back.images.target == "camera"
+    where = back.image_heatmap(g.image).target
+    # the floor beneath the camera, not the point the picture shows
+    assert abs(where[2] - back.grid.lower[2]) < 0.05 < np.linalg.norm(where[:2] - view[:2])
+    assert np.linalg.norm(where[:2] - g.T_world_cam[:2, 3]) < 0.05
+    plain = AVLMap.load(avlmap.save(tmp_path / "view.npz"))
+    assert plain.images.target == plain.config.visual.target == "view"
+
+
 def test_broad_image_heatmap_and_failure_is_not_found_not_an_exception(avlmap, queries):
     g = queries[0][0]
     h, broad = avlmap.image_heatmap(g.image), avlmap.image_heatmap(g.image, major=False)

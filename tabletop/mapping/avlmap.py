@@ -402,6 +402,9 @@ class AVLMap:
             c = dict(h["config"])
             saved_visual = c.pop("visual", None) or {}
             target_px = float(saved_visual.get("target_px", VisualModuleConfig().target_px))
+            # what an image goal names ("view" or "camera": a room's base goes where the picture
+            # was taken); files that predate it named the view
+            target = str(saved_visual.get("target", VisualModuleConfig().target))
             if h["version"] < 3:
                 lacks.append("its image target's size and the area module's config (defaults)")
             config = MapConfig.from_dict({**c, "visual": None})  # visual: with its frames below
@@ -470,11 +473,13 @@ class AVLMap:
                 db = VisualDatabase.from_state(h["visual"], visual)
             except VisualDatabaseError as e:
                 raise VisualDatabaseError(f"{path}: {e}") from None
+            visual_config = VisualModuleConfig(
+                localization=db.config, target_px=target_px, target=target
+            )
             m.images.database = db
             m.images.target_px = target_px
-            m.config = replace(
-                config, visual=VisualModuleConfig(localization=db.config, target_px=target_px)
-            )
+            m.images.target = visual_config.target
+            m.config = replace(config, visual=visual_config)
         elif h["version"] == 1:
             lacks.append("the visual localization module (image goals are not found)")
         m.lacks = tuple(lacks)
