@@ -79,7 +79,11 @@ class InstanceConfig:
     heights' second difference across their boundary above this [m]: a flat top meeting a
     rising flank, where one object leans on another — belong to different objects when their
     fused features' cosine is also below :attr:`split_cos_shape` (two touching objects of one
-    colour whose features alone are too alike to cut); None: shape never cuts."""
+    colour whose features alone are too alike to cut); None: shape never cuts. Room maps cut
+    at 1.5 cm (:func:`~tabletop.eval.room.room_map_settings`): over the room suites' and the
+    arm's default suite's maps it parts the one pair the default encoders merged (a blue brick
+    against a blue ball) and splits no object (``tools/instance_split_report.py``); the arm's
+    maps keep it off until its suites are measured with it."""
     split_cos_shape: float = 0.9
     """...the fused features' cosine below which a crease cuts (a crease inside one object,
     a teddy bear's arm against its belly, keeps its features alike and stays joined)."""
