@@ -40,6 +40,9 @@ def only(instruction):
         "okay, now go over to the red mug",
         "move your hand to the red mug",
         "steer the gripper to the red mug",
+        # the robot's own part with words before its noun is still the robot's
+        "nudge your little claw over to the red mug",
+        "bring your long metal arm across to the red mug",
         "go and touch the red mug",
         "make your way to the red mug",
         "move closer to the red mug",
