@@ -650,7 +650,7 @@ def add_commands(sub) -> None:
         "'paraphrase-heldout-14', 'paraphrase-heldout-15', 'paraphrase-heldout-17', "
         "'paraphrase-heldout-28', 'paraphrase-heldout-29', 'paraphrase-heldout-30', "
         "'paraphrase-heldout-31', 'paraphrase-heldout-32' (held out: "
-        "each run once for a report; the misses of heldout-28 ... heldout-31 were read after "
+        "each run once for a report; the misses of heldout-28 ... heldout-32 were read after "
         "it), "
         "'clutter' (dense tables: goals on, beside and between objects), "
         "'mobile' (a wheeled base in rooms, 1 m success radius)",

@@ -118,7 +118,7 @@ POOLS = (
 #: Held-out pools: evaluated once, for a report ("heldout-13", "heldout-14", "heldout-15",
 #: "heldout-17", "heldout-30", "heldout-31" and "heldout-32"), written without reading the
 #: parser, the lexicons or the other pools; their suites generated unread. The misses of
-#: heldout-30 and heldout-31 were read after their reports; they stay out of training until the
+#: heldout-30 ... heldout-32 were read after their reports; they stay out of training until the
 #: readers are next refitted, so that the committed ones reproduce (:data:`READ_HELDOUT_POOLS`);
 #: the next judge is a new pool. A held-out pool whose suites were read after its report
 #: ("heldout", "heldout-2" ... "heldout-12", "heldout-16", and "heldout-18" ... "heldout-29":
@@ -154,6 +154,7 @@ READ_HELDOUT_POOLS: tuple[str, ...] = (
     "heldout-29",
     "heldout-30",
     "heldout-31",
+    "heldout-32",
 )
 BANK_DIR = DATA_DIR / "paraphrases"
 SUITE_DIRS = {p: f"paraphrase-{p}" for p in POOLS}
