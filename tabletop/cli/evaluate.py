@@ -649,7 +649,7 @@ def add_commands(sub) -> None:
         "two were held out until their report), 'paraphrase-heldout-13', "
         "'paraphrase-heldout-14', 'paraphrase-heldout-15', 'paraphrase-heldout-17', "
         "'paraphrase-heldout-28', 'paraphrase-heldout-29', 'paraphrase-heldout-30', "
-        "'paraphrase-heldout-31', 'paraphrase-heldout-32' (held out: "
+        "'paraphrase-heldout-31', 'paraphrase-heldout-32', 'paraphrase-heldout-33' (held out: "
         "each run once for a report; the misses of heldout-28 ... heldout-32 were read after "
         "it), "
         "'clutter' (dense tables: goals on, beside and between objects), "
