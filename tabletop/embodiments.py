@@ -3,9 +3,9 @@
 Everything that differs between the arm over a table and the wheeled base in a room is a field
 of its embodiment: the robot-API class, the obstacle embodiments it may take, its prompt, its
 success radius and longest move, whether it drives and turns, the task file's section naming
-where it works, its scan's settings, the map settings, the evaluation (scan driver, world and
-robot), the suite generator, the demo and the drivers that may move it. Its primitives are
-those declared for it (:func:`tabletop.robot.primitives.primitives_of`). The reader, code
+where it works, its scan's settings, the evaluation (scan driver, world and robot), the suite
+generator, the demo and the drivers that may move it. Its primitives are those declared for
+it (:func:`tabletop.robot.primitives.primitives_of`). The reader, code
 generation, evaluation, report and CLI look the embodiment up by name (:func:`embodiment`)
 instead of testing for one robot; a new robot is a new :class:`Embodiment` handed to
 :func:`register`, and no other file changes.
@@ -26,11 +26,11 @@ Typical use::
 from __future__ import annotations
 
 import importlib
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 from tabletop.errors import ConfigError
 
-__all__ = ["EMBODIMENTS", "Embodiment", "embodiment", "names", "register", "unregister"]
+__all__ = ["EMBODIMENTS", "Embodiment", "embodiment", "register", "unregister"]
 
 #: The fields of :class:`Embodiment` that name a ``"module:attribute"`` to import lazily.
 LAZY_FIELDS = (
@@ -40,7 +40,6 @@ LAZY_FIELDS = (
     "evaluate",
     "suites",
     "demo",
-    "map_settings",
 )
 
 
@@ -73,25 +72,23 @@ class Embodiment:
     the default; empty: none to choose."""
     prompt: str = "tabletop.language.prompts:ARM_PROMPT"
     """``"module:attr"``: its :class:`~tabletop.language.prompts.PromptParts` (preamble,
-    conventions, examples); the API list is made from :attr:`primitives`."""
+    conventions, examples); the API list is made from its primitives
+    (:func:`~tabletop.robot.primitives.primitives_of`)."""
     scan_config: str = "tabletop.sim.scan:ScanConfig"
     """``"module:Class"``: its scan's settings (a task file's ``[scan]``)."""
     scan_fields: tuple[str, ...] | None = None
     """The ``[scan]`` keys a task file may set (None: every field of :attr:`scan_config`)."""
     evaluate: str = "tabletop.eval.runner:evaluate_table_task_file"
     """``"module:function"``: scan, map and run a task file's goals
-    (``(task_file, encoders, *, cache_dir, progress, map_overrides, scan_overrides, noise)``
-    -> :class:`~tabletop.eval.results.TaskRun`)."""
+    (``(task_file, encoders, *, cache_dir, figures_dir, progress, map_overrides,
+    scan_overrides, noise, reader, driver)`` -> :class:`~tabletop.eval.results.TaskRun`)."""
     suites: str | None = None
     """``"module:function"``: writes its generated goal suites (None: none)."""
     demo: str | None = None
-    """``"module:function"``: its end-to-end demo ``(out_dir, encoders) -> exit code``."""
-    map_settings: str | None = None
-    """``"module:function"``: the map settings of its workspace (None: the table's)."""
+    """``"module:function"``: its end-to-end demo ``(out_dir, encoders, driver) -> exit
+    code``."""
     drivers: tuple[str, ...] = ("sim",)
     """What may move it in an evaluation (``--driver``), the first the default."""
-    notes: dict = field(default_factory=dict, compare=False)
-    """Free-form facts for reports and docs."""
 
     def __post_init__(self) -> None:
         if not self.name.isidentifier():
@@ -190,16 +187,10 @@ MOBILE = Embodiment(
     evaluate="tabletop.eval.runner:evaluate_room_task_file",
     suites="tabletop.eval.room_suites:write_room_suites",
     demo="tabletop.cli.evaluate:_mobile_demo",
-    map_settings="tabletop.eval.room:room_map_settings",
 )
 
 #: Every registered embodiment by name, the arm first.
 EMBODIMENTS: dict[str, Embodiment] = {e.name: e for e in (ARM, MOBILE)}
-
-
-def names() -> tuple[str, ...]:
-    """The registered embodiments' names."""
-    return tuple(EMBODIMENTS)
 
 
 def embodiment(name: str) -> Embodiment:
