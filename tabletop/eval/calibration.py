@@ -36,18 +36,15 @@ GATED = ("image", "area")
 
 
 def calibration_samples(
-    m,
-    ground_truth: GroundTruth,
-    image_goals=(),
-    foreign_images=(),
-    radius: float = SUCCESS_RADIUS_M,
+    m, ground_truth: GroundTruth, image_goals=(), foreign_images=()
 ) -> list[dict]:
     """Labelled queries of one map: ``{"modality", "query", "margin", "correct"}`` each.
 
-    An answer is right when it lands within ``radius`` [m] of the truth: the success radius
-    of the robot the map serves (the arm's 10 cm by default; a base's 1 m in a room).
-    Objects: every object label and every kind name present (right when the target lands
-    near an object carrying it), every catalog kind absent from the scene and,
+    An answer is right when it lands within the arm's success radius (10 cm) of the truth:
+    whether the map found the thing, for a room's map too (a base's 1 m would count lucky
+    answers in a small room as right). Objects: every object label and every kind name
+    present (right when the target lands near an object carrying it), every catalog kind
+    absent from the scene and,
     for each present kind, a colour it may take that none of its objects has (always wrong).
     Sounds: the caption of every inserted category (right near the column above a
     place it was inserted, up to where it was heard) and of sound-bank categories never
@@ -70,12 +67,12 @@ def calibration_samples(
         {mod: -np.inf for mod in MODALITIES if mod not in GATED},
     )
     try:
-        return _calibration_samples(m, ground_truth, image_goals, foreign_images, radius)
+        return _calibration_samples(m, ground_truth, image_goals, foreign_images)
     finally:
         m.calibration = previous
 
 
-def _calibration_samples(m, ground_truth, image_goals, foreign_images, radius) -> list[dict]:
+def _calibration_samples(m, ground_truth, image_goals, foreign_images) -> list[dict]:
     from tabletop.eval.map_goals import heard_column
     from tabletop.sim.catalog import OBJECT_KINDS
     from tabletop.sim.sound_bank import SoundBank
@@ -91,7 +88,7 @@ def _calibration_samples(m, ground_truth, image_goals, foreign_images, radius) -
             margin = float(h.evidence)
             # The label is where the target is with every query accepted: the calibration
             # decides acceptance, so it must see the targets of queries a threshold refuses.
-            ok = bool(truth) and h.peak > 0 and min(truth(m.get_max_pos_3d(h))) <= radius
+            ok = bool(truth) and h.peak > 0 and min(truth(m.get_max_pos_3d(h))) <= SUCCESS_RADIUS_M
         out.append(
             {
                 "modality": modality,
@@ -150,7 +147,7 @@ def _calibration_samples(m, ground_truth, image_goals, foreign_images, radius) -
     def add_image(query, h, truth) -> None:
         # a refused pose is no answer at all: the weakest evidence there is
         margin = float(h.evidence) if h.found else -1.0
-        right = h.found and truth is not None and min(truth(h.target)) <= radius
+        right = h.found and truth is not None and min(truth(h.target)) <= SUCCESS_RADIUS_M
         out.append(
             {"modality": "image", "query": query, "margin": margin, "correct": right}
             | {"found": h.found}
@@ -319,9 +316,9 @@ def run_room_calibration(
     """:func:`run_calibration` for room maps (``tabletop calibrate --rooms``): a generated room
     per seed, scanned by the wheeled base and mapped with the room's settings
     (:func:`~tabletop.eval.room.room_map_settings`: the room-aware image network, frames
-    enlarged twice), its objects, sounds and areas queried (no image goals) and labelled by
-    the base's success radius; fitted on the first rooms, reported on the last (one room in
-    three)."""
+    enlarged twice), its objects, sounds and areas queried (no image goals) and labelled as
+    the arm's are (:func:`calibration_samples`); fitted on the first rooms, reported on the
+    last (one room in three)."""
     from tabletop.eval.harness import cached_map
     from tabletop.eval.room import cached_room_recording, room_map_settings, room_recording_key
     from tabletop.sim.room import generate_room
