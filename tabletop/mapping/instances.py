@@ -274,6 +274,10 @@ def segment_instances(
     return instances_from_labels(voxels, labels)
 
 
+#: The steps across a column a fold is measured along: the two axes and the two diagonals.
+_FOLD_STEPS = ((1, 0), (0, 1), (1, 1), (1, -1))
+
+
 def _creases(sub: np.ndarray, z: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """(pairs,) [m] how sharply the top surface folds upwards at or beside the columns of
     voxels ``a`` and ``b`` (rows of ``sub``, (n, 3) grid indices; ``z`` (n,) [m] their
@@ -284,6 +288,8 @@ def _creases(sub: np.ndarray, z: np.ndarray, a: np.ndarray, b: np.ndarray) -> np
     flat or falling surface meets a rising one (two objects leaning together); at most a
     voxel's rounding on one convex object; -inf for a vertical pair, or where no direction has
     both neighbouring columns seen (a hole or an edge is no crease)."""
+    from scipy.ndimage import maximum_filter  # only maps that split on shape pay its import
+
     cols = sub[:, :2]
     lo = cols.min(axis=0) - 1
     shape = tuple(cols.max(axis=0) - lo + 2)
@@ -292,7 +298,7 @@ def _creases(sub: np.ndarray, z: np.ndarray, a: np.ndarray, b: np.ndarray) -> np
     seen = np.isfinite(top)
     fold = np.full(shape, -np.inf)
     inner = (slice(1, -1), slice(1, -1))
-    for dx, dy in ((1, 0), (0, 1), (1, 1), (1, -1)):
+    for dx, dy in _FOLD_STEPS:
         before = top[1 - dx : shape[0] - 1 - dx, 1 - dy : shape[1] - 1 - dy]
         after = top[1 + dx : shape[0] - 1 + dx, 1 + dy : shape[1] - 1 + dy]
         with np.errstate(invalid="ignore"):
@@ -302,12 +308,7 @@ def _creases(sub: np.ndarray, z: np.ndarray, a: np.ndarray, b: np.ndarray) -> np
             )
     # a fold reaches the columns around it: where two objects meet only at a corner or along a
     # low flank, the pairs there pass beside the folded columns, not through them
-    near = fold.copy()
-    for dx, dy in ((1, 0), (0, 1), (1, 1), (1, -1)):
-        for sx, sy in ((dx, dy), (-dx, -dy)):
-            src = fold[max(sx, 0) : shape[0] + min(sx, 0), max(sy, 0) : shape[1] + min(sy, 0)]
-            dst = near[max(-sx, 0) : shape[0] + min(-sx, 0), max(-sy, 0) : shape[1] + min(-sy, 0)]
-            np.maximum(dst, src, out=dst)
+    near = maximum_filter(fold, size=3, mode="constant", cval=-np.inf)
     ca, cb = tuple((cols[a] - lo).T), tuple((cols[b] - lo).T)
     out = np.maximum(near[ca], near[cb])
     out[np.all(cols[a] == cols[b], axis=1)] = -np.inf  # one column: no fold between them
