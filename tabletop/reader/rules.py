@@ -459,7 +459,8 @@ _VERB = re.compile(
     r"lead\s+the\s+way\s+(?:to|towards?)|"  # before "lead" alone takes "the way" as a thing
     rf"(?:{_MOTION_VERBS})"
     # the robot's own part, said with any words before its noun ("your long metal arm")
-    r"(?:\s+(?:(?:the|your)\s+(?:[a-z'-]+\s+){0,2})?(?:arm|gripper|hand|fingers?|claw|tip|pointer|robot|"
+    r"(?:\s+(?:(?:the|your)\s+(?:[a-z'-]+\s+){0,2})?"
+    r"(?:arm|gripper|hand|fingers?|claw|tip|pointer|robot|"
     r"end[\s-]effector|tcp|camera|wrist|grabber|manipulator)|\s+yourself"
     r"|\s+your\s+way|\s+it|\s+me|\s+us)?"
     r"(?:\s+(?:on\s+)?(?:back|over|up|out|down|across|a?round|along|straight|right|directly)"

@@ -62,13 +62,11 @@ class FrameRecorder:
         progress: Callable[[int], None] | None = None,
         t0: float = 0.0,
     ) -> None:
-        self.world, self.rate, self.state, self.progress, self.t0 = (
-            world,
-            rate_hz,
-            state,
-            progress,
-            t0,
-        )
+        self.world = world
+        self.rate = rate_hz
+        self.state = state
+        self.progress = progress
+        self.t0 = t0
         self.frames: dict[str, list] = {
             k: [] for k in ("rgb", "depth", "seg", "pose", "true", "joints", "mic")
         }
